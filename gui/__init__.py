@@ -1,0 +1,1 @@
+"""Operator console (PySide6 + pyqtgraph + moderngl). Optional extra: ``pip install 'courtside[console]'``."""
