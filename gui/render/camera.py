@@ -1,0 +1,115 @@
+"""View/projection matrices and an orbit camera with follow and static modes.
+
+Matrices are numpy row-major 4x4 (column vectors: ``clip = P @ V @ p``); send ``m.T`` to GLSL, which is
+column-major. World frame is the engine's: Y up, ground plane X-Z, metres (docs/CONTRACTS.md)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+
+def perspective(fovy_rad: float, aspect: float, near_m: float, far_m: float) -> np.ndarray:
+    """OpenGL perspective projection (right-handed eye space, looking down -Z, depth to [-1, 1])."""
+    f = 1.0 / math.tan(fovy_rad / 2.0)
+    m = np.zeros((4, 4))
+    m[0, 0] = f / aspect
+    m[1, 1] = f
+    m[2, 2] = (far_m + near_m) / (near_m - far_m)
+    m[2, 3] = 2.0 * far_m * near_m / (near_m - far_m)
+    m[3, 2] = -1.0
+    return m
+
+
+def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = np.array([0.0, 1.0, 0.0])) -> np.ndarray:
+    """View matrix placing the eye at ``eye`` looking at ``target``."""
+    eye = np.asarray(eye, float)
+    forward = np.asarray(target, float) - eye
+    forward /= np.linalg.norm(forward)
+    side = np.cross(forward, up)
+    side /= np.linalg.norm(side)
+    true_up = np.cross(side, forward)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = side, true_up, -forward
+    m[:3, 3] = -m[:3, :3] @ eye
+    return m
+
+
+def project_to_pixels(points_m: np.ndarray, view_proj: np.ndarray, width_px: int, height_px: int) -> np.ndarray:
+    """World points (N,3) -> pixel coordinates (N,2) as (column, row) with row 0 at the TOP of the image.
+
+    This is the convention of the renderer's read-back image, so tests can look a projected joint up."""
+    pts = np.atleast_2d(np.asarray(points_m, float))
+    clip = np.c_[pts, np.ones(len(pts))] @ view_proj.T
+    ndc = clip[:, :2] / clip[:, 3:4]
+    col = (ndc[:, 0] + 1.0) * 0.5 * width_px
+    row = (1.0 - ndc[:, 1]) * 0.5 * height_px
+    return np.c_[col, row]
+
+
+class CameraMode(str, Enum):
+    """FOLLOW keeps the orbit centred on the player; STATIC frames the whole court from behind the baseline."""
+
+    FOLLOW = "follow"
+    STATIC = "static"
+
+
+@dataclass
+class OrbitCamera:
+    """Orbit camera around a target: yaw about +Y (0 = looking along +Z), pitch above the ground, distance.
+
+    In FOLLOW mode the target eases towards the player's root each frame (``follow``) so the view does not
+    jitter with every step; in STATIC mode the target is the court centre."""
+
+    mode: CameraMode = CameraMode.FOLLOW
+    yaw_rad: float = math.radians(-30.0)
+    pitch_rad: float = math.radians(20.0)
+    distance_m: float = 6.0
+    fovy_rad: float = math.radians(45.0)
+    target_m: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, -11.0]))
+    follow_gain: float = 0.2  # fraction of the remaining gap closed per frame
+
+    STATIC_TARGET_M = np.array([0.0, 0.0, 0.0])
+    STATIC_DISTANCE_M = 30.0
+    STATIC_PITCH_RAD = math.radians(35.0)
+
+    def set_mode(self, mode: CameraMode) -> None:
+        self.mode = CameraMode(mode)
+        if self.mode is CameraMode.STATIC:
+            self.target_m = self.STATIC_TARGET_M.copy()
+            self.distance_m = self.STATIC_DISTANCE_M
+            self.pitch_rad = self.STATIC_PITCH_RAD
+            self.yaw_rad = 0.0
+        else:
+            self.distance_m = 6.0
+            self.pitch_rad = math.radians(20.0)
+
+    def follow(self, root_m: np.ndarray | None) -> None:
+        """Ease the orbit target towards the player's root (ground projection + 1 m) in FOLLOW mode."""
+        if self.mode is not CameraMode.FOLLOW or root_m is None:
+            return
+        goal = np.array([root_m[0], 1.0, root_m[2]])
+        self.target_m = self.target_m + self.follow_gain * (goal - self.target_m)
+
+    def snap_to(self, root_m: np.ndarray) -> None:
+        """Jump straight to the player (first frame, or after a scrub) instead of easing."""
+        self.target_m = np.array([root_m[0], 1.0, root_m[2]])
+
+    def orbit(self, dyaw_rad: float, dpitch_rad: float) -> None:
+        self.yaw_rad += dyaw_rad
+        self.pitch_rad = float(np.clip(self.pitch_rad + dpitch_rad, math.radians(2.0), math.radians(89.0)))
+
+    def zoom(self, factor: float) -> None:
+        self.distance_m = float(np.clip(self.distance_m * factor, 1.0, 80.0))
+
+    def eye_m(self) -> np.ndarray:
+        cp = math.cos(self.pitch_rad)
+        # the eye sits *behind* the target along the viewing direction (yaw 0 looks along +Z)
+        offset = np.array([-math.sin(self.yaw_rad) * cp, math.sin(self.pitch_rad), -math.cos(self.yaw_rad) * cp])
+        return self.target_m + self.distance_m * offset
+
+    def view_proj(self, aspect: float) -> np.ndarray:
+        proj = perspective(self.fovy_rad, aspect, 0.1, 200.0)
+        return proj @ look_at(self.eye_m(), self.target_m)

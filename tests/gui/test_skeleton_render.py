@@ -1,0 +1,94 @@
+"""The moderngl view draws the skeleton where the camera maths says it is (real EGL rendering, pixel checks)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gui.render.camera import CameraMode, OrbitCamera, look_at, perspective, project_to_pixels
+from gui.render.skeleton_renderer import ESTIMATE_STYLE, TRUTH_STYLE, bone_segments
+
+# a stick figure standing near the near baseline (world frame: Y up, metres)
+ROOT = np.array([1.5, 0.0, -10.0])
+OFFSETS = np.array([[0, 1.0, 0], [0, 1.5, 0], [0, 1.75, 0], [0.2, 0.5, 0], [-0.2, 0.5, 0], [0.2, 0.0, 0],
+                    [-0.2, 0.0, 0], [0.45, 1.4, 0], [-0.45, 1.4, 0]])
+PARENTS = np.array([-1, 0, 1, 0, 0, 3, 4, 1, 1])
+POSE = ROOT + OFFSETS
+
+
+def is_estimate_colour(img: np.ndarray) -> np.ndarray:
+    """Orange: strong red, little blue (the court, lines, sky and truth skeleton all fail this)."""
+    r, g, b = (img[..., k].astype(int) for k in range(3))
+    return (r > 100) & (b < 80) & (r - g > 30)
+
+
+def is_truth_colour(img: np.ndarray) -> np.ndarray:
+    r, g, b = (img[..., k].astype(int) for k in range(3))
+    return (g > 100) & (b > 100) & (r < 90)
+
+
+def test_projection_matches_hand_computed_pinhole():
+    """A point straight ahead of the eye projects to the image centre; one at 45 deg half-fov hits the edge."""
+    view = look_at(np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, -1.0]))
+    vp = perspective(math.radians(90.0), 2.0, 0.1, 100.0) @ view
+    px = project_to_pixels(np.array([[0.0, 0.0, -5.0], [0.0, 5.0, -5.0], [10.0, 0.0, -5.0]]), vp, 200, 100)
+    np.testing.assert_allclose(px, [[100, 50], [100, 0], [200, 50]], atol=1e-9)
+
+
+def test_bone_segments_drop_zero_length_bones():
+    pos = np.array([[0, 0, 0], [0, 0, 0], [0, 1, 0]], float)
+    a, b = bone_segments(pos, np.array([-1, 0, 1]))
+    np.testing.assert_allclose(a, [[0, 0, 0]])
+    np.testing.assert_allclose(b, [[0, 1, 0]])
+
+
+@pytest.mark.parametrize("mode", [CameraMode.FOLLOW, CameraMode.STATIC])
+def test_joints_render_at_their_projected_pixels(renderer, mode):
+    cam = OrbitCamera()
+    cam.set_mode(mode)
+    if mode is CameraMode.FOLLOW:
+        cam.snap_to(ROOT)
+    img = renderer.render(cam, [(POSE, PARENTS, ESTIMATE_STYLE)])
+    w, h = renderer.size
+    assert img.shape == (h, w, 4)
+    px = project_to_pixels(POSE, cam.view_proj(w / h), w, h)
+    mask = is_estimate_colour(img)
+    # every joint centre is drawn in skeleton colour (allow a 1-pixel neighbourhood for rasterisation)
+    for col, row in np.round(px).astype(int):
+        assert mask[row - 1:row + 2, col - 1:col + 2].any(), (col, row)
+    # and the skeleton-coloured pixels stay within the projected joints' box (plus the joint radius)
+    rows, cols = np.nonzero(mask)
+    margin = 25 if mode is CameraMode.FOLLOW else 6
+    assert cols.min() >= px[:, 0].min() - margin and cols.max() <= px[:, 0].max() + margin
+    assert rows.min() >= px[:, 1].min() - margin and rows.max() <= px[:, 1].max() + margin
+    assert mask.sum() > 30
+
+
+def test_moving_the_player_moves_the_pixels(renderer):
+    """Static camera: shifting the player 3 m along +X shifts the drawn figure to the right on screen."""
+    cam = OrbitCamera()
+    cam.set_mode(CameraMode.STATIC)
+    cols_at = []
+    for dx in (0.0, 3.0):
+        img = renderer.render(cam, [(POSE + [dx, 0, 0], PARENTS, ESTIMATE_STYLE)])
+        cols_at.append(np.nonzero(is_estimate_colour(img))[1].mean())
+    w, h = renderer.size
+    expected = project_to_pixels(ROOT + [[0, 1, 0], [3, 1, 0]], cam.view_proj(w / h), w, h)[:, 0]
+    assert cols_at[1] - cols_at[0] == pytest.approx(expected[1] - expected[0], abs=3.0)
+
+
+def test_truth_skeleton_drawn_beside_estimate_and_court_lines_visible(renderer):
+    cam = OrbitCamera()
+    cam.snap_to(ROOT)
+    truth = POSE + [1.2, 0, 0]
+    img = renderer.render(cam, [(POSE, PARENTS, ESTIMATE_STYLE), (truth, PARENTS, TRUTH_STYLE)])
+    w, h = renderer.size
+    head_est, head_truth = project_to_pixels(np.array([POSE[2], truth[2]]), cam.view_proj(w / h), w, h).round().astype(int)
+    assert is_estimate_colour(img)[head_est[1] - 1:head_est[1] + 2, head_est[0] - 1:head_est[0] + 2].any()
+    assert is_truth_colour(img)[head_truth[1] - 1:head_truth[1] + 2, head_truth[0] - 1:head_truth[0] + 2].any()
+    # the near baseline (court y = -11.885 m) is white where it projects, away from the players
+    on_line = project_to_pixels(np.array([[ROOT[0] - 1.0, 0.0, -11.885]]), cam.view_proj(w / h), w, h).round().astype(int)[0]
+    assert 1 <= on_line[0] < w - 1 and 1 <= on_line[1] < h - 1
+    patch = img[on_line[1] - 1:on_line[1] + 2, on_line[0] - 1:on_line[0] + 2, :3]
+    assert (patch.min(axis=-1) > 180).any()
