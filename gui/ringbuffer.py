@@ -1,0 +1,66 @@
+"""Fixed-capacity numpy ring buffers for live sensor samples, and min-max decimation for drawing.
+
+Why a ring per sensor: the console keeps the last N seconds of every stream whether or not it is on screen
+(pause / zoom out / switch station must show data already received), with O(batch) appends and no
+allocation in steady state."""
+from __future__ import annotations
+
+import numpy as np
+
+
+class SampleRing:
+    """Last ``capacity`` samples of one sensor: time (s, gateway clock) and ``channels`` values per sample."""
+
+    def __init__(self, capacity: int, channels: int = 3) -> None:
+        if capacity <= 0:
+            raise ValueError("capacity must be positive")
+        self.capacity = capacity
+        self._t = np.zeros(capacity)
+        self._v = np.zeros((capacity, channels))
+        self._head = 0       # next write index
+        self.count = 0       # valid samples (<= capacity)
+        self.total = 0       # samples ever appended
+
+    def append(self, t_s: np.ndarray, values: np.ndarray) -> None:
+        """Append a batch (N,) times and (N, channels) values; keeps only the newest ``capacity``."""
+        t_s = np.asarray(t_s, float).reshape(-1)
+        n = len(t_s)
+        if n == 0:
+            return
+        values = np.asarray(values, float).reshape(n, -1)
+        self.total += n
+        if n >= self.capacity:
+            t_s, values, n = t_s[-self.capacity:], values[-self.capacity:], self.capacity
+        idx = (self._head + np.arange(n)) % self.capacity
+        self._t[idx], self._v[idx] = t_s, values
+        self._head = (self._head + n) % self.capacity
+        self.count = min(self.capacity, self.count + n)
+
+    def data(self) -> tuple[np.ndarray, np.ndarray]:
+        """Samples oldest first: (count,) times and (count, channels) values (copies)."""
+        start = (self._head - self.count) % self.capacity
+        idx = (start + np.arange(self.count)) % self.capacity
+        return self._t[idx], self._v[idx]
+
+    def latest_time(self) -> float | None:
+        return float(self._t[(self._head - 1) % self.capacity]) if self.count else None
+
+
+def minmax_decimate(t: np.ndarray, y: np.ndarray, max_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """Reduce (N,) times and (N, C) values to at most ``max_points`` rows keeping each bin's min and max.
+
+    Peaks survive (an impact spike of one sample is still drawn), which plain striding would lose.
+    Output rows alternate min/max per bin at the bin's first and last time (per channel independently)."""
+    n = len(t)
+    y = np.asarray(y).reshape(n, -1)
+    if n <= max_points or max_points < 4:
+        return t, y
+    bins = max_points // 2
+    per = n // bins
+    used = bins * per
+    start = n - used  # drop the oldest remainder so the newest sample is always kept
+    tb = t[start:].reshape(bins, per)
+    yb = y[start:].reshape(bins, per, -1)
+    t_out = np.stack([tb[:, 0], tb[:, -1]], axis=1).reshape(-1)
+    y_out = np.stack([yb.min(axis=1), yb.max(axis=1)], axis=1).reshape(2 * bins, -1)
+    return t_out, y_out

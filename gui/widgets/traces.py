@@ -1,0 +1,195 @@
+"""Live accelerometer traces (pyqtgraph): per-sensor x/y/z and |a| on the gateway clock.
+
+Data never touches Qt from the network thread: ``TraceStore.put`` is called from any thread and only
+enqueues; the GUI thread's refresh tick calls ``drain`` (bounded work) then ``TracePanel.refresh`` which
+min-max decimates each visible curve to about the plot's pixel width, so the draw cost does not depend on
+the data rate (24 sensors x 100 Hz or 1 kHz alike)."""
+from __future__ import annotations
+
+import queue
+from collections.abc import Hashable, Sequence
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6 import QtCore, QtWidgets
+
+from gui.ringbuffer import SampleRing, minmax_decimate
+
+RANGE_PRESETS_G = (2.0, 6.0, 12.0)
+CHANNEL_PENS = (("x", (230, 80, 80)), ("y", (90, 200, 90)), ("z", (90, 140, 250)), ("|a|", (235, 235, 235)))
+
+
+class TraceStore:
+    """Thread-safe ingress + per-sensor rings. ``put`` from any thread; ``drain`` from the GUI thread only."""
+
+    def __init__(self, history_s: float = 30.0, nominal_rate_hz: float = 100.0) -> None:
+        self.capacity = int(history_s * nominal_rate_hz * 1.5)  # headroom for rate over nominal
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self.rings: dict[Hashable, SampleRing] = {}
+        self.events: list[tuple[float, str]] = []
+
+    def put(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
+        """Enqueue a batch of samples for one sensor (any thread; never blocks)."""
+        self._queue.put((sensor, t_s, acc_g))
+
+    def put_event(self, t_s: float, label: str) -> None:
+        self._queue.put((None, t_s, label))
+
+    def drain(self, max_batches: int = 5000) -> int:
+        """Move queued batches into the rings (GUI thread). Bounded so one tick cannot stall the UI."""
+        n = 0
+        while n < max_batches:
+            try:
+                sensor, t_s, payload = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            n += 1
+            if sensor is None:
+                self.events.append((float(t_s), str(payload)))
+                continue
+            ring = self.rings.get(sensor)
+            if ring is None:
+                ring = self.rings[sensor] = SampleRing(self.capacity, 3)
+            ring.append(t_s, payload)
+        return n
+
+    def latest_time(self) -> float | None:
+        times = [r.latest_time() for r in self.rings.values() if r.count]
+        return max(times) if times else None
+
+
+class TracePanel(QtWidgets.QWidget):
+    """A column of linked plots, one per sensor of the selected group, with pause, range and window controls."""
+
+    def __init__(self, store: TraceStore, window_s: float = 10.0, parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.store = store
+        self.window_s = window_s
+        self.paused = False
+        self.groups: dict[str, list[Hashable]] = {}
+        self._plots: dict[Hashable, pg.PlotItem] = {}
+        self._curves: dict[Hashable, list[pg.PlotDataItem]] = {}
+        self._event_lines: list[pg.InfiniteLine] = []
+        self._events_drawn = 0
+
+        self.group_box = QtWidgets.QComboBox()
+        self.range_box = QtWidgets.QComboBox()
+        for g in RANGE_PRESETS_G:
+            self.range_box.addItem(f"±{g:g} g", g)
+        self.range_box.setCurrentIndex(1)
+        self.pause_button = QtWidgets.QPushButton("Pause")
+        self.pause_button.setCheckable(True)
+        self.window_box = QtWidgets.QComboBox()
+        for w in (2.0, 5.0, 10.0, 30.0):
+            self.window_box.addItem(f"{w:g} s", w)
+        self.window_box.setCurrentIndex(2)
+        bar = QtWidgets.QHBoxLayout()
+        for label, w in (("Sensors", self.group_box), ("Range", self.range_box), ("Window", self.window_box)):
+            bar.addWidget(QtWidgets.QLabel(label))
+            bar.addWidget(w)
+        bar.addWidget(self.pause_button)
+        bar.addStretch(1)
+        self.graphics = pg.GraphicsLayoutWidget()
+        layout = QtWidgets.QVBoxLayout(self)
+        layout.setContentsMargins(2, 2, 2, 2)
+        layout.addLayout(bar)
+        layout.addWidget(self.graphics, 1)
+
+        self.group_box.currentTextChanged.connect(self._show_group)
+        self.range_box.currentIndexChanged.connect(lambda _: self._apply_range())
+        self.pause_button.toggled.connect(self.set_paused)
+        self.window_box.currentIndexChanged.connect(lambda _: setattr(self, "window_s", self.window_box.currentData()))
+
+    # -- configuration -----------------------------------------------------------------------------------
+    def set_groups(self, groups: dict[str, Sequence[Hashable]]) -> None:
+        """Sensor groups (e.g. one per base station) selectable in the combo box; shows the first."""
+        self.groups = {k: list(v) for k, v in groups.items()}
+        current = self.group_box.currentText()
+        self.group_box.blockSignals(True)
+        self.group_box.clear()
+        self.group_box.addItems(list(self.groups))
+        self.group_box.blockSignals(False)
+        self._show_group(current if current in self.groups else next(iter(self.groups), ""))
+        if current in self.groups:
+            self.group_box.setCurrentText(current)
+
+    def _show_group(self, name: str) -> None:
+        self.graphics.clear()
+        self._plots.clear()
+        self._curves.clear()
+        self._event_lines.clear()
+        self._events_drawn = 0
+        first = None
+        for row, sensor in enumerate(self.groups.get(name, [])):
+            plot = self.graphics.addPlot(row=row, col=0)
+            plot.setLabel("left", str(sensor))
+            plot.showGrid(x=True, y=True, alpha=0.2)
+            plot.setMenuEnabled(False)
+            if first is None:
+                first = plot
+                plot.addLegend(offset=(5, 5), colCount=4)
+            else:
+                plot.setXLink(first)
+            self._curves[sensor] = [plot.plot(pen=pg.mkPen(c, width=1), name=n, skipFiniteCheck=True)
+                                    for n, c in CHANNEL_PENS]
+            self._plots[sensor] = plot
+        self._apply_range()
+
+    def _apply_range(self) -> None:
+        g = self.range_box.currentData()
+        for plot in self._plots.values():
+            plot.setYRange(-g, g, padding=0.02)
+
+    def set_range_g(self, g: float) -> None:
+        self.range_box.setCurrentIndex(RANGE_PRESETS_G.index(g))
+
+    def set_paused(self, paused: bool) -> None:
+        """Paused: curves freeze and the x axis is free to zoom/pan; data keeps buffering underneath."""
+        self.paused = paused
+        self.pause_button.setChecked(paused)
+        self.pause_button.setText("Resume" if paused else "Pause")
+        for plot in self._plots.values():
+            plot.setMouseEnabled(x=paused, y=False)
+
+    # -- drawing ------------------------------------------------------------------------------------------
+    def visible_sensors(self) -> list[Hashable]:
+        return list(self._plots)
+
+    def refresh(self) -> None:
+        """Redraw visible curves from the rings (GUI thread, called by the refresh tick)."""
+        self._draw_events()
+        if self.paused:
+            return
+        t_end = self.store.latest_time()
+        if t_end is None:
+            return
+        t0 = t_end - self.window_s
+        width_px = max(200, self.graphics.width())
+        for sensor, curves in self._curves.items():
+            ring = self.store.rings.get(sensor)
+            if ring is None or not ring.count:
+                continue
+            t, acc = ring.data()
+            i0 = int(np.searchsorted(t, t0))
+            t, acc = t[i0:], acc[i0:]
+            vals = np.c_[acc, np.linalg.norm(acc, axis=1)]
+            td, vd = minmax_decimate(t, vals, 2 * width_px)
+            for k, curve in enumerate(curves):
+                curve.setData(td, vd[:, k])
+        if self._plots:
+            next(iter(self._plots.values())).setXRange(t0, t_end, padding=0)
+
+    def _draw_events(self) -> None:
+        """Vertical marker lines for events (taps, calibration steps) on every visible plot."""
+        for t_s, label in self.store.events[self._events_drawn:]:
+            for plot in self._plots.values():
+                line = pg.InfiniteLine(pos=t_s, angle=90, pen=pg.mkPen((250, 200, 60), width=1), label=label,
+                                       labelOpts={"position": 0.9, "color": (250, 200, 60)})
+                plot.addItem(line)
+                self._event_lines.append(line)
+        self._events_drawn = len(self.store.events)
+
+    def curve_data(self, sensor: Hashable, channel: int) -> tuple[np.ndarray, np.ndarray]:
+        """What is currently drawn for ``sensor`` channel (0..3 = x, y, z, |a|): for tests and screenshots."""
+        curve = self._curves[sensor][channel]
+        return curve.xData if curve.xData is not None else np.zeros(0), curve.yData if curve.yData is not None else np.zeros(0)

@@ -1,0 +1,89 @@
+"""Live traces: samples put from a network-side thread reach the plotted curves (real widgets, offscreen)."""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+from gui.widgets.traces import TracePanel, TraceStore
+
+RATE_HZ = 100.0
+
+
+def known_signal(t: np.ndarray, k: int) -> np.ndarray:
+    """Sensor k: x = sin(2 pi (k+1) t), y = 0.5, z = -1 (g) — exact values to check the plotted data against."""
+    return np.c_[np.sin(2 * np.pi * (k + 1) * t), np.full(len(t), 0.5), np.full(len(t), -1.0)]
+
+
+def feed(store: TraceStore, sensors: list[str], seconds: float) -> None:
+    """Push 10-sample batches for every sensor, as the gateway client's reader thread does."""
+    n = int(seconds * RATE_HZ)
+    for start in range(0, n, 10):
+        t = np.arange(start, start + 10) / RATE_HZ
+        for k, s in enumerate(sensors):
+            store.put(s, t, known_signal(t, k))
+
+
+def test_traces_receive_data_from_another_thread(qtbot):
+    sensors = [f"st1/s{k}" for k in range(6)]
+    store = TraceStore(history_s=30.0)
+    panel = TracePanel(store, window_s=5.0)
+    qtbot.addWidget(panel)
+    panel.resize(800, 600)
+    panel.show()
+    panel.set_groups({"station 1": sensors})
+    worker = threading.Thread(target=feed, args=(store, sensors, 12.0))
+    worker.start()
+    worker.join()
+    store.put_event(11.0, "tap")
+    assert store.drain() == 6 * 120 + 1
+    panel.refresh()
+    for k, s in enumerate(sensors):
+        t, x = panel.curve_data(s, 0)
+        # only the last 5 s window is drawn, newest sample last
+        assert t[0] >= 12.0 - 0.01 - 5.0 - 1e-9 and t[-1] == 11.99
+        np.testing.assert_allclose(x, np.sin(2 * np.pi * (k + 1) * t), atol=1e-12)
+        _, mag = panel.curve_data(s, 3)
+        np.testing.assert_allclose(mag, np.sqrt(x ** 2 + 0.25 + 1.0), atol=1e-12)
+    assert len(panel._event_lines) == len(sensors)  # one tap marker per visible plot
+
+
+def test_pause_freezes_curves_but_keeps_buffering(qtbot):
+    store = TraceStore()
+    panel = TracePanel(store, window_s=5.0)
+    qtbot.addWidget(panel)
+    panel.set_groups({"a": ["s0"]})
+    feed(store, ["s0"], 2.0)
+    store.drain()
+    panel.refresh()
+    frozen = panel.curve_data("s0", 0)[0].copy()
+    panel.set_paused(True)
+    t = np.arange(200, 300) / RATE_HZ
+    store.put("s0", t, known_signal(t, 0))
+    store.drain()
+    panel.refresh()
+    np.testing.assert_array_equal(panel.curve_data("s0", 0)[0], frozen)
+    assert store.rings["s0"].latest_time() == 2.99
+    panel.set_paused(False)
+    panel.refresh()
+    assert panel.curve_data("s0", 0)[0][-1] == 2.99
+
+
+def test_range_presets_and_many_points_are_decimated(qtbot):
+    store = TraceStore(history_s=30.0, nominal_rate_hz=1000.0)
+    panel = TracePanel(store, window_s=30.0)
+    qtbot.addWidget(panel)
+    panel.resize(600, 300)
+    panel.set_groups({"a": ["s0"]})
+    t = np.arange(30_000) / 1000.0
+    acc = np.zeros((len(t), 3))
+    acc[12_345, 2] = 9.0  # one-sample spike must survive decimation
+    store.put("s0", t, acc)
+    store.drain()
+    panel.refresh()
+    td, z = panel.curve_data("s0", 2)
+    assert len(td) <= 2 * max(200, panel.graphics.width())
+    assert z.max() == 9.0
+    panel.set_range_g(12.0)
+    lo, hi = panel._plots["s0"].viewRange()[1]
+    assert lo <= -12.0 and hi >= 12.0 and hi < 13.0
