@@ -1,0 +1,238 @@
+"""One clock: map each base station's u32 device tick counter onto the gateway's monotonic clock (seconds).
+
+Two steps per station:
+
+1. `TickUnwrapper` turns u32 ticks into a continuous int64 count. It predicts where the counter should be from the
+   host time elapsed since the last packet, so a wrap (counter passes 2**32 where predicted) is told apart from a
+   reset (counter lands far from the prediction, e.g. back near 0 after a reboot) and from small reordering
+   between sensors. A reset starts a new *epoch*: the estimator is restarted because the device time origin moved.
+2. `ClockEstimator` fits ``host_arrival - device_time = offset + skew * device_time + latency`` where latency >= 0.
+   Transport latency (USB batching, radio retries, scheduling) is one-sided, so the true clock relation is the
+   *lower envelope* of the points (Olson 2010; TICSync / cuckoo ConvexHullOwt). Over a sliding window we keep the
+   minimum per short bin, take the lower convex hull, and choose the hull edge spanning the window's mean time:
+   that is the line below every point with the least total distance to them (the L1 one-sided fit), which is
+   insensitive to how large or variable the latency is, unlike a least-squares fit on arrival times.
+
+Raw ticks and arrival times are kept by the recorder, so `realign_offline` can redo the fit over a whole take.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+WRAP_TICKS = 1 << 32
+
+
+@dataclass
+class ClockState:
+    """Current estimate for one station (units in the names)."""
+
+    offset_s: float = float("nan")  # host_time - device_time at the newest device time seen
+    skew_ppm: float = 0.0  # (host rate / device rate - 1) * 1e6
+    residual_s: float = float("nan")  # median height of the per-bin minima above the fitted envelope
+    locked: bool = False  # warm-up over: the window spans at least `lock_after_s`
+    points: int = 0  # bins in the current window
+    resets: int = 0  # device resets seen (each restarts the estimator)
+    wraps: int = 0  # u32 counter wraps seen
+
+    def as_dict(self) -> dict:
+        return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in vars(self).items()}
+
+
+class TickUnwrapper:
+    """u32 ticks -> int64 ticks continuous within an epoch; detects wraps and resets.
+
+    ``tolerance_s`` bounds how far a sample may sit from the prediction (reordering across sensors, latency jitter,
+    drift during a long gap) before it counts as a reset.
+    """
+
+    def __init__(self, tick_hz: float, tolerance_s: float = 2.0, max_drift_ppm: float = 500.0):
+        self.tick_hz = float(tick_hz)
+        self.tolerance_s = tolerance_s
+        self.max_drift_ppm = max_drift_ppm
+        self.epoch = 0
+        self.wraps = 0
+        self._ref: int | None = None  # newest unwrapped tick seen
+        self._ref_arrival_s = 0.0
+
+    def restart(self) -> None:
+        """Forget the counter (e.g. a new boot id in HELLO): the next packet starts a new epoch."""
+        if self._ref is not None:
+            self.epoch += 1
+        self._ref = None
+
+    def unwrap(self, raw_ticks: np.ndarray, arrival_s: float) -> tuple[np.ndarray, bool]:
+        """Unwrap one packet's ticks (arrival = host time the packet arrived). Returns (ticks int64, reset?)."""
+        raw = np.asarray(raw_ticks, dtype=np.int64)
+        if raw.size == 0:
+            return raw, False
+        reset = False
+        if self._ref is None:
+            unwrapped = raw.copy()
+        else:
+            elapsed_s = max(arrival_s - self._ref_arrival_s, 0.0)
+            predicted = self._ref + int(round(elapsed_s * self.tick_hz))
+            delta0 = (int(raw[0]) - predicted + WRAP_TICKS // 2) % WRAP_TICKS - WRAP_TICKS // 2
+            tolerance = self.tick_hz * (self.tolerance_s + elapsed_s * self.max_drift_ppm * 1e-6)
+            if abs(delta0) > tolerance:
+                reset = True
+                self.epoch += 1
+                unwrapped = raw.copy()
+                self._ref = None
+            else:
+                unwrapped = raw + (predicted + delta0 - int(raw[0]))
+        # Within the packet ticks increase; a wrap inside it shows as a drop of almost 2**32.
+        steps = np.diff(unwrapped)
+        inner = steps < -(WRAP_TICKS // 2)
+        if inner.any():
+            unwrapped[1:] += np.cumsum(inner).astype(np.int64) * WRAP_TICKS
+        newest = int(unwrapped.max())
+        if self._ref is None or newest > self._ref:
+            if self._ref is not None and newest // WRAP_TICKS > self._ref // WRAP_TICKS:
+                self.wraps += newest // WRAP_TICKS - self._ref // WRAP_TICKS
+            self._ref = newest
+            self._ref_arrival_s = arrival_s
+        return unwrapped, reset
+
+
+class ClockEstimator:
+    """Online lower-envelope fit of host arrival time against device time for one clock epoch.
+
+    Feed one point per packet: the device time of the *newest* sample in it (it has the least latency) and the
+    host arrival time. ``bin_s`` groups points so the hull stays small; ``window_s`` is how much history the fit
+    uses (long enough to average, short enough to follow temperature drift); ``lock_after_s`` is the warm-up.
+    """
+
+    def __init__(self, window_s: float = 60.0, bin_s: float = 0.25, lock_after_s: float = 30.0):
+        self.window_s = window_s
+        self.bin_s = bin_s
+        self.lock_after_s = lock_after_s
+        self.state = ClockState()
+        self._origin_s: float | None = None  # device time origin, keeps floats small
+        self._bins: deque[tuple[float, float]] = deque()  # (x = device time - origin, min y) per closed bin
+        self._open_bin = -1
+        self._open_x = 0.0
+        self._open_y = float("inf")
+        self._a = 0.0  # y = a + b * x
+        self._b = 0.0
+        self._first_x = 0.0
+
+    def restart(self) -> None:
+        resets = self.state.resets + 1
+        self.__init__(self.window_s, self.bin_s, self.lock_after_s)
+        self.state.resets = resets
+
+    def add(self, device_s: float, arrival_s: float) -> None:
+        """One (device time, host arrival time) pair, both seconds."""
+        if self._origin_s is None:
+            self._origin_s = device_s
+            self._first_x = 0.0
+        x = device_s - self._origin_s
+        y = arrival_s - device_s
+        index = int(np.floor(x / self.bin_s))
+        if index != self._open_bin:
+            if self._open_bin >= 0 and np.isfinite(self._open_y):
+                self._close_bin()
+            self._open_bin, self._open_y = index, float("inf")
+        if y < self._open_y:
+            self._open_x, self._open_y = x, y
+        if len(self._bins) < 2:  # until two bins close: best single-point guess, no skew
+            points = [p[1] for p in self._bins] + [self._open_y]
+            self._a, self._b = min(points), 0.0
+            self.state.offset_s = self._a
+
+    def _close_bin(self) -> None:
+        self._bins.append((self._open_x, self._open_y))
+        newest = self._open_x
+        while self._bins and self._bins[0][0] < newest - self.window_s:
+            self._bins.popleft()
+        if len(self._bins) >= 2:
+            self._fit()
+        self.state.points = len(self._bins)
+        self.state.locked = newest - self._first_x >= self.lock_after_s
+
+    def _fit(self) -> None:
+        pts = np.array(self._bins)
+        a, b = lower_envelope_line(pts[:, 0], pts[:, 1])
+        self._a, self._b = a, b
+        newest = pts[-1, 0]
+        self.state.offset_s = a + b * newest
+        self.state.skew_ppm = b * 1e6
+        self.state.residual_s = float(np.median(pts[:, 1] - (a + b * pts[:, 0])))
+
+    def to_host(self, device_s: np.ndarray | float) -> np.ndarray:
+        """Device time (s) -> gateway host time (s) with the current estimate."""
+        if self._origin_s is None:
+            raise RuntimeError("clock estimator has no points yet")
+        x = np.asarray(device_s, dtype=np.float64) - self._origin_s
+        return np.asarray(device_s, dtype=np.float64) + self._a + self._b * x
+
+
+def lower_envelope_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Line ``y = a + b x`` below all points minimising the summed vertical gap (one-sided L1 fit).
+
+    The optimum is the edge of the lower convex hull that spans mean(x) (maximising the line's height at the
+    mean is the same objective). ``x`` must be sorted ascending; needs >= 2 distinct x."""
+    hull = _lower_hull(x, y)
+    xm = float(np.mean(x))
+    hx, hy = x[hull], y[hull]
+    k = int(np.searchsorted(hx, xm, side="right"))
+    k = min(max(k, 1), len(hull) - 1)
+    b = (hy[k] - hy[k - 1]) / (hx[k] - hx[k - 1])
+    a = hy[k - 1] - b * hx[k - 1]
+    return float(a), float(b)
+
+
+def _lower_hull(x: np.ndarray, y: np.ndarray) -> list[int]:
+    """Indices of the lower convex hull (Andrew's monotone chain) of points sorted by x."""
+    hull: list[int] = []
+    for i in range(len(x)):
+        while len(hull) >= 2:
+            o, a = hull[-2], hull[-1]
+            cross = (x[a] - x[o]) * (y[i] - y[o]) - (y[a] - y[o]) * (x[i] - x[o])
+            if cross <= 0:
+                hull.pop()
+            else:
+                break
+        if hull and x[hull[-1]] == x[i]:
+            if y[i] < y[hull[-1]]:
+                hull[-1] = i
+            continue
+        hull.append(i)
+    return hull
+
+
+def realign_offline(device_s: np.ndarray, arrival_s: np.ndarray, query_device_s: np.ndarray,
+                    window_s: float = 60.0, bin_s: float = 0.25) -> np.ndarray:
+    """Re-fit a whole take (one clock epoch) offline: host times for ``query_device_s``.
+
+    Uses windows centred on each fit point (shifted inward at the ends of the take), fitted every ``window_s / 4``
+    and linearly interpolated: no extrapolation except at the very ends, and no warm-up."""
+    device_s = np.asarray(device_s, np.float64)
+    arrival_s = np.asarray(arrival_s, np.float64)
+    order = np.argsort(device_s)
+    device_s, arrival_s = device_s[order], arrival_s[order]
+    origin = device_s[0]
+    x = device_s - origin
+    y = arrival_s - device_s
+    index = np.floor(x / bin_s).astype(np.int64)
+    starts = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])
+    mins = np.minimum.reduceat(y, starts)
+    ends = np.r_[starts[1:], len(y)]
+    bx = np.array([x[s + int(np.argmin(y[s:e]))] for s, e in zip(starts, ends)])
+    by = mins
+    centres = np.arange(0.0, x[-1] + window_s / 4, window_s / 4)
+    offsets = np.empty_like(centres)
+    for i, c in enumerate(centres):
+        lo = min(max(c - window_s / 2, 0.0), max(x[-1] - window_s, 0.0))  # keep full windows at the ends
+        sel = (bx >= lo) & (bx <= lo + window_s)
+        if sel.sum() < 2:
+            offsets[i] = by[sel].min() if sel.any() else np.nan
+            continue
+        a, b = lower_envelope_line(bx[sel], by[sel])
+        offsets[i] = a + b * c
+    good = np.isfinite(offsets)
+    q = np.asarray(query_device_s, np.float64)
+    return q + np.interp(q - origin, centres[good], offsets[good])

@@ -1,0 +1,89 @@
+"""Clock: unwrap (wrap vs reset vs reordering) and the lower-envelope offset/skew fit against exact synthetic truth."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gateway.clock import WRAP_TICKS, ClockEstimator, TickUnwrapper, lower_envelope_line, realign_offline
+
+
+def test_unwrap_across_wrap_is_continuous():
+    u = TickUnwrapper(tick_hz=1_000_000)
+    ticks, reset = u.unwrap(np.array([WRAP_TICKS - 20_000, WRAP_TICKS - 10_000], np.uint32), arrival_s=0.0)
+    assert not reset
+    ticks, reset = u.unwrap(np.array([WRAP_TICKS - 5_000, 5_000, 15_000], np.int64) % WRAP_TICKS, arrival_s=0.02)
+    assert not reset and u.wraps == 1
+    np.testing.assert_array_equal(ticks, [WRAP_TICKS - 5_000, WRAP_TICKS + 5_000, WRAP_TICKS + 15_000])
+    ticks, reset = u.unwrap(np.array([30_000], np.uint32), arrival_s=0.04)
+    assert ticks[0] == WRAP_TICKS + 30_000 and u.epoch == 0
+
+
+def test_small_backwards_step_is_reordering_not_reset():
+    u = TickUnwrapper(tick_hz=32768)
+    u.unwrap(np.array([100_000]), arrival_s=10.0)
+    ticks, reset = u.unwrap(np.array([99_000]), arrival_s=10.01)  # another sensor's older batch
+    assert not reset and ticks[0] == 99_000
+
+
+def test_reset_far_from_wrap_point_starts_new_epoch():
+    u = TickUnwrapper(tick_hz=1_000_000)
+    u.unwrap(np.array([2_000_000_000]), arrival_s=100.0)
+    ticks, reset = u.unwrap(np.array([1_000]), arrival_s=101.0)  # rebooted: counter near 0, not near 2**32
+    assert reset and u.epoch == 1 and ticks[0] == 1_000 and u.wraps == 0
+
+
+def test_long_gap_is_predicted_from_host_time():
+    """After a 50 min gap at 1 MHz the counter wrapped silently; host elapsed time tells it apart from a reset."""
+    u = TickUnwrapper(tick_hz=1_000_000)
+    start = 4_000_000_000
+    u.unwrap(np.array([start]), arrival_s=0.0)
+    true = start + 3_000 * 1_000_000 + 1234
+    ticks, reset = u.unwrap(np.array([true % WRAP_TICKS]), arrival_s=3_000.0)
+    assert not reset and ticks[0] == true
+
+
+def test_lower_envelope_exact_without_noise():
+    x = np.linspace(0, 60, 50)
+    a, b = lower_envelope_line(x, 2.5 + 1e-4 * x)
+    assert a == pytest.approx(2.5, abs=1e-12) and b == pytest.approx(1e-4, abs=1e-12)
+
+
+def _simulate(duration_s: float, points_per_s: float, skew_ppm: float, seed: int):
+    rng = np.random.default_rng(seed)
+    t_true = np.sort(rng.uniform(0, duration_s, int(duration_s * points_per_s)))
+    device_s = 1234.5 + t_true / (1 + skew_ppm * 1e-6)  # host = const + device * (1 + skew)
+    arrival = t_true + rng.uniform(0, 0.020, t_true.size)  # 0-20 ms one-sided delivery latency
+    return t_true, device_s, arrival
+
+
+@pytest.mark.parametrize("skew_ppm", [-100.0, 100.0])
+def test_online_error_below_1ms_p99_after_warmup(skew_ppm):
+    t_true, device_s, arrival = _simulate(300, 20, skew_ppm, seed=int(skew_ppm) + 500)
+    est = ClockEstimator()
+    err = np.empty(t_true.size)
+    for i in np.argsort(arrival):
+        est.add(device_s[i], arrival[i])
+        err[i] = est.to_host(device_s[i]) - t_true[i]
+    late = np.abs(err[t_true > 30])
+    assert np.percentile(late, 99) < 1e-3
+    assert est.state.locked
+    assert est.state.skew_ppm == pytest.approx(skew_ppm, abs=3)
+    assert 0 <= est.state.residual_s < 0.005
+    # before warm-up the error is larger but never absurd (one-sided latency bounds it)
+    assert np.abs(err).max() < 0.025
+
+
+def test_offline_realign_has_no_warmup():
+    t_true, device_s, arrival = _simulate(120, 20, 80, seed=9)
+    offline = np.abs(realign_offline(device_s, arrival, device_s) - t_true)
+    assert np.percentile(offline, 99) < 1e-3
+    assert np.percentile(offline[t_true < 30], 99) < 0.5e-3
+
+
+def test_restart_counts_resets():
+    est = ClockEstimator()
+    est.add(1.0, 2.0)
+    est.restart()
+    assert est.state.resets == 1 and est.state.points == 0
+    with pytest.raises(RuntimeError):
+        est.to_host(1.0)
