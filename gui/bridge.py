@@ -1,0 +1,120 @@
+"""Bridge between a `gateway.client.GatewayClient` (reader thread) and the console's GUI thread.
+
+The client calls our listeners on its network thread. Listeners only copy data into thread-safe holders
+(a queue for samples, a lock-protected "latest" slot for status/camera/calibration/recording, a queue for
+events); the GUI thread's refresh tick reads them. Nothing here touches Qt, so a slow GUI can never block
+the network side and the network side can never call into a widget from the wrong thread."""
+from __future__ import annotations
+
+import collections
+import queue
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from gui.widgets.traces import TraceStore
+
+SensorKey = tuple[str, int]  # (station id, sensor index)
+SampleSink = Callable[[SensorKey, np.ndarray, np.ndarray], None]
+
+
+class GatewayBridge:
+    """Thread-safe landing zone for everything the gateway streams to the console."""
+
+    TRAIL_LEN = 300  # camera positions kept for the minimap trail
+
+    def __init__(self, traces: TraceStore) -> None:
+        self.traces = traces
+        self._lock = threading.Lock()
+        self._latest: dict[str, dict[str, Any]] = {}
+        self._jpeg: bytes | None = None
+        self._trail: collections.deque[tuple[float, float, float]] = collections.deque(maxlen=self.TRAIL_LEN)
+        self.events: queue.SimpleQueue[dict[str, Any]] = queue.SimpleQueue()
+        self.sample_sinks: list[SampleSink] = []
+        self.samples_received = 0
+        self.sensors_seen: dict[SensorKey, float] = {}  # sensor -> nominal rate (Hz)
+        self.client = None
+
+    # -- wiring -------------------------------------------------------------------------------------------------
+    def attach(self, client: Any, topics: tuple[str, ...] = ("samples", "status", "camera", "calibration",
+                                                               "recording", "event")) -> None:
+        """Register listeners on a connected GatewayClient and subscribe to ``topics``."""
+        self.client = client
+        client.add_listener("samples", self.on_samples)
+        for kind in ("status", "calibration", "recording"):
+            client.add_listener(kind, self._on_latest)
+        client.add_listener("camera", self.on_camera)
+        client.add_listener("event", self.on_event)
+        client.subscribe(list(topics))
+        hello = getattr(client, "server_hello", {}) or {}
+        if hello.get("stations"):
+            with self._lock:
+                self._latest["status"] = {"t_host_s": hello.get("t_host_s"), "stations": hello["stations"]}
+
+    def detach(self) -> None:
+        if self.client is None:
+            return
+        self.client.remove_listener("samples", self.on_samples)
+        for kind in ("status", "calibration", "recording"):
+            self.client.remove_listener(kind, self._on_latest)
+        self.client.remove_listener("camera", self.on_camera)
+        self.client.remove_listener("event", self.on_event)
+        self.client = None
+
+    # -- listeners (network thread) -------------------------------------------------------------------------
+    def on_samples(self, msg: Any) -> None:
+        key = (str(msg["station"]), int(msg["sensor"]))
+        t, acc = msg["t_host_s"], msg["acc_g"]
+        self.sensors_seen[key] = float(msg.header.get("nominal_hz", 0.0))
+        self.samples_received += len(t)
+        self.traces.put(key, t, acc)
+        for sink in self.sample_sinks:
+            sink(key, t, acc)
+
+    def _on_latest(self, msg: Any) -> None:
+        with self._lock:
+            self._latest[msg.kind] = dict(msg.header)
+
+    def on_camera(self, msg: Any) -> None:
+        header = dict(msg.header)
+        with self._lock:
+            self._latest["camera"] = header
+            if "jpeg" in msg.arrays:
+                self._jpeg = bytes(np.asarray(msg.arrays["jpeg"]).tobytes())
+            pos = header.get("position_m")
+            if pos is not None:
+                self._trail.append((float(header.get("t_host_s", 0.0)), float(pos[0]), float(pos[1])))
+
+    def on_event(self, msg: Any) -> None:
+        header = dict(msg.header)
+        self.events.put(header)
+        self.traces.put_event(float(header.get("t_host_s", 0.0)), str(header.get("message", ""))[:24])
+
+    # -- reads (GUI thread) -------------------------------------------------------------------------------------
+    def latest(self, kind: str) -> dict[str, Any] | None:
+        """Most recent header of ``kind`` (status, camera, calibration, recording), or None."""
+        with self._lock:
+            return self._latest.get(kind)
+
+    def camera_frame(self) -> tuple[dict[str, Any] | None, bytes | None, np.ndarray]:
+        """(latest camera header, latest JPEG thumbnail bytes, trail (N, 3) [t_s, x_m, y_m])."""
+        with self._lock:
+            trail = np.array(self._trail, float).reshape(-1, 3)
+            return self._latest.get("camera"), self._jpeg, trail
+
+    def drain_events(self) -> list[dict[str, Any]]:
+        out = []
+        while True:
+            try:
+                out.append(self.events.get_nowait())
+            except queue.Empty:
+                return out
+
+    def sensor_groups(self) -> dict[str, list[SensorKey]]:
+        """Sensors seen so far grouped by station, sorted (for the trace panel's selector)."""
+        groups: dict[str, list[SensorKey]] = collections.defaultdict(list)
+        for key in sorted(self.sensors_seen):
+            groups[f"station {key[0]}"].append(key)
+        return dict(groups)

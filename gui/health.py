@@ -1,0 +1,83 @@
+"""Pure (Qt-free) health rules: sync colour per station and alarm conditions from a gateway status snapshot.
+
+Kept separate from the widgets so the thresholds are testable with plain dicts and documented in one place."""
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass
+from enum import Enum
+from typing import Any
+
+
+class Sync(str, Enum):
+    GREEN = "green"   # clock locked, residual small
+    AMBER = "amber"   # warming up, or residual elevated
+    RED = "red"       # link lost/stale or residual too large to trust sample times
+
+
+SYNC_GREEN_RESIDUAL_S = 0.001
+SYNC_AMBER_RESIDUAL_S = 0.005
+LOW_BATTERY_V = 3.5
+SENSOR_SILENT_S = 1.0
+LOW_DISK_BYTES = 1 << 30
+
+
+def sync_status(station: dict[str, Any]) -> Sync:
+    """Traffic light for one station status (docs/gateway.md "Station status")."""
+    if station.get("link") in ("lost", "stale", "connecting"):
+        return Sync.RED
+    clock = station.get("clock") or {}
+    residual = abs(float(clock.get("residual_s") or 0.0))
+    if not clock.get("locked"):
+        return Sync.AMBER
+    if residual < SYNC_GREEN_RESIDUAL_S:
+        return Sync.GREEN
+    return Sync.AMBER if residual < SYNC_AMBER_RESIDUAL_S else Sync.RED
+
+
+@dataclass(frozen=True)
+class Alarm:
+    """One alarm condition; ``key`` identifies it so a banner is shown once and cleared when it goes away."""
+
+    key: str
+    level: str  # "warning" | "alarm"
+    message: str
+
+
+def status_alarms(status: dict[str, Any], disk_path: str | None = None, was_locked: set[str] | None = None) -> list[Alarm]:
+    """Alarm conditions present in one status snapshot.
+
+    ``was_locked``: stations whose clock has been locked before (sync *lost* differs from still warming up);
+    it is updated in place."""
+    alarms: list[Alarm] = []
+    now = status.get("t_host_s")
+    for st in status.get("stations", []):
+        sid = str(st.get("station"))
+        link = st.get("link")
+        if link in ("lost", "stale"):
+            alarms.append(Alarm(f"link:{sid}", "alarm", f"station {sid}: link {link}"))
+        clock = st.get("clock") or {}
+        if was_locked is not None:
+            if clock.get("locked"):
+                was_locked.add(sid)
+            elif sid in was_locked:
+                alarms.append(Alarm(f"sync:{sid}", "alarm", f"station {sid}: clock sync lost"))
+        if sync_status(st) is Sync.RED and link == "streaming":
+            alarms.append(Alarm(f"residual:{sid}", "warning",
+                                f"station {sid}: clock residual {1e3 * float(clock.get('residual_s') or 0):.1f} ms"))
+        for sensor in st.get("sensors", []):
+            name = f"{sid}/{sensor.get('sensor')}"
+            battery = sensor.get("battery_v")
+            if battery is not None and float(battery) < LOW_BATTERY_V:
+                alarms.append(Alarm(f"battery:{name}", "warning", f"sensor {name}: low battery {float(battery):.2f} V"))
+            last = sensor.get("last_t_host_s")
+            if now is not None and link == "streaming" and (last is None or float(now) - float(last) > SENSOR_SILENT_S):
+                alarms.append(Alarm(f"lost:{name}", "alarm", f"sensor {name}: no data"))
+    if disk_path:
+        try:
+            free = shutil.disk_usage(disk_path).free
+        except OSError:
+            free = None
+        if free is not None and free < LOW_DISK_BYTES:
+            alarms.append(Alarm("disk", "warning", f"low disk space: {free / 1e9:.2f} GB free at {disk_path}"))
+    return alarms

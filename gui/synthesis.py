@@ -1,0 +1,136 @@
+"""Windowed (fixed-lag) synthesis off the GUI thread.
+
+The worker thread owns the synthesizer (`engine.graph.FixedLagSynthesizer` in the console): it takes sample
+batches from a queue (fed by the bridge on the network thread), resamples them to the graph rate, pushes each
+frame with the latest camera position/heading, and publishes the newest emitted pose in a lock-protected slot
+that the GUI tick reads. Changing the lag rebuilds the synthesizer inside the worker thread."""
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable, Hashable, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from gui.resample import FrameResampler
+
+
+class Synthesizer(Protocol):
+    def push(self, acc_g: np.ndarray, pos_m: np.ndarray | None = None, heading_rad: float | None = None) -> list: ...
+
+
+@dataclass
+class PoseOut:
+    """Newest synthesized pose: ``t_s`` is the gateway-clock time the pose describes (frame time - lag)."""
+
+    t_s: float
+    positions_m: np.ndarray  # (J, 3) world frame
+    emitted_at_s: float      # gateway-clock time of the frame whose push emitted it
+
+
+@dataclass
+class SynthesisStats:
+    lag_s: float = 0.0
+    frames_in: int = 0
+    poses_out: int = 0
+    frames_per_s: float = 0.0      # graph frames processed per wall second (recent)
+    push_ms: float = 0.0           # mean synthesizer cost per frame (recent)
+    error: str = ""
+
+
+def pose_positions(pose: Any) -> np.ndarray:
+    """Joint positions (J, 3) from an emitted pose object (``positions_m`` attribute) or a bare array."""
+    return np.asarray(getattr(pose, "positions_m", pose), float)
+
+
+class SynthesisWorker(threading.Thread):
+    """Background thread: sample batches in, newest pose out."""
+
+    def __init__(self, make_synthesizer: Callable[[float], Synthesizer], sensors: Sequence[Hashable],
+                 rate_hz: float, lag_s: float) -> None:
+        super().__init__(name="console-synthesis", daemon=True)
+        self._make = make_synthesizer
+        self.sensors = list(sensors)
+        self.rate_hz = rate_hz
+        self._inbox: queue.SimpleQueue = queue.SimpleQueue()
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._pose: PoseOut | None = None
+        self._requested_lag_s: float | None = lag_s
+        self._camera: tuple[np.ndarray, float | None] | None = None
+        self.stats = SynthesisStats(lag_s=lag_s)
+
+    # -- inputs (any thread) -----------------------------------------------------------------------------------
+    def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
+        """Signature matches `gui.bridge.SampleSink`, so the bridge can feed the worker directly."""
+        self._inbox.put((sensor, np.asarray(t_s, float), np.asarray(acc_g, float)))
+
+    def set_camera(self, position_m: Any, heading_rad: float | None) -> None:
+        with self._lock:
+            self._camera = (np.asarray(position_m, float)[:2], heading_rad) if position_m is not None else None
+
+    def set_lag(self, lag_s: float) -> None:
+        with self._lock:
+            self._requested_lag_s = float(lag_s)
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._inbox.put(None)
+
+    # -- outputs (any thread) ----------------------------------------------------------------------------------
+    def latest_pose(self) -> PoseOut | None:
+        with self._lock:
+            return self._pose
+
+    # -- thread ------------------------------------------------------------------------------------------------
+    def run(self) -> None:
+        resampler = FrameResampler(self.sensors, self.rate_hz)
+        synth: Synthesizer | None = None
+        window_t0, window_frames, window_cost = time.monotonic(), 0, 0.0
+        while not self._stop.is_set():
+            with self._lock:
+                lag, self._requested_lag_s = self._requested_lag_s, None
+                camera = self._camera
+            if lag is not None:
+                try:
+                    synth = self._make(lag)
+                    self.stats.lag_s, self.stats.error = lag, ""
+                except Exception as exc:  # a bad lag or graph must show in the status bar, not kill the thread
+                    self.stats.error = f"{type(exc).__name__}: {exc}"
+            try:
+                item = self._inbox.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            batch = [item]
+            while True:  # take everything queued: one resample pass per wake-up
+                try:
+                    batch.append(self._inbox.get_nowait())
+                except queue.Empty:
+                    break
+            for entry in batch:
+                if entry is not None:
+                    resampler.add(*entry)
+            times, frames = resampler.frames()
+            if synth is None or not len(times):
+                continue
+            pos, heading = camera if camera is not None else (None, None)
+            t_cost = time.perf_counter()
+            for t, acc in zip(times, frames):
+                emitted = synth.push(acc, pos, heading)
+                self.stats.frames_in += 1
+                if emitted:
+                    newest = emitted[-1]
+                    pose = PoseOut(float(t) - self.stats.lag_s, pose_positions(newest), float(t))
+                    with self._lock:
+                        self._pose = pose
+                    self.stats.poses_out += len(emitted)
+            window_cost += time.perf_counter() - t_cost
+            window_frames += len(times)
+            now = time.monotonic()
+            if now - window_t0 >= 1.0:
+                self.stats.frames_per_s = window_frames / (now - window_t0)
+                self.stats.push_ms = 1e3 * window_cost / max(1, window_frames)
+                window_t0, window_frames, window_cost = now, 0, 0.0

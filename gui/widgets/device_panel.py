@@ -1,0 +1,160 @@
+"""Device panel: every base station and sensor with link/battery/RSSI/rate/loss/CRC/clock/sync state, an
+identify (blink) button per sensor, and the sensor -> body-segment mapping on a simple body diagram."""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from PySide6 import QtCore, QtGui, QtWidgets
+
+from gui.health import Sync, sync_status
+
+SYNC_QCOLOR = {Sync.GREEN: QtGui.QColor(40, 170, 70), Sync.AMBER: QtGui.QColor(220, 160, 30),
+               Sync.RED: QtGui.QColor(200, 50, 50)}
+COLUMNS = ("device", "link", "battery V", "RSSI dBm", "rate / nominal Hz", "loss %", "lost", "CRC err",
+           "offset ms", "skew ppm", "residual ms", "sync", "segment", "")
+
+# Body diagram: segment -> polyline in a 100 x 200 box (x right, y down), front view.
+BODY_SEGMENTS: dict[str, tuple[tuple[float, float], ...]] = {
+    "head": ((50, 10), (50, 30)),
+    "chest": ((50, 40), (50, 75)),
+    "pelvis": ((38, 95), (62, 95)),
+    "left_upper_arm": ((68, 42), (78, 75)),
+    "right_upper_arm": ((32, 42), (22, 75)),
+    "left_forearm": ((78, 75), (84, 105)),
+    "right_forearm": ((22, 75), (16, 105)),
+    "left_thigh": ((58, 98), (62, 145)),
+    "right_thigh": ((42, 98), (38, 145)),
+    "left_shin": ((62, 145), (63, 190)),
+    "right_shin": ((38, 145), (37, 190)),
+}
+_ALIASES = {"hips": "pelvis", "root": "pelvis", "spine": "chest", "torso": "chest", "sternum": "chest",
+            "trunk": "chest", "wrist": "forearm", "hand": "forearm", "lowerarm": "forearm", "forearm": "forearm",
+            "ankle": "shin", "foot": "shin", "leg": "shin", "shank": "shin", "upleg": "thigh", "thigh": "thigh",
+            "knee": "shin", "arm": "upper_arm", "shoulder": "upper_arm", "neck": "head", "head": "head"}
+
+
+def segment_for(name: str) -> str | None:
+    """Map a placement/joint name ("LeftWrist", "l_ankle", "pelvis") to a diagram segment, if recognisable."""
+    low = name.lower().replace("-", "_")
+    side = "left_" if low.startswith(("left", "l_")) or "left" in low else (
+        "right_" if low.startswith(("right", "r_")) or "right" in low else "")
+    for word, seg in sorted(_ALIASES.items(), key=lambda kv: -len(kv[0])):
+        if word in low.replace("_", ""):
+            full = seg if seg in BODY_SEGMENTS else side + seg
+            return full if full in BODY_SEGMENTS else None
+    return None
+
+
+class BodyDiagram(QtWidgets.QWidget):
+    """Front-view stick body; segments carrying a sensor are drawn thick in that sensor's health colour."""
+
+    def __init__(self, parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.segment_state: dict[str, tuple[str, Sync]] = {}  # segment -> (sensor label, health)
+        self.setMinimumSize(110, 200)
+
+    def set_state(self, state: dict[str, tuple[str, Sync]]) -> None:
+        self.segment_state = state
+        self.update()
+
+    def paintEvent(self, _event: QtGui.QPaintEvent) -> None:
+        p = QtGui.QPainter(self)
+        p.setRenderHint(QtGui.QPainter.Antialiasing)
+        scale = min(self.width() / 110.0, self.height() / 205.0)
+        p.scale(scale, scale)
+        p.setPen(QtGui.QPen(QtGui.QColor(120, 120, 120), 2))
+        p.drawEllipse(QtCore.QPointF(50, 14), 8, 9)
+        for seg, pts in BODY_SEGMENTS.items():
+            label, health = self.segment_state.get(seg, ("", None))
+            colour = SYNC_QCOLOR.get(health, QtGui.QColor(120, 120, 120))
+            pen = QtGui.QPen(colour, 6 if label else 2)
+            pen.setCapStyle(QtCore.Qt.RoundCap)
+            p.setPen(pen)
+            p.drawLine(QtCore.QPointF(*pts[0]), QtCore.QPointF(*pts[1]))
+            if label:
+                p.setPen(QtGui.QColor(230, 230, 230))
+                p.setFont(QtGui.QFont("sans", 5))
+                mid = ((pts[0][0] + pts[1][0]) / 2 + 4, (pts[0][1] + pts[1][1]) / 2)
+                p.drawText(QtCore.QPointF(*mid), label)
+        p.end()
+
+
+def _fmt(value: Any, spec: str, scale: float = 1.0) -> str:
+    return "–" if value is None else format(float(value) * scale, spec)
+
+
+class DevicePanel(QtWidgets.QWidget):
+    """Tree of stations -> sensors refreshed from each gateway status snapshot."""
+
+    identify_requested = QtCore.Signal(str, int)  # station, sensor
+
+    def __init__(self, parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.tree = QtWidgets.QTreeWidget()
+        self.tree.setColumnCount(len(COLUMNS))
+        self.tree.setHeaderLabels(list(COLUMNS))
+        self.tree.setRootIsDecorated(True)
+        self.tree.setUniformRowHeights(True)
+        self.body = BodyDiagram()
+        self.mapping: dict[tuple[str, int], str] = {}  # (station, sensor) -> segment
+        self._items: dict[Any, QtWidgets.QTreeWidgetItem] = {}
+        layout = QtWidgets.QHBoxLayout(self)
+        layout.setContentsMargins(2, 2, 2, 2)
+        layout.addWidget(self.tree, 1)
+        layout.addWidget(self.body)
+
+    def set_mapping(self, mapping: dict[tuple[str, int], str]) -> None:
+        """Sensor -> segment names (placement names are normalised with `segment_for`)."""
+        self.mapping = {k: (segment_for(v) or v) for k, v in mapping.items()}
+
+    def _item(self, key: Any, parent: QtWidgets.QTreeWidgetItem | None, label: str,
+              sensor: tuple[str, int] | None = None) -> QtWidgets.QTreeWidgetItem:
+        item = self._items.get(key)
+        if item is None:
+            item = QtWidgets.QTreeWidgetItem([label])
+            (parent.addChild(item) if parent is not None else self.tree.addTopLevelItem(item))
+            if sensor is not None:
+                button = QtWidgets.QPushButton("identify")
+                button.clicked.connect(lambda _=False, s=sensor: self.identify_requested.emit(*s))
+                self.tree.setItemWidget(item, len(COLUMNS) - 1, button)
+            if parent is not None:
+                parent.setExpanded(True)
+            self._items[key] = item
+        return item
+
+    def update_status(self, status: dict[str, Any]) -> None:
+        """Refresh every row from a status snapshot (docs/gateway.md); rows appear as devices do."""
+        body: dict[str, tuple[str, Sync]] = {}
+        for st in status.get("stations", []):
+            sid = str(st.get("station"))
+            sync = sync_status(st)
+            clock = st.get("clock") or {}
+            row = self._item(("station", sid), None, f"station {sid}")
+            values = {1: str(st.get("link", "?")), 7: str(st.get("crc_errors", 0)),
+                      8: _fmt(clock.get("offset_s"), ".2f", 1e3), 9: _fmt(clock.get("skew_ppm"), ".1f"),
+                      10: _fmt(clock.get("residual_s"), ".3f", 1e3), 11: sync.value}
+            for col, text in values.items():
+                row.setText(col, text)
+            row.setBackground(11, SYNC_QCOLOR[sync])
+            for sensor in st.get("sensors", []):
+                idx = int(sensor.get("sensor", 0))
+                item = self._item(("sensor", sid, idx), row, f"sensor {idx}", (sid, idx))
+                seg = self.mapping.get((sid, idx), "")
+                healthy = sync if float(sensor.get("loss_pct") or 0) < 5 else Sync.RED
+                cols = {1: str(st.get("link", "?")), 2: _fmt(sensor.get("battery_v"), ".2f"),
+                        3: _fmt(sensor.get("rssi_dbm"), ".0f"),
+                        4: f"{_fmt(sensor.get('rate_hz'), '.1f')} / {_fmt(sensor.get('nominal_hz'), '.0f')}",
+                        5: _fmt(sensor.get("loss_pct"), ".2f"), 6: str(sensor.get("lost", 0)), 11: healthy.value,
+                        12: seg}
+                for col, text in cols.items():
+                    item.setText(col, text)
+                item.setBackground(11, SYNC_QCOLOR[healthy])
+                if seg:
+                    body[seg] = (f"{sid}/{idx}", healthy)
+        self.body.set_state(body)
+
+    def row_texts(self, key: Any) -> list[str]:
+        """Texts of one row (("station", id) or ("sensor", id, idx)) — for tests."""
+        item = self._items[key]
+        return [item.text(c) for c in range(len(COLUMNS))]

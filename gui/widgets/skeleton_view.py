@@ -1,0 +1,131 @@
+"""3-D view pane: shows `gui.render.SkeletonRenderer` output in a plain QWidget.
+
+The renderer draws offscreen (EGL) and hands back pixels; this widget only blits them, so it behaves the
+same on a real display, Xvfb and the offscreen Qt platform. Drag to orbit, wheel to zoom, combo for
+follow/static camera. The estimate and the ground truth (when the take has one) are drawn side by side."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from PySide6 import QtCore, QtGui, QtWidgets
+
+from gui.render.camera import CameraMode, OrbitCamera
+from gui.render.skeleton_renderer import ESTIMATE_STYLE, TRUTH_STYLE, SkeletonRenderer
+
+TRUTH_OFFSET_M = np.array([1.5, 0.0, 0.0])  # ground truth drawn beside the estimate, not on top of it
+
+
+class SkeletonView(QtWidgets.QWidget):
+    def __init__(self, renderer: SkeletonRenderer | None = None, parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.renderer = renderer or SkeletonRenderer(640, 360)
+        self.camera = OrbitCamera()
+        self.parents: np.ndarray | None = None
+        self.estimate_m: np.ndarray | None = None
+        self.truth_m: np.ndarray | None = None
+        self.truth_offset_m = TRUTH_OFFSET_M.copy()
+        self._image: QtGui.QImage | None = None
+        self._pixels: np.ndarray | None = None
+        self._dirty = True
+        self._snapped = False
+        self._drag: QtCore.QPointF | None = None
+        self.frames_rendered = 0
+        self.setMinimumSize(320, 200)
+        self.mode_box = QtWidgets.QComboBox(self)
+        for mode in CameraMode:
+            self.mode_box.addItem(mode.value, mode)
+        self.mode_box.currentIndexChanged.connect(lambda _: self.set_camera_mode(self.mode_box.currentData()))
+        self.mode_box.move(6, 6)
+        self.legend = QtWidgets.QLabel(self)
+        self.legend.setStyleSheet("color:#ddd; background:transparent;")
+        self.legend.move(110, 9)
+
+    # -- data --------------------------------------------------------------------------------------------------
+    def set_skeleton(self, parents: np.ndarray) -> None:
+        self.parents = np.asarray(parents)
+        self._dirty = True
+
+    def set_poses(self, estimate_m: np.ndarray | None, truth_m: np.ndarray | None = None) -> None:
+        """Joint positions (J,3) m, world frame. Either may be None (not available yet)."""
+        self.estimate_m = None if estimate_m is None else np.asarray(estimate_m, float)
+        self.truth_m = None if truth_m is None else np.asarray(truth_m, float)
+        root = self.estimate_m[0] if self.estimate_m is not None else (self.truth_m[0] if self.truth_m is not None else None)
+        if root is not None and not self._snapped:
+            self.camera.snap_to(root)
+            self._snapped = True
+        self.camera.follow(root)
+        text = ("<span style='color:#ff9a2a'>■ estimate</span>  " if self.estimate_m is not None else "") + (
+            "<span style='color:#4fd8e6'>■ ground truth</span>" if self.truth_m is not None else "")
+        self.legend.setText(text)
+        self.legend.adjustSize()
+        self._dirty = True
+
+    def set_camera_mode(self, mode: CameraMode) -> None:
+        self.camera.set_mode(mode)
+        self._snapped = False
+        self._dirty = True
+        if self.mode_box.currentData() != mode:
+            self.mode_box.setCurrentIndex(list(CameraMode).index(CameraMode(mode)))
+
+    # -- rendering ---------------------------------------------------------------------------------------------
+    def refresh(self) -> bool:
+        """Render if anything changed (GUI thread, from the refresh tick). Returns True if a frame was drawn."""
+        if not self._dirty or not self.isVisible():
+            return False
+        dpr = self.devicePixelRatioF()
+        self.renderer.resize(int(self.width() * dpr), int(self.height() * dpr))
+        skeletons = []
+        if self.parents is not None:
+            if self.estimate_m is not None:
+                skeletons.append((self.estimate_m, self.parents, ESTIMATE_STYLE))
+            if self.truth_m is not None:
+                offset = self.truth_offset_m if self.estimate_m is not None else 0.0
+                skeletons.append((self.truth_m + offset, self.parents, TRUTH_STYLE))
+        self._pixels = np.ascontiguousarray(self.renderer.render(self.camera, skeletons))
+        h, w = self._pixels.shape[:2]
+        self._image = QtGui.QImage(self._pixels.data, w, h, 4 * w, QtGui.QImage.Format_RGBA8888)
+        self._image.setDevicePixelRatio(dpr)
+        self._dirty = False
+        self.frames_rendered += 1
+        self.update()
+        return True
+
+    def last_pixels(self) -> np.ndarray | None:
+        """The last rendered RGBA frame (H, W, 4), row 0 at the top."""
+        return self._pixels
+
+    def paintEvent(self, _event: QtGui.QPaintEvent) -> None:
+        p = QtGui.QPainter(self)
+        if self._image is not None:
+            p.drawImage(QtCore.QPointF(0, 0), self._image)
+        else:
+            p.fillRect(self.rect(), QtGui.QColor(28, 30, 36))
+        p.end()
+
+    def resizeEvent(self, event: QtGui.QResizeEvent) -> None:
+        self._dirty = True
+        super().resizeEvent(event)
+
+    def showEvent(self, event: QtGui.QShowEvent) -> None:
+        self._dirty = True
+        super().showEvent(event)
+
+    # -- interaction -------------------------------------------------------------------------------------------
+    def mousePressEvent(self, event: QtGui.QMouseEvent) -> None:
+        self._drag = event.position()
+
+    def mouseMoveEvent(self, event: QtGui.QMouseEvent) -> None:
+        if self._drag is None:
+            return
+        d = event.position() - self._drag
+        self._drag = event.position()
+        self.camera.orbit(math.radians(-0.4 * d.x()), math.radians(0.3 * d.y()))
+        self._dirty = True
+
+    def mouseReleaseEvent(self, _event: QtGui.QMouseEvent) -> None:
+        self._drag = None
+
+    def wheelEvent(self, event: QtGui.QWheelEvent) -> None:
+        self.camera.zoom(0.9 if event.angleDelta().y() > 0 else 1.0 / 0.9)
+        self._dirty = True
