@@ -1,0 +1,42 @@
+"""Build-time configuration of a motion graph (saved beside the arrays as JSON so a graph documents itself)."""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+
+
+@dataclass
+class GraphConfig:
+    """Choices the paper leaves open, with the defaults we measured to work (docs/engine-graph.md).
+
+    transition_threshold_m: RMS point-cloud distance (m) below which two contact-change frames may be joined.
+    window_frames: frames in the point-cloud window (Kovar uses ~1/3 s).
+    joint_weights: per-joint weights of the point cloud (None = equal weights).
+    min_jump_frames: a transition inside one clip must jump at least this far (shorter jumps are near-duplicates
+        of the natural edge and only slow the search).
+    msv / interp: add motion speed variations / interpolated motions (seed 000 sections 4.1 / 4.2).
+    interp_threshold_m, interp_min_length_s: the similarity threshold t_i and the minimum blended length.
+    """
+
+    fps: float = 30.0
+    window_frames: int = 9
+    transition_threshold_m: float = 0.12
+    joint_weights: list[float] | None = None
+    min_jump_frames: int = 8
+    msv: bool = False
+    interp: bool = False
+    interp_threshold_m: float = 0.10
+    interp_min_length_s: float = 0.5
+    sensor_names: list[str] = field(default_factory=list)
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> "GraphConfig":
+        data = json.loads(text)
+        known = set(cls.__dataclass_fields__)
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"unknown graph config keys: {', '.join(unknown)}")
+        return cls(**data)

@@ -1,0 +1,264 @@
+"""The motion graph as flat numpy arrays: nodes are database poses at the graph rate, edges are sorted by
+destination so the search can take minima over incoming edges with `np.minimum.reduceat`.
+
+Metadata rows: row n (n < N) describes *arriving at node n along its own clip* (the natural step into n);
+natural edges and transitions into n both use row n, since a transition i-1 -> j replays the motion j-1 -> j.
+Rows >= N belong to edges with their own motion (MSV speed-up/slow-down steps, entries into interpolated clips).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from engine.errors import MalformedFileError
+
+from .clips import ClipData
+from .config import GraphConfig
+from .metadata import step_offsets
+from .transitions import find_transitions
+
+NODE_ORIGINAL, NODE_SLOW, NODE_INTERP = 0, 1, 2
+EDGE_NATURAL, EDGE_TRANSITION, EDGE_SPEEDUP, EDGE_SLOWDOWN, EDGE_INTERP = 0, 1, 2, 3, 4
+EDGE_KIND_NAMES = ("natural", "transition", "speed-up", "slow-down", "interpolated")
+FORMAT_VERSION = 1
+
+
+@dataclass
+class GraphParts:
+    """Growing lists of node/edge/metadata arrays; MSV and interpolation append to it before assembly."""
+
+    node: dict[str, list[np.ndarray]] = field(default_factory=dict)
+    edge: dict[str, list[np.ndarray]] = field(default_factory=dict)
+    meta: dict[str, list[np.ndarray]] = field(default_factory=dict)
+    n_nodes: int = 0
+    n_meta: int = 0
+
+    def add_nodes(self, **arrays: np.ndarray) -> np.ndarray:
+        """Append nodes (each array's first axis = the new nodes); returns their ids."""
+        n = len(next(iter(arrays.values())))
+        for key, arr in arrays.items():
+            self.node.setdefault(key, []).append(arr)
+        ids = np.arange(self.n_nodes, self.n_nodes + n)
+        self.n_nodes += n
+        return ids
+
+    def add_meta(self, acc_g: np.ndarray, dheading_rad: np.ndarray, dpos_m: np.ndarray) -> np.ndarray:
+        """Append metadata rows; returns their row ids."""
+        for key, arr in (("acc", acc_g), ("dheading", dheading_rad), ("dpos", dpos_m)):
+            self.meta.setdefault(key, []).append(np.asarray(arr))
+        ids = np.arange(self.n_meta, self.n_meta + len(dheading_rad))
+        self.n_meta += len(dheading_rad)
+        return ids
+
+    def add_edges(self, src: np.ndarray, dst: np.ndarray, kind: int, meta: np.ndarray) -> None:
+        for key, arr in (("src", src), ("dst", dst), ("meta", meta)):
+            self.edge.setdefault(key, []).append(np.asarray(arr, dtype=np.int64))
+        self.edge.setdefault("kind", []).append(np.full(len(src), kind, dtype=np.int8))
+
+
+@dataclass
+class MotionGraph:
+    """Nodes, edges (sorted by dst) and edge metadata. Build with `MotionGraph.build` / `build_from_clips`."""
+
+    config: GraphConfig
+    clip_names: list[str]
+    label_names: list[str]
+    # nodes
+    node_clip: np.ndarray  # (N,) int32 source clip
+    node_clip2: np.ndarray  # (N,) int32 second source clip of interpolated nodes, else -1
+    node_frame: np.ndarray  # (N,) float32 frame in the source clip (x.5 for slow-down nodes)
+    node_kind: np.ndarray  # (N,) int8 NODE_*
+    node_label: np.ndarray  # (N,) int16 index into label_names
+    node_positions_m: np.ndarray  # (N, J, 3) float32 joint positions in the source clip's frame
+    node_heading_rad: np.ndarray  # (N,) float64 root heading in the source clip's frame
+    node_ground_m: np.ndarray  # (N, 2) float64 root (x, z)
+    node_contacts: np.ndarray  # (N, 2) bool
+    # edges, sorted by (dst, src)
+    edge_src: np.ndarray  # (E,) int32
+    edge_dst: np.ndarray  # (E,) int32
+    edge_kind: np.ndarray  # (E,) int8 EDGE_*
+    edge_meta: np.ndarray  # (E,) int32 row into meta_*
+    # metadata rows
+    meta_acc_g: np.ndarray  # (M, S, 3) float32
+    meta_dheading_rad: np.ndarray  # (M,) float64
+    meta_dpos_m: np.ndarray  # (M, 2) float64, local frame of the edge's source
+    node_rotations: np.ndarray | None = None  # (N, J, 4) local joint rotations (w, x, y, z)
+    node_root_m: np.ndarray | None = None  # (N, 3) root position in the source clip's frame
+
+    # ----- sizes and search helpers -------------------------------------------------------------
+    @property
+    def n_nodes(self) -> int:
+        return int(len(self.node_clip))
+
+    @property
+    def n_edges(self) -> int:
+        return int(len(self.edge_src))
+
+    @property
+    def n_sensors(self) -> int:
+        return int(self.meta_acc_g.shape[1])
+
+    def segments(self) -> tuple[np.ndarray, np.ndarray]:
+        """(nodes with incoming edges, start index of each one's run of incoming edges) for reduceat."""
+        starts = np.flatnonzero(np.r_[True, self.edge_dst[1:] != self.edge_dst[:-1]]) if self.n_edges else \
+            np.zeros(0, dtype=np.int64)
+        return self.edge_dst[starts].astype(np.int64), starts.astype(np.int64)
+
+    def edge_index(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+        """Index of the edge src -> dst for each pair (edges are unique per pair); raises if one is missing."""
+        keys = self.edge_dst.astype(np.int64) * self.n_nodes + self.edge_src
+        want = np.asarray(dst, dtype=np.int64) * self.n_nodes + np.asarray(src, dtype=np.int64)
+        pos = np.searchsorted(keys, want)
+        pos = np.minimum(pos, len(keys) - 1)
+        if len(keys) == 0 or np.any(keys[pos] != want):
+            raise KeyError("no such edge in the graph")
+        return pos
+
+    def label_mask(self, label: str) -> np.ndarray:
+        """(N,) bool: nodes whose source clip carries `label` (for human constraints)."""
+        if label not in self.label_names:
+            raise KeyError(f"label {label!r} not in graph labels {self.label_names}")
+        return self.node_label == self.label_names.index(label)
+
+    def summary(self) -> dict:
+        kinds = np.bincount(self.edge_kind, minlength=len(EDGE_KIND_NAMES))
+        return {"nodes": self.n_nodes, "edges": self.n_edges, "clips": len(self.clip_names),
+                "sensors": self.n_sensors, "meta_rows": int(len(self.meta_dheading_rad)),
+                **{f"edges_{name}": int(k) for name, k in zip(EDGE_KIND_NAMES, kinds)}}
+
+    # ----- leave-one-out ---------------------------------------------------------------------------
+    def without_clips(self, clip_ids: list[int]) -> "MotionGraph":
+        """A copy without every node derived from the given clips (incl. interpolated nodes that used them)."""
+        drop = np.isin(self.node_clip, clip_ids) | np.isin(self.node_clip2, clip_ids)
+        keep = ~drop
+        new_id = np.cumsum(keep) - 1
+        ekeep = keep[self.edge_src] & keep[self.edge_dst]
+        # metadata rows are kept whole (cheap) but node arrival rows must stay aligned with node ids
+        row_keep = np.ones(len(self.meta_dheading_rad), dtype=bool)
+        row_keep[: self.n_nodes] = keep
+        row_new = np.cumsum(row_keep) - 1
+        node_arrays = {f.name: getattr(self, f.name) for f in fields(self) if f.name.startswith("node_")}
+        kwargs = {k: (v[keep] if v is not None else None) for k, v in node_arrays.items()}
+        return MotionGraph(
+            config=self.config, clip_names=self.clip_names, label_names=self.label_names, **kwargs,
+            edge_src=new_id[self.edge_src[ekeep]].astype(np.int32),
+            edge_dst=new_id[self.edge_dst[ekeep]].astype(np.int32),
+            edge_kind=self.edge_kind[ekeep], edge_meta=row_new[self.edge_meta[ekeep]].astype(np.int32),
+            meta_acc_g=self.meta_acc_g[row_keep], meta_dheading_rad=self.meta_dheading_rad[row_keep],
+            meta_dpos_m=self.meta_dpos_m[row_keep])
+
+    # ----- persistence -----------------------------------------------------------------------------
+    def save(self, path: str | Path) -> None:
+        """One .npz holding the arrays plus a JSON header (config, clip and label names)."""
+        header = {"format_version": FORMAT_VERSION, "config": json.loads(self.config.to_json()),
+                  "clip_names": self.clip_names, "label_names": self.label_names}
+        arrays = {f.name: getattr(self, f.name) for f in fields(self)
+                  if f.name not in ("config", "clip_names", "label_names") and getattr(self, f.name) is not None}
+        with open(path, "wb") as fh:
+            np.savez(fh, header_json=np.array(json.dumps(header)), **arrays)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "MotionGraph":
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise MalformedFileError(path, None, f"not a readable motion-graph .npz ({exc})") from exc
+        with data:
+            if "header_json" not in data:
+                raise MalformedFileError(path, None, "missing 'header_json': not a motion graph file")
+            header = json.loads(str(data["header_json"]))
+            if header.get("format_version") != FORMAT_VERSION:
+                raise MalformedFileError(path, None, f"unsupported graph format {header.get('format_version')}")
+            names = {f.name for f in fields(cls)} - {"config", "clip_names", "label_names"}
+            optional = {"node_rotations", "node_root_m"}
+            missing = sorted(names - optional - set(data.files))
+            if missing:
+                raise MalformedFileError(path, None, f"missing arrays: {', '.join(missing)}")
+            arrays = {k: data[k] for k in names if k in data.files}
+        return cls(config=GraphConfig(**header["config"]), clip_names=header["clip_names"],
+                   label_names=header["label_names"], **arrays)
+
+    # ----- construction ----------------------------------------------------------------------------
+    @classmethod
+    def build(cls, motions: list, placements: list, config: GraphConfig | None = None) -> "MotionGraph":
+        """Build from engine.mocap Motions and SensorPlacements (see engine.graph.mocap_adapter)."""
+        from .mocap_adapter import clips_from_motions
+
+        config = config or GraphConfig()
+        return build_from_clips(clips_from_motions(motions, placements, config), config)
+
+
+def _original_nodes(parts: GraphParts, clips: list[ClipData], label_names: list[str]) -> np.ndarray:
+    """Add every clip frame as a node plus its natural arrival row; returns clip offsets (C+1,)."""
+    offsets = np.concatenate([[0], np.cumsum([c.n_frames for c in clips])]).astype(np.int64)
+    has_rot = all(c.local_rotations is not None for c in clips)
+    for ci, clip in enumerate(clips):
+        f = clip.n_frames
+        arrays = dict(
+            node_clip=np.full(f, ci, np.int32), node_clip2=np.full(f, -1, np.int32),
+            node_frame=np.arange(f, dtype=np.float32), node_kind=np.full(f, NODE_ORIGINAL, np.int8),
+            node_label=np.full(f, label_names.index(clip.label), np.int16),
+            node_positions_m=clip.positions_m.astype(np.float32), node_heading_rad=clip.heading_rad.astype(float),
+            node_ground_m=clip.ground_m.astype(float), node_contacts=clip.contacts)
+        if has_rot:
+            arrays["node_rotations"] = clip.local_rotations.astype(np.float32)
+            arrays["node_root_m"] = clip.root_positions_m.astype(float)
+        parts.add_nodes(**arrays)
+        prev = np.r_[0, np.arange(f - 1)]  # frame 0 "arrives" from itself: zero offsets
+        dh, dp = step_offsets(clip.heading_rad[prev], clip.ground_m[prev], clip.heading_rad, clip.ground_m)
+        parts.add_meta(clip.acc_g, dh, dp)
+        ids = np.arange(offsets[ci] + 1, offsets[ci + 1])
+        parts.add_edges(ids - 1, ids, EDGE_NATURAL, ids)
+    return offsets
+
+
+def build_from_clips(clips: list[ClipData], config: GraphConfig) -> MotionGraph:
+    """Assemble the graph: original frames, natural edges, transitions, then optional MSV / interpolation."""
+    if not clips:
+        raise ValueError("cannot build a motion graph from zero clips")
+    n_joints = {c.positions_m.shape[1] for c in clips}
+    n_sensors = {c.acc_g.shape[1] for c in clips}
+    if len(n_joints) != 1 or len(n_sensors) != 1:
+        raise ValueError("all clips must share one skeleton and one sensor set")
+    joint_weights = np.ones(n_joints.pop()) if config.joint_weights is None else np.asarray(config.joint_weights)
+    label_names = sorted({c.label for c in clips})
+    parts = GraphParts()
+    offsets = _original_nodes(parts, clips, label_names)
+    tr = find_transitions(clips, config.window_frames, joint_weights, config.transition_threshold_m,
+                          config.min_jump_frames)
+    parts.add_edges(tr.src_frame - 1, tr.dst_frame, EDGE_TRANSITION, tr.dst_frame)
+    if config.msv:
+        from .msv import add_speed_variations
+
+        add_speed_variations(parts, clips, offsets)
+    if config.interp:
+        from .interpolate import add_interpolated_motions
+
+        add_interpolated_motions(parts, clips, offsets, config, joint_weights, label_names)
+    return assemble(parts, clips, config, label_names)
+
+
+def assemble(parts: GraphParts, clips: list[ClipData], config: GraphConfig, label_names: list[str]) -> MotionGraph:
+    """Concatenate the parts, drop duplicate (src, dst) edges (first added wins) and sort edges by dst."""
+    node = {k: np.concatenate(v) for k, v in parts.node.items()}
+    src = np.concatenate(parts.edge["src"])
+    dst = np.concatenate(parts.edge["dst"])
+    kind = np.concatenate(parts.edge["kind"])
+    meta = np.concatenate(parts.edge["meta"])
+    key = dst * parts.n_nodes + src
+    _, first = np.unique(key, return_index=True)  # unique sorts by key = (dst, src)
+    return MotionGraph(
+        config=config, clip_names=[c.name for c in clips], label_names=label_names,
+        node_clip=node["node_clip"], node_clip2=node["node_clip2"], node_frame=node["node_frame"],
+        node_kind=node["node_kind"], node_label=node["node_label"], node_positions_m=node["node_positions_m"],
+        node_heading_rad=node["node_heading_rad"], node_ground_m=node["node_ground_m"],
+        node_contacts=node["node_contacts"].astype(bool),
+        node_rotations=node.get("node_rotations"), node_root_m=node.get("node_root_m"),
+        edge_src=src[first].astype(np.int32), edge_dst=dst[first].astype(np.int32), edge_kind=kind[first],
+        edge_meta=meta[first].astype(np.int32),
+        meta_acc_g=np.concatenate(parts.meta["acc"]).astype(np.float32),
+        meta_dheading_rad=np.concatenate(parts.meta["dheading"]).astype(float),
+        meta_dpos_m=np.concatenate(parts.meta["dpos"]).astype(float))

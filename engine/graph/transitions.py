@@ -1,0 +1,83 @@
+"""Transition candidates: contact-change frames joined by point-cloud local minima below a threshold.
+
+Following Safonova & Hodgins (as seed 000 does), a transition may only happen where the foot-contact state
+changes, and only between frames with the same contact state: a candidate is the first frame of a new
+contact state. A transition "i ~ j" means pose j can stand in for pose i, so the graph gets the edge
+(i - 1) -> j: the path leaves i's clip just before i and continues with j's clip.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .clips import ClipData
+from .pointcloud import WindowFeatures, distance_matrix, window_features
+
+
+@dataclass(frozen=True)
+class Transitions:
+    """Chosen transitions as global frame indices (into the concatenation of all clips)."""
+
+    src_frame: np.ndarray  # (K,) int64: frame i whose place is taken (edge leaves from i - 1)
+    dst_frame: np.ndarray  # (K,) int64: frame j entered instead of i
+    distance_m: np.ndarray  # (K,) RMS point-cloud distance
+
+
+def contact_change_frames(contacts: np.ndarray, window_frames: int) -> np.ndarray:
+    """Frames (of one clip) where the contact state differs from the previous frame and a full window fits."""
+    change = np.flatnonzero(np.any(contacts[1:] != contacts[:-1], axis=1)) + 1
+    half = window_frames // 2
+    n = contacts.shape[0]
+    return change[(change - half >= 0) & (change + (window_frames - half) <= n)]
+
+
+def contact_code(contacts: np.ndarray) -> np.ndarray:
+    """Contact state as one small integer per frame (left + 2 * right), for equality tests."""
+    return contacts[..., 0].astype(np.int8) + 2 * contacts[..., 1].astype(np.int8)
+
+
+def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: np.ndarray,
+                     threshold_m: float, min_jump_frames: int) -> Transitions:
+    """All transitions between contact-change frames of `clips` (including within one clip).
+
+    A pair is kept when both frames have the same contact state, the distance is below `threshold_m`, and the
+    distance is a local minimum of the candidate-by-candidate matrix (4-neighbourhood, neighbours taken only
+    within the same clip, as Kovar keeps local minima of the frame-by-frame matrix)."""
+    offsets = np.concatenate([[0], np.cumsum([c.n_frames for c in clips])])
+    feats, glob, clip_id, code = [], [], [], []
+    for ci, clip in enumerate(clips):
+        cand = contact_change_frames(clip.contacts, window_frames)
+        if len(cand) == 0:
+            continue
+        feats.append(window_features(clip.positions_m, cand, window_frames, joint_weights))
+        glob.append(cand + offsets[ci])
+        clip_id.append(np.full(len(cand), ci))
+        code.append(contact_code(clip.contacts[cand]))
+    if not feats:
+        empty = np.zeros(0, dtype=np.int64)
+        return Transitions(empty, empty, np.zeros(0))
+    allf = WindowFeatures(centres=np.concatenate(glob), c=np.concatenate([f.c for f in feats]),
+                          u=np.concatenate([f.u for f in feats]), v=np.concatenate([f.v for f in feats]),
+                          y=np.concatenate([f.y for f in feats]))
+    glob_idx = np.concatenate(glob)
+    clip_id = np.concatenate(clip_id)
+    code = np.concatenate(code)
+    dist = distance_matrix(allf, allf)
+    masked = dist.copy()
+    masked[code[:, None] != code[None, :]] = np.inf
+    same_clip = clip_id[:, None] == clip_id[None, :]
+    masked[same_clip & (np.abs(glob_idx[:, None] - glob_idx[None, :]) < min_jump_frames)] = np.inf
+    keep = masked < threshold_m
+    # local minimum along both axes, comparing only with neighbours of the same clip
+    nb_same = clip_id[1:] == clip_id[:-1]
+    for axis in (0, 1):
+        m = masked if axis == 1 else masked.T
+        prev = np.full_like(m, np.inf)
+        prev[:, 1:] = np.where(nb_same[None, :], m[:, :-1], np.inf)
+        nxt = np.full_like(m, np.inf)
+        nxt[:, :-1] = np.where(nb_same[None, :], m[:, 1:], np.inf)
+        ok = (m <= prev) & (m <= nxt)
+        keep &= ok if axis == 1 else ok.T
+    rows, cols = np.nonzero(keep)
+    return Transitions(src_frame=glob_idx[rows], dst_frame=glob_idx[cols], distance_m=dist[rows, cols])
