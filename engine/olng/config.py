@@ -1,0 +1,58 @@
+"""Every tunable constant of the OLNG reconstructor (Tautges et al. 2011), with the spec's defaults.
+
+WHY dataclasses: the paper leaves most constants open (window length, step rules, penalties), so each one is a
+named, documented knob that benches and tests can sweep instead of a literal buried in the code.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class GraphConfig:
+    """Online lazy neighbourhood graph and kNN search (spec A2.3-A2.5)."""
+
+    k_neighbours: int = 4096      # K: nearest database frames per input frame (paper: 4096)
+    window: int = 32              # M: columns kept; an upper bound on match length (spec default 32)
+    max_column_step: int = 2      # dc_max: 2 = at most one skipped input column
+    max_warp: int = 2             # database index may advance at most max_warp * dc per step
+    skip_cost: str = "held"       # skipped column priced as "held" (distance to the predecessor's frame) or "miss" (mu, spec)
+    skip_penalty: float = 1.0     # multiplier on that skip cost
+    i_best: int = 256             # I: paths that become hypotheses for the energy (paper: 256)
+    leafsize: int = 32            # cKDTree leaf size
+
+
+@dataclass(frozen=True)
+class EnergyConfig:
+    """Kernel-prior energy (spec A2.6-A2.8); the w_* weights are the paper's."""
+
+    w_prior: float = 5.0
+    w_control: float = 1.0
+    w_pose: float = 0.6
+    w_motion: float = 0.2
+    w_smooth: float = 0.2
+    epsilon: float = 1e-3                # pseudo-Huber floor inside sqrt(|r|): sqrt has infinite slope at 0
+    variance_kept: float = 0.99          # weighted-PCA subspace keeps this fraction of the weighted variance
+    min_components: int = 3              # guard when all weight sits on one pose
+    max_nfev: int = 30                   # least_squares budget per frame ("converges after few iterations")
+    length_unit_m: float = 0.01          # energy positions in cm so angle (rad) and length terms are O(1)
+    kernel: str = "sqrt"                 # "sqrt" (paper) or "mahalanobis" (Fig. 11 baseline b)
+    control_reading: str = "previous"    # "previous": alpha^t drives E_contr as in the paper; "current": alpha^{t+1}
+
+
+@dataclass(frozen=True)
+class KnowledgeBaseConfig:
+    """How the database is prepared (spec A2.1)."""
+
+    fps: float = 25.0          # the paper's knowledge base rate
+    mirror: bool = False       # "M": add left/right mirrored copies
+    reverse: bool = False      # "R": add time-reversed copies
+
+
+@dataclass(frozen=True)
+class OLNGConfig:
+    """Everything the streaming reconstructor needs."""
+
+    graph: GraphConfig = field(default_factory=GraphConfig)
+    energy: EnergyConfig = field(default_factory=EnergyConfig)
+    knowledge_base: KnowledgeBaseConfig = field(default_factory=KnowledgeBaseConfig)

@@ -1,0 +1,167 @@
+"""The OLNG knowledge base: per-frame poses, root-frame joint kinematics and simulated sensor readings
+(spec A2.1), with a kd-tree over the 12-D readings (A2.3).
+
+Built from plain per-clip arrays so it does not depend on which reader produced the motion; the bridge in
+`engine.olng.mocap_bridge` turns `engine.mocap.Motion` clips into these arrays.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from engine.olng.pose import Rig, fk_root_frame, pose_vectors
+
+
+@dataclass(frozen=True)
+class SensorRig:
+    """Where the worn sensors sit, in the order of the reading vector ([LW, RW, LA, RA] for the paper).
+
+    bone: joint whose global rotation carries each sensor; local_rot: (S, 3, 3) sensor axes (columns) in that
+    joint's frame; tip: the joint next to each sensor whose position the control term predicts."""
+
+    bone: np.ndarray       # (S,) int
+    local_rot: np.ndarray  # (S, 3, 3)
+    tip: np.ndarray        # (S,) int
+
+
+@dataclass(frozen=True)
+class ClipArrays:
+    """One clip at the knowledge-base rate: local joint quaternions (F, J, 4) (w,x,y,z), root positions (F, 3) m
+    in the world (Y up), and the simulated accelerometer readings (F, S, 3) in g."""
+
+    local_quats: np.ndarray
+    root_pos_m: np.ndarray
+    acc_g: np.ndarray
+    name: str = ""
+
+
+def within_clip_derivatives(values: np.ndarray, clip_id: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """First and second time derivatives of (N, ...) values, central inside each clip, one-sided at clip ends
+    (differences never straddle a clip boundary)."""
+    vel = np.empty_like(values, dtype=float)
+    acc = np.empty_like(values, dtype=float)
+    starts = np.flatnonzero(np.r_[True, clip_id[1:] != clip_id[:-1]])
+    ends = np.r_[starts[1:], len(clip_id)]
+    for s, e in zip(starts, ends):
+        seg = values[s:e]
+        if e - s < 3:
+            vel[s:e] = 0.0 if e - s == 1 else (seg[-1] - seg[0]) / dt_s
+            acc[s:e] = 0.0
+            continue
+        vel[s:e] = np.gradient(seg, dt_s, axis=0)
+        second = (seg[2:] - 2 * seg[1:-1] + seg[:-2]) / dt_s**2
+        acc[s + 1 : e - 1] = second
+        acc[s] = second[0]
+        acc[e - 1] = second[-1]
+    return vel, acc
+
+
+@dataclass
+class KnowledgeBase:
+    """Flattened database over all clips (N frames). Units: positions m, time s, readings g, angles rad."""
+
+    rig: Rig
+    sensors: SensorRig
+    fps: float
+    q: np.ndarray               # (N, J*3) pose vectors, root heading removed
+    x_m: np.ndarray             # (N, J, 3) joint positions in the root frame
+    v_mps: np.ndarray           # (N, J, 3) their velocities
+    a_mps2: np.ndarray          # (N, J, 3) their accelerations
+    alpha_g: np.ndarray         # (N, S*3) simulated readings
+    clip_id: np.ndarray         # (N,) int
+    root_vel_heading_mps: np.ndarray  # (N, 3) root velocity in the heading frame (x lateral, y up, z forward)
+    yaw_rate_rps: np.ndarray    # (N,) heading rate
+    root_height_m: np.ndarray   # (N,)
+    clip_names: tuple[str, ...] = ()
+    _tree: cKDTree | None = None
+
+    @property
+    def size(self) -> int:
+        return len(self.clip_id)
+
+    @property
+    def dt_s(self) -> float:
+        return 1.0 / self.fps
+
+    @property
+    def tree(self) -> cKDTree:
+        """kd-tree over the readings, built on first use (about a second per 500k frames)."""
+        if self._tree is None:
+            self._tree = cKDTree(self.alpha_g, leafsize=32)
+        return self._tree
+
+    def neighbours(self, alpha_g: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The k nearest database frames to one reading (S*3,): (indices ascending, their Euclidean distances).
+
+        Sorted by database index because the OLNG finds predecessors by binary search on each column."""
+        k = min(k, self.size)
+        dist, idx = self.tree.query(alpha_g, k=k, workers=1)
+        dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
+        order = np.argsort(idx)
+        return idx[order], dist[order]
+
+    @classmethod
+    def from_clips(cls, rig: Rig, sensors: SensorRig, clips: list[ClipArrays], fps: float) -> "KnowledgeBase":
+        """Stack clips into one database; every clip gets its own id so OLNG paths never cross between clips."""
+        if not clips:
+            raise ValueError("knowledge base needs at least one clip")
+        dt = 1.0 / fps
+        joints = len(rig.parents)
+        q_parts, head_parts, root_parts, ids = [], [], [], []
+        for cid, clip in enumerate(clips):
+            if clip.local_quats.shape[1:] != (joints, 4):
+                raise ValueError(f"clip {clip.name or cid}: local_quats shape {clip.local_quats.shape} does not match {joints} joints")
+            if len(clip.acc_g) != len(clip.local_quats) or len(clip.root_pos_m) != len(clip.local_quats):
+                raise ValueError(f"clip {clip.name or cid}: acc/root/pose frame counts differ")
+            q, heading = pose_vectors(clip.local_quats)
+            q_parts.append(q)
+            head_parts.append(np.unwrap(heading))
+            root_parts.append(clip.root_pos_m)
+            ids.append(np.full(len(q), cid))
+        clip_id = np.concatenate(ids)
+        q = np.concatenate(q_parts)
+        heading = np.concatenate(head_parts)
+        root = np.concatenate(root_parts)
+        x = np.concatenate([fk_root_frame(rig, part)[0] for part in np.array_split(q, max(1, len(q) // 20000))])
+        v, a = within_clip_derivatives(x, clip_id, dt)
+        root_vel_world, _ = within_clip_derivatives(root, clip_id, dt)
+        yaw_rate, _ = within_clip_derivatives(heading, clip_id, dt)
+        c, s = np.cos(heading), np.sin(heading)
+        # world -> heading frame: rotate by -heading about +Y
+        root_vel_heading = np.stack(
+            [c * root_vel_world[:, 0] - s * root_vel_world[:, 2], root_vel_world[:, 1], s * root_vel_world[:, 0] + c * root_vel_world[:, 2]],
+            -1,
+        )
+        alpha = np.concatenate([clip.acc_g.reshape(len(clip.acc_g), -1) for clip in clips])
+        return cls(
+            rig=rig, sensors=sensors, fps=fps, q=q, x_m=x, v_mps=v, a_mps2=a, alpha_g=alpha, clip_id=clip_id,
+            root_vel_heading_mps=root_vel_heading, yaw_rate_rps=yaw_rate, root_height_m=root[:, 1].copy(),
+            clip_names=tuple(clip.name for clip in clips),
+        )
+
+    def save(self, path: str | Path) -> None:
+        """Write the database as one .npz (the kd-tree is rebuilt on load: it is fast and version-proof)."""
+        np.savez_compressed(
+            path, names=np.array(self.rig.names), parents=self.rig.parents, offsets_m=self.rig.offsets_m,
+            sensor_bone=self.sensors.bone, sensor_local_rot=self.sensors.local_rot, sensor_tip=self.sensors.tip,
+            fps=self.fps, q=self.q, x_m=self.x_m, v_mps=self.v_mps, a_mps2=self.a_mps2, alpha_g=self.alpha_g,
+            clip_id=self.clip_id, root_vel_heading_mps=self.root_vel_heading_mps, yaw_rate_rps=self.yaw_rate_rps,
+            root_height_m=self.root_height_m, clip_names=np.array(self.clip_names),
+        )
+
+    @classmethod
+    def load(cls, path: str | Path) -> "KnowledgeBase":
+        from engine.errors import MalformedFileError
+
+        try:
+            data = np.load(path, allow_pickle=False)
+            rig = Rig(tuple(str(n) for n in data["names"]), data["parents"], data["offsets_m"])
+            sensors = SensorRig(data["sensor_bone"], data["sensor_local_rot"], data["sensor_tip"])
+            fields = {k: data[k] for k in ("q", "x_m", "v_mps", "a_mps2", "alpha_g", "clip_id",
+                                           "root_vel_heading_mps", "yaw_rate_rps", "root_height_m")}
+            return cls(rig=rig, sensors=sensors, fps=float(data["fps"]), clip_names=tuple(str(n) for n in data["clip_names"]), **fields)
+        except (KeyError, ValueError, OSError) as exc:
+            raise MalformedFileError(path, None, f"not an OLNG knowledge base: {exc}") from exc

@@ -1,0 +1,140 @@
+"""Streaming full-body reconstruction from 4 accelerometers: kNN -> OLNG -> kernel-prior energy (spec A2.10).
+
+`OLNGReconstructor.push(acc_g)` takes one reading per sensor (S, 3) in g, at the knowledge-base rate, and returns
+the pose for that same frame (no look-ahead, so the console can use it live). Root motion is not sensed: it is
+the Eq. 1-weighted average of the hypotheses' root velocity, yaw rate and height, integrated (spec A2.9).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from engine.olng.config import OLNGConfig
+from engine.olng.energy import FrameProblem, KernelEnergy
+from engine.olng.graph import OnlineLazyNeighbourhoodGraph, path_weights
+from engine.olng.knowledge_base import KnowledgeBase
+from engine.olng.pose import UP, fk_root_frame, quat_multiply, rotvec_to_matrix, rotvec_to_quat, yaw_quat
+
+G_MPS2 = 9.80665
+
+
+@dataclass(frozen=True)
+class ReconstructedPose:
+    """One output frame. local_quats include the integrated heading on the root, so (root_pos_m, local_quats)
+    is a complete BVH-style pose; joints_root_m is what the paper's error metric compares."""
+
+    q: np.ndarray               # (J*3,) pose vector, heading removed
+    local_quats: np.ndarray     # (J, 4)
+    root_pos_m: np.ndarray      # (3,) world, Y up
+    heading_rad: float
+    joints_root_m: np.ndarray   # (J, 3) root frame
+    joints_world_m: np.ndarray  # (J, 3)
+
+
+@dataclass
+class StepTimings:
+    """Accumulated wall time per stage (s) and frames, for the bench's per-step split."""
+
+    search_s: float = 0.0
+    graph_s: float = 0.0
+    optimise_s: float = 0.0
+    frames: int = 0
+    subspace_dims: list[int] = field(default_factory=list)
+
+
+class OLNGReconstructor:
+    """Online reconstruction against a KnowledgeBase (see module doc)."""
+
+    def __init__(self, kb: KnowledgeBase, config: OLNGConfig = OLNGConfig()) -> None:
+        self.kb = kb
+        self.config = config
+        self.graph = OnlineLazyNeighbourhoodGraph(kb.clip_id, config.graph, kb.alpha_g)
+        self.energy = KernelEnergy(kb.rig, kb.sensors.tip, config.energy)
+        self.timings = StepTimings()
+        self._k = config.graph.k_neighbours
+        self._scale = 1.0 / config.energy.length_unit_m
+        self._x_hist: list[np.ndarray] = []   # last two outputs' root-frame positions (energy units)
+        self._q_prev: np.ndarray | None = None
+        self._alpha_prev: np.ndarray | None = None
+        self._root = np.zeros(3)
+        self._heading = 0.0
+
+    def reset_root(self, root_pos_m: np.ndarray, heading_rad: float) -> None:
+        """Place the (unsensed) root, e.g. at the camera's position estimate."""
+        self._root = np.asarray(root_pos_m, dtype=float).copy()
+        self._heading = float(heading_rad)
+
+    def _sensor_accel_root(self, q_prev: np.ndarray, alpha_g: np.ndarray) -> np.ndarray:
+        """Reading rotated into the root frame with the previous output's sensor frames, gravity removed
+        (spec A2.6: root acceleration and fictitious forces ignored on purpose). (S, 3) in m/s^2."""
+        _, rot = fk_root_frame(self.kb.rig, q_prev[None])
+        sensor_rot = rot[0, self.kb.sensors.bone] @ self.kb.sensors.local_rot      # (S, 3, 3) root <- sensor
+        tilt = rotvec_to_matrix(q_prev[:3])
+        gravity_root = G_MPS2 * tilt.T @ UP
+        return np.einsum("sij,sj->si", sensor_rot, alpha_g * G_MPS2) - gravity_root
+
+    def _problem(self, nodes: np.ndarray, weights: np.ndarray, alpha_g: np.ndarray) -> FrameProblem:
+        kb, dt, scale = self.kb, self.kb.dt_s, self._scale
+        pose_targets = kb.q[nodes]
+        if not self._x_hist:
+            return FrameProblem(weights, pose_targets, None, None, None, start_pose=weights @ pose_targets)
+        x_t = self._x_hist[-1]
+        acc = kb.a_mps2[nodes].reshape(len(nodes), -1) * scale
+        # velocity of the database frame before each path's last frame, so (velocity, weight) share a path (A6.3)
+        before = np.maximum(nodes - 1, 0)
+        before = np.where(kb.clip_id[before] == kb.clip_id[nodes], before, nodes)
+        vel_prev = kb.v_mps[before] * scale                                         # (I, J, 3)
+        reading = self._alpha_prev if self.config.energy.control_reading == "previous" else alpha_g
+        accel_root = self._sensor_accel_root(self._q_prev, reading) * scale         # (S, 3)
+        tips = kb.sensors.tip
+        control = (x_t.reshape(-1, 3)[tips][None] + vel_prev[:, tips] * dt + 0.5 * accel_root[None] * dt**2).reshape(len(nodes), -1)
+        motion = smooth = None
+        if len(self._x_hist) >= 2:
+            vel = kb.v_mps[nodes].reshape(len(nodes), -1) * scale
+            motion = x_t + vel * dt + 0.5 * acc * dt**2
+            smooth = 2 * x_t - self._x_hist[-2] + acc * dt**2
+        return FrameProblem(weights, pose_targets, motion, smooth, control, start_pose=self._q_prev)
+
+    def push(self, acc_g: np.ndarray) -> ReconstructedPose:
+        """Reconstruct the pose for this input frame. acc_g: (S, 3) readings in g, sensor order of the database."""
+        alpha = np.asarray(acc_g, dtype=float).reshape(-1)
+        if alpha.shape != (self.kb.alpha_g.shape[1],):
+            raise ValueError(f"expected {self.kb.alpha_g.shape[1] // 3} sensors x 3 axes, got shape {np.shape(acc_g)}")
+        t0 = time.perf_counter()
+        idx, dist = self.kb.neighbours(alpha, self._k)
+        t1 = time.perf_counter()
+        self.graph.push(idx, dist, alpha)
+        nodes, costs = self.graph.best(self.config.graph.i_best)
+        weights = path_weights(costs)
+        t2 = time.perf_counter()
+        problem = self._problem(nodes, weights, alpha.reshape(-1, 3))
+        q = problem.start_pose if not self._x_hist else self.energy.solve(problem)
+        t3 = time.perf_counter()
+        self.timings.search_s += t1 - t0
+        self.timings.graph_s += t2 - t1
+        self.timings.optimise_s += t3 - t2
+        self.timings.frames += 1
+        self.timings.subspace_dims.append(self.energy.last_dims)
+        return self._emit(q, nodes, weights, alpha)
+
+    def _emit(self, q: np.ndarray, nodes: np.ndarray, weights: np.ndarray, alpha: np.ndarray) -> ReconstructedPose:
+        kb, dt = self.kb, self.kb.dt_s
+        pos, _ = fk_root_frame(kb.rig, q[None])
+        joints_root = pos[0]
+        self._x_hist = (self._x_hist + [joints_root.reshape(-1) * self._scale])[-2:]
+        self._q_prev, self._alpha_prev = q, alpha.reshape(-1, 3)
+        vel_heading = weights @ kb.root_vel_heading_mps[nodes]
+        c, s = np.cos(self._heading), np.sin(self._heading)
+        self._root[0] += dt * (c * vel_heading[0] + s * vel_heading[2])
+        self._root[2] += dt * (-s * vel_heading[0] + c * vel_heading[2])
+        self._root[1] = float(weights @ kb.root_height_m[nodes])
+        self._heading += dt * float(weights @ kb.yaw_rate_rps[nodes])
+        quats = rotvec_to_quat(q.reshape(-1, 3))
+        quats[0] = quat_multiply(yaw_quat(np.array(self._heading)), quats[0])
+        root_rot = rotvec_to_matrix(q[:3])
+        yaw = rotvec_to_matrix(np.array([0.0, self._heading, 0.0]))
+        world = self._root + joints_root @ (yaw @ root_rot).T
+        return ReconstructedPose(q=q, local_quats=quats, root_pos_m=self._root.copy(), heading_rad=self._heading,
+                                 joints_root_m=joints_root, joints_world_m=world)
