@@ -25,9 +25,3 @@ def advance(ground_m: np.ndarray, heading_rad: np.ndarray, dpos_local_m: np.ndar
     """Global (ground, heading) after traversing edges with the given offsets (eq. 5 of seed 000)."""
     return ground_m + rotate_ground(dpos_local_m, heading_rad), heading_rad + dheading_rad
 
-
-def retreat(ground_m: np.ndarray, heading_rad: np.ndarray, dpos_local_m: np.ndarray,
-            dheading_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse of `advance`: the (ground, heading) before the edge, from the state after it."""
-    prev_heading = heading_rad - dheading_rad
-    return ground_m - rotate_ground(dpos_local_m, prev_heading), prev_heading

@@ -19,9 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import TWO_PI, wrap_angle
+from .geometry import TWO_PI, rotate_ground, wrap_angle
 from .graph import MotionGraph
-from .metadata import retreat
 
 
 @dataclass(frozen=True)
@@ -256,16 +255,15 @@ class ViterbiLattice:
 
     def global_states(self, node: int, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ground position and heading along a back-traced path, by undoing its edges from the current state
-        of `node` (exactly the values the search carried, without storing them per sample)."""
-        k = len(edges)
-        ground = np.empty((k, 2))
-        heading = np.empty(k)
-        ground[-1], heading[-1] = self.P[node], self.O[node]
-        for i in range(k - 1, 0, -1):
-            e = edges[i]
-            ground[i - 1], heading[i - 1] = retreat(ground[i], heading[i], np.array([self._dpx[e], self._dpz[e]]),
-                                                    self._dh[e])
-        return ground, wrap_angle(heading)
+        of `node` (the values the search carried, without storing them per sample). Vectorised inverse of
+        eq. 5: heading[i] = O_end - sum_{m>i} dh_m, ground[i] = P_end - sum_{m>i} R(heading[m-1]) d_m."""
+        e = np.asarray(edges[1:], dtype=np.intp)
+        dh = self._dh[e]
+        after = np.r_[np.cumsum(dh[::-1])[::-1], 0.0]  # after[i] = sum of dh over edges later than sample i
+        heading = self.O[node] - after
+        steps = rotate_ground(np.stack([self._dpx[e], self._dpz[e]], axis=1), heading[:-1])
+        back = np.concatenate([np.cumsum(steps[::-1], axis=0)[::-1], np.zeros((1, 2))])
+        return self.P[node] - back, wrap_angle(heading)
 
     def drop_before(self, time: int) -> None:
         """Forget columns of samples earlier than `time` (already emitted by a fixed-lag decoder)."""

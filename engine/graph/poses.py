@@ -1,0 +1,22 @@
+"""Placing graph poses in the world: a node's joints live in its source clip's frame; a path carries its own
+global ground position and heading, so each pose is turned and moved onto the path."""
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import rotate_ground
+from .graph import MotionGraph
+
+
+def world_joint_positions(graph: MotionGraph, nodes: np.ndarray, ground_m: np.ndarray,
+                          heading_rad: np.ndarray) -> np.ndarray:
+    """(T, J, 3) joint positions (m, world frame) of `nodes` placed at the path's (ground, heading) per sample."""
+    nodes = np.asarray(nodes, dtype=np.intp)
+    pts = graph.node_positions_m[nodes].astype(float)
+    pts[..., 0] -= graph.node_ground_m[nodes, 0][:, None]
+    pts[..., 2] -= graph.node_ground_m[nodes, 1][:, None]
+    turn = np.asarray(heading_rad, float) - graph.node_heading_rad[nodes]
+    pts[..., [0, 2]] = rotate_ground(pts[..., [0, 2]], turn[:, None])
+    pts[..., 0] += np.asarray(ground_m)[:, 0][:, None]
+    pts[..., 2] += np.asarray(ground_m)[:, 1][:, None]
+    return pts

@@ -1,0 +1,91 @@
+"""Fixed-lag decoder vs the batch search, and sensor-rate conversion."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.graph.config import GraphConfig
+from engine.graph.graph import EDGE_TRANSITION, build_from_clips
+from engine.graph.online import FixedLagSynthesizer, resample_stream
+from engine.graph.poses import world_joint_positions
+from engine.graph.viterbi import Observations, ViterbiSearch
+
+from .synth import gait_clip, observe, rigid_copy, walk_path
+
+
+@pytest.fixture(scope="module")
+def case():
+    a = gait_clip("a", n_frames=80, turn_rate=0.02, seed=1)
+    g = build_from_clips([a, rigid_copy(a, "b", 1.1, (4.0, -2.0))],
+                         GraphConfig(window_frames=5, transition_threshold_m=0.05, min_jump_frames=8))
+    rng = np.random.default_rng(2)
+    nodes, edges = walk_path(g, 0, 50, rng, prefer_kind=EDGE_TRANSITION)
+    acc, ground, heading = observe(g, nodes, edges, (1.0, -1.0), 0.5)
+    obs = Observations(acc + rng.normal(0, 0.7, acc.shape), ground + rng.normal(0, 0.1, ground.shape),
+                       heading + rng.normal(0, 0.1, heading.shape))
+    return g, obs
+
+
+def run_online(g, obs, lag_s, prune_every=32):
+    syn = FixedLagSynthesizer(g, lag_s, prune_every=prune_every)
+    out, emitted_at = [], []
+    for t in range(obs.n_samples):
+        got = syn.push(obs.acc_g[t], obs.position_m[t], obs.heading_rad[t])
+        out += got
+        emitted_at += [t] * len(got)
+    out += syn.flush()
+    return out, emitted_at
+
+
+def test_lag_covering_the_sequence_equals_batch(case):
+    g, obs = case
+    batch = ViterbiSearch(g).run(obs)
+    out, emitted_at = run_online(g, obs, lag_s=obs.n_samples / g.config.fps)
+    assert emitted_at == []  # nothing decided before flush
+    assert [p.t for p in out] == list(range(obs.n_samples))
+    assert np.array_equal([p.node for p in out], batch.nodes)
+    assert np.array_equal(np.array([p.ground_m for p in out]), batch.ground_m)
+    joints = world_joint_positions(g, batch.nodes, batch.ground_m, batch.heading_rad)
+    assert np.array_equal(np.array([p.joint_positions_m for p in out]), joints)
+
+
+def test_short_lag_emits_with_the_stated_latency_and_bounded_memory(case):
+    g, obs = case
+    lag = 0.2
+    syn = FixedLagSynthesizer(g, lag, prune_every=0)
+    for t in range(obs.n_samples):
+        got = syn.push(obs.acc_g[t], obs.position_m[t], obs.heading_rad[t])
+        if t >= syn.lag:
+            assert [p.t for p in got] == [t - syn.lag]
+            assert len(syn.lattice.columns) <= syn.lag
+        else:
+            assert got == []
+    tail = syn.flush()
+    assert [p.t for p in tail] == list(range(obs.n_samples - syn.lag, obs.n_samples))
+
+
+def test_world_pose_of_a_node_keeps_its_shape(case):
+    g, _ = case
+    n = 17
+    j = world_joint_positions(g, np.array([n]), np.array([[3.0, 4.0]]), np.array([2.0]))[0]
+    src = g.node_positions_m[n].astype(float)
+    d_src = np.linalg.norm(src[:, None] - src[None], axis=2)
+    assert np.allclose(np.linalg.norm(j[:, None] - j[None], axis=2), d_src, atol=1e-5)
+    assert np.allclose(j[0, [0, 2]], [3.0, 4.0]) and np.isclose(j[0, 1], src[0, 1])
+
+
+def test_resample_keeps_in_band_signal_and_removes_aliases():
+    fs_in, fs_out = 100.0, 30.0
+    t_in = np.arange(0, 10, 1 / fs_in)
+    slow = np.sin(2 * np.pi * 2.0 * t_in)
+    fast = 0.8 * np.sin(2 * np.pi * 40.0 * t_in)  # above 15 Hz: would alias to 10 Hz without the low-pass
+    x = np.stack([slow + fast, slow], axis=1)[:, None, :]  # (T, 1, 2)
+    y = resample_stream(x, fs_in, fs_out)
+    t_out = np.arange(y.shape[0]) / fs_out
+    assert y.shape == (300, 1, 2)
+    inner = slice(15, -15)
+    want = np.sin(2 * np.pi * 2.0 * t_out)[inner]
+    assert np.max(np.abs(y[inner, 0, 0] - want)) < 0.03
+    assert np.max(np.abs(y[inner, 0, 1] - want)) < 0.03
+    naive = (slow + fast)[(t_out * fs_in).round().astype(int)]
+    assert np.max(np.abs(naive[inner] - want)) > 0.5  # plain decimation would alias
