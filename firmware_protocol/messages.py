@@ -1,0 +1,198 @@
+"""Message dataclasses of the base-station protocol (byte layouts in PROTOCOL.md).
+
+Why plain ints for opcodes/reasons/codes (with IntEnum constants beside them): a station may NACK an opcode the
+host does not know and a newer station may send reason codes an older host does not know; the decoder must carry
+those values through instead of failing on an enum conversion.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum, IntFlag
+
+import numpy as np
+
+PROTOCOL_VERSION = 1
+BROADCAST_SENSOR = 0xFF
+"""`Command.target` value meaning "every sensor"."""
+PERIODIC_BEACON = 0
+"""`ClockSync.echo_command_id` of an unsolicited beacon (host command ids are 1..65535)."""
+INT16_FULL_SCALE = 32767
+
+
+class MessageType(IntEnum):
+    HELLO = 0x01
+    SAMPLE_BATCH = 0x02
+    CLOCK_SYNC = 0x03
+    STATUS = 0x04
+    COMMAND = 0x05
+    ACK = 0x06
+    NACK = 0x07
+    ERROR = 0x08
+
+
+class SensorKind(IntEnum):
+    ACCELEROMETER = 1
+
+
+class Opcode(IntEnum):
+    START_STREAMING = 1
+    STOP_STREAMING = 2
+    SET_RATE = 3            # value = sample rate, Hz
+    SET_RANGE = 4           # value = full-scale range, g
+    IDENTIFY = 5            # value = blink duration, ms
+    ENTER_CALIBRATION = 6
+    LEAVE_CALIBRATION = 7
+    REQUEST_HELLO = 8
+    REQUEST_STATUS = 9
+    REQUEST_CLOCK_SYNC = 10
+
+
+class NackReason(IntEnum):
+    UNKNOWN_OPCODE = 1
+    UNSUPPORTED_VALUE = 2   # rate/range not in the HELLO lists, negative duration
+    UNKNOWN_SENSOR = 3
+    INVALID_STATE = 4       # e.g. SET_RATE while streaming
+    MALFORMED = 5           # COMMAND payload of the wrong length
+
+
+class ErrorCode(IntEnum):
+    BAD_FRAME = 1           # a host->station frame failed COBS/length/CRC
+    UNSUPPORTED_VERSION = 2
+    BUFFER_OVERFLOW = 3
+    UNEXPECTED_MESSAGE = 4  # a station-only message type was sent to the station
+
+
+class StationFlags(IntFlag):
+    STREAMING = 0x01
+    CALIBRATING = 0x02
+    IDENTIFYING = 0x04
+
+
+class BatchFlags(IntFlag):
+    CALIBRATING = 0x01      # samples taken while the station was in calibration mode
+
+
+def scale_for_range(range_g: int) -> float:
+    """g per LSB for a +-range_g int16 sensor, rounded to float32 because that is what goes on the wire."""
+    return float(np.float32(range_g / INT16_FULL_SCALE))
+
+
+@dataclass(frozen=True, slots=True)
+class SensorInfo:
+    sensor_id: int
+    kind: int
+    rate_hz: int
+    range_g: int
+
+
+@dataclass(frozen=True, slots=True)
+class Hello:
+    """Capabilities, sent unsolicited as frame seq 0 after boot and on REQUEST_HELLO."""
+    firmware_version: tuple[int, int, int]
+    station_serial: int
+    boot_id: int                         # random per boot: tells a station reset from a counter wrap
+    tick_rate_hz: int                    # device clock of every `*_ticks` field (u32, wraps)
+    supported_rates_hz: tuple[int, ...]
+    supported_ranges_g: tuple[int, ...]
+    sensors: tuple[SensorInfo, ...]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class SampleBatch:
+    """N consecutive samples of one sensor.
+
+    Sample i was latched at device tick `first_sample_ticks + i * sample_period_ticks` (mod 2**32) and has
+    per-sensor counter `first_sample_counter + i` (mod 2**32); a jump in the counter is a radio loss.
+    """
+    sensor_id: int
+    flags: int
+    first_sample_counter: int
+    first_sample_ticks: int
+    period_ticks_q8: int                 # sample period in 1/256 device ticks (exact for 32768 Hz / 100 Hz too)
+    scale_g_per_lsb: float               # float32 on the wire
+    samples: np.ndarray                  # (N, 3) int16 counts, x y z
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.samples.shape[0])
+
+    @property
+    def sample_period_ticks(self) -> float:
+        return self.period_ticks_q8 / 256.0
+
+    def acc_g(self) -> np.ndarray:
+        """(N, 3) float64 acceleration in g."""
+        return self.samples.astype(np.float64) * self.scale_g_per_lsb
+
+    def sample_ticks(self) -> np.ndarray:
+        """(N,) float64 latch ticks of every sample, NOT wrapped (first + i * period): unwrap `first` yourself."""
+        return self.first_sample_ticks + np.arange(self.n_samples) * self.sample_period_ticks
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, SampleBatch):
+            return NotImplemented
+        return (
+            (self.sensor_id, self.flags, self.first_sample_counter, self.first_sample_ticks, self.period_ticks_q8,
+             self.scale_g_per_lsb)
+            == (other.sensor_id, other.flags, other.first_sample_counter, other.first_sample_ticks,
+                other.period_ticks_q8, other.scale_g_per_lsb)
+            and self.samples.shape == other.samples.shape
+            and bool(np.array_equal(self.samples, other.samples))
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class ClockSync:
+    """Station clock at the moment the frame was queued for the USB link."""
+    station_ticks: int
+    beacon_counter: int
+    echo_command_id: int = PERIODIC_BEACON
+
+
+@dataclass(frozen=True, slots=True)
+class SensorLink:
+    sensor_id: int
+    rssi_dbm: int
+    battery_pct: int
+
+
+@dataclass(frozen=True, slots=True)
+class Status:
+    flags: int                           # StationFlags
+    battery_pct: int
+    battery_mv: int
+    uptime_ms: int
+    buffered_samples: int                # taken by sensors, not yet delivered to the host
+    radio_drops: int                     # sensor batches lost on the radio since boot
+    crc_errors: int                      # host->station frames rejected since boot
+    links: tuple[SensorLink, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Command:
+    command_id: int                      # host token 1..65535, echoed in ACK/NACK
+    opcode: int
+    target: int = BROADCAST_SENSOR
+    value: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class Ack:
+    command_id: int
+    opcode: int
+
+
+@dataclass(frozen=True, slots=True)
+class Nack:
+    command_id: int
+    opcode: int
+    reason: int
+
+
+@dataclass(frozen=True, slots=True)
+class Error:
+    code: int
+    text: str
+
+
+Message = Hello | SampleBatch | ClockSync | Status | Command | Ack | Nack | Error

@@ -1,0 +1,230 @@
+"""Framing, codec and StreamDecoder: round trips, chunking, and exact accounting of injected damage."""
+from __future__ import annotations
+
+import binascii
+import zlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from firmware_protocol import (
+    ClockSync, Command, Hello, MessageType, SampleBatch, StreamDecoder, encode, scale_for_range,
+)
+from firmware_protocol.framing import MAX_ENCODED_FRAME_BYTES, crc32, frame_payload
+from firmware_protocol.codec import pack_sample_batch
+
+from .strategies import messages, sample_batches, u16, u32
+
+
+def _stream(msgs: list, station_id: int = 7, first_seq: int = 1) -> tuple[bytes, list[tuple[int, int]]]:
+    """Concatenated frames and each frame's [start, end) byte span (end includes its delimiter)."""
+    frames = [encode(m, station_id, first_seq + i) for i, m in enumerate(msgs)]
+    spans, pos = [], 0
+    for f in frames:
+        spans.append((pos, pos + len(f)))
+        pos += len(f)
+    return b"".join(frames), spans
+
+
+def test_crc_parameters_are_the_documented_ones():
+    assert crc32(b"123456789") == 0xCBF43926
+    assert binascii.crc32(b"123456789") == zlib.crc32(b"123456789")
+
+
+def test_known_frame_bytes():
+    """A fixed message encodes to fixed bytes (guards the layout against accidental change)."""
+    frame = encode(ClockSync(station_ticks=0x01020304, beacon_counter=5, echo_command_id=0), station_id=2, seq=1)
+    body = bytes([1, 3, 2, 0, 1, 0, 0, 0, 10, 0, 4, 3, 2, 1, 5, 0, 0, 0, 0, 0])
+    body += zlib.crc32(body).to_bytes(4, "little")
+    assert StreamDecoder().feed(frame)[0].message == ClockSync(0x01020304, 5, 0)
+    assert 0 not in frame[:-1] and frame[-1] == 0
+    from cobs.cobs import decode
+    assert decode(frame[:-1]) == body
+
+
+@given(msg=messages, station_id=u16, seq=u32)
+@settings(max_examples=400, deadline=None)
+def test_round_trip_every_message_type(msg, station_id, seq):
+    decoder = StreamDecoder()
+    frames = decoder.feed(encode(msg, station_id, seq))
+    assert len(frames) == 1
+    assert (frames[0].station_id, frames[0].seq, frames[0].message) == (station_id, seq, msg)
+    assert type(frames[0].message) is type(msg)
+    assert decoder.stats.frames_ok == 1 and decoder.stats.corrupt_frames == 0
+
+
+@given(msgs=st.lists(messages, min_size=1, max_size=20), data=st.data())
+@settings(max_examples=150, deadline=None)
+def test_chunk_splitting_anywhere_changes_nothing(msgs, data):
+    stream, _ = _stream(msgs)
+    cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=30)))
+    decoder = StreamDecoder()
+    got = []
+    for a, b in zip([0, *cuts], [*cuts, len(stream)]):
+        got += decoder.feed(stream[a:b])
+    assert [f.message for f in got] == msgs
+    assert [f.seq for f in got] == list(range(1, len(msgs) + 1))
+    assert decoder.stats.bytes_received == len(stream)
+    assert decoder.stats.seq_gaps == decoder.stats.corrupt_frames == decoder.stats.bytes_discarded == 0
+
+
+@given(msgs=st.lists(messages, min_size=3, max_size=25), data=st.data())
+@settings(max_examples=200, deadline=None)
+def test_single_byte_damage_is_counted_exactly(msgs, data):
+    """One non-zero-producing byte change in k frames: exactly k corrupt frames, k missing, nothing else lost.
+
+    The first and last frames stay intact: a gap is only visible between two frames that did arrive."""
+    stream, spans = _stream(msgs)
+    damaged = sorted(data.draw(st.sets(st.integers(1, len(msgs) - 2), max_size=len(msgs) - 2)))
+    buf = bytearray(stream)
+    for i in damaged:
+        start, end = spans[i]
+        pos = data.draw(st.integers(start, end - 2))             # never the delimiter
+        flip = data.draw(st.integers(1, 255).filter(lambda x, b=buf[pos]: b ^ x != 0))
+        buf[pos] ^= flip
+    decoder = StreamDecoder()
+    got = decoder.feed(bytes(buf))
+    intact = [m for i, m in enumerate(msgs) if i not in damaged]
+    assert [f.message for f in got] == intact
+    s = decoder.stats
+    assert s.corrupt_frames == len(damaged)
+    assert s.seq_gaps == len(damaged) and s.gaps_by_station.get(7, 0) == len(damaged)
+    assert s.bytes_discarded == sum(spans[i][1] - spans[i][0] - 1 for i in damaged)
+    assert s.frames_ok == len(intact)
+
+
+@st.composite
+def _damage(draw, length: int):
+    kind = draw(st.sampled_from(["flip", "delete", "insert", "truncate_tail"]))
+    pos = draw(st.integers(0, length))
+    if kind == "flip":
+        return kind, min(pos, length - 1), draw(st.integers(1, 255))
+    if kind == "delete":
+        return kind, pos, draw(st.integers(1, 12))
+    if kind == "insert":
+        return kind, pos, draw(st.binary(min_size=1, max_size=40))
+    return kind, pos, None
+
+
+@given(msgs=st.lists(messages, min_size=1, max_size=15), data=st.data())
+@settings(max_examples=300, deadline=None)
+def test_random_damage_never_crashes_and_keeps_every_untouched_frame(msgs, data):
+    """Flip / delete / insert / truncate anywhere, then chunk anywhere: every frame whose bytes and both
+    delimiters survive unaltered and adjacent is still decoded, in order, and nothing is invented."""
+    stream, spans = _stream(msgs)
+    ops = data.draw(st.lists(_damage(len(stream)), max_size=6))
+    buf = bytearray(stream)
+    origin: list[int | None] = list(range(len(stream)))    # original index of every byte in buf; None = foreign
+    for kind, pos, arg in ops:
+        pos = min(pos, len(buf))
+        if kind == "flip" and pos < len(buf):
+            buf[pos] ^= arg
+            origin[pos] = None
+        elif kind == "delete":
+            del buf[pos:pos + arg], origin[pos:pos + arg]
+        elif kind == "insert":
+            buf[pos:pos] = arg
+            origin[pos:pos] = [None] * len(arg)
+        elif kind == "truncate_tail":
+            del buf[pos:], origin[pos:]
+    where = {o: k for k, o in enumerate(origin) if o is not None}
+    intact = []
+    for i, (a, b) in enumerate(spans):
+        first = a - 1 if a > 0 else a                       # include the previous frame's delimiter
+        ks = [where.get(o) for o in range(first, b)]
+        ok = None not in ks and all(ks[j + 1] == ks[j] + 1 for j in range(len(ks) - 1))
+        intact.append(ok and (a > 0 or ks[0] == 0))
+    cuts = sorted(data.draw(st.lists(st.integers(0, len(buf)), max_size=10)))
+    decoder = StreamDecoder()
+    got = []
+    for a, b in zip([0, *cuts], [*cuts, len(buf)]):
+        got += decoder.feed(bytes(buf[a:b]))
+    everything = [(i + 1, m) for i, m in enumerate(msgs)]
+    expected = [p for p, ok in zip(everything, intact) if ok]
+    got_pairs = [(f.seq, f.message) for f in got]
+    assert [p for p in got_pairs if p in expected] == expected
+    assert all(p in everything for p in got_pairs), "decoder invented a frame"
+    assert decoder.stats.bytes_received == len(buf)
+
+
+def test_garbage_between_frames_is_counted_and_skipped():
+    msgs = [ClockSync(i, i, 0) for i in range(5)]
+    frames = [encode(m, 1, i + 1) for i, m in enumerate(msgs)]
+    garbage = bytes([0x55] * 17) + b"\x00" + bytes([0xAA, 0x01, 0x02]) + b"\x00"
+    decoder = StreamDecoder()
+    got = decoder.feed(b"\x00" + frames[0] + garbage + b"".join(frames[1:]))
+    assert [f.message for f in got] == msgs
+    assert decoder.stats.corrupt_frames == 2
+    assert decoder.stats.bytes_discarded == 20
+    assert decoder.stats.seq_gaps == 0
+
+
+def test_overlong_run_without_delimiter_is_dropped_and_next_frame_survives():
+    decoder = StreamDecoder()
+    junk = bytes([0x41]) * (3 * MAX_ENCODED_FRAME_BYTES)
+    got = []
+    for k in range(0, len(junk), 1000):
+        got += decoder.feed(junk[k:k + 1000])
+    assert decoder.stats.length_errors == 1
+    got += decoder.feed(b"\x00" + encode(ClockSync(1, 2, 3), 1, 1))
+    assert [f.message for f in got] == [ClockSync(1, 2, 3)]
+    assert decoder.stats.bytes_discarded == len(junk)
+
+
+def test_unknown_type_and_version_are_counted_not_returned():
+    good = encode(ClockSync(1, 1, 0), 4, 10)
+    unknown = frame_payload(0x7E, b"\x01\x02", station_id=4, seq=11)
+    future = frame_payload(MessageType.CLOCK_SYNC, b"\x00" * 10, 4, 12, version=9)
+    after = encode(ClockSync(3, 3, 0), 4, 13)
+    decoder = StreamDecoder()
+    got = decoder.feed(good + unknown + future + after)
+    assert [f.message for f in got] == [ClockSync(1, 1, 0), ClockSync(3, 3, 0)]
+    assert decoder.stats.unknown_types == 1 and decoder.stats.unsupported_version == 1
+    # the unknown-type frame consumed seq 11 legitimately; the future-version frame (12) is not trusted
+    assert decoder.stats.seq_gaps == 1
+
+
+def test_malformed_payload_with_valid_crc_is_counted():
+    payload = pack_sample_batch(SampleBatch(0, 0, 0, 0, 2560000, 1.0, np.zeros((4, 3), np.int16)))
+    frame = frame_payload(MessageType.SAMPLE_BATCH, payload[:-6], station_id=1, seq=1)
+    decoder = StreamDecoder()
+    assert decoder.feed(frame) == []
+    assert decoder.stats.malformed_payloads == 1
+
+
+def test_sequence_gaps_wrap_and_reboot():
+    decoder = StreamDecoder()
+    hello = Hello((1, 0, 0), 1, 2, 1_000_000, (100,), (12,), ())
+    seqs = [2**32 - 2, 2**32 - 1, 0, 3]                       # wrap is not a gap; 0 -> 3 misses 1, 2
+    for s in seqs:
+        decoder.feed(encode(ClockSync(s, s, 0), 5, s))
+    assert decoder.stats.seq_gaps == 2 and decoder.stats.seq_resets == 0
+    decoder.feed(encode(hello, 5, 0))                         # reboot: HELLO at seq 0 re-anchors silently
+    decoder.feed(encode(ClockSync(0, 0, 0), 5, 1))
+    assert decoder.stats.seq_gaps == 2 and decoder.stats.seq_resets == 0
+    decoder.feed(encode(ClockSync(0, 0, 0), 6, 50))           # another station keeps its own sequence
+    decoder.feed(encode(ClockSync(0, 0, 0), 6, 52))
+    assert decoder.stats.gaps_by_station == {5: 2, 6: 1}
+
+
+def test_encode_rejects_bad_messages():
+    with pytest.raises(TypeError, match="not a protocol message"):
+        encode("hello", 1, 1)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="1..679 samples"):
+        encode(SampleBatch(0, 0, 0, 0, 0, 1.0, np.zeros((0, 3), np.int16)), 1, 1)
+
+
+@given(batch=sample_batches(max_samples=8))
+def test_sample_batch_helpers(batch):
+    np.testing.assert_array_equal(batch.acc_g(), batch.samples * batch.scale_g_per_lsb)
+    ticks = batch.sample_ticks()
+    assert ticks[0] == batch.first_sample_ticks
+    np.testing.assert_allclose(np.diff(ticks), batch.period_ticks_q8 / 256)
+    assert scale_for_range(12) == pytest.approx(12 / 32767, rel=1e-7)
+
+
+def test_command_round_trip_through_station_direction():
+    cmd = Command(command_id=65535, opcode=3, target=255, value=-5)
+    assert StreamDecoder().feed(encode(cmd, 0, 0))[0].message == cmd
