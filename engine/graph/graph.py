@@ -1,9 +1,10 @@
 """The motion graph as flat numpy arrays: nodes are database poses at the graph rate, edges are sorted by
 destination so the search can take minima over incoming edges with `np.minimum.reduceat`.
 
-Metadata rows: row n (n < N) describes *arriving at node n along its own clip* (the natural step into n);
-natural edges and transitions into n both use row n, since a transition i-1 -> j replays the motion j-1 -> j.
-Rows >= N belong to edges with their own motion (MSV speed-up/slow-down steps, entries into interpolated clips).
+Metadata rows: `node_arrival[n]` is the row describing *arriving at node n along its own clip* (the natural
+step into n); natural edges and transitions into n both use it, since a transition i-1 -> j replays the
+motion j-1 -> j. Other rows belong to edges with their own motion (MSV speed-up/slow-down steps, entries into
+interpolated clips). The first sample of a search is scored against the arrival row of each start node.
 """
 from __future__ import annotations
 
@@ -76,6 +77,7 @@ class MotionGraph:
     node_heading_rad: np.ndarray  # (N,) float64 root heading in the source clip's frame
     node_ground_m: np.ndarray  # (N, 2) float64 root (x, z)
     node_contacts: np.ndarray  # (N, 2) bool
+    node_arrival: np.ndarray  # (N,) int32 metadata row of the natural step into the node
     # edges, sorted by (dst, src)
     edge_src: np.ndarray  # (E,) int32
     edge_dst: np.ndarray  # (E,) int32
@@ -136,19 +138,15 @@ class MotionGraph:
         keep = ~drop
         new_id = np.cumsum(keep) - 1
         ekeep = keep[self.edge_src] & keep[self.edge_dst]
-        # metadata rows are kept whole (cheap) but node arrival rows must stay aligned with node ids
-        row_keep = np.ones(len(self.meta_dheading_rad), dtype=bool)
-        row_keep[: self.n_nodes] = keep
-        row_new = np.cumsum(row_keep) - 1
         node_arrays = {f.name: getattr(self, f.name) for f in fields(self) if f.name.startswith("node_")}
         kwargs = {k: (v[keep] if v is not None else None) for k, v in node_arrays.items()}
+        # metadata rows stay as they are (rows of dropped nodes are simply no longer referenced)
         return MotionGraph(
             config=self.config, clip_names=self.clip_names, label_names=self.label_names, **kwargs,
             edge_src=new_id[self.edge_src[ekeep]].astype(np.int32),
             edge_dst=new_id[self.edge_dst[ekeep]].astype(np.int32),
-            edge_kind=self.edge_kind[ekeep], edge_meta=row_new[self.edge_meta[ekeep]].astype(np.int32),
-            meta_acc_g=self.meta_acc_g[row_keep], meta_dheading_rad=self.meta_dheading_rad[row_keep],
-            meta_dpos_m=self.meta_dpos_m[row_keep])
+            edge_kind=self.edge_kind[ekeep], edge_meta=self.edge_meta[ekeep],
+            meta_acc_g=self.meta_acc_g, meta_dheading_rad=self.meta_dheading_rad, meta_dpos_m=self.meta_dpos_m)
 
     # ----- persistence -----------------------------------------------------------------------------
     def save(self, path: str | Path) -> None:
@@ -203,15 +201,15 @@ def _original_nodes(parts: GraphParts, clips: list[ClipData], label_names: list[
             node_label=np.full(f, label_names.index(clip.label), np.int16),
             node_positions_m=clip.positions_m.astype(np.float32), node_heading_rad=clip.heading_rad.astype(float),
             node_ground_m=clip.ground_m.astype(float), node_contacts=clip.contacts)
+        prev = np.r_[0, np.arange(f - 1)]  # frame 0 "arrives" from itself: zero offsets
+        dh, dp = step_offsets(clip.heading_rad[prev], clip.ground_m[prev], clip.heading_rad, clip.ground_m)
+        arrays["node_arrival"] = parts.add_meta(clip.acc_g, dh, dp)
         if has_rot:
             arrays["node_rotations"] = clip.local_rotations.astype(np.float32)
             arrays["node_root_m"] = clip.root_positions_m.astype(float)
         parts.add_nodes(**arrays)
-        prev = np.r_[0, np.arange(f - 1)]  # frame 0 "arrives" from itself: zero offsets
-        dh, dp = step_offsets(clip.heading_rad[prev], clip.ground_m[prev], clip.heading_rad, clip.ground_m)
-        parts.add_meta(clip.acc_g, dh, dp)
         ids = np.arange(offsets[ci] + 1, offsets[ci + 1])
-        parts.add_edges(ids - 1, ids, EDGE_NATURAL, ids)
+        parts.add_edges(ids - 1, ids, EDGE_NATURAL, arrays["node_arrival"][1:])
     return offsets
 
 
@@ -229,11 +227,12 @@ def build_from_clips(clips: list[ClipData], config: GraphConfig) -> MotionGraph:
     offsets = _original_nodes(parts, clips, label_names)
     tr = find_transitions(clips, config.window_frames, joint_weights, config.transition_threshold_m,
                           config.min_jump_frames)
-    parts.add_edges(tr.src_frame - 1, tr.dst_frame, EDGE_TRANSITION, tr.dst_frame)
+    arrival = np.concatenate(parts.node["node_arrival"])
+    parts.add_edges(tr.src_frame - 1, tr.dst_frame, EDGE_TRANSITION, arrival[tr.dst_frame])
     if config.msv:
         from .msv import add_speed_variations
 
-        add_speed_variations(parts, clips, offsets)
+        add_speed_variations(parts, clips, offsets, label_names)
     if config.interp:
         from .interpolate import add_interpolated_motions
 
@@ -255,7 +254,7 @@ def assemble(parts: GraphParts, clips: list[ClipData], config: GraphConfig, labe
         node_clip=node["node_clip"], node_clip2=node["node_clip2"], node_frame=node["node_frame"],
         node_kind=node["node_kind"], node_label=node["node_label"], node_positions_m=node["node_positions_m"],
         node_heading_rad=node["node_heading_rad"], node_ground_m=node["node_ground_m"],
-        node_contacts=node["node_contacts"].astype(bool),
+        node_contacts=node["node_contacts"].astype(bool), node_arrival=node["node_arrival"].astype(np.int32),
         node_rotations=node.get("node_rotations"), node_root_m=node.get("node_root_m"),
         edge_src=src[first].astype(np.int32), edge_dst=dst[first].astype(np.int32), edge_kind=kind[first],
         edge_meta=meta[first].astype(np.int32),

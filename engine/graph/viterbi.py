@@ -129,7 +129,7 @@ class ViterbiLattice:
         """First sample: every node may start a path; its cost is the arrival row's C_A, global state = input."""
         n = self.graph.n_nodes
         rows = self._acc_rows(acc_g)
-        self.G = np.zeros(n) if rows is None else rows[:n].copy()
+        self.G = np.zeros(n) if rows is None else rows[self.graph.node_arrival]
         pos = np.zeros(2) if position_m is None or np.any(np.isnan(position_m)) else np.asarray(position_m, float)
         head = 0.0 if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
         self.P = np.tile(pos, (n, 1))

@@ -74,7 +74,7 @@ def observe(graph, nodes, edges, ground0, heading0):
     heading integrated from (ground0, heading0) as eq. 5 does."""
     from engine.graph.metadata import advance
 
-    rows = np.r_[nodes[0], graph.edge_meta[edges[1:]]]
+    rows = np.r_[graph.node_arrival[nodes[0]], graph.edge_meta[edges[1:]]]
     acc = graph.meta_acc_g[rows].astype(float)
     ground = np.empty((len(nodes), 2))
     heading = np.empty(len(nodes))

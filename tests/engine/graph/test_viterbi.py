@@ -36,7 +36,7 @@ def all_paths(g, n_samples):
 
 
 def acc_cost(g, nodes, edges, acc, w):
-    rows = np.r_[nodes[0], g.edge_meta[edges[1:]]]
+    rows = np.r_[g.node_arrival[nodes[0]], g.edge_meta[edges[1:]]]
     return w * np.mean(np.sum((g.meta_acc_g[rows].astype(float) - acc) ** 2, axis=2), axis=1).sum()
 
 
