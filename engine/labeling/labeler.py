@@ -1,0 +1,315 @@
+"""Online multi-subject marker labeling (paper 001, Yu, Li & Deng 2007), one unlabelled point cloud per frame.
+
+Per frame: predict every label with its Kalman filter; gate observed points (Mahalanobis ≤ γ, K nearest);
+fit every rigid body by exhaustive search of Eq. 5; commit bodies greedily best-score-first across all subjects,
+removing committed points from the others' candidates and re-searching those (Algorithm 1); recover missing
+markers from their body's observed markers (§3.3); update the Kalman filters and the sliding-window distance
+model, from truly observed markers only.
+
+Why it beats closest-point tracking: each body is scored against the learned distance model, not against the
+previous frame's labels, so one wrong frame does not propagate and a swap between people breaks the within-body
+distances and scores low.
+
+Internally labels are reordered so that each rigid body is a contiguous run; the public API uses the caller's
+label order throughout.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .config import LabelingConfig
+from .kalman import KalmanBank
+from .search import search_body
+from .structure import DistanceWindow, choose_cluster_tau, cluster_rigid_bodies, pair_distances
+
+OBSERVED, RECOVERED, LOST = 0, 1, 2
+
+
+@dataclass
+class FrameLabels:
+    """One frame's result, in the caller's label order.
+
+    label_point (L,): index of the observed point given to each label, −1 if none.
+    point_label (m,): label index of each observed point, −1 for points left unlabelled (ghosts/noise).
+    positions_m (L,3): observed position, or the recovered one, or the Kalman prediction when lost.
+    status (L,): OBSERVED, RECOVERED or LOST.
+    mean_candidates: average number of gated candidates per label this frame (paper: 2-4)."""
+
+    label_point: np.ndarray
+    point_label: np.ndarray
+    positions_m: np.ndarray
+    status: np.ndarray
+    mean_candidates: float
+
+
+def _kabsch(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation R and translation t minimising |R src + t − dst| (rows are points)."""
+    cs, cd = src.mean(0), dst.mean(0)
+    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return rot, cd - rot @ cs
+
+
+class OnlineLabeler:
+    """Learns the structure and motion models from labelled training frames, then labels frames one at a time."""
+
+    def __init__(self, config: LabelingConfig = LabelingConfig()):
+        self.config = config
+        self.bodies: list[np.ndarray] = []  # rigid bodies as arrays of caller label indices
+
+    # ---------------------------------------------------------------- training
+    def train(
+        self,
+        training_m: np.ndarray,
+        subjects: np.ndarray,
+        fps: float,
+        bodies: list[np.ndarray] | None = None,
+    ) -> None:
+        """Learn from labelled frames (T0, L, 3) in metres (NaN = missing); subjects (L,) subject id per label.
+
+        bodies: optional user-supplied rigid-body partition (the paper's validation override)."""
+        cfg = self.config
+        training_m = np.asarray(training_m, dtype=float)
+        subjects = np.asarray(subjects)
+        n_frames, n_labels = training_m.shape[:2]
+        if n_frames < 3:
+            raise ValueError(f"training needs at least 3 labelled frames, got {n_frames}")
+        if len(subjects) != n_labels:
+            raise ValueError(f"{len(subjects)} subject ids for {n_labels} labels")
+        if np.isnan(training_m[-1]).any():
+            raise ValueError("every label must be observed in the last training frame (it seeds the trackers)")
+        self.n_labels, self.dt = n_labels, 1.0 / fps
+        if bodies is None:
+            dist = pair_distances(training_m)
+            bodies = []
+            for s in np.unique(subjects):
+                members = np.flatnonzero(subjects == s)
+                std = np.nanstd(dist[:, members][:, :, members], axis=0)
+                tau = cfg.cluster_tau_m
+                if cfg.cluster_tau_max_m > tau:
+                    taus = np.geomspace(tau, cfg.cluster_tau_max_m, 12)
+                    tau = choose_cluster_tau(std, taus, cfg.min_body, cfg.max_body)
+                bodies += [members[g] for g in cluster_rigid_bodies(std, tau, cfg.min_body, cfg.max_body)]
+        self._set_bodies([np.asarray(b) for b in bodies])
+        order = self._order
+        train = training_m[:, order]
+
+        # Motion models: per-marker process noise from training accelerations, then warm up over the frames.
+        acc = (train[2:] - 2 * train[1:-1] + train[:-2]) / self.dt**2
+        acc_std = np.sqrt(np.nanmean(np.nanvar(acc, axis=0), axis=1))
+        acc_std = np.nan_to_num(acc_std, nan=0.0) * cfg.accel_std_scale
+        accel_var = np.maximum(acc_std, cfg.accel_std_floor_mps2) ** 2
+        first = np.where(np.isnan(train[0]), train[-1], train[0])
+        self.kf = KalmanBank(first, np.zeros_like(first), accel_var, cfg.meas_noise_m, self.dt)
+        for t in range(1, n_frames):
+            self.kf.predict()
+            seen = np.flatnonzero(~np.isnan(train[t]).any(axis=1))
+            self.kf.update(seen, train[t, seen])
+
+        # Structure model and recovery state, from the training frames.
+        self.window = DistanceWindow(len(self.bodies), self._n_max, cfg.window_frames, cfg.sigma_min_m)
+        self._disp = np.full((len(self.bodies), self._n_max, self._n_max, 3), np.nan)
+        self._template = np.full((len(self.bodies), self._n_max, 3), np.nan)
+        for t in range(max(0, n_frames - cfg.window_frames), n_frames):
+            self._update_structure(train[t], ~np.isnan(train[t]).any(axis=1))
+        self.last_positions = training_m[-1].copy()
+
+    def _set_bodies(self, bodies: list[np.ndarray]) -> None:
+        labels = np.concatenate(bodies)
+        if len(labels) != self.n_labels or len(np.unique(labels)) != self.n_labels:
+            raise ValueError("rigid bodies must partition the labels: every label in exactly one body")
+        self.bodies = bodies
+        self._order = labels  # internal index → caller label
+        self._inverse = np.empty_like(labels)
+        self._inverse[labels] = np.arange(len(labels))
+        sizes = np.array([len(b) for b in bodies])
+        self._starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+        self._sizes = sizes
+        self._n_max = int(sizes.max())
+        self._pad = np.full((len(bodies), self._n_max), -1)  # internal label index per body slot, −1 padding
+        for b, (start, size) in enumerate(zip(self._starts, sizes)):
+            self._pad[b, :size] = np.arange(start, start + size)
+        self._body_of = np.repeat(np.arange(len(bodies)), sizes)
+
+    def _padded(self, per_label: np.ndarray, fill: float = np.nan) -> np.ndarray:
+        """Internal per-label array (L, ...) → per-body padded (B, n_max, ...)."""
+        ext = np.concatenate([per_label, np.full((1,) + per_label.shape[1:], fill, dtype=per_label.dtype)])
+        return ext[self._pad]
+
+    def _update_structure(self, pos: np.ndarray, observed: np.ndarray) -> None:
+        """Window distances, offset vectors and complete-body templates from observed markers (internal order)."""
+        obs_pos = np.where(observed[:, None], pos, np.nan)
+        body_pos = self._padded(obs_pos)  # (B, n_max, 3)
+        self.window.push(pair_distances(body_pos))
+        disp = body_pos[:, None, :, :] - body_pos[:, :, None, :]  # disp[b, k, m] = M_m − M_k
+        both = ~np.isnan(disp).any(axis=-1)
+        self._disp[both] = disp[both]
+        complete = (~np.isnan(body_pos).any(axis=-1) | (self._pad < 0)).all(axis=1)
+        self._template[complete] = body_pos[complete]
+
+    # ---------------------------------------------------------------- online step
+    def step(self, points_m: np.ndarray) -> FrameLabels:
+        """Label one frame's unordered points (m, 3) metres. Returns labels in the caller's order."""
+        cfg = self.config
+        points = np.asarray(points_m, dtype=float).reshape(-1, 3)
+        finite = np.flatnonzero(np.isfinite(points).all(axis=1))  # NaN rows (missing) are never candidates
+        n_points = len(points)
+        self.kf.predict()
+        pred, s_var = self.kf.pos, self.kf.innovation_var()
+
+        # Gating: K nearest points, kept if |p − ẑ|²/S ≤ γ (isotropic S, see kalman.py).
+        cand = np.full((self.n_labels, cfg.max_candidates), -1)
+        k = min(cfg.max_candidates, len(finite))
+        if k:
+            dist, idx = cKDTree(points[finite]).query(pred, k=k)
+            dist, idx = dist.reshape(self.n_labels, k), idx.reshape(self.n_labels, k)
+            ok = dist * dist <= cfg.gate_chi2 * s_var[:, None]
+            cand[:, :k] = np.where(ok, finite[np.minimum(idx, len(finite) - 1)], -1)
+        mean_candidates = float((cand >= 0).sum() / self.n_labels)
+        ext_points = np.vstack([points, np.full((1, 3), np.nan)])
+
+        # Algorithm 1: greedy best-body-first over all subjects' bodies.
+        mean, std = self.window.stats()
+        n_bodies = len(self.bodies)
+        best_pid = [np.empty(0, int)] * n_bodies
+        best_score = np.full(n_bodies, -np.inf)
+        need = np.ones(n_bodies, bool)
+        open_ = np.ones(n_bodies, bool)
+        assigned = np.full(self.n_labels, -1)
+        used = np.zeros(n_points + 1, bool)  # last slot: the −1 "no candidate" sentinel, never used
+        while open_.any():
+            for b in np.flatnonzero(open_ & need):
+                sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
+                pid, score, _ = search_body(
+                    cand[sl], ext_points[cand[sl]], mean[b, :n, :n], std[b, :n, :n], cfg.max_combinations
+                )
+                best_pid[b], best_score[b], need[b] = pid, score, False
+            b = int(np.flatnonzero(open_)[np.argmax(best_score[open_])])
+            open_[b] = False
+            sl = slice(self._starts[b], self._starts[b] + self._sizes[b])
+            assigned[sl] = best_pid[b]
+            taken = best_pid[b][best_pid[b] >= 0]
+            if len(taken) == 0:
+                continue
+            used[taken] = True
+            hit = used[cand] & (cand >= 0)  # (L, K): candidates now taken by a committed body
+            hit_label = hit.any(axis=1) & open_[self._body_of]
+            if hit_label.any():
+                rows = np.flatnonzero(hit_label)
+                cleaned = np.where(hit[rows], -1, cand[rows])
+                cand[rows] = _valid_first(cleaned)
+                need[np.unique(self._body_of[rows])] = True
+
+        self._second_chance(points, finite, assigned, used, best_score, mean, std)
+        return self._finish(points, assigned, mean_candidates)
+
+    def _second_chance(
+        self,
+        points: np.ndarray,
+        finite: np.ndarray,
+        assigned: np.ndarray,
+        used: np.ndarray,
+        best_score: np.ndarray,
+        mean: np.ndarray,
+        std: np.ndarray,
+    ) -> None:
+        """Re-acquire missing labels from the points no body took, with a wider gate (a deviation from paper 001).
+
+        Why: when a fast limb leaves every marker's gate at once (a 50 Hz tennis serve), the whole body is
+        missing, its Kalman filters coast, and the paper's loop never offers it the right points again. After
+        Algorithm 1 the leftover points are few (that limb's markers plus ghosts), so each body with missing labels
+        is searched once more with its observed labels fixed and its missing labels offered the leftovers within
+        reacquire_gate_scale·γ; the new assignment is kept only if it scores higher. Modifies ``assigned``."""
+        cfg = self.config
+        leftover = finite[~used[finite]]
+        missing = assigned < 0
+        if len(leftover) == 0 or not missing.any():
+            return
+        k = min(cfg.max_candidates, len(leftover))
+        dist, idx = cKDTree(points[leftover]).query(self.kf.pos[missing], k=k)
+        dist, idx = dist.reshape(-1, k), idx.reshape(-1, k)
+        ok = dist * dist <= cfg.reacquire_gate_scale * cfg.gate_chi2 * self.kf.innovation_var()[missing, None]
+        cand = np.full((self.n_labels, cfg.max_candidates), -1)
+        cand[missing, :k] = np.where(ok, leftover[np.minimum(idx, len(leftover) - 1)], -1)
+        cand[~missing, 0] = assigned[~missing]
+        ext_points = np.vstack([points, np.full((1, 3), np.nan)])
+        taken = np.zeros(len(points) + 1, bool)
+        for b in np.unique(self._body_of[missing & (cand[:, 0] >= 0)]):
+            sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
+            body_cand = _valid_first(np.where(taken[cand[sl]], -1, cand[sl]))
+            pid, score, _ = search_body(
+                body_cand, ext_points[body_cand], mean[b, :n, :n], std[b, :n, :n], cfg.max_combinations
+            )
+            if score > best_score[b]:
+                assigned[sl] = pid
+                taken[pid[pid >= 0]] = True
+
+    def _finish(self, points: np.ndarray, assigned: np.ndarray, mean_candidates: float) -> FrameLabels:
+        """Recovery of missing markers, model updates, and the result in caller order."""
+        cfg = self.config
+        observed = assigned >= 0
+        pos = np.full((self.n_labels, 3), np.nan)
+        pos[observed] = points[assigned[observed]]
+        status = np.where(observed, OBSERVED, LOST)
+        recovered = self._recover(pos, observed)
+        rec = ~np.isnan(recovered).any(axis=1) & ~observed
+        pos[rec] = recovered[rec]
+        status[rec] = RECOVERED
+
+        self.kf.update(np.flatnonzero(observed), pos[observed])
+        self.kf.update(np.flatnonzero(rec), pos[rec], cfg.recovered_noise_scale)
+        lost = status == LOST
+        self.kf.vel[lost] = 0.0
+        pos[lost] = self.kf.pos[lost]
+        self._update_structure(pos, observed)
+
+        label_point = np.full(self.n_labels, -1)
+        label_point[self._order] = assigned
+        point_label = np.full(len(points), -1)
+        point_label[assigned[observed]] = self._order[observed]
+        out_pos = np.empty_like(pos)
+        out_pos[self._order] = pos
+        out_status = np.empty_like(status)
+        out_status[self._order] = status
+        self.last_positions = out_pos
+        return FrameLabels(label_point, point_label, out_pos, out_status, mean_candidates)
+
+    def _recover(self, pos: np.ndarray, observed: np.ndarray) -> np.ndarray:
+        """Positions of unobserved labels from their body's observed markers (internal order; NaN if not possible).
+
+        offsets (paper §3.3): mean over observed k of M_k + d_{k→m}, d from the last frame both were seen.
+        kabsch: rigid fit of the body's last complete configuration to its observed markers (needs ≥ 3)."""
+        cfg = self.config
+        body_pos = self._padded(np.where(observed[:, None], pos, np.nan))  # (B, n_max, 3)
+        obs = ~np.isnan(body_pos).any(axis=-1)
+        # offsets: est[b, m] = mean_k (M_k + disp[b, k, m]) over observed k with a known offset
+        est = body_pos[:, :, None, :] + self._disp  # (B, k, m, 3)
+        usable = ~np.isnan(est).any(axis=-1)
+        count = usable.sum(axis=1)  # (B, m)
+        with np.errstate(invalid="ignore"):
+            offsets = np.nansum(np.where(usable[..., None], est, 0.0), axis=1) / count[..., None]
+        n_obs = obs.sum(axis=1)
+        ok = (count >= 1) & (n_obs[:, None] >= cfg.min_observed_for_recovery) & ~obs
+        result = np.where(ok[..., None], offsets, np.nan)
+        if cfg.recovery == "kabsch":
+            for b in np.flatnonzero((n_obs >= 3) & (n_obs < self._sizes)):
+                tmpl, seen = self._template[b], obs[b]
+                if np.isnan(tmpl[: self._sizes[b]]).any():
+                    continue
+                rot, shift = _kabsch(tmpl[seen], body_pos[b, seen])
+                miss = ~seen & (self._pad[b] >= 0)
+                result[b, miss] = tmpl[miss] @ rot.T + shift
+        out = np.full((self.n_labels, 3), np.nan)
+        valid = self._pad >= 0
+        out[self._pad[valid]] = result[valid]
+        return out
+
+
+def _valid_first(rows: np.ndarray) -> np.ndarray:
+    """Move the −1 entries of each row to the end, keeping the order (nearest first) of the valid ones."""
+    order = np.argsort(rows < 0, axis=1, kind="stable")
+    return np.take_along_axis(rows, order, axis=1)

@@ -1,0 +1,79 @@
+"""Rigid-body fitting score (paper 001 Eq. 5) and its exhaustive search over candidate assignments.
+
+Why a table: the score is a sum over links (i, j) of a term that depends only on the options chosen for i and j.
+So all link terms for all option pairs are computed once as a (n, K+1, n, K+1) table, and every assignment in the
+Cartesian product ∏(cand_i ∪ {∅}) is scored by one fancy-index gather and a sum. Within-body double use of a
+point is a −∞ table entry, so such assignments can never win. The enumeration index arrays are cached by the
+tuple of option counts (the same few shapes recur every frame).
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+_FORBIDDEN = -1e9  # score of a link that uses one observed point for two labels
+
+
+@lru_cache(maxsize=4096)
+def _combinations(counts: tuple[int, ...], missing_slot: int) -> np.ndarray:
+    """(C, n) option slots of every assignment; the last option of each marker maps to ``missing_slot``."""
+    idx = np.indices(counts).reshape(len(counts), -1).T
+    last = np.asarray(counts) - 1
+    out = np.where(idx == last, missing_slot, idx)
+    out.setflags(write=False)
+    return out
+
+
+@lru_cache(maxsize=64)
+def _links(n: int) -> tuple[np.ndarray, np.ndarray]:
+    i, j = np.triu_indices(n, 1)
+    return i, j
+
+
+def link_table(option_pos: np.ndarray, option_pid: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """Eq. 5 link terms exp(−(D − D')²/(2A²)) for every pair of options, (n, K+1, n, K+1).
+
+    option_pos (n, K+1, 3) metres, NaN for absent options (incl. the missing slot); option_pid (n, K+1), −1 absent.
+    A missing option contributes 0 (the paper's BIG constant taken to its limit). NaN model entries contribute 0."""
+    diff = option_pos[:, :, None, None, :] - option_pos[None, None, :, :, :]
+    dist = np.sqrt(np.einsum("abcdk,abcdk->abcd", diff, diff))
+    z = (dist - mean[:, None, :, None]) / std[:, None, :, None]
+    with np.errstate(invalid="ignore"):
+        table = np.exp(-0.5 * z * z)
+    table = np.nan_to_num(table, nan=0.0)
+    pid = option_pid
+    clash = (pid[:, :, None, None] == pid[None, None, :, :]) & (pid[:, :, None, None] >= 0)
+    return np.where(clash, _FORBIDDEN, table)
+
+
+def search_body(
+    cand_pid: np.ndarray,
+    cand_pos: np.ndarray,
+    mean: np.ndarray,
+    std: np.ndarray,
+    max_combinations: int,
+) -> tuple[np.ndarray, float, int]:
+    """Best assignment of one rigid body by exhaustive search over ∏(cand_i ∪ {∅}).
+
+    cand_pid (n, K): candidate point ids per marker, nearest first, −1 padded (valid entries first).
+    cand_pos (n, K, 3): their positions. mean/std (n, n): the body's current D and A.
+    Returns (assigned point id per marker or −1, score in [0, 1], number of assignments evaluated)."""
+    n, k = cand_pid.shape
+    valid = (cand_pid >= 0).sum(axis=1)
+    while np.prod(valid + 1) > max_combinations:  # drop the farthest candidate of the busiest marker
+        valid[np.argmax(valid)] -= 1
+    option_pid = np.full((n, k + 1), -1)
+    option_pos = np.full((n, k + 1, 3), np.nan)
+    keep = np.arange(k)[None, :] < valid[:, None]
+    option_pid[:, :k] = np.where(keep, cand_pid, -1)
+    option_pos[:, :k] = np.where(keep[..., None], cand_pos, np.nan)
+    n_links = n * (n - 1) // 2
+    combos = _combinations(tuple(int(v) + 1 for v in valid), k)
+    if n_links == 0:
+        return np.where(combos[0] < k, option_pid[np.arange(n), combos[0]], -1), 0.0, len(combos)
+    table = link_table(option_pos, option_pid, mean, std)
+    li, lj = _links(n)
+    scores = table[li, combos[:, li], lj, combos[:, lj]].sum(axis=1) / n_links
+    best = int(np.argmax(scores))
+    return option_pid[np.arange(n), combos[best]], float(scores[best]), len(combos)
