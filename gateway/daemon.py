@@ -1,0 +1,420 @@
+"""The gateway: station readers + one clock + recorder + streaming server, in-process (`Gateway`) or as a CLI.
+
+Data flow (why it is shaped like this): each `StationReader` thread calls `Gateway.on_samples` with a clock-mapped
+block. That one call (a) appends the block to the recorder's unbounded queue when recording, and (b) publishes
+it to clients through per-client bounded queues. Neither step touches the disk or a socket, so acquisition never
+waits on a slow disk or a slow console, and display drops can never remove a recorded sample.
+
+Hook points for gateway/camera and gateway/calibration (duck-typed, see docs/gateway.md "Hooks"):
+* ``camera``: an object with ``start(sink)`` / ``stop()``; it calls ``sink(observation: dict, jpeg: bytes|None)``
+  with at least ``t_host_s``, ``position_m`` ``[x, y]`` (court frame) and ``heading_rad``.
+  Code that runs its own loop can instead call `Gateway.publish_camera` directly.
+* ``calibration``: an object with ``handle(action, args) -> result`` and ``state() -> dict``; optionally
+  ``on_samples(station, sensor, t_host_s, acc_g)`` to see every sample. Its state is published when it changes.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+import time
+import tomllib
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+import firmware_protocol as fp
+from gateway import wire
+from gateway.links import Link, LinkError, SerialLink
+from gateway.recorder import Recorder, export_csv, export_npz
+from gateway.server import RequestError, StreamServer
+from gateway.station import SampleBlock, StationReader
+
+log = logging.getLogger("gateway")
+
+DEFAULT_LISTEN = "127.0.0.1:7766"
+STATION_COMMANDS = {
+    "identify": fp.Opcode.IDENTIFY,
+    "set_rate": fp.Opcode.SET_RATE,
+    "set_range": fp.Opcode.SET_RANGE,
+    "start": fp.Opcode.START_STREAMING,
+    "stop": fp.Opcode.STOP_STREAMING,
+    "hello": fp.Opcode.REQUEST_HELLO,
+    "status": fp.Opcode.REQUEST_STATUS,
+    "clock_sync": fp.Opcode.REQUEST_CLOCK_SYNC,
+    "enter_calibration": fp.Opcode.ENTER_CALIBRATION,
+    "leave_calibration": fp.Opcode.LEAVE_CALIBRATION,
+}
+# The integer argument each command takes, and its default.
+COMMAND_VALUE_ARG = {"identify": ("duration_ms", 2000), "set_rate": ("rate_hz", None), "set_range": ("range_g", None)}
+
+
+class Gateway:
+    """Everything the daemon runs, usable in-process (tests, the demo) or from `main`."""
+
+    def __init__(
+        self,
+        sources: list[str] | tuple[str, ...] = (),
+        *,
+        listen: tuple[str, int] = ("127.0.0.1", 7766),
+        record_dir: str | Path = "recordings",
+        open_link: Callable[[str], Link] = SerialLink,
+        camera: Any = None,
+        calibration: Any = None,
+        status_interval_s: float = 1.0,
+        clock_window_s: float = 60.0,
+        lock_after_s: float = 30.0,
+        display_queue_frames: int = 2048,
+        status_line: Callable[[str], None] | None = None,
+        name: str = "courtside-gateway",
+    ):
+        self.name = name
+        self.recorder = Recorder(record_dir)
+        self.camera = camera
+        self.calibration = calibration
+        self.status_interval_s = status_interval_s
+        self._status_line = status_line
+        self._open_link = open_link
+        self._reader_options = {"clock_window_s": clock_window_s, "lock_after_s": lock_after_s}
+        self.readers: list[StationReader] = []
+        self._readers_lock = threading.Lock()
+        self.server = StreamServer(self.handle_request, host=listen[0], port=listen[1], hello=self._hello,
+                                   display_queue_frames=display_queue_frames)
+        self.samples_in = 0
+        self.camera_frames = 0
+        self._last_calibration_state: Any = None
+        self._stop = threading.Event()
+        self._status_thread = threading.Thread(target=self._status_loop, name="gw-status", daemon=True)
+        for source in sources:
+            self.add_station(source)
+
+    # -- lifecycle --------------------------------------------------------------------------------------------
+    @property
+    def address(self) -> tuple[str, int]:
+        return self.server.address
+
+    def start(self) -> "Gateway":
+        self.server.start()
+        with self._readers_lock:
+            for reader in self.readers:
+                if reader._thread is None:
+                    reader.start()
+        if self.camera is not None:
+            self.camera.start(self.publish_camera)
+        self._status_thread.start()
+        log.info("gateway listening on %s:%d", *self.address)
+        return self
+
+    def stop(self) -> None:
+        """Stop readers, finish any recording (flushed + fsynced), close clients."""
+        self._stop.set()
+        if self.camera is not None:
+            self.camera.stop()
+        with self._readers_lock:
+            readers = list(self.readers)
+        for reader in readers:
+            reader.stop()
+        if self.recorder.active:
+            self.recorder.stop()
+        if self._status_thread.is_alive():
+            self._status_thread.join(timeout=2)
+        self.server.close()
+
+    def __enter__(self) -> "Gateway":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def add_station(self, source: str, open_link: Callable[[str], Link] | None = None) -> StationReader:
+        """Read another link (path or URL); starts at once if the gateway is running."""
+        reader = StationReader(source, self, open_link=open_link or self._open_link, **self._reader_options)
+        with self._readers_lock:
+            self.readers.append(reader)
+        if self._status_thread.is_alive():
+            reader.start()
+        return reader
+
+    def reader(self, station: str) -> StationReader:
+        with self._readers_lock:
+            for reader in self.readers:
+                if station in (reader.name, reader.source):
+                    return reader
+        raise RequestError(f"no station {station!r}; known: {[r.name for r in self.readers]}")
+
+    # -- data in (reader / camera threads) --------------------------------------------------------------------
+    def on_samples(self, block: SampleBlock) -> None:
+        self.samples_in += len(block.counter)
+        if self.recorder.active:
+            self.recorder.put_samples(block.station, block.sensor, block.arrays(),
+                                      header={"nominal_hz": block.nominal_hz, "epoch": block.epoch})
+        self.server.publish(
+            "samples",
+            {"station": block.station, "sensor": block.sensor, "nominal_hz": block.nominal_hz,
+             "clock_locked": block.clock_locked},
+            {"counter": block.counter, "ticks": block.ticks, "t_host_s": block.t_host_s, "acc_g": block.acc_g},
+        )
+        on_samples = getattr(self.calibration, "on_samples", None)
+        if on_samples is not None:
+            on_samples(block.station, block.sensor, block.t_host_s, block.acc_g)
+
+    def on_station_event(self, station: str, level: str, message: str, details: dict | None = None) -> None:
+        self.publish_event(level, station, message, details)
+
+    def publish_event(self, level: str, source: str, message: str, details: dict | None = None) -> None:
+        header = {"t_host_s": time.monotonic(), "level": level, "source": source, "message": message,
+                  **(details or {})}
+        getattr(log, "warning" if level in ("warning", "alarm") else "info")("%s: %s", source, message)
+        self.server.publish("event", header)
+        if self.recorder.active:
+            self.recorder.put("event", header)
+
+    def publish_camera(self, observation: dict[str, Any], jpeg: bytes | None = None) -> None:
+        """Camera hook: one tracked observation (``t_host_s``, ``position_m`` [x, y], ``heading_rad`` ...)."""
+        self.camera_frames += 1
+        header = {k: _jsonable(v) for k, v in observation.items()}
+        if self.recorder.active:
+            self.recorder.put("camera", header)  # thumbnails are display-only; positions are recorded
+        arrays = {"jpeg": np.frombuffer(jpeg, np.uint8)} if jpeg else None
+        self.server.publish("camera", header, arrays)
+
+    def publish_calibration_state(self) -> None:
+        if self.calibration is None:
+            return
+        state = _jsonable(self.calibration.state())
+        if state != self._last_calibration_state:
+            self._last_calibration_state = state
+            self.server.publish("calibration", {"state": state})
+            if self.recorder.active:
+                self.recorder.put("calibration", {"state": state})
+
+    # -- status -----------------------------------------------------------------------------------------------
+    def list_stations(self) -> list[dict[str, Any]]:
+        with self._readers_lock:
+            readers = list(self.readers)
+        return [reader.status() for reader in readers]
+
+    def status(self) -> dict[str, Any]:
+        return {
+            "t_host_s": time.monotonic(), "stations": self.list_stations(), "recording": self.recorder.state(),
+            "samples_in": self.samples_in, "camera_frames": self.camera_frames,
+            "clients": [vars(c) for c in self.server.client_stats()],
+        }
+
+    def _hello(self) -> dict[str, Any]:
+        return {"gateway": self.name, "t_host_s": time.monotonic(), "stations": self.list_stations()}
+
+    def _status_loop(self) -> None:
+        while not self._stop.wait(self.status_interval_s):
+            status = self.status()
+            self.server.publish("status", status)
+            self.server.publish("recording", status["recording"])
+            if self.recorder.active:
+                self.recorder.put("clock", {"stations": [{"station": s["station"], **s["clock"]}
+                                                         for s in status["stations"]]})
+            try:
+                self.publish_calibration_state()
+            except Exception:  # a calibration bug must not stop status reporting
+                log.exception("calibration state failed")
+            if self._status_line is not None:
+                for line in format_status_lines(status):
+                    self._status_line(line)
+
+    # -- control requests (client reader threads) -------------------------------------------------------------
+    def handle_request(self, action: str, args: dict[str, Any]) -> Any:
+        if action == "ping":
+            return {"t_host_s": time.monotonic()}
+        if action == "list_stations":
+            return self.list_stations()
+        if action == "status":
+            return self.status()
+        if action == "start_recording":
+            take = args.get("take")
+            if not isinstance(take, str):
+                raise RequestError("start_recording needs a string 'take'")
+            try:
+                state = self.recorder.start(take, meta={"gateway": self.name, "stations": self.list_stations()})
+            except ValueError as exc:
+                raise RequestError(str(exc)) from exc
+            self.server.publish("recording", state)
+            self.publish_event("info", "recorder", f"recording take {take}")
+            return state
+        if action == "stop_recording":
+            try:
+                state = self.recorder.stop()
+            except ValueError as exc:
+                raise RequestError(str(exc)) from exc
+            self.server.publish("recording", state)
+            self.publish_event("info", "recorder", f"stopped take {state['take']}: {state['samples_written']} samples")
+            return state
+        if action == "station_command":
+            return self._station_command(args)
+        if action == "calibration":
+            if self.calibration is None:
+                raise RequestError("no calibration workflow attached to this gateway")
+            result = self.calibration.handle(str(args.get("action")), dict(args.get("args") or {}))
+            self.publish_calibration_state()
+            return _jsonable(result)
+        raise RequestError(f"unknown action {action!r}; valid: {list(wire.ACTIONS)}")
+
+    def _station_command(self, args: dict[str, Any]) -> dict[str, Any]:
+        reader = self.reader(str(args.get("station")))
+        command = args.get("command")
+        if command not in STATION_COMMANDS:
+            raise RequestError(f"unknown station command {command!r}; valid: {sorted(STATION_COMMANDS)}")
+        extra = dict(args.get("args") or {})
+        target = int(extra.get("sensor", fp.BROADCAST_SENSOR))
+        value = 0
+        if command in COMMAND_VALUE_ARG:
+            key, default = COMMAND_VALUE_ARG[command]
+            value = extra.get(key, default)
+            if value is None:
+                raise RequestError(f"{command} needs '{key}'")
+        try:
+            result = reader.command(STATION_COMMANDS[command], target=target, value=int(value))
+        except (LinkError, TimeoutError) as exc:
+            raise RequestError(str(exc)) from exc
+        return {"station": reader.name, "command": command, **result}
+
+
+def _jsonable(value: Any) -> Any:
+    """numpy scalars/arrays -> plain JSON types (observations and calibration states may carry numpy)."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def format_status_lines(status: dict[str, Any]) -> list[str]:
+    """Human status lines, one per station (what `courtside gateway` prints every second)."""
+    lines = []
+    for st in status["stations"]:
+        sensors = st["sensors"]
+        rate = sum(s["rate_hz"] for s in sensors)
+        received = sum(s["received"] for s in sensors)
+        lost = sum(s["lost"] for s in sensors)
+        loss = 100.0 * lost / (received + lost) if received + lost else 0.0
+        clock = st["clock"]
+        offset = clock.get("offset_s")
+        residual = clock.get("residual_s")
+        lines.append(
+            f"{st['station']:>8} {st['link']:<10} {len(sensors)} sensors {rate:7.1f} samples/s "
+            f"loss {loss:5.2f}% crc {st.get('crc_errors', 0):4d} reconnects {st['reconnects']:2d} "
+            f"offset {'%+.6f s' % offset if offset is not None else '   n/a'} "
+            f"skew {clock.get('skew_ppm', 0.0):+7.2f} ppm "
+            f"residual {'%.2f ms' % (residual * 1e3) if residual is not None else 'n/a'}"
+            f"{'' if clock.get('locked') else ' (warming up)'}"
+        )
+    rec = status["recording"]
+    if rec.get("active"):
+        lines.append(f"recording {rec['take']}: {rec['samples_written']} samples, {rec['bytes_written']} bytes")
+    return lines
+
+
+# ---------------------------------------------------------------------------------------------------- CLI
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="courtside gateway", description=__doc__.split("\n")[0])
+    p.add_argument("--port", action="append", default=[], metavar="PATH", help="serial port path (repeatable)")
+    p.add_argument("--url", action="append", default=[], metavar="URL", help="pyserial URL, e.g. emu://... (repeatable)")
+    p.add_argument("--emulate", type=int, default=0, metavar="N", help="start N emulated stations over ptys")
+    p.add_argument("--config", type=Path, help="TOML file with the same keys (ports, urls, emulate, listen, record_dir)")
+    p.add_argument("--record-dir", type=Path, default=None, help="where takes are written (default ./recordings)")
+    p.add_argument("--record", metavar="TAKE", help="start recording this take at once")
+    p.add_argument("--listen", default=None, help=f"host:port for clients (default {DEFAULT_LISTEN})")
+    p.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
+    p.add_argument("--quiet", action="store_true", help="no status lines")
+    p.add_argument("--log-level", default="INFO")
+    return p
+
+
+def _export_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="courtside gateway export", description="Export a recording to npz and/or CSV")
+    p.add_argument("recording", type=Path, help="take directory or its take.csrec")
+    p.add_argument("--npz", type=Path, help="output .npz file")
+    p.add_argument("--csv-dir", type=Path, help="output directory for CSV files")
+    return p
+
+
+def _load_config(path: Path) -> dict[str, Any]:
+    try:
+        with open(path, "rb") as fh:
+            config = tomllib.load(fh)
+    except OSError as exc:
+        raise SystemExit(f"courtside gateway: cannot read config {path}: {exc.strerror}")
+    except tomllib.TOMLDecodeError as exc:
+        raise SystemExit(f"courtside gateway: {path}: {exc}")
+    known = {"ports", "urls", "emulate", "listen", "record_dir"}
+    unknown = set(config) - known
+    if unknown:
+        raise SystemExit(f"courtside gateway: {path}: unknown keys {sorted(unknown)} (valid: {sorted(known)})")
+    return config
+
+
+def _export_main(argv: list[str]) -> int:
+    args = _export_parser().parse_args(argv)
+    if not args.npz and not args.csv_dir:
+        print("courtside gateway export: give --npz and/or --csv-dir", file=sys.stderr)
+        return 2
+    from gateway.recorder import RecordingError
+
+    try:
+        if args.npz:
+            print(f"wrote {export_npz(args.recording, args.npz)}")
+        if args.csv_dir:
+            for path in export_csv(args.recording, args.csv_dir):
+                print(f"wrote {path}")
+    except RecordingError as exc:
+        print(f"courtside gateway export: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "export":
+        return _export_main(argv[1:])
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    config = _load_config(args.config) if args.config else {}
+    sources = list(config.get("ports", [])) + list(config.get("urls", [])) + args.port + args.url
+    emulate = args.emulate or int(config.get("emulate", 0))
+    listen = wire.parse_hostport(args.listen or config.get("listen", DEFAULT_LISTEN))
+    record_dir = args.record_dir or Path(config.get("record_dir", "recordings"))
+    emulators = []
+    if emulate:
+        from gateway.emulated import start_emulated_stations
+
+        emulators, pty_paths = start_emulated_stations(emulate)
+        sources += pty_paths
+    if not sources:
+        print("courtside gateway: no stations (give --port, --url, --emulate or --config)", file=sys.stderr)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    printer = None if args.quiet else (lambda line: print(line, flush=True))
+    try:
+        gateway = Gateway(sources, listen=listen, record_dir=record_dir, status_line=printer).start()
+    except OSError as exc:
+        print(f"courtside gateway: cannot listen on {listen[0]}:{listen[1]}: {exc.strerror}", file=sys.stderr)
+        for emulator in emulators:
+            emulator.stop()
+        return 1
+    print(f"gateway listening on {gateway.address[0]}:{gateway.address[1]}", flush=True)
+    try:
+        if args.record:
+            gateway.handle_request("start_recording", {"take": args.record})
+        stop.wait(args.duration)
+    finally:
+        gateway.stop()
+        for emulator in emulators:
+            emulator.stop()
+    print("gateway stopped", flush=True)
+    return 0

@@ -1,0 +1,367 @@
+"""One reader thread per base-station link: bytes -> `StreamDecoder` -> clock-mapped sample blocks + statistics.
+
+Lifecycle of a link (``link`` in status): ``connecting`` (opening, or open but no HELLO yet) -> ``streaming`` (data
+within the last ``stale_after_s``) <-> ``stale`` (open, silent) -> ``lost`` (I/O error / unplugged; the reader
+retries every ``reconnect_interval_s`` until the port reappears). On every (re)connect the reader sends
+REQUEST_HELLO and START_STREAMING, so a station that was power-cycled or replugged resumes by itself.
+
+Why frames before the first HELLO are held back (bounded): the tick rate needed to map times arrives in HELLO.
+Why the clock survives a replug with the same boot id: the station kept counting, so the fitted offset/skew stay
+valid and the unwrapper bridges the gap from host elapsed time; a new boot id restarts the clock epoch.
+"""
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+import firmware_protocol as fp
+from gateway.clock import ClockEstimator, TickUnwrapper
+from gateway.links import Link, LinkError, SerialLink
+from gateway.stats import SensorStats
+
+log = logging.getLogger(__name__)
+
+PRE_HELLO_FRAMES = 5000
+HELLO_RETRY_S = 1.0
+
+
+@dataclass
+class SampleBlock:
+    """One decoded batch of one sensor, mapped onto the gateway clock. Arrays share length N."""
+
+    station: str
+    sensor: int
+    nominal_hz: float
+    clock_locked: bool
+    epoch: int  # clock epoch (increments on station reset)
+    counter: np.ndarray  # (N,) uint32 per-sensor sample counter
+    raw_ticks: np.ndarray  # (N,) uint32 device ticks as latched (wrapping)
+    ticks: np.ndarray  # (N,) float64 unwrapped device ticks (period has 1/256-tick resolution)
+    arrival_s: np.ndarray  # (N,) float64 host monotonic time the batch was read (same for the whole batch)
+    t_host_s: np.ndarray  # (N,) float64 sample latch time on the gateway clock (online estimate)
+    acc_g: np.ndarray  # (N, 3) float32
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {"counter": self.counter, "raw_ticks": self.raw_ticks, "ticks": self.ticks,
+                "arrival_s": self.arrival_s, "t_host_s": self.t_host_s, "acc_g": self.acc_g}
+
+
+class StationSink(Protocol):
+    """Where a reader delivers its output (the `Gateway`). Called on the reader thread: must not block."""
+
+    def on_samples(self, block: SampleBlock) -> None: ...
+
+    def on_station_event(self, station: str, level: str, message: str, details: dict | None = None) -> None: ...
+
+
+@dataclass
+class _Pending:
+    event: threading.Event = field(default_factory=threading.Event)
+    reply: fp.Ack | fp.Nack | None = None
+
+
+class StationReader:
+    """Reads one link (serial path or URL, or any `Link` factory) on its own thread."""
+
+    def __init__(
+        self,
+        source: str,
+        sink: StationSink,
+        *,
+        open_link: Callable[[str], Link] = SerialLink,
+        reconnect_interval_s: float = 0.2,
+        stale_after_s: float = 0.5,
+        clock_window_s: float = 60.0,
+        lock_after_s: float = 30.0,
+    ):
+        self.source = source
+        self.sink = sink
+        self._open_link = open_link
+        self.reconnect_interval_s = reconnect_interval_s
+        self.stale_after_s = stale_after_s
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._link: Link | None = None
+        self._write_lock = threading.Lock()
+        self._seq = 0
+        self._command_ids = 0
+        self._pending: dict[int, _Pending] = {}
+        self.link_state = "connecting"
+        self.transport = getattr(open_link, "transport", "serial")
+        self.station_id: int | None = None
+        self.hello: fp.Hello | None = None
+        self.reconnects = 0
+        self.connected_at_s: float | None = None
+        self.last_data_s: float | None = None
+        self.decoder_totals: dict[str, int] = {}
+        self._decoder = fp.StreamDecoder()
+        self._pre_hello: deque[tuple[fp.DecodedFrame, float]] = deque(maxlen=PRE_HELLO_FRAMES)
+        self._hello_requested_s = 0.0
+        self.unwrapper: TickUnwrapper | None = None
+        self.clock = ClockEstimator(window_s=clock_window_s, lock_after_s=lock_after_s)
+        self.sensors: dict[int, SensorStats] = {}
+        self.station_battery_pct: int | None = None
+        self.station_buffered_samples: int | None = None
+
+    # -- naming -----------------------------------------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        """Station id used everywhere downstream (``st<frame station id>``); the source until a frame arrives."""
+        return f"st{self.station_id}" if self.station_id is not None else self.source
+
+    # -- thread -----------------------------------------------------------------------------------------------
+    def start(self) -> "StationReader":
+        self._thread = threading.Thread(target=self._run, name=f"gw-station-{self.source}", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+        self._close_link("stopped")
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            if self._link is None and not self._connect():
+                self._stop.wait(self.reconnect_interval_s)
+                continue
+            try:
+                data = self._link.read(65536)
+            except LinkError as exc:
+                self._close_link(str(exc))
+                continue
+            now = time.monotonic()
+            if data:
+                self.last_data_s = now
+                self._feed(data, now)
+            self._update_link_state(now)
+
+    def _connect(self) -> bool:
+        try:
+            link = self._open_link(self.source)
+        except LinkError:
+            with self._lock:
+                if self.link_state not in ("lost", "connecting"):
+                    self.link_state = "lost"
+            return False
+        with self._lock:
+            if self.connected_at_s is not None:
+                self.reconnects += 1
+            self._link = link
+            self._decoder = fp.StreamDecoder()
+            self.connected_at_s = time.monotonic()
+            self.link_state = "connecting"
+        self.sink.on_station_event(self.name, "info", f"link {self.source} open (reconnects: {self.reconnects})")
+        self._send_commands_on_connect()
+        return True
+
+    def _send_commands_on_connect(self) -> None:
+        try:
+            self._send_command(fp.Opcode.REQUEST_HELLO)
+            self._send_command(fp.Opcode.START_STREAMING)
+        except LinkError as exc:
+            self._close_link(str(exc))
+
+    def _close_link(self, reason: str) -> None:
+        with self._lock:
+            link, self._link = self._link, None
+            if link is None:
+                return
+            self._accumulate_decoder_stats()
+            self.link_state = "lost" if not self._stop.is_set() else "stopped"
+        link.close()
+        if not self._stop.is_set():
+            log.warning("%s: link lost: %s", self.name, reason)
+            self.sink.on_station_event(self.name, "alarm", f"link lost: {reason}")
+
+    def _accumulate_decoder_stats(self) -> None:
+        """Keep counters of decoders from earlier connections (each connection starts a fresh decoder)."""
+        for key, value in self._decoder_counts(self._decoder).items():
+            self.decoder_totals[key] = self.decoder_totals.get(key, 0) + value
+        self._decoder = fp.StreamDecoder()
+
+    @staticmethod
+    def _decoder_counts(decoder: fp.StreamDecoder) -> dict[str, int]:
+        s = decoder.stats
+        return {"bytes": s.bytes_received, "frames": s.frames_ok, "crc_errors": s.crc_errors,
+                "framing_errors": s.cobs_errors + s.length_errors, "malformed": s.malformed_payloads,
+                "frame_gaps": s.seq_gaps}
+
+    def _update_link_state(self, now: float) -> None:
+        with self._lock:
+            if self._link is None:
+                return
+            if self.hello is None:  # stay "connecting"; re-ask in case the first request was lost
+                if now - self._hello_requested_s > HELLO_RETRY_S:
+                    self._hello_requested_s = now
+                    try:
+                        self._send_command(fp.Opcode.REQUEST_HELLO)
+                    except LinkError as exc:
+                        self._close_link(str(exc))
+                return
+            fresh = self.last_data_s is not None and now - self.last_data_s < self.stale_after_s
+            new_state = "streaming" if fresh else "stale"
+            if new_state != self.link_state:
+                if new_state == "stale":
+                    self.sink.on_station_event(self.name, "warning", "no data for "
+                                               f"{now - (self.last_data_s or now):.1f} s")
+                self.link_state = new_state
+
+    # -- decoding ---------------------------------------------------------------------------------------------
+    def _feed(self, data: bytes, arrival_s: float) -> None:
+        with self._lock:
+            frames = self._decoder.feed(data)
+            for frame in frames:
+                self._handle(frame, arrival_s)
+
+    def _handle(self, frame: fp.DecodedFrame, arrival_s: float) -> None:
+        if self.station_id is None:
+            self.station_id = frame.station_id
+        elif frame.station_id != self.station_id:
+            log.warning("%s: frame from station id %d on a link of station %d; ignored",
+                        self.source, frame.station_id, self.station_id)
+            return
+        msg = frame.message
+        if isinstance(msg, fp.Hello):
+            self._on_hello(msg)
+            while self._pre_hello:
+                self._handle(*self._pre_hello.popleft())
+            return
+        if self.hello is None:
+            self._pre_hello.append((frame, arrival_s))
+            return
+        if isinstance(msg, fp.SampleBatch):
+            self._on_batch(msg, arrival_s)
+        elif isinstance(msg, fp.ClockSync):
+            ticks, reset = self.unwrapper.unwrap(np.array([msg.station_ticks]), arrival_s)
+            if reset:
+                self._on_clock_reset("clock sync counter jumped")
+            self.clock.add(ticks[0] / self.hello.tick_rate_hz, arrival_s)
+        elif isinstance(msg, fp.Status):
+            self.station_battery_pct = msg.battery_pct
+            self.station_buffered_samples = msg.buffered_samples
+            for link in msg.links:
+                stats = self._sensor(link.sensor_id)
+                stats.rssi_dbm, stats.battery_pct = link.rssi_dbm, link.battery_pct
+        elif isinstance(msg, (fp.Ack, fp.Nack)):
+            pending = self._pending.pop(msg.command_id, None)
+            if pending is not None:
+                pending.reply = msg
+                pending.event.set()
+        elif isinstance(msg, fp.Error):
+            self.sink.on_station_event(self.name, "warning", f"station error {msg.code}: {msg.text}")
+
+    def _sensor(self, sensor_id: int) -> SensorStats:
+        stats = self.sensors.get(sensor_id)
+        if stats is None:
+            stats = self.sensors[sensor_id] = SensorStats(sensor_id)
+        return stats
+
+    def _on_hello(self, hello: fp.Hello) -> None:
+        rebooted = self.hello is not None and hello.boot_id != self.hello.boot_id
+        if self.unwrapper is None or rebooted or hello.tick_rate_hz != self.hello.tick_rate_hz:
+            if self.unwrapper is not None:
+                self.unwrapper.restart()
+                self._on_clock_reset(f"station rebooted (boot id {hello.boot_id:#x})")
+            else:
+                self.unwrapper = TickUnwrapper(hello.tick_rate_hz)
+            for stats in self.sensors.values():
+                stats.restart_counter()
+        self.hello = hello
+        for info in hello.sensors:
+            self._sensor(info.sensor_id).nominal_hz = float(info.rate_hz)
+        if self.link_state == "connecting":
+            self.link_state = "streaming"
+        self.sink.on_station_event(self.name, "info", "hello: firmware "
+                                   f"{'.'.join(map(str, hello.firmware_version))}, {len(hello.sensors)} sensors, "
+                                   f"{hello.tick_rate_hz} ticks/s", {"boot_id": hello.boot_id,
+                                                                     "station_serial": hello.station_serial})
+
+    def _on_clock_reset(self, why: str) -> None:
+        self.clock.restart()
+        for stats in self.sensors.values():
+            stats.restart_counter()
+        self.sink.on_station_event(self.name, "warning", f"clock restarted: {why}")
+
+    def _on_batch(self, batch: fp.SampleBatch, arrival_s: float) -> None:
+        n = batch.n_samples
+        if n == 0:
+            return
+        first, reset = self.unwrapper.unwrap(np.array([batch.first_sample_ticks]), arrival_s)
+        if reset:
+            self._on_clock_reset("sample ticks jumped far from the prediction")
+        tick_hz = float(self.hello.tick_rate_hz)
+        ticks = first[0] + np.arange(n) * batch.sample_period_ticks
+        device_s = ticks / tick_hz
+        self.clock.add(float(device_s[-1]), arrival_s)  # newest sample: least delivery latency
+        stats = self._sensor(batch.sensor_id)
+        stats.on_batch(batch.first_sample_counter, n, arrival_s)
+        t_host = self.clock.to_host(device_s)
+        stats.last_t_host_s = float(t_host[-1])
+        counter = (batch.first_sample_counter + np.arange(n, dtype=np.uint64)) % (1 << 32)
+        raw_ticks = np.round(batch.first_sample_ticks + np.arange(n) * batch.sample_period_ticks) % (1 << 32)
+        self.sink.on_samples(SampleBlock(
+            station=self.name, sensor=batch.sensor_id, nominal_hz=stats.nominal_hz,
+            clock_locked=self.clock.state.locked, epoch=self.unwrapper.epoch,
+            counter=counter.astype(np.uint32), raw_ticks=raw_ticks.astype(np.uint32), ticks=ticks,
+            arrival_s=np.full(n, arrival_s), t_host_s=t_host, acc_g=batch.acc_g().astype(np.float32),
+        ))
+
+    # -- commands ---------------------------------------------------------------------------------------------
+    def _send_command(self, opcode: int, target: int = fp.BROADCAST_SENSOR, value: int = 0) -> _Pending:
+        with self._write_lock:
+            link = self._link
+            if link is None:
+                raise LinkError(f"{self.source}: not connected")
+            self._command_ids = self._command_ids % 65535 + 1
+            pending = _Pending()
+            self._pending[self._command_ids] = pending
+            frame = fp.encode(fp.Command(self._command_ids, int(opcode), target, value),
+                              self.station_id or 0, self._seq)
+            self._seq += 1
+            link.write(frame)
+        return pending
+
+    def command(self, opcode: int, target: int = fp.BROADCAST_SENSOR, value: int = 0, timeout_s: float = 1.0) -> dict:
+        """Send a command and wait for its ACK/NACK. Returns ``{"acked": bool, "nack_reason": int|None}``."""
+        pending = self._send_command(opcode, target, value)
+        if not pending.event.wait(timeout_s):
+            raise TimeoutError(f"{self.name}: no ACK/NACK for opcode {int(opcode)} within {timeout_s} s")
+        reply = pending.reply
+        return {"acked": isinstance(reply, fp.Ack), "nack_reason": getattr(reply, "reason", None)}
+
+    # -- status -----------------------------------------------------------------------------------------------
+    def status(self, now_s: float | None = None, rate_window_s: float = 1.0) -> dict:
+        """Snapshot for the status message (docs/gateway.md "Station status")."""
+        now_s = time.monotonic() if now_s is None else now_s
+        with self._lock:
+            counts = dict(self.decoder_totals)
+            for key, value in self._decoder_counts(self._decoder).items():
+                counts[key] = counts.get(key, 0) + value
+            sensors = []
+            for sensor_id in sorted(self.sensors):
+                stats = self.sensors[sensor_id]
+                stats.update_rate(now_s, rate_window_s)
+                sensors.append(stats.as_dict())
+            hello = self.hello
+            clock = self.clock.state.as_dict()
+            if self.unwrapper is not None:
+                clock["wraps"] = self.unwrapper.wraps
+                clock["epoch"] = self.unwrapper.epoch
+            return {
+                "station": self.name, "source": self.source, "transport": self.transport, "link": self.link_state,
+                "firmware": ".".join(map(str, hello.firmware_version)) if hello else None,
+                "station_serial": hello.station_serial if hello else None,
+                "boot_id": hello.boot_id if hello else None, "tick_hz": hello.tick_rate_hz if hello else None,
+                "reconnects": self.reconnects, "battery_pct": self.station_battery_pct,
+                "buffered_samples": self.station_buffered_samples, **counts,
+                "clock": clock, "sensors": sensors,
+            }
