@@ -204,7 +204,7 @@ class GatewayClient:
         for event, _ in waiters:
             event.set()
 
-    def request(self, action: str, timeout_s: float = 5.0, **args: Any) -> Any:
+    def request(self, action: str, /, timeout_s: float = 5.0, **args: Any) -> Any:
         """Send a control request and return the gateway's ``result`` (see docs/gateway.md for actions)."""
         return self._send(wire.REQUEST, {"action": action, "args": args}, timeout_s)
 
@@ -225,10 +225,10 @@ class GatewayClient:
     def stop_recording(self) -> dict[str, Any]:
         return self.request("stop_recording")
 
-    def station_command(self, station: str, command: str, **args: Any) -> Any:
+    def station_command(self, station: str, command: str, /, **args: Any) -> Any:
         """E.g. ``station_command("st0", "identify", sensor=3)`` or ``("st0", "set_rate", rate_hz=200)``."""
         return self.request("station_command", station=station, command=command, args=args)
 
-    def calibration(self, action: str, **args: Any) -> Any:
+    def calibration(self, action: str, /, **args: Any) -> Any:
         """Drive the calibration workflow (actions defined by gateway/calibration, see docs/camera-calibration.md)."""
         return self.request("calibration", action=action, args=args)
