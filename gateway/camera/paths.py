@@ -1,0 +1,150 @@
+"""Ground-truth player trajectories in court metres for the synthetic court camera.
+
+A :class:`PlayerPath` is sampled densely (``t_s``, position, heading, lift) and interpolated, so scripted paths and
+mocap root trajectories are handled the same way. ``lift_m`` is the height of the body above its standing height
+(jumps), which the camera sees as parallax and the IMU as a free-fall/impact signature (lag check).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from gateway.camera.court import HALF_DOUBLES_M, HALF_LENGTH_M, facing_net_heading_rad
+
+GRAVITY_MPS2 = 9.80665
+#: Above this ground speed a player faces where they run; below it they face the net (seed rule).
+RUNNING_SPEED_MPS = 2.0
+
+
+@dataclass(frozen=True)
+class PlayerState:
+    """Player at one instant: ground position (m), heading (rad, CONTRACTS convention), lift (m), speed (m/s)."""
+
+    x_m: float
+    y_m: float
+    heading_rad: float
+    lift_m: float
+    speed_mps: float
+
+
+@dataclass(frozen=True)
+class PlayerPath:
+    """Densely sampled trajectory: ``t_s`` (N,) increasing, ``xy_m`` (N, 2), ``heading_rad`` (N,), ``lift_m`` (N,)."""
+
+    t_s: np.ndarray
+    xy_m: np.ndarray
+    heading_rad: np.ndarray
+    lift_m: np.ndarray
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1] - self.t_s[0])
+
+    def state(self, t_s: float) -> PlayerState:
+        """Linear interpolation at ``t_s`` (clamped to the path's time span)."""
+        x = float(np.interp(t_s, self.t_s, self.xy_m[:, 0]))
+        y = float(np.interp(t_s, self.t_s, self.xy_m[:, 1]))
+        heading = float(np.interp(t_s, self.t_s, np.unwrap(self.heading_rad)))
+        lift = float(np.interp(t_s, self.t_s, self.lift_m))
+        speed = float(np.interp(t_s, self.t_s, self.speed_mps()))
+        return PlayerState(x, y, float(np.angle(np.exp(1j * heading))), lift, speed)
+
+    def speed_mps(self) -> np.ndarray:
+        """Ground speed (N,) m/s by finite differences."""
+        vel = np.gradient(self.xy_m, self.t_s, axis=0)
+        return np.linalg.norm(vel, axis=1)
+
+    def vertical_acceleration_mps2(self) -> np.ndarray:
+        """Second derivative (N,) of the lift: what a trunk-worn accelerometer sees on top of gravity."""
+        return np.gradient(np.gradient(self.lift_m, self.t_s), self.t_s)
+
+    @classmethod
+    def from_root_trajectory(
+        cls, t_s: np.ndarray, root_world_m: np.ndarray, heading_rad: np.ndarray | None = None,
+        offset_court_m: tuple[float, float] = (0.0, 0.0), standing_height_m: float | None = None,
+    ) -> "PlayerPath":
+        """From an engine-world (Y up) root trajectory (N, 3) m: court ``(x, y) = (X, Z) + offset``.
+
+        ``lift_m`` is the root height above ``standing_height_m`` (default: the clip's median root height),
+        clipped at 0. Without ``heading_rad`` the seed's rule is applied to the path itself."""
+        t = np.asarray(t_s, float)
+        root = np.asarray(root_world_m, float)
+        xy = root[:, [0, 2]] + np.asarray(offset_court_m, float)
+        standing = float(np.median(root[:, 1])) if standing_height_m is None else standing_height_m
+        lift = np.clip(root[:, 1] - standing, 0.0, None)
+        if heading_rad is None:
+            heading_rad = rule_heading(t, xy)
+        return cls(t, xy, np.asarray(heading_rad, float), lift)
+
+
+def rule_heading(t_s: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
+    """Direction of motion above :data:`RUNNING_SPEED_MPS`, else facing the net (heading = atan2(vx, vy))."""
+    vel = np.gradient(xy_m, t_s, axis=0)
+    moving = np.linalg.norm(vel, axis=1) > RUNNING_SPEED_MPS
+    return np.where(moving, np.arctan2(vel[:, 0], vel[:, 1]), facing_net_heading_rad(xy_m[:, 1]))
+
+
+def jump_lift_m(t_s: np.ndarray, jumps: tuple[tuple[float, float], ...], contact_s: float = 0.04) -> np.ndarray:
+    """Lift (N,) m of ballistic jumps ``(take-off time s, apex height m)``, smoothed with a Gaussian of
+    ``contact_s`` so push-off and landing take a finite time (finite acceleration, as a real body's)."""
+    t = np.asarray(t_s, float)
+    lift = np.zeros(len(t))
+    for t_jump, apex_m in jumps:
+        flight_s = 2.0 * np.sqrt(2.0 * apex_m / GRAVITY_MPS2)
+        tau = t - t_jump
+        inside = (tau >= 0) & (tau <= flight_s)
+        lift[inside] = np.sqrt(2 * GRAVITY_MPS2 * apex_m) * tau[inside] - 0.5 * GRAVITY_MPS2 * tau[inside] ** 2
+    if len(t) > 1 and jumps:
+        lift = gaussian_filter1d(lift, contact_s / float(np.median(np.diff(t))), mode="nearest")
+    return lift
+
+
+def _minimum_jerk(p0: np.ndarray, p1: np.ndarray, n: int) -> np.ndarray:
+    s = np.linspace(0.0, 1.0, n, endpoint=False)[:, None]
+    return p0 + (p1 - p0) * (10 * s**3 - 15 * s**4 + 6 * s**5)
+
+
+def scripted_rally_path(
+    duration_s: float = 12.0, *, seed: int = 0, rate_hz: float = 200.0,
+    jumps: tuple[tuple[float, float], ...] = (), start_s: float = 0.0,
+) -> PlayerPath:
+    """A near-side rally: minimum-jerk moves between random spots (baseline, wings, net approaches) at 1-4.5 m/s
+    mean speed with short pauses, plus optional ``jumps`` ``(t_s, apex_height_m)`` as ballistic flights."""
+    rng = np.random.default_rng(seed)
+    lo = np.array([-HALF_DOUBLES_M - 0.5, -HALF_LENGTH_M - 1.5])
+    hi = np.array([HALF_DOUBLES_M + 0.5, -2.0])
+    segments: list[np.ndarray] = []
+    current = np.array([0.0, -HALF_LENGTH_M + 0.5])
+    t_total = 0.0
+    while t_total < duration_s + 1.0:
+        target = rng.uniform(lo, hi)
+        if rng.random() < 0.25:  # pause (split step / waiting)
+            n = max(2, int(rng.uniform(0.3, 1.0) * rate_hz))
+            segments.append(np.repeat(current[None], n, axis=0))
+        else:
+            mean_speed = rng.uniform(1.0, 4.5)  # peak speed is 1.875x the mean
+            n = max(2, int(np.linalg.norm(target - current) / mean_speed * rate_hz))
+            segments.append(_minimum_jerk(current, target, n))
+            current = target
+        t_total += len(segments[-1]) / rate_hz
+    xy = np.concatenate(segments)
+    n = int(duration_s * rate_hz) + 1
+    xy = xy[:n]
+    t = start_s + np.arange(len(xy)) / rate_hz
+    lift = jump_lift_m(t, jumps)
+    heading = _smooth_heading(t, rule_heading(t, xy), max_rate_rad_s=8.0)
+    return PlayerPath(t, xy, heading, lift)
+
+
+def _smooth_heading(t_s: np.ndarray, heading_rad: np.ndarray, max_rate_rad_s: float) -> np.ndarray:
+    """Rate-limit heading changes (a body cannot snap 180 degrees in one sample); sequential by nature."""
+    out = np.empty_like(heading_rad)
+    out[0] = heading_rad[0]
+    dt = np.diff(t_s, prepend=t_s[0])
+    for i in range(1, len(out)):
+        delta = np.angle(np.exp(1j * (heading_rad[i] - out[i - 1])))
+        step = max_rate_rad_s * dt[i]
+        out[i] = out[i - 1] + np.clip(delta, -step, step)
+    return np.angle(np.exp(1j * out))
