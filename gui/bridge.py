@@ -74,8 +74,12 @@ class GatewayBridge:
             sink(key, t, acc)
 
     def _on_latest(self, msg: Any) -> None:
+        self.set_latest(msg.kind, msg.header)
+
+    def set_latest(self, kind: str, header: dict[str, Any]) -> None:
+        """Store the newest header of ``kind`` (also used for request replies that carry the same state)."""
         with self._lock:
-            self._latest[msg.kind] = dict(msg.header)
+            self._latest[kind] = dict(header)
 
     def on_camera(self, msg: Any) -> None:
         header = dict(msg.header)
@@ -91,6 +95,13 @@ class GatewayBridge:
         header = dict(msg.header)
         self.events.put(header)
         self.traces.put_event(float(header.get("t_host_s", 0.0)), str(header.get("message", ""))[:24])
+
+    def reset_history(self) -> None:
+        """Forget buffered traces, event markers and the camera trail (playback seek)."""
+        self.traces.rings.clear()
+        self.traces.events.clear()
+        with self._lock:
+            self._trail.clear()
 
     # -- reads (GUI thread) -------------------------------------------------------------------------------------
     def latest(self, kind: str) -> dict[str, Any] | None:

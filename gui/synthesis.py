@@ -18,6 +18,9 @@ import numpy as np
 from gui.resample import FrameResampler
 
 
+_RESET = object()
+
+
 class Synthesizer(Protocol):
     def push(self, acc_g: np.ndarray, pos_m: np.ndarray | None = None, heading_rad: float | None = None) -> list: ...
 
@@ -76,6 +79,12 @@ class SynthesisWorker(threading.Thread):
         with self._lock:
             self._requested_lag_s = float(lag_s)
 
+    def reset(self) -> None:
+        """Forget buffered samples and the synthesizer's window (playback seek / back to live)."""
+        with self._lock:
+            self._pose = None
+        self._inbox.put(_RESET)  # in-band, so batches queued after the reset are kept
+
     def stop(self) -> None:
         self._stop.set()
         self._inbox.put(None)
@@ -84,6 +93,15 @@ class SynthesisWorker(threading.Thread):
     def latest_pose(self) -> PoseOut | None:
         with self._lock:
             return self._pose
+
+    def _rebuild(self, lag_s: float) -> Synthesizer | None:
+        try:
+            synth = self._make(lag_s)
+        except Exception as exc:  # a bad lag or graph must show in the status bar, not kill the thread
+            self.stats.error = f"{type(exc).__name__}: {exc}"
+            return None
+        self.stats.lag_s, self.stats.error = lag_s, ""
+        return synth
 
     # -- thread ------------------------------------------------------------------------------------------------
     def run(self) -> None:
@@ -95,11 +113,7 @@ class SynthesisWorker(threading.Thread):
                 lag, self._requested_lag_s = self._requested_lag_s, None
                 camera = self._camera
             if lag is not None:
-                try:
-                    synth = self._make(lag)
-                    self.stats.lag_s, self.stats.error = lag, ""
-                except Exception as exc:  # a bad lag or graph must show in the status bar, not kill the thread
-                    self.stats.error = f"{type(exc).__name__}: {exc}"
+                synth = self._rebuild(lag) or synth
             try:
                 item = self._inbox.get(timeout=0.1)
             except queue.Empty:
@@ -111,7 +125,10 @@ class SynthesisWorker(threading.Thread):
                 except queue.Empty:
                     break
             for entry in batch:
-                if entry is not None:
+                if entry is _RESET:
+                    resampler = FrameResampler(self.sensors, self.rate_hz)
+                    synth = self._rebuild(self.stats.lag_s)
+                elif entry is not None:
                     resampler.add(*entry)
             times, frames = resampler.frames()
             if synth is None or not len(times):

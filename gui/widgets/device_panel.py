@@ -74,7 +74,9 @@ class BodyDiagram(QtWidgets.QWidget):
             p.drawLine(QtCore.QPointF(*pts[0]), QtCore.QPointF(*pts[1]))
             if label:
                 p.setPen(QtGui.QColor(230, 230, 230))
-                p.setFont(QtGui.QFont("sans", 5))
+                font = QtGui.QFont("sans")
+                font.setPixelSize(7)
+                p.setFont(font)
                 mid = ((pts[0][0] + pts[1][0]) / 2 + 4, (pts[0][1] + pts[1][1]) / 2)
                 p.drawText(QtCore.QPointF(*mid), label)
         p.end()
@@ -99,6 +101,7 @@ class DevicePanel(QtWidgets.QWidget):
         self.body = BodyDiagram()
         self.mapping: dict[tuple[str, int], str] = {}  # (station, sensor) -> segment
         self._items: dict[Any, QtWidgets.QTreeWidgetItem] = {}
+        self._new_rows = False
         layout = QtWidgets.QHBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.tree, 1)
@@ -121,6 +124,7 @@ class DevicePanel(QtWidgets.QWidget):
             if parent is not None:
                 parent.setExpanded(True)
             self._items[key] = item
+            self._new_rows = True
         return item
 
     def update_status(self, status: dict[str, Any]) -> None:
@@ -153,6 +157,10 @@ class DevicePanel(QtWidgets.QWidget):
                 if seg:
                     body[seg] = (f"{sid}/{idx}", healthy)
         self.body.set_state(body)
+        if self._new_rows:
+            for col in range(len(COLUMNS)):
+                self.tree.resizeColumnToContents(col)
+            self._new_rows = False
 
     def row_texts(self, key: Any) -> list[str]:
         """Texts of one row (("station", id) or ("sensor", id, idx)) — for tests."""

@@ -16,6 +16,19 @@ from gui.render.skeleton_renderer import ESTIMATE_STYLE, TRUTH_STYLE, SkeletonRe
 TRUTH_OFFSET_M = np.array([1.5, 0.0, 0.0])  # ground truth drawn beside the estimate, not on top of it
 
 
+def rgba_to_qimage(pixels: np.ndarray) -> QtGui.QImage:
+    """Copy (H, W, 4) uint8 RGBA into a QImage that owns its memory.
+
+    Why copy into ``bits()`` instead of wrapping the numpy buffer: a QImage constructed over a Python buffer
+    must keep that buffer alive for its whole life, and doing so through PySide6's buffer constructor has
+    corrupted reference counts here (interpreter abort under load)."""
+    h, w = pixels.shape[:2]
+    image = QtGui.QImage(w, h, QtGui.QImage.Format_RGBA8888)
+    dst = np.frombuffer(image.bits(), np.uint8).reshape(h, image.bytesPerLine())
+    dst[:, :4 * w] = pixels.reshape(h, 4 * w)
+    return image
+
+
 class SkeletonView(QtWidgets.QWidget):
     def __init__(self, renderer: SkeletonRenderer | None = None, parent: QtWidgets.QWidget | None = None) -> None:
         super().__init__(parent)
@@ -84,7 +97,7 @@ class SkeletonView(QtWidgets.QWidget):
                 skeletons.append((self.truth_m + offset, self.parents, TRUTH_STYLE))
         self._pixels = np.ascontiguousarray(self.renderer.render(self.camera, skeletons))
         h, w = self._pixels.shape[:2]
-        self._image = QtGui.QImage(self._pixels.data, w, h, 4 * w, QtGui.QImage.Format_RGBA8888)
+        self._image = rgba_to_qimage(self._pixels)
         self._image.setDevicePixelRatio(dpr)
         self._dirty = False
         self.frames_rendered += 1

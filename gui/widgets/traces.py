@@ -19,6 +19,11 @@ RANGE_PRESETS_G = (2.0, 6.0, 12.0)
 CHANNEL_PENS = (("x", (230, 80, 80)), ("y", (90, 200, 90)), ("z", (90, 140, 250)), ("|a|", (235, 235, 235)))
 
 
+def sensor_label(sensor: Hashable) -> str:
+    """("st0", 3) -> "st0/3" (bridge keys are (station, sensor) tuples)."""
+    return "/".join(map(str, sensor)) if isinstance(sensor, tuple) else str(sensor)
+
+
 class TraceStore:
     """Thread-safe ingress + per-sensor rings. ``put`` from any thread; ``drain`` from the GUI thread only."""
 
@@ -69,7 +74,7 @@ class TracePanel(QtWidgets.QWidget):
         self.groups: dict[str, list[Hashable]] = {}
         self._plots: dict[Hashable, pg.PlotItem] = {}
         self._curves: dict[Hashable, list[pg.PlotDataItem]] = {}
-        self._event_lines: list[pg.InfiniteLine] = []
+        self._event_lines: list[tuple[pg.PlotItem, pg.InfiniteLine]] = []
         self._events_drawn = 0
 
         self.group_box = QtWidgets.QComboBox()
@@ -120,14 +125,19 @@ class TracePanel(QtWidgets.QWidget):
         self._event_lines.clear()
         self._events_drawn = 0
         first = None
-        for row, sensor in enumerate(self.groups.get(name, [])):
+        sensors = self.groups.get(name, [])
+        for row, sensor in enumerate(sensors):
             plot = self.graphics.addPlot(row=row, col=0)
-            plot.setLabel("left", str(sensor))
+            plot.setLabel("left", sensor_label(sensor), units="g")
+            if row < len(sensors) - 1:
+                plot.hideAxis("bottom")  # one shared time axis at the bottom saves vertical space
+            else:
+                plot.setLabel("bottom", "gateway time", units="s")
             plot.showGrid(x=True, y=True, alpha=0.2)
             plot.setMenuEnabled(False)
             if first is None:
                 first = plot
-                plot.addLegend(offset=(5, 5), colCount=4)
+                plot.addLegend(offset=(-5, 1), colCount=4, labelTextSize="7pt")
             else:
                 plot.setXLink(first)
             self._curves[sensor] = [plot.plot(pen=pg.mkPen(c, width=1), name=n, skipFiniteCheck=True)
@@ -181,12 +191,17 @@ class TracePanel(QtWidgets.QWidget):
 
     def _draw_events(self) -> None:
         """Vertical marker lines for events (taps, calibration steps) on every visible plot."""
+        if len(self.store.events) < self._events_drawn:  # history was reset (playback seek)
+            for plot, line in self._event_lines:
+                plot.removeItem(line)
+            self._event_lines.clear()
+            self._events_drawn = 0
         for t_s, label in self.store.events[self._events_drawn:]:
             for plot in self._plots.values():
                 line = pg.InfiniteLine(pos=t_s, angle=90, pen=pg.mkPen((250, 200, 60), width=1), label=label,
                                        labelOpts={"position": 0.9, "color": (250, 200, 60)})
                 plot.addItem(line)
-                self._event_lines.append(line)
+                self._event_lines.append((plot, line))
         self._events_drawn = len(self.store.events)
 
     def curve_data(self, sensor: Hashable, channel: int) -> tuple[np.ndarray, np.ndarray]:

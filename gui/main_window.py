@@ -1,0 +1,339 @@
+"""The operator console window: wires the bridge, panes and worker threads together on one refresh tick.
+
+Threads: the GatewayClient reader thread only fills `GatewayBridge`; the synthesis worker owns the engine;
+control requests run on `RequestRunner`'s worker. The GUI thread runs a 30 Hz tick that drains, updates panes
+and renders — it never waits on the network."""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PySide6 import QtCore, QtWidgets
+
+from gui.bridge import GatewayBridge, SensorKey
+from gui.control import RequestRunner
+from gui.health import status_alarms
+from gui.playback import Playback
+from gui.synthesis import SynthesisWorker
+from gui.widgets.alarms import AlarmBar
+from gui.widgets.camera_pane import CameraPane
+from gui.widgets.device_panel import DevicePanel
+from gui.widgets.recording import PlaybackBar, RecordingPanel
+from gui.widgets.skeleton_view import SkeletonView
+from gui.widgets.traces import TracePanel, TraceStore
+
+TICK_MS = 33
+TruthProvider = Callable[[float], "np.ndarray | None"]  # gateway time (s) -> (J,3) m or None
+
+
+@dataclass
+class SynthesisSetup:
+    """Everything the console needs to run windowed synthesis (built by `gui.engine_link`)."""
+
+    make_synthesizer: Callable[[float], Any]  # lag_s -> object with push(acc (S,3), pos (2,)|None, heading|None)
+    sensors: list[SensorKey]                  # live sensor feeding each graph sensor column, in order
+    rate_hz: float
+    parents: np.ndarray                       # skeleton parents of emitted poses
+    lag_s: float = 0.5
+
+
+class TickStats:
+    """GUI-thread health: ticks/s and tick cost, plus the age of the newest drawn sample."""
+
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+        self.ticks = 0
+        self.busy_s = 0.0
+        self.fps = 0.0
+        self.tick_ms = 0.0
+        self.max_tick_ms = 0.0
+        self._max = 0.0
+
+    def record(self, cost_s: float) -> None:
+        self.ticks += 1
+        self.busy_s += cost_s
+        self._max = max(self._max, cost_s)
+        now = time.perf_counter()
+        if now - self.t0 >= 1.0:
+            self.fps = self.ticks / (now - self.t0)
+            self.tick_ms = 1e3 * self.busy_s / max(1, self.ticks)
+            self.max_tick_ms = 1e3 * self._max
+            self.t0, self.ticks, self.busy_s, self._max = now, 0, 0.0, 0.0
+
+
+class ConsoleWindow(QtWidgets.QMainWindow):
+    def __init__(self, client: Any | None = None, *, synthesis: SynthesisSetup | None = None,
+                 truth: TruthProvider | None = None, truth_parents: np.ndarray | None = None,
+                 sensor_segments: dict[SensorKey, str] | None = None, title: str = "Courtside console") -> None:
+        super().__init__()
+        self.setWindowTitle(title)
+        self.client = client
+        self.store = TraceStore(history_s=30.0)
+        self.bridge = GatewayBridge(self.store)
+        self.requests = RequestRunner(self)
+        self.requests.done.connect(self._request_done)
+        self.truth = truth
+        self.playback: Playback | None = None
+        self.playing = False
+        self.stats = TickStats()
+        self._last_status_t: float | None = None
+        self._groups_key: tuple = ()
+        self._was_locked: set[str] = set()
+        self._play_wall0 = 0.0
+        self._play_t0 = 0.0
+
+        # panes
+        self.alarms = AlarmBar()
+        self.skeleton = SkeletonView()
+        self.camera = CameraPane()
+        self.traces = TracePanel(self.store)
+        self.devices = DevicePanel()
+        self.devices.set_mapping(sensor_segments or {})
+        self.devices.identify_requested.connect(self._identify)
+        self.recording = RecordingPanel()
+        self.recording.required = sorted(sensor_segments or {})
+        self.recording.start_requested.connect(self._start_recording)
+        self.recording.stop_requested.connect(self._stop_recording)
+        self.playbar = PlaybackBar()
+        self.playbar.open_requested.connect(self._choose_take)
+        self.playbar.play_toggled.connect(self._set_playing)
+        self.playbar.seek_requested.connect(self._seek)
+        self.playbar.live_button.clicked.connect(self.back_to_live)
+        self.lag_spin = QtWidgets.QDoubleSpinBox()
+        self.lag_spin.setRange(0.1, 3.0)
+        self.lag_spin.setSingleStep(0.1)
+        self.lag_spin.setSuffix(" s lag")
+        self.calibrate_button = QtWidgets.QPushButton("Calibrate…")
+        self.calibrate_button.clicked.connect(self.open_calibration)
+        self.wizard = None
+
+        top = QtWidgets.QSplitter(QtCore.Qt.Horizontal)
+        top.addWidget(self.skeleton)
+        top.addWidget(self.camera)
+        top.setSizes([640, 420])
+        self.tabs = QtWidgets.QTabWidget()
+        self.tabs.addTab(self.traces, "Traces")
+        self.tabs.addTab(self.devices, "Devices")
+        rec_tab = QtWidgets.QWidget()
+        rec_layout = QtWidgets.QVBoxLayout(rec_tab)
+        rec_layout.addWidget(self.recording)
+        rec_layout.addWidget(self.playbar)
+        rec_layout.addStretch(1)
+        self.tabs.addTab(rec_tab, "Record / Playback")
+        split = QtWidgets.QSplitter(QtCore.Qt.Vertical)
+        split.addWidget(top)
+        split.addWidget(self.tabs)
+        split.setSizes([420, 380])
+        toolbar = QtWidgets.QHBoxLayout()
+        self.connection = QtWidgets.QLabel("not connected")
+        for w in (self.connection, self.calibrate_button, QtWidgets.QLabel("Synthesis"), self.lag_spin):
+            toolbar.addWidget(w)
+        toolbar.addStretch(1)
+        central = QtWidgets.QWidget()
+        layout = QtWidgets.QVBoxLayout(central)
+        layout.setContentsMargins(4, 4, 4, 4)
+        layout.addLayout(toolbar)
+        layout.addWidget(self.alarms)
+        layout.addWidget(split, 1)
+        self.setCentralWidget(central)
+        self.status_label = QtWidgets.QLabel()
+        self.statusBar().addWidget(self.status_label, 1)
+
+        # synthesis
+        self.worker: SynthesisWorker | None = None
+        if synthesis is not None:
+            self.skeleton.set_skeleton(synthesis.parents)
+            self.worker = SynthesisWorker(synthesis.make_synthesizer, synthesis.sensors, synthesis.rate_hz,
+                                          synthesis.lag_s)
+            self.bridge.sample_sinks.append(self.worker.add_samples)
+            self.lag_spin.setValue(synthesis.lag_s)
+            self.lag_spin.valueChanged.connect(self.worker.set_lag)
+            self.worker.start()
+        else:
+            self.lag_spin.setEnabled(False)
+        if truth_parents is not None and synthesis is None:
+            self.skeleton.set_skeleton(truth_parents)
+
+        if client is not None:
+            self.bridge.attach(client)
+            hello = getattr(client, "server_hello", {}) or {}
+            self.connection.setText(f"gateway {hello.get('gateway', '')} {client.host}:{client.port}")
+            # same-host gateway clocks are time.monotonic(); a remote one is offset by what hello reported
+            self._clock_offset_s = float(hello.get("t_host_s", time.monotonic())) - time.monotonic()
+        else:
+            self._clock_offset_s = 0.0
+
+        self.timer = QtCore.QTimer(self)
+        self.timer.setTimerType(QtCore.Qt.PreciseTimer)
+        self.timer.timeout.connect(self.tick)
+        self.timer.start(TICK_MS)
+
+    # -- clock ----------------------------------------------------------------------------------------------
+    def gateway_now_s(self) -> float:
+        """Current time on the gateway clock (playback: the playback cursor)."""
+        if self.playback is not None:
+            return self.playback.cursor_s
+        return time.monotonic() + self._clock_offset_s
+
+    # -- the tick ---------------------------------------------------------------------------------------------
+    def tick(self) -> None:
+        t_start = time.perf_counter()
+        if self.playback is not None and self.playing:
+            self.playback.advance_to(self._play_t0 + (time.monotonic() - self._play_wall0), self.bridge)
+            self.playbar.show_position(self.playback.cursor_s - self.playback.t_start_s)
+            if self.playback.finished:
+                self.playbar.play_button.setChecked(False)
+        self.store.drain()
+        for ev in self.bridge.drain_events():
+            self.alarms.add_event(str(ev.get("level", "info")), str(ev.get("source", "")), str(ev.get("message", "")))
+        self._update_status()
+        header, jpeg, trail = self.bridge.camera_frame()
+        self.camera.update_camera(header, jpeg, trail)
+        if self.worker is not None and header:
+            self.worker.set_camera(header.get("position_m"), header.get("heading_rad"))
+        self.recording.show_state(self.bridge.latest("recording"), self.gateway_now_s())
+        if self.wizard is not None:
+            self.wizard.show_state(self.bridge.latest("calibration"))
+        self._update_groups()
+        self._update_poses()
+        if self.tabs.currentWidget() is self.traces:
+            self.traces.refresh()
+        self.skeleton.refresh()
+        self.stats.record(time.perf_counter() - t_start)
+        self._update_statusbar()
+
+    def _update_status(self) -> None:
+        status = self.bridge.latest("status")
+        if not status or status.get("t_host_s") == self._last_status_t:
+            return
+        self._last_status_t = status.get("t_host_s")
+        self.devices.update_status(status)
+        self.recording.status = status
+        rec = self.bridge.latest("recording") or {}
+        disk = str(Path(rec["path"]).parent) if rec.get("path") and Path(rec["path"]).parent.exists() else "."
+        self.alarms.set_conditions(status_alarms(status, disk, self._was_locked))
+
+    def _update_groups(self) -> None:
+        groups = self.bridge.sensor_groups()
+        key = tuple((g, tuple(v)) for g, v in groups.items())
+        if key != self._groups_key:
+            self._groups_key = key
+            self.traces.set_groups(groups)
+
+    def _update_poses(self) -> None:
+        pose = self.worker.latest_pose() if self.worker is not None else None
+        estimate = pose.positions_m if pose is not None else None
+        t_pose = pose.t_s if pose is not None else self.store.latest_time()
+        truth = self.truth(t_pose) if (self.truth is not None and t_pose is not None) else None
+        if estimate is not None or truth is not None:
+            self.skeleton.set_poses(estimate, truth)
+
+    def _update_statusbar(self) -> None:
+        latest = self.store.latest_time()
+        age = (self.gateway_now_s() - latest) * 1e3 if latest is not None else float("nan")
+        parts = [f"gateway t {self.gateway_now_s():.2f} s", f"samples {self.bridge.samples_received}",
+                 f"newest sample age {age:.0f} ms",
+                 f"GUI {self.stats.fps:.0f} fps, tick {self.stats.tick_ms:.1f} ms (max {self.stats.max_tick_ms:.0f})"]
+        if self.worker is not None:
+            s = self.worker.stats
+            parts.append(f"synthesis lag {s.lag_s:.2f} s, {s.frames_per_s:.0f} frames/s, {s.push_ms:.1f} ms/frame"
+                         + (f" ERROR {s.error}" if s.error else ""))
+        if self.playback is not None:
+            parts.insert(0, f"PLAYBACK {self.playback.path.name}")
+        self.status_label.setText("  |  ".join(parts))
+
+    # -- control actions ----------------------------------------------------------------------------------------
+    def _identify(self, station: str, sensor: int) -> None:
+        if self.client is not None:
+            self.requests.call("identify", self.client.station_command, station, "identify", sensor=sensor)
+
+    def _start_recording(self, take: str) -> None:
+        if self.client is not None:
+            self.requests.call("start_recording", self.client.start_recording, take)
+
+    def _stop_recording(self) -> None:
+        if self.client is not None:
+            self.requests.call("stop_recording", self.client.stop_recording)
+
+    def _request_done(self, tag: str, result: Any, error: str) -> None:
+        if error:
+            self.alarms.add_event("warning", tag, error)
+            if tag.endswith("recording"):
+                self.recording.show_error(error)
+        elif tag.endswith("recording") and isinstance(result, dict):
+            self.bridge.set_latest("recording", result)
+        if tag.startswith("calibration") and self.wizard is not None:
+            self.wizard.request_done(tag, result, error)
+
+    def open_calibration(self) -> None:
+        from gui.widgets.calibration_wizard import CalibrationWizard
+
+        if self.wizard is None:
+            self.wizard = CalibrationWizard(self._calibration_request, parent=self)
+        self.wizard.show()
+        self.wizard.raise_()
+
+    def _calibration_request(self, action: str, **args: Any) -> None:
+        if self.client is not None:
+            self.requests.call(f"calibration:{action}", self.client.calibration, action, **args)
+
+    # -- playback -----------------------------------------------------------------------------------------------
+    def _choose_take(self) -> None:
+        path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Open take", "", "Courtside take (*.csrec)")
+        if path:
+            self.load_playback(path)
+
+    def load_playback(self, path: str | Path) -> None:
+        """Switch the views to a recorded take (live data stops being shown until `back_to_live`)."""
+        try:
+            playback = Playback(path)
+        except Exception as exc:  # unreadable file: tell the operator, keep the live view
+            self.alarms.add_event("warning", "playback", str(exc))
+            return
+        if self.client is not None:
+            self.bridge.detach()
+        self.playback = playback
+        self.playbar.loaded(Path(path).parent.name if Path(path).name == "take.csrec" else Path(path).name,
+                            playback.duration_s)
+        self._seek(0.0)
+
+    def _set_playing(self, on: bool) -> None:
+        if self.playback is None:
+            return
+        self.playing = on
+        self._play_wall0, self._play_t0 = time.monotonic(), self.playback.cursor_s
+
+    def _seek(self, t_rel_s: float) -> None:
+        if self.playback is None:
+            return
+        if self.worker is not None:
+            self.worker.reset()  # the stream jumps in time: start a fresh window
+        self.playback.seek(self.playback.t_start_s + t_rel_s, self.bridge)
+        self._play_wall0, self._play_t0 = time.monotonic(), self.playback.cursor_s
+        self.playbar.show_position(self.playback.cursor_s - self.playback.t_start_s)
+
+    def back_to_live(self) -> None:
+        self.playback, self.playing = None, False
+        self.playbar.play_button.setChecked(False)
+        self.bridge.reset_history()
+        if self.worker is not None:
+            self.worker.reset()
+        if self.client is not None and self.client.connected:
+            self.bridge.attach(self.client)
+
+    # -- shutdown -----------------------------------------------------------------------------------------------
+    def closeEvent(self, event: Any) -> None:
+        self.shutdown()
+        super().closeEvent(event)
+
+    def shutdown(self) -> None:
+        self.timer.stop()
+        if self.worker is not None:
+            self.worker.stop()
+            self.worker.join(timeout=2)
+        self.bridge.detach()
+        self.requests.shutdown()
