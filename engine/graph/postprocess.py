@@ -1,0 +1,171 @@
+"""From a graph path to a clean Motion: place each pose on the path, blend across transitions, fix foot skate.
+
+Blending (seed 000 uses Park et al.'s Bernstein-weighted quaternion blending over w = 0.7 s): at every
+transition t-1 -> t the jump between the pose the old clip would have shown at t and the new pose is split in
+two, and each half is faded out over w/2 on its side with a C1 smoothstep (a cubic Bernstein combination),
+applied as a rotation displacement on every local joint rotation (the slerp of the jump scaled by the weight).
+The root height is faded the same way with w = 0.7 s, or 0.1 s when both feet are off the ground (so a flight
+phase keeps its ballistic height). Ground position and heading need no blending: the search integrates them
+continuously along the path.
+
+Foot skate: on every run of frames where the path's node has a foot in contact, the ankle is pinned to where
+it was on the run's first frame, with an analytic two-bone IK (knee angle by the law of cosines, then a hip
+rotation that swings the leg onto the target).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from engine.mocap import Motion, Skeleton, forward_kinematics, joint_roles
+from engine.mocap import quaternions as quat
+
+from .graph import EDGE_INTERP, EDGE_TRANSITION, MotionGraph, NODE_ORIGINAL
+
+UP = np.array([0.0, 1.0, 0.0])
+
+
+def quat_log(q: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) of unit quaternions (..., 4), taking the short way round."""
+    q = np.where(q[..., :1] < 0, -q, q)
+    v = q[..., 1:]
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(n, q[..., :1])
+    return np.where(n > 1e-12, v / np.where(n > 1e-12, n, 1.0) * angle, 2.0 * v)
+
+
+def place_path(graph: MotionGraph, nodes: np.ndarray, ground_m: np.ndarray,
+               heading_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(root positions (T, 3) m, local rotations (T, J, 4)) of the path's poses in the world frame."""
+    if graph.node_rotations is None or graph.node_root_m is None:
+        raise ValueError("this graph stores no joint rotations (built from plain arrays): cannot make a Motion")
+    nodes = np.asarray(nodes, dtype=np.intp)
+    yaw = np.asarray(heading_rad) - graph.node_heading_rad[nodes]
+    root = graph.node_root_m[nodes].astype(float).copy()
+    rel = root[:, [0, 2]] - graph.node_ground_m[nodes]
+    c, s = np.cos(yaw), np.sin(yaw)
+    root[:, 0] = ground_m[:, 0] + rel[:, 0] * c + rel[:, 1] * s
+    root[:, 2] = ground_m[:, 1] - rel[:, 0] * s + rel[:, 1] * c
+    rots = graph.node_rotations[nodes].astype(float).copy()
+    rots[:, 0] = quat.multiply(quat.from_rotvec(yaw[:, None] * UP), rots[:, 0])
+    return root, rots
+
+
+def transition_times(graph: MotionGraph, edges: np.ndarray) -> np.ndarray:
+    """Samples t whose arriving edge jumps between clips (transitions, entries/exits of interpolated clips)."""
+    e = np.asarray(edges)
+    kinds = np.where(e >= 0, graph.edge_kind[np.maximum(e, 0)], -1)
+    return np.flatnonzero((kinds == EDGE_TRANSITION) | (kinds == EDGE_INTERP))
+
+
+def _fade(n_frames: int, t: int, half_width: float) -> np.ndarray:
+    """Weight 0..0.5 per frame peaking at the transition midpoint t - 0.5, smoothstep over `half_width`
+    frames on each side; frames before t get +w, frames from t on get -w (signed, so one call serves both)."""
+    s = np.arange(n_frames)
+    x = np.clip(1.0 - np.abs(s - (t - 0.5)) / max(half_width, 0.5), 0.0, 1.0)
+    w = 0.5 * x * x * (3.0 - 2.0 * x)
+    return np.where(s < t, w, -w)
+
+
+def blend_transitions(graph: MotionGraph, nodes: np.ndarray, edges: np.ndarray, root: np.ndarray,
+                      rots: np.ndarray, heading_rad: np.ndarray, fps: float, window_s: float = 0.7,
+                      airborne_root_window_s: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """Smooth every transition of a placed path (see module docstring); returns new (root, rotations)."""
+    root = root.copy()
+    rots = rots.copy()
+    n = len(nodes)
+    for t in transition_times(graph, edges):
+        prev = int(nodes[t - 1])
+        cont = prev + 1 if (prev + 1 < graph.n_nodes and graph.node_kind[prev] == NODE_ORIGINAL
+                            and graph.node_kind[prev + 1] == NODE_ORIGINAL
+                            and graph.node_clip[prev + 1] == graph.node_clip[prev]) else prev
+        yaw_prev = heading_rad[t - 1] - graph.node_heading_rad[prev]
+        old = graph.node_rotations[cont].astype(float).copy()
+        old[0] = quat.multiply(quat.from_rotvec(yaw_prev * UP), old[0])
+        jump = quat_log(quat.multiply(quat.conjugate(old), rots[t]))  # (J, 3): old -> new, joint frame
+        w = _fade(n, t, 0.5 * window_s * fps)
+        active = np.flatnonzero(w != 0)
+        rots[active] = quat.multiply(rots[active], quat.from_rotvec(w[active, None, None] * jump[None]))
+        airborne = not graph.node_contacts[[prev, int(nodes[t])]].any()
+        root_w = _fade(n, t, 0.5 * (airborne_root_window_s if airborne else window_s) * fps)
+        dy = root[t, 1] - graph.node_root_m[cont, 1]
+        root[:, 1] += root_w * dy
+    return root, quat.canonical_sign(rots)
+
+
+def _contact_runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    padded = np.r_[False, flags, False].astype(int)
+    edges = np.flatnonzero(np.diff(padded))
+    return list(zip(edges[::2], edges[1::2]))
+
+
+def _swing(frm: np.ndarray, to: np.ndarray) -> np.ndarray:
+    """Shortest-arc quaternions (K, 4) rotating directions `frm` onto `to` (K, 3)."""
+    a = frm / np.linalg.norm(frm, axis=1, keepdims=True)
+    b = to / np.linalg.norm(to, axis=1, keepdims=True)
+    axis = np.cross(a, b)
+    s = np.linalg.norm(axis, axis=1, keepdims=True)
+    angle = np.arctan2(s[:, 0], np.sum(a * b, axis=1))
+    return quat.from_rotvec(np.where(s > 1e-12, axis / np.where(s > 1e-12, s, 1.0), 0.0) * angle[:, None])
+
+
+def _local_update(rots: np.ndarray, glob: np.ndarray, frames: np.ndarray, joint: int, world_q: np.ndarray) -> None:
+    """Apply a world-space rotation to a joint's segment by changing its local rotation:
+    local' = local * (G^-1 R G), with G the joint's global rotation."""
+    g = quat.from_matrix(glob[frames, joint])
+    delta = quat.multiply(quat.multiply(quat.conjugate(g), world_q), g)
+    rots[frames, joint] = quat.multiply(rots[frames, joint], delta)
+
+
+def _pinned_targets(ankle_m: np.ndarray, runs: list[tuple[int, int]], ease_frames: int) -> np.ndarray:
+    """Per contact frame, the ankle target: the run's first position, eased back to the free position over
+    the run's last `ease_frames` frames so the foot does not pop when the run ends."""
+    out = []
+    for a, b in runs:
+        k = np.arange(a, b)
+        w = np.minimum(1.0, (b - k) / max(ease_frames, 1))[:, None]
+        out.append(w * ankle_m[a] + (1.0 - w) * ankle_m[k])
+    return np.concatenate(out)
+
+
+def fix_foot_skate(motion: Motion, contacts: np.ndarray, ease_frames: int = 3) -> Motion:
+    """Pin each foot's ankle during its contact runs with two-bone IK (hip, knee); returns a new Motion.
+    Where the pinned ankle is out of the leg's reach (heel-off at the end of a long stance) the leg is
+    stretched towards it."""
+    roles = joint_roles(motion.skeleton)
+    rots = motion.rotations.copy()
+    for col, side in enumerate(("left", "right")):
+        hip, knee, ankle = roles[f"{side}_hip"], roles[f"{side}_knee"], roles[f"{side}_ankle"]
+        runs = _contact_runs(contacts[:, col])
+        if not runs:
+            continue
+        pos, glob = forward_kinematics(Motion(motion.skeleton, motion.fps, motion.root_positions_m, rots))
+        frames = np.concatenate([np.arange(a, b) for a, b in runs])
+        target = _pinned_targets(pos[:, ankle], runs, ease_frames)
+        a, b, c = pos[frames, hip], pos[frames, knee], pos[frames, ankle]
+        l1 = np.linalg.norm(b - a, axis=1)
+        l2 = np.linalg.norm(c - b, axis=1)
+        d = np.clip(np.linalg.norm(target - a, axis=1), np.abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
+        u, v = a - b, c - b
+        cur = np.arccos(np.clip(np.sum(u * v, 1) / (l1 * l2), -1, 1))
+        want = np.arccos(np.clip((l1 ** 2 + l2 ** 2 - d ** 2) / (2 * l1 * l2), -1, 1))
+        normal = np.cross(u, v)
+        nn = np.linalg.norm(normal, axis=1, keepdims=True)
+        # a straight leg has no bending plane: bend about the hip's lateral axis (global X of the hip frame)
+        normal = np.where(nn > 1e-9, normal / np.where(nn > 1e-9, nn, 1.0), glob[frames, hip][:, :, 0])
+        knee_q = quat.from_rotvec(normal * (want - cur)[:, None])
+        _local_update(rots, glob, frames, knee, knee_q)
+        new_c = b + quat.rotate(knee_q, v)
+        _local_update(rots, glob, frames, hip, _swing(new_c - a, target - a))
+    return Motion(motion.skeleton, motion.fps, motion.root_positions_m, quat.canonical_sign(rots), motion.name)
+
+
+def path_to_motion(graph: MotionGraph, skeleton: Skeleton, nodes: np.ndarray, edges: np.ndarray,
+                   ground_m: np.ndarray, heading_rad: np.ndarray, blend: bool = True,
+                   foot_ik: bool = True, name: str = "synthesised") -> Motion:
+    """The synthesised Motion for a search result (write it with engine.mocap.write_bvh)."""
+    fps = graph.config.fps
+    root, rots = place_path(graph, nodes, ground_m, heading_rad)
+    if blend:
+        root, rots = blend_transitions(graph, nodes, edges, root, rots, heading_rad, fps)
+    motion = Motion(skeleton, fps, root, rots, name)
+    return fix_foot_skate(motion, graph.node_contacts[nodes]) if foot_ik else motion
