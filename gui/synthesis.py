@@ -45,8 +45,8 @@ class SynthesisStats:
 
 
 def pose_positions(pose: Any) -> np.ndarray:
-    """Joint positions (J, 3) from an emitted pose object (``positions_m`` attribute) or a bare array."""
-    return np.asarray(getattr(pose, "positions_m", pose), float)
+    """Joint positions (J, 3) from an emitted pose object (``joint_positions_m``, as `engine.graph.online.EmittedPose`) or a bare array."""
+    return np.asarray(getattr(pose, "joint_positions_m", pose), float)
 
 
 class SynthesisWorker(threading.Thread):
@@ -59,7 +59,7 @@ class SynthesisWorker(threading.Thread):
         self.sensors = list(sensors)
         self.rate_hz = rate_hz
         self._inbox: queue.SimpleQueue = queue.SimpleQueue()
-        self._stop = threading.Event()
+        self._stopping = threading.Event()
         self._lock = threading.Lock()
         self._pose: PoseOut | None = None
         self._requested_lag_s: float | None = lag_s
@@ -86,7 +86,7 @@ class SynthesisWorker(threading.Thread):
         self._inbox.put(_RESET)  # in-band, so batches queued after the reset are kept
 
     def stop(self) -> None:
-        self._stop.set()
+        self._stopping.set()
         self._inbox.put(None)
 
     # -- outputs (any thread) ----------------------------------------------------------------------------------
@@ -108,7 +108,7 @@ class SynthesisWorker(threading.Thread):
         resampler = FrameResampler(self.sensors, self.rate_hz)
         synth: Synthesizer | None = None
         window_t0, window_frames, window_cost = time.monotonic(), 0, 0.0
-        while not self._stop.is_set():
+        while not self._stopping.is_set():
             with self._lock:
                 lag, self._requested_lag_s = self._requested_lag_s, None
                 camera = self._camera

@@ -1,0 +1,60 @@
+"""Build (or load from cache) the motion graph from the clips the project ships, and package it for the console.
+
+The console builds its graph at start from `engine.mocap.sample_clips()` (minus any held-out clips the demo
+replays, so the demo never synthesises a motion it has seen); the result is cached as .npz keyed by the clip
+files, sensor names and graph config, so a second start only loads it."""
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from engine.graph.config import GraphConfig
+from engine.graph.graph import MotionGraph
+from engine.graph.online import FixedLagSynthesizer
+from engine.mocap import SEED000_SENSORS, Skeleton, default_cache_dir, load_clip, sample_clips, standard_placements
+
+from gui.bridge import SensorKey
+from gui.main_window import SynthesisSetup
+
+GRAPH_FPS = 30.0
+
+
+def graph_cache_path(clip_paths: Sequence[Path], sensor_names: Sequence[str], config: GraphConfig,
+                     cache_dir: Path | None = None) -> Path:
+    """Cache file name from the clip files' identity (path, size, mtime), sensors and config."""
+    parts = [json.dumps(list(sensor_names)), config.to_json()]
+    parts += [f"{p.resolve()}|{p.stat().st_size}|{p.stat().st_mtime_ns}" for p in sorted(clip_paths)]
+    digest = hashlib.sha1("\n".join(parts).encode()).hexdigest()[:16]
+    return (cache_dir or default_cache_dir().parent / "graphs") / f"graph-{digest}.npz"
+
+
+def load_or_build_graph(exclude: Sequence[str] = (), sensor_names: Sequence[str] = SEED000_SENSORS,
+                        cache_dir: Path | None = None) -> tuple[MotionGraph, Skeleton, Path]:
+    """Graph over the shipped CMU subject-16 clips (one skeleton topology), minus ``exclude`` clip names."""
+    clips = {name: path for name, path in sample_clips().items() if name.startswith("16_") and name not in exclude}
+    if not clips:
+        raise ValueError("no shipped clips left to build a motion graph from")
+    config = GraphConfig(fps=GRAPH_FPS, sensor_names=list(sensor_names))
+    motions = [load_clip(path, fps=GRAPH_FPS) for path in clips.values()]
+    skeleton = motions[0].skeleton
+    cache = graph_cache_path(list(clips.values()), sensor_names, config, cache_dir)
+    if cache.is_file():
+        return MotionGraph.load(cache), skeleton, cache
+    graph = MotionGraph.build(motions, standard_placements(skeleton, tuple(sensor_names)), config)
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    tmp = cache.with_suffix(".tmp")
+    graph.save(tmp)
+    tmp.replace(cache)
+    return graph, skeleton, cache
+
+
+def synthesis_setup(graph: MotionGraph, skeleton: Skeleton, sensors: list[SensorKey], lag_s: float = 0.5) -> SynthesisSetup:
+    """Console synthesis over ``graph``; ``sensors[i]`` is the live sensor worn where graph sensor i is."""
+    if len(sensors) != graph.n_sensors:
+        raise ValueError(f"graph expects {graph.n_sensors} sensors, {len(sensors)} mapped")
+    return SynthesisSetup(make_synthesizer=lambda lag: FixedLagSynthesizer(graph, lag), sensors=list(sensors),
+                          rate_hz=graph.config.fps, parents=np.asarray(skeleton.parents), lag_s=lag_s)
