@@ -214,6 +214,7 @@ def read_bvh(path: str | Path, scale: float | str | None = None, name: str | Non
                                      f"joint {names[k]!r} has varying position channels (range {spread:g}); "
                                      "only the root may translate")
     offsets = translations[0].copy()
+    offsets[0] = joints[0].offset  # the root's header OFFSET; its channels are the trajectory
     skeleton = Skeleton(tuple(names), parents, offsets, np.array([j.end_site for j in joints]))
     root_pos = translations[:, 0].copy()
     if scale is None:

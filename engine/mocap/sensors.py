@@ -8,7 +8,7 @@ orientation `rotation` (sensor axes -> joint frame), both in that joint's frame.
     gyro(t)   = log(R_s(t-1)^T R_s(t+1)) / (2 dt)        (body-frame angular rate)
 
 p'' is the central second difference of the sensor point's world position (first/last frame copy their
-neighbour). So a sensor at rest reads +1 g along world up, as a real MEMS accelerometer does.
+neighbour's reading). So a sensor at rest reads +1 g along world up, as a real MEMS accelerometer does.
 
 Standard placements (`standard_placements`) follow the seeds: forearms, shins, lower back, chest (seed 000),
 wrists and ankles at 87.5 % of the forearm/shin (seed 003, X along the bone distally, arms Z up in the
@@ -127,21 +127,18 @@ def _sensor_world(motion: Motion, placements: list[SensorPlacement],
     return pos[:, joints] + np.einsum("fsij,sj->fsi", g, offsets), g @ rots
 
 
-def _second_difference(p: np.ndarray, fps: float) -> np.ndarray:
-    if len(p) < 3:
-        raise ValueError("need at least 3 frames for finite-difference acceleration")
-    acc = np.empty_like(p)
-    acc[1:-1] = (p[2:] - 2 * p[1:-1] + p[:-2]) * fps * fps
-    acc[0], acc[-1] = acc[1], acc[-2]
-    return acc
-
-
 def virtual_accelerometers(motion: Motion, placements: list[SensorPlacement], clip_g: float | None = None,
                            fk: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """(F, S, 3) specific force in g in each sensor's frame; optionally saturate at +-clip_g."""
+    """(F, S, 3) specific force in g in each sensor's frame; optionally saturate at +-clip_g.
+
+    The first and last frames have no central difference; they repeat their neighbour's *reading*."""
     p, r = _sensor_world(motion, placements, fk)
-    specific = _second_difference(p, motion.fps) - G_WORLD
-    acc = np.einsum("fsji,fsj->fsi", r, specific) / GRAVITY_MPS2
+    if len(p) < 3:
+        raise ValueError("need at least 3 frames for finite-difference acceleration")
+    acc = np.empty(p.shape)
+    specific = (p[2:] - 2 * p[1:-1] + p[:-2]) * motion.fps**2 - G_WORLD
+    acc[1:-1] = np.einsum("fsji,fsj->fsi", r[1:-1], specific) / GRAVITY_MPS2
+    acc[0], acc[-1] = acc[1], acc[-2]
     return np.clip(acc, -clip_g, clip_g) if clip_g is not None else acc
 
 
