@@ -1,0 +1,151 @@
+"""Exact unit checks of the paper-001 building blocks (spec 001 §5 unit tests)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.labeling.config import LabelingConfig
+from engine.labeling.kalman import KalmanBank
+from engine.labeling.labeler import OBSERVED, RECOVERED, OnlineLabeler
+from engine.labeling.search import link_table, search_body
+from engine.labeling.structure import DistanceWindow, cluster_rigid_bodies, pair_distances
+
+
+def _rotation(rng):
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def test_kalman_tracks_constant_velocity_exactly_and_gates_at_gamma():
+    dt, v = 1 / 120, np.array([1.0, -0.5, 0.25])
+    kf = KalmanBank(np.zeros((1, 3)), np.zeros((1, 3)), np.array([1e-12]), 1e-9, dt)
+    kf.cov[:, 1, 1] = 1e6  # diffuse velocity prior: the track alone determines the velocity
+    for t in range(1, 6):
+        kf.predict()
+        kf.update(np.array([0]), (v * t * dt)[None])
+    kf.predict()
+    assert np.linalg.norm(kf.pos[0] - v * 6 * dt) < 1e-9  # 1e-6 mm after 5 updates
+    s = kf.innovation_var()[0]
+    direction = np.array([1.0, 0.0, 0.0])
+    inside, outside = np.sqrt(11.3 * s) * direction, np.sqrt(11.4 * s) * direction
+    assert inside @ inside / s <= 11.34 < outside @ outside / s
+
+
+def _body(n=6, seed=0):
+    rng = np.random.default_rng(seed)
+    template = rng.uniform(-0.1, 0.1, (n, 3))
+    dist = pair_distances(template)
+    return rng, template, dist
+
+
+def test_score_table_values():
+    _, template, dist = _body(4)
+    std = np.full((4, 4), 0.002)
+    pos = np.full((4, 2, 3), np.nan)
+    pos[:, 0] = template
+    pid = np.array([[0, -1], [1, -1], [2, -1], [3, -1]])
+    table = link_table(pos, pid, dist, std)
+    assert table[0, 0, 1, 0] == pytest.approx(1.0)
+    assert table[0, 1, 1, 0] == 0.0  # the missing option contributes nothing
+    moved = pos.copy()
+    moved[1, 0] = template[0] + (template[1] - template[0]) * (1 + 0.002 / dist[0, 1])  # one link longer by A
+    assert link_table(moved, pid, dist, std)[0, 0, 1, 0] == pytest.approx(np.exp(-0.5))
+    assert np.isfinite(link_table(pos, pid, dist, np.maximum(np.zeros((4, 4)), 0.0005))).all()
+
+
+def test_exhaustive_search_finds_true_assignment_among_distractors_and_never_reuses_a_point():
+    rng, template, dist = _body(6, seed=3)
+    rot, shift = _rotation(rng), rng.normal(size=3)
+    true_pts = template @ rot.T + shift
+    distractors = np.repeat(true_pts, 3, axis=0) + rng.uniform(-0.02, 0.02, (18, 3))
+    points = np.vstack([true_pts, distractors])
+    order = rng.permutation(len(points))
+    points = points[order]
+    truth = np.argsort(order)[:6]  # where each true marker went
+    cand = np.stack([np.argsort(np.linalg.norm(points - p, axis=1))[:4] for p in true_pts + rng.normal(0, 0.005, (6, 3))])
+    pid, score, evaluated = search_body(cand, points[cand], dist, np.full((6, 6), 0.001), 10**6)
+    assert np.array_equal(pid, truth)
+    assert evaluated == np.prod((cand >= 0).sum(1) + 1)
+    # a body whose markers all offer the same point must not take it twice
+    same = np.zeros((3, 1), int)
+    pid, _, _ = search_body(same, points[same], dist[:3, :3], np.full((3, 3), 0.001), 100)
+    assert (pid >= 0).sum() <= 1
+
+
+def test_one_missing_marker_scores_the_remaining_links():
+    _, template, dist = _body(5)
+    cand = np.array([[0], [1], [2], [3], [-1]])
+    pts = np.vstack([template[:4], np.full((1, 3), np.nan)])
+    _, score, _ = search_body(cand, pts[cand], dist, np.full((5, 5), 0.001), 100)
+    n_links = 10
+    assert score == pytest.approx((n_links - 4) / n_links, abs=1e-12)
+
+
+def test_clustering_recovers_rigid_groups():
+    rng = np.random.default_rng(5)
+    frames, groups = 60, [np.arange(0, 4), np.arange(4, 9), np.arange(9, 12)]
+    pos = np.zeros((frames, 12, 3))
+    for g in groups:  # each group moves rigidly with its own random rotation per frame
+        local = rng.uniform(-0.1, 0.1, (len(g), 3))
+        for t in range(frames):
+            pos[t, g] = local @ _rotation(rng).T + rng.normal(size=3)
+    std = np.std(pair_distances(pos), axis=0)
+    bodies = cluster_rigid_bodies(std, 0.001)
+    assert [list(b) for b in bodies] == [list(g) for g in groups]
+
+
+def test_window_matches_numpy_over_last_t_valid_frames():
+    rng = np.random.default_rng(6)
+    window = DistanceWindow(1, 3, 5, 0.0)
+    history = rng.uniform(0.1, 0.3, (12, 1, 3, 3))
+    history[7, 0, 0, 1] = np.nan  # a pair not observed together in frame 7 does not enter
+    for frame in history:
+        window.push(frame)
+    mean, std = window.stats()
+    last = history[-5:, 0, 0, 1]
+    assert mean[0, 0, 1] == pytest.approx(np.nanmean(last), abs=1e-12)
+    assert std[0, 0, 1] == pytest.approx(np.nanstd(last), abs=1e-9)
+
+
+def _rigid_scene(rng, frames=80, fps=120.0):
+    """Two subjects of two rigid 4-marker bodies each, translating and slowly rotating, 1 m apart."""
+    local = rng.uniform(-0.08, 0.08, (4, 4, 3))
+    centres = np.array([[0, 0, 1.0], [0.3, 0, 1.0], [1.0, 0, 1.0], [1.3, 0, 1.0]])
+    pos = np.zeros((frames, 16, 3))
+    t = np.arange(frames) / fps
+    for b in range(4):
+        ang = 0.6 * t + b
+        rot = np.stack([np.stack([np.cos(ang), -np.sin(ang), 0 * ang], -1),
+                        np.stack([np.sin(ang), np.cos(ang), 0 * ang], -1),
+                        np.stack([0 * ang, 0 * ang, 1 + 0 * ang], -1)], -2)
+        pos[:, 4 * b : 4 * b + 4] = np.einsum("fij,nj->fni", rot, local[b]) + (centres[b] + np.outer(t, [0.4, 0.1, 0]))[:, None]
+    return pos, np.repeat([0, 0, 1, 1], 4), fps
+
+
+@pytest.mark.parametrize("recovery, tol_m", [("offsets", 0.01), ("kabsch", 1e-6)])
+def test_online_labels_rigid_scene_and_recovers_a_missing_marker(recovery, tol_m):
+    rng = np.random.default_rng(7)
+    pos, subjects, fps = _rigid_scene(rng)
+    cfg = LabelingConfig(train_frames=30, recovery=recovery, accel_std_floor_mps2=2.0)
+    labeler = OnlineLabeler(cfg)
+    labeler.train(pos[:30], subjects, fps)
+    assert sorted(len(b) for b in labeler.bodies) == [4, 4, 4, 4]
+    for t in range(30, 80):
+        keep = np.arange(16) if t < 50 else np.delete(np.arange(16), 5)  # marker 5 hidden for 30 frames
+        perm = rng.permutation(keep)
+        result = labeler.step(pos[t, perm])
+        assert np.array_equal(perm[result.label_point[keep]], keep)
+        if t >= 50:
+            assert result.status[5] == RECOVERED and (result.status[keep] == OBSERVED).all()
+            assert np.linalg.norm(result.positions_m[5] - pos[t, 5]) < tol_m
+
+
+def test_training_needs_complete_last_frame_and_bodies_must_partition():
+    pos, subjects, fps = _rigid_scene(np.random.default_rng(8))
+    holed = pos[:30].copy()
+    holed[-1, 2] = np.nan
+    with pytest.raises(ValueError, match="last training frame"):
+        OnlineLabeler().train(holed, subjects, fps)
+    with pytest.raises(ValueError, match="partition"):
+        OnlineLabeler().train(pos[:30], subjects, fps, bodies=[np.arange(8)])
