@@ -37,6 +37,7 @@ class AsfSkeleton:
     length_unit_m: float  # metres per ASF length unit
     angle_in_degrees: bool
     root_order: tuple[str, ...]  # AMC root columns, e.g. ("tx","ty","tz","rx","ry","rz")
+    root_rotation_order: str  # `:root axis`, the order the root rotations are applied in, e.g. "XYZ"
     dofs: dict[str, tuple[str, ...]]  # bone name -> dof names in AMC column order
     axis_quats: dict[str, np.ndarray]  # joint name (incl. "root") -> C as a quaternion
 
@@ -129,7 +130,6 @@ def read_asf(path: str | Path) -> AsfSkeleton:
             root_orientation, orientation_line = fields[1:], number
     axis_quats = {"root": _axis_quat(path, orientation_line or 0, list(root_orientation) + [root_axis_order], to_rad)
                   if orientation_line else quat.identity()}
-    root_rot_order = root_axis_order  # order in which the AMC root rotations are applied
 
     bones: dict[str, dict] = {}
     block: dict | None = None
@@ -203,8 +203,7 @@ def read_asf(path: str | Path) -> AsfSkeleton:
     skeleton = Skeleton(tuple(names), np.array(parents), np.array(offsets), np.array(end_site))
     dofs = {"root": root_order, **{b: bones[b]["dof"] for b in bones}}
     axis_quats.update({b: bones[b].get("axis", quat.identity()) for b in bones})
-    axis_quats["__root_rot_order__"] = np.array([ord(c) for c in root_rot_order])
-    return AsfSkeleton(skeleton, str(path), unit_m, degrees, root_order, dofs, axis_quats)
+    return AsfSkeleton(skeleton, str(path), unit_m, degrees, root_order, root_axis_order, dofs, axis_quats)
 
 
 def _amc_columns(path: Path, lines: list[str], asf: AsfSkeleton) -> tuple[dict[str, np.ndarray], bool | None]:
@@ -281,7 +280,7 @@ def read_amc(path: str | Path, asf: AsfSkeleton | str | Path, fps: float = 120.0
     root = columns["root"]
     col = {d: i for i, d in enumerate(asf.root_order)}
     root_pos = root[:, [col["tx"], col["ty"], col["tz"]]] * asf.length_unit_m
-    applied_order = "".join(chr(c) for c in asf.axis_quats["__root_rot_order__"])
+    applied_order = asf.root_rotation_order
     _set_local(rotations, 0, root[:, [col["r" + a.lower()] for a in applied_order]] * to_rad, applied_order,
                asf.axis_quats["root"])
     for j, joint in enumerate(skel.names):

@@ -40,6 +40,8 @@ _asf_cache: dict[Path, AsfSkeleton] = {}
 def load_clip(path: str | Path, fps: float | None = None) -> Motion:
     """Load a .bvh, or an .amc with its sibling .asf; optionally resample to `fps`."""
     path = Path(path)
+    if not path.is_file():
+        raise MalformedFileError(path, None, "no such file")
     suffix = path.suffix.lower()
     if suffix == ".bvh":
         motion = read_bvh(path)

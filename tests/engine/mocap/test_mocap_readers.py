@@ -211,5 +211,8 @@ def test_c3d_and_clip_type_errors(tmp_path):
     junk.write_bytes(b"\x00\x01not a c3d file" * 10)
     with pytest.raises(MalformedFileError, match="junk.c3d"):
         M.read_c3d(junk)
+    (tmp_path / "clip.fbx").write_bytes(b"Kaydara FBX Binary")
     with pytest.raises(MalformedFileError, match="unsupported clip type"):
         M.load_clip(tmp_path / "clip.fbx")
+    with pytest.raises(MalformedFileError, match="no such file"):
+        M.load_clip(tmp_path / "missing.amc")
