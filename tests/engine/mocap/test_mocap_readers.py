@@ -216,3 +216,67 @@ def test_c3d_and_clip_type_errors(tmp_path):
         M.load_clip(tmp_path / "clip.fbx")
     with pytest.raises(MalformedFileError, match="no such file"):
         M.load_clip(tmp_path / "missing.amc")
+
+
+def _rewrite_amc(text: str, root_perm: list[int] | None, to_radians: bool) -> str:
+    """Re-express an AMC: permute the root columns and/or convert every angle to radians."""
+    out = []
+    for line in text.splitlines():
+        fields = line.split()
+        if line.strip() == ":DEGREES" and to_radians:
+            out.append(":RADIANS")
+        elif len(fields) > 1 and not line.startswith((":", "#")):
+            vals = np.array(fields[1:], float)
+            if fields[0] == "root":
+                if to_radians:
+                    vals[3:] = np.radians(vals[3:])
+                if root_perm is not None:
+                    vals = vals[root_perm]
+            elif to_radians:
+                vals = np.radians(vals)
+            out.append(" ".join([fields[0]] + [repr(float(v)) for v in vals]))
+        else:
+            out.append(line)
+    return "\n".join(out) + "\n"
+
+
+def _rewrite_asf(text: str, to_radians: bool, root_order: str | None, length_factor: float) -> str:
+    out = []
+    for line in text.splitlines():
+        fields = line.split()
+        if fields[:1] == ["axis"] and len(fields) == 5 and to_radians:
+            angles = np.radians(np.array(fields[1:4], float))
+            line = "     axis " + " ".join(repr(float(a)) for a in angles) + " " + fields[4]
+        elif fields[:1] == ["angle"] and to_radians:
+            line = "  angle rad"
+        elif fields[:1] == ["order"] and root_order is not None:
+            line = "   order " + root_order
+        elif fields[:1] == ["length"] and len(fields) == 2 and fields[1] == "0.45":
+            line = f"  length {0.45 * length_factor!r}"
+        elif fields[:1] == ["length"] and length_factor != 1.0:
+            line = f"     length {float(fields[1]) * length_factor!r}"
+        out.append(line)
+    return "\n".join(out) + "\n"
+
+
+def test_asf_amc_units_and_root_order_are_honoured(tmp_path):
+    """The same take re-expressed in radians, with another root column order and another length unit
+    must give the same joint positions."""
+    src = M.sample_clips()["16_45"]
+    reference = M.forward_kinematics(M.load_clip(src))[0]
+    asf_text, amc_text = src.with_name("16.asf").read_text(), src.read_text()
+    perm = [3, 4, 5, 0, 1, 2]  # file columns become RX RY RZ TX TY TZ
+    (tmp_path / "16.asf").write_text(_rewrite_asf(asf_text, True, "RX RY RZ TX TY TZ", 2.0))
+    amc = _rewrite_amc(amc_text, perm, True)
+    # bone lengths doubled with the unit doubled: same metres; the root translation must double too
+    lines = []
+    for line in amc.splitlines():
+        if line.startswith("root "):
+            vals = np.array(line.split()[1:], float)
+            vals[3:] *= 2.0
+            line = "root " + " ".join(repr(float(v)) for v in vals)
+        lines.append(line)
+    (tmp_path / "16_45.amc").write_text("\n".join(lines) + "\n")
+    asf = M.read_asf(tmp_path / "16.asf")
+    assert not asf.angle_in_degrees and asf.root_order == ("rx", "ry", "rz", "tx", "ty", "tz")
+    np.testing.assert_allclose(M.forward_kinematics(M.load_clip(tmp_path / "16_45.amc"))[0], reference, atol=1e-9)
