@@ -1,0 +1,130 @@
+"""Versioned sensor-calibration record: JSON with the take, raw step samples in an ``.npz`` beside it.
+
+Why keep raw samples: calibration can then be recomputed offline (different thresholds, a better yaw method)
+without re-recording the subject - the MVNX/XDF "never throw raw data away" practice.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.mocap import quaternions
+from gateway.calibration.errors import CalibrationRecordError
+
+SCHEMA = "courtside.sensor_calibration"
+SCHEMA_VERSION = 1
+
+
+@dataclass
+class SensorCalibration:
+    """Result for one sensor. ``rotation`` (3, 3): sensor axes -> segment frame (engine ``SensorPlacement``)."""
+
+    sensor_id: str
+    segment: str
+    rotation: np.ndarray
+    gravity_sensor_g: np.ndarray
+    norm_error_g: float
+    capture_std_g: float
+    correction_deg: float
+    quality: float
+    passed: bool
+    reasons: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["rotation"] = np.asarray(self.rotation).tolist()
+        q = quaternions.from_matrix(self.rotation)
+        out["rotation_wxyz"] = (q if q[0] >= 0 else -q).tolist()  # w >= 0: one of the two equal quaternions
+        out["gravity_sensor_g"] = np.asarray(self.gravity_sensor_g).tolist()
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "SensorCalibration":
+        fields = {k: data[k] for k in cls.__dataclass_fields__}
+        fields["rotation"] = np.asarray(fields["rotation"], float)
+        fields["gravity_sensor_g"] = np.asarray(fields["gravity_sensor_g"], float)
+        return cls(**fields)
+
+
+@dataclass
+class CalibrationRecord:
+    """A finished calibration. ``raw``: step -> sensor id -> ``(t_s (N,), acc_g (N, 3))``."""
+
+    sensors: dict[str, SensorCalibration]
+    quality_score: float
+    grade: str
+    passed: bool
+    tap: dict[str, Any] | None = None
+    subject: str = ""
+    take: str = ""
+    created_utc: str = ""
+    config: dict[str, Any] = field(default_factory=dict)
+    raw: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
+
+    def rotation(self, sensor_id: str) -> np.ndarray:
+        """Sensor -> segment rotation (3, 3) for ``engine.mocap.SensorPlacement(..., rotation=...)``."""
+        return self.sensors[sensor_id].rotation
+
+    def save(self, path: str | Path) -> Path:
+        """Write ``path`` (JSON) and the raw samples beside it (same stem, ``.npz``); returns the npz path."""
+        path = Path(path)
+        npz_path = path.with_suffix(".npz")
+        arrays = {}
+        for step, per_sensor in self.raw.items():
+            for sensor_id, (t, acc) in per_sensor.items():
+                arrays[f"{step}/{sensor_id}/t_s"] = np.asarray(t)
+                arrays[f"{step}/{sensor_id}/acc_g"] = np.asarray(acc)
+        np.savez_compressed(npz_path, **arrays)
+        doc = {
+            "schema": SCHEMA, "schema_version": SCHEMA_VERSION, "created_utc": self.created_utc,
+            "subject": self.subject, "take": self.take, "quality_score": self.quality_score, "grade": self.grade,
+            "passed": self.passed, "tap": self.tap, "config": self.config,
+            "sensors": {sid: s.to_dict() for sid, s in self.sensors.items()},
+            "raw_samples_file": npz_path.name,
+        }
+        path.write_text(json.dumps(doc, indent=2))
+        return npz_path
+
+    @classmethod
+    def load(cls, path: str | Path, with_raw: bool = True) -> "CalibrationRecord":
+        """Read a record (and its raw samples); CalibrationRecordError names the file and the problem."""
+        path = Path(path)
+        try:
+            doc = json.loads(path.read_text())
+        except OSError as exc:
+            raise CalibrationRecordError(path, f"cannot read: {exc.strerror}") from exc
+        except json.JSONDecodeError as exc:
+            raise CalibrationRecordError(path, f"not JSON (line {exc.lineno}: {exc.msg})") from exc
+        if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
+            raise CalibrationRecordError(path, f"not a sensor calibration record (schema must be {SCHEMA!r})")
+        if doc.get("schema_version") != SCHEMA_VERSION:
+            raise CalibrationRecordError(path, f"unsupported schema_version {doc.get('schema_version')!r}")
+        try:
+            sensors = {sid: SensorCalibration.from_dict(s) for sid, s in doc["sensors"].items()}
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CalibrationRecordError(path, f"bad sensor entry: {exc!r}") from None
+        for sid, s in sensors.items():
+            r = s.rotation
+            if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
+                raise CalibrationRecordError(path, f"sensor {sid!r}: rotation is not a proper 3x3 rotation")
+        raw: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
+        if with_raw:
+            npz_path = path.parent / doc.get("raw_samples_file", path.with_suffix(".npz").name)
+            try:
+                with np.load(npz_path) as data:
+                    for key in data.files:
+                        step, rest = key.split("/", 1)  # sensor ids may contain "/" themselves
+                        sensor_id, kind = rest.rsplit("/", 1)
+                        if kind == "t_s":
+                            raw.setdefault(step, {})[sensor_id] = (data[key], data[f"{step}/{sensor_id}/acc_g"])
+            except (OSError, ValueError, KeyError) as exc:
+                raise CalibrationRecordError(npz_path, f"raw samples unreadable: {exc}") from None
+        return cls(
+            sensors=sensors, quality_score=float(doc["quality_score"]), grade=str(doc["grade"]),
+            passed=bool(doc["passed"]), tap=doc.get("tap"), subject=doc.get("subject", ""), take=doc.get("take", ""),
+            created_utc=doc.get("created_utc", ""), config=doc.get("config", {}), raw=raw,
+        )

@@ -1,0 +1,339 @@
+"""Calibration wizard: a pure-logic, step-by-step state machine the console drives through the gateway.
+
+Steps (``STEPS``): ``assign`` sensors to segments -> ``placement`` check (live tilt from gravity) -> ``npose``
+static capture (auto-start after every sensor has been still for ``still_required_s``, auto-reject on movement)
+-> ``tap`` (sync spike on one sensor, for the IMU-camera lag check; may be skipped) -> ``review`` (quality, per
+sensor pass/fail) -> ``done``. Any step can be redone alone (:meth:`CalibrationWizard.redo`): the others' results
+are kept and the wizard returns to the first unfinished step afterwards.
+
+Why time comes from the samples, not a wall clock: the same wizard then runs live, on a replayed take, and in
+tests, deterministically. Input: :meth:`push` (sensor id, times s, accelerations g). Output: :meth:`snapshot`, a
+JSON-ready dict for the console, and :meth:`record`, the versioned :class:`CalibrationRecord`.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from typing import Any
+
+import numpy as np
+
+from gateway.calibration.alignment import (
+    UP, norm_error_g, rotation_angle_deg, sensor_to_segment_rotation, tilt_deg,
+)
+from gateway.calibration.buffer import SampleBuffer
+from gateway.calibration.record import CalibrationRecord, SensorCalibration
+from gateway.calibration.signals import TapEvent, detect_tap, stillness
+
+STEPS = ("assign", "placement", "npose", "tap", "review", "done")
+SNAPSHOT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class SegmentSpec:
+    """Where a sensor goes: ``nominal_rotation`` (3, 3) sensor -> segment as mounted by the book, and
+    ``expected_up`` (3,), the segment's up direction in the N-pose in segment coordinates (engine skeletons'
+    zero pose is world-aligned, so world up ``(0, 1, 0)`` unless the N-pose differs from the zero pose)."""
+
+    nominal_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    expected_up: np.ndarray = field(default_factory=lambda: UP.copy())
+
+
+@dataclass(frozen=True)
+class WizardConfig:
+    """Thresholds (g, s, degrees). ``still_std_g`` gates both std(|a|) and each axis' std."""
+
+    still_required_s: float = 1.0
+    capture_s: float = 2.0
+    still_std_g: float = 0.02
+    placement_max_tilt_deg: float = 35.0
+    max_correction_deg: float = 35.0
+    norm_tolerance_g: float = 0.05
+    tap_threshold_g: float = 1.0
+    max_gap_s: float = 0.5
+    live_window_s: float = 0.25
+
+
+def segment_specs_from_placements(placements: list[Any]) -> dict[str, SegmentSpec]:
+    """Specs from ``engine.mocap.standard_placements(...)`` (name -> nominal rotation, world up)."""
+    return {p.name: SegmentSpec(np.asarray(p.rotation, float)) for p in placements}
+
+
+class CalibrationWizard:
+    """See the module docstring. Sensor ids are strings (e.g. ``"station0/3"``)."""
+
+    def __init__(self, segments: dict[str, SegmentSpec], config: WizardConfig = WizardConfig()) -> None:
+        if not segments:
+            raise ValueError("the wizard needs at least one segment to calibrate")
+        self.segments = dict(segments)
+        self.config = config
+        self.step = "assign"
+        self.assignment: dict[str, str] = {}
+        self.results: dict[str, SensorCalibration] = {}
+        self.tap: dict[str, Any] | None = None
+        self.tap_skipped = False
+        self.rejections = 0
+        self._buffers: dict[str, SampleBuffer] = {}
+        self._raw: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
+        self._completed: set[str] = set()
+        self._messages: list[str] = []
+        self._now = -np.inf
+        self._phase_start_s = -np.inf
+        self._capturing = False
+        self._last_tap_check_s = -np.inf
+
+    # ------------------------------------------------------------------ operator actions
+    def assign(self, sensor_id: str, segment: str) -> None:
+        """Put ``sensor_id`` on ``segment`` (replacing whatever sensor was there)."""
+        if segment not in self.segments:
+            raise ValueError(f"unknown segment {segment!r}; known: {sorted(self.segments)}")
+        for other, seg in list(self.assignment.items()):
+            if seg == segment and other != sensor_id:
+                del self.assignment[other]
+        self.assignment[sensor_id] = segment
+
+    def unassign(self, sensor_id: str) -> None:
+        self.assignment.pop(sensor_id, None)
+
+    def confirm(self) -> bool:
+        """The operator's "Next"/"Accept". Returns False (with a message) when the step cannot be left yet."""
+        if self.step == "assign":
+            if not self.assignment:
+                return self._refuse("assign at least one sensor to a segment")
+            return self._leave("assign")
+        if self.step == "placement":
+            problems = [f"{sid}: {r}" for sid, info in self._placement().items() for r in info["reasons"]]
+            if problems:
+                return self._refuse("placement check failed: " + "; ".join(problems))
+            return self._leave("placement")
+        if self.step == "tap":
+            self.tap_skipped = True
+            self._say("sync tap skipped: the IMU-camera lag check will have no tap event")
+            return self._leave("tap")
+        if self.step == "review":
+            if "npose" not in self._completed:
+                return self._refuse("no N-pose captured")
+            self.step = "done"
+            self._say("calibration accepted")
+            return True
+        return self._refuse(f"nothing to confirm in step {self.step!r} (it advances by itself)")
+
+    def redo(self, step: str) -> None:
+        """Go back to ``step`` and clear only its results."""
+        if step not in STEPS[:-2]:
+            raise ValueError(f"cannot redo {step!r}; steps that can be redone: {list(STEPS[:-2])}")
+        self._completed.discard(step)
+        if step == "npose":
+            self.results.clear()
+            self._raw.pop("npose", None)
+        elif step == "tap":
+            self.tap, self.tap_skipped = None, False
+            self._raw.pop("tap", None)
+        self._enter(step)
+        self._say(f"redoing step {step!r}")
+
+    # ------------------------------------------------------------------ data in
+    def push(self, sensor_id: str, t_s: float | np.ndarray, acc_g: np.ndarray) -> None:
+        """Samples of one sensor: times ``t_s`` (s, host clock; scalar or (N,)) and ``acc_g`` ((3,) or (N, 3))."""
+        buffer = self._buffers.setdefault(sensor_id, SampleBuffer())
+        buffer.extend(t_s, acc_g)
+        self._now = max(self._now, buffer.last_t_s)
+        self._advance()
+        # Keep what the current step still needs: the tap search window, the capture window, or a few seconds.
+        keep_from = self._now - (self.config.still_required_s + self.config.capture_s + 1.0)
+        if self.step == "tap" or (self.step == "npose" and self._capturing):
+            keep_from = min(keep_from, self._phase_start_s)
+        buffer.drop_before(keep_from)
+
+    # ------------------------------------------------------------------ state machine
+    def _advance(self) -> None:
+        if self.step == "npose":
+            self._advance_npose()
+        elif self.step == "tap":
+            self._advance_tap()
+
+    def _advance_npose(self) -> None:
+        cfg = self.config
+        sensors = list(self.assignment)
+        if not self._capturing:
+            stats = [self._stillness(s, self._now - cfg.still_required_s, self._now) for s in sensors]
+            if all(st.span_s >= 0.95 * cfg.still_required_s and st.worst_g <= cfg.still_std_g for st in stats):
+                self._capturing = True
+                self._phase_start_s = self._now
+                self._say(f"everyone still for {cfg.still_required_s:g} s: capturing the N-pose, hold still")
+            return
+        t0, t1 = self._phase_start_s, self._phase_start_s + cfg.capture_s
+        for sid in sensors:
+            st = self._stillness(sid, t0, min(self._now, t1))
+            if st.span_s >= 0.2 and st.worst_g > cfg.still_std_g:
+                return self._reject(f"sensor {sid} ({self.assignment[sid]}) moved: std {st.worst_g:.3f} g > "
+                                    f"{cfg.still_std_g:g} g")
+            gap = self._now - self._buffers[sid].last_t_s if sid in self._buffers else np.inf
+            if gap > cfg.max_gap_s:
+                return self._reject(f"sensor {sid} ({self.assignment[sid]}) stopped sending for {gap:.1f} s")
+        if all(self._buffers[s].last_t_s >= t1 for s in sensors):
+            self._finish_npose(t0, t1)
+
+    def _reject(self, reason: str) -> None:
+        self.rejections += 1
+        self._capturing = False
+        self._say(f"N-pose rejected: {reason}; waiting for stillness again")
+
+    def _finish_npose(self, t0: float, t1: float) -> None:
+        cfg = self.config
+        self._raw["npose"] = {}
+        for sid, segment in self.assignment.items():
+            t, acc = self._buffers[sid].window(t0, t1)
+            self._raw["npose"][sid] = (t.copy(), acc.copy())
+            spec = self.segments[segment]
+            mean = acc.mean(axis=0)
+            rotation = sensor_to_segment_rotation(mean, spec.nominal_rotation, spec.expected_up)
+            correction = rotation_angle_deg(rotation @ spec.nominal_rotation.T)
+            err = norm_error_g(mean)
+            std = stillness(t, acc).worst_g
+            reasons = []
+            if correction > cfg.max_correction_deg:
+                reasons.append(f"mounted {correction:.0f} deg away from the nominal orientation "
+                               f"(limit {cfg.max_correction_deg:g}); check the placement")
+            if abs(err) > cfg.norm_tolerance_g:
+                reasons.append(f"|a| is {err:+.3f} g off 1 g while still (limit +-{cfg.norm_tolerance_g:g} g): "
+                               "accelerometer bias or scale error")
+            quality = float(np.clip(min(1 - correction / cfg.max_correction_deg, 1 - abs(err) / cfg.norm_tolerance_g,
+                                        1 - std / cfg.still_std_g), 0.0, 1.0))
+            self.results[sid] = SensorCalibration(sid, segment, rotation, mean, err, std, correction, quality,
+                                                  not reasons, reasons)
+        self._capturing = False
+        self._say("N-pose captured")
+        self._leave("npose")
+
+    def _advance_tap(self) -> None:
+        if self._now - self._last_tap_check_s < 0.1:
+            return
+        self._last_tap_check_s = self._now
+        events: list[tuple[TapEvent, str]] = []
+        for sid in self.assignment:
+            if sid in self._buffers:
+                t, acc = self._buffers[sid].window(self._phase_start_s)
+                event = detect_tap(t, acc, self.config.tap_threshold_g)
+                if event is not None:
+                    events.append((event, sid))
+        if not events:
+            return
+        event, sid = min(events, key=lambda e: e[0].t_s)
+        self.tap = {"sensor_id": sid, "segment": self.assignment[sid], "t_s": event.t_s, "peak_g": event.peak_g}
+        self._raw["tap"] = {s: tuple(a.copy() for a in self._buffers[s].window(self._phase_start_s))
+                            for s in self.assignment if s in self._buffers}
+        self._say(f"sync tap on {sid} at t = {event.t_s:.3f} s ({event.peak_g:.1f} g)")
+        self._leave("tap")
+
+    # ------------------------------------------------------------------ helpers
+    def _stillness(self, sensor_id: str, t0: float, t1: float):
+        buffer = self._buffers.get(sensor_id)
+        if buffer is None:
+            return stillness(np.empty(0), np.empty((0, 3)))
+        return stillness(*buffer.window(t0, t1))
+
+    def _leave(self, step: str) -> bool:
+        self._completed.add(step)
+        following = [s for s in ("placement", "npose", "tap") if s not in self._completed]
+        self._enter(following[0] if following else "review")
+        return True
+
+    def _enter(self, step: str) -> None:
+        self.step = step
+        self._capturing = False
+        self._phase_start_s = self._now
+        self._last_tap_check_s = -np.inf
+
+    def _refuse(self, message: str) -> bool:
+        self._say(message)
+        return False
+
+    def _say(self, message: str) -> None:
+        self._messages = (self._messages + [message])[-20:]
+
+    def _placement(self) -> dict[str, dict[str, Any]]:
+        """Live tilt per assigned sensor from its last ``live_window_s`` of samples."""
+        out = {}
+        for sid, segment in self.assignment.items():
+            spec = self.segments[segment]
+            buffer = self._buffers.get(sid)
+            reasons: list[str] = []
+            tilt = None
+            if buffer is None or not len(buffer):
+                reasons.append("no samples yet")
+            else:
+                _, acc = buffer.window(buffer.last_t_s - self.config.live_window_s)
+                tilt = tilt_deg(acc.mean(axis=0), spec.nominal_rotation, spec.expected_up)
+                if tilt > 120:
+                    reasons.append(f"tilted {tilt:.0f} deg: upside down?")
+                elif tilt > self.config.placement_max_tilt_deg:
+                    reasons.append(f"tilted {tilt:.0f} deg from the expected mounting "
+                                   f"(limit {self.config.placement_max_tilt_deg:g})")
+            out[sid] = {"tilt_deg": tilt, "reasons": reasons}
+        return out
+
+    # ------------------------------------------------------------------ outputs
+    def quality(self) -> dict[str, Any]:
+        """Overall score 0-100 (mean per-sensor quality), grade, pass (all sensors pass and N-pose done)."""
+        if not self.results:
+            return {"score": 0.0, "grade": "none", "passed": False}
+        score = 100.0 * float(np.mean([r.quality for r in self.results.values()]))
+        grade = "good" if score >= 70 else "fair" if score >= 40 else "poor"
+        return {"score": round(score, 1), "grade": grade, "passed": all(r.passed for r in self.results.values())}
+
+    def snapshot(self) -> dict[str, Any]:
+        """JSON-serialisable state for the console (see docs/camera-calibration.md for the fields)."""
+        cfg = self.config
+        placement = self._placement()
+        sensors: dict[str, Any] = {}
+        for sid in sorted(set(self._buffers) | set(self.assignment)):
+            buffer = self._buffers.get(sid)
+            live_t0 = (buffer.last_t_s if buffer is not None else 0.0) - cfg.still_required_s
+            st = self._stillness(sid, live_t0, np.inf)
+            result = self.results.get(sid)
+            sensors[sid] = {
+                "segment": self.assignment.get(sid),
+                "stillness": st.meter(cfg.still_std_g) if st.span_s > 0 else 0.0,
+                "std_g": None if not np.isfinite(st.worst_g) else st.worst_g,
+                "tilt_deg": placement.get(sid, {}).get("tilt_deg"),
+                "placement_ok": None if sid not in placement else not placement[sid]["reasons"],
+                "placement_reasons": placement.get(sid, {}).get("reasons", []),
+                "passed": None if result is None else result.passed,
+                "reasons": [] if result is None else list(result.reasons),
+                "correction_deg": None if result is None else result.correction_deg,
+                "norm_error_g": None if result is None else result.norm_error_g,
+                "rotation_wxyz": None if result is None else result.to_dict()["rotation_wxyz"],
+            }
+        countdown = None
+        if self.step == "npose" and self._capturing:
+            countdown = max(0.0, self._phase_start_s + cfg.capture_s - self._now)
+        phase = {"npose": "capturing" if self._capturing else "waiting_for_stillness",
+                 "tap": "waiting_for_tap"}.get(self.step, "waiting_for_operator" if self.step != "done" else "done")
+        return {
+            "snapshot_version": SNAPSHOT_VERSION,
+            "step": self.step,
+            "steps": list(STEPS),
+            "completed": [s for s in STEPS if s in self._completed],
+            "phase": phase,
+            "countdown_s": countdown,
+            "time_s": None if not np.isfinite(self._now) else self._now,
+            "sensors": sensors,
+            "unassigned_segments": sorted(set(self.segments) - set(self.assignment.values())),
+            "tap": self.tap,
+            "tap_skipped": self.tap_skipped,
+            "rejections": self.rejections,
+            "quality": self.quality(),
+            "messages": list(self._messages),
+        }
+
+    def record(self, subject: str = "", take: str = "") -> CalibrationRecord:
+        """The versioned record (results + raw samples of each captured step); needs a captured N-pose."""
+        if "npose" not in self._completed:
+            raise RuntimeError("no N-pose captured yet: nothing to record")
+        q = self.quality()
+        return CalibrationRecord(
+            sensors=dict(self.results), quality_score=q["score"], grade=q["grade"], passed=q["passed"],
+            tap=self.tap, subject=subject, take=take, created_utc=datetime.now(timezone.utc).isoformat(),
+            config=asdict(self.config), raw={step: dict(per) for step, per in self._raw.items()},
+        )

@@ -1,0 +1,79 @@
+"""An emulated subject in the N-pose: the engine's standard sensor placements on a shipped CMU skeleton, each
+sensor mounted with a known tilt error, read through the firmware emulator's StillSource plus noise and bias."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from engine.mocap import SEED000_SENSORS, load_clip, quaternions, sample_clips, standard_placements
+from firmware_protocol.emulator.motion import StillSource
+from gateway.calibration import CalibrationWizard, minimal_rotation, segment_specs_from_placements
+
+RATE_HZ = 100.0
+NOISE_G = 0.005
+
+
+def tilt_rotation(rng: np.random.Generator, up: np.ndarray, max_deg: float) -> np.ndarray:
+    """A rotation about a random axis perpendicular to ``up`` (an observable mounting error)."""
+    axis = np.cross(up, rng.normal(size=3))
+    axis /= np.linalg.norm(axis)
+    angle = np.radians(rng.uniform(0.3 * max_deg, max_deg))
+    return minimal_rotation(up, np.cos(angle) * up + np.sin(angle) * np.cross(axis, up))
+
+
+@dataclass
+class Subject:
+    """Sensor ids -> segment names, true sensor->segment rotations, and biases (g)."""
+
+    segments: dict
+    true_rotation: dict
+    bias_g: dict
+
+    def samples(self, sensor_id: str, t_s: np.ndarray, rng: np.random.Generator,
+                world_from_segment: np.ndarray = np.eye(3)) -> np.ndarray:
+        """Still readings (N, 3) g of one sensor with its segment at ``world_from_segment``."""
+        world_from_sensor = world_from_segment @ self.true_rotation[sensor_id]
+        source = StillSource(1, quaternions.from_matrix(world_from_sensor)[None])
+        clean = source.acceleration_g(t_s)[:, 0]
+        return clean + self.bias_g[sensor_id] + rng.normal(0.0, NOISE_G, clean.shape)
+
+
+@pytest.fixture(scope="session")
+def specs():
+    skeleton = load_clip(sample_clips()["16_01"]).skeleton
+    return segment_specs_from_placements(standard_placements(skeleton, SEED000_SENSORS))
+
+
+@pytest.fixture
+def subject(specs) -> Subject:
+    rng = np.random.default_rng(11)
+    segments = {f"st0/{i}": name for i, name in enumerate(specs)}
+    true_rotation = {sid: tilt_rotation(rng, specs[seg].expected_up, 20.0) @ specs[seg].nominal_rotation
+                     for sid, seg in segments.items()}
+    bias = {sid: rng.normal(0.0, 0.01, 3) for sid in segments}
+    return Subject(segments, true_rotation, bias)
+
+
+@pytest.fixture
+def wizard(specs, subject) -> CalibrationWizard:
+    wiz = CalibrationWizard(specs)
+    for sid, seg in subject.segments.items():
+        wiz.assign(sid, seg)
+    return wiz
+
+
+def feed(wizard: CalibrationWizard, subject: Subject, t0: float, t1: float, rng, overrides=None) -> float:
+    """Push [t0, t1) at RATE_HZ for every sensor in 50 ms packets; ``overrides[sid](t) -> acc`` replaces a
+    sensor's still readings (movement, taps). Returns t1."""
+    t_all = np.arange(t0, t1, 1.0 / RATE_HZ)
+    overrides = overrides or {}
+    for start in range(0, len(t_all), 5):
+        t = t_all[start : start + 5]
+        for sid in subject.segments:
+            acc = subject.samples(sid, t, rng)
+            if sid in overrides:
+                acc = overrides[sid](t, acc)
+            wizard.push(sid, t, acc)
+    return t1

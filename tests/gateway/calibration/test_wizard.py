@@ -1,0 +1,176 @@
+"""The calibration wizard driven like the console would, on an emulated subject with known mounting."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from gateway.calibration import CalibrationRecord, CalibrationRecordError, rotation_angle_deg
+
+from .conftest import RATE_HZ, feed, tilt_rotation
+
+
+def spike(t_peak: float, height_g: float = 4.0, width_s: float = 0.03):
+    """Override adding a half-sine impact along the sensor's x axis peaking at ``t_peak``."""
+    def apply(t, acc):
+        phase = (t - t_peak) / width_s + 0.5
+        bump = np.where((phase > 0) & (phase < 1), np.sin(np.pi * np.clip(phase, 0, 1)), 0.0)
+        return acc + np.outer(height_g * bump, [1.0, 0.0, 0.0])
+    return apply
+
+
+def run_to_npose(wizard, subject, rng) -> float:
+    assert wizard.confirm() and wizard.step == "placement"
+    t = feed(wizard, subject, 0.0, 0.5, rng)
+    assert wizard.confirm(), wizard.snapshot()["messages"]
+    assert wizard.step == "npose"
+    return t
+
+
+def test_still_subject_completes_and_recovers_rotations_and_bias(wizard, subject, tmp_path):
+    rng = np.random.default_rng(0)
+    t = run_to_npose(wizard, subject, rng)
+    snaps = []
+    while wizard.step == "npose" and t < 10:
+        t = feed(wizard, subject, t, t + 0.25, rng)
+        snaps.append(wizard.snapshot())
+    assert wizard.step == "tap"
+    assert any(s["phase"] == "capturing" and 0 < s["countdown_s"] < 2.0 for s in snaps)
+    assert all(v["stillness"] == 1.0 for v in snaps[-1]["sensors"].values())
+    assert t < 0.5 + 1.0 + 2.0 + 0.6  # auto-start after 1 s of stillness, 2 s capture
+    for sid, result in wizard.results.items():
+        error = rotation_angle_deg(result.rotation @ subject.true_rotation[sid].T)
+        assert error < 2.0, (sid, error)
+        assert result.correction_deg > 5.0  # the mounting error really was corrected
+        reading = subject.true_rotation[sid].T @ np.array([0.0, 1.0, 0.0]) + subject.bias_g[sid]
+        assert result.norm_error_g == pytest.approx(np.linalg.norm(reading) - 1.0, abs=0.002)
+        assert result.passed
+    # sync tap on one sensor, between samples
+    tapped, t_tap = "st0/4", t + 1.234
+    t = feed(wizard, subject, t, t + 2.0, rng, {tapped: spike(t_tap)})
+    assert wizard.step == "review"
+    assert wizard.tap["sensor_id"] == tapped
+    assert abs(wizard.tap["t_s"] - t_tap) <= 1.0 / RATE_HZ
+    q = wizard.snapshot()["quality"]
+    assert q["passed"] and q["grade"] in ("good", "fair") and 0 < q["score"] <= 100
+    assert wizard.confirm() and wizard.step == "done"
+    json.dumps(wizard.snapshot())  # console-ready
+    path = tmp_path / "take01.calibration.json"
+    npz = wizard.record(subject="p1", take="take01").save(path)
+    loaded = CalibrationRecord.load(path)
+    assert npz.is_file() and loaded.subject == "p1" and loaded.passed
+    for sid in subject.segments:
+        np.testing.assert_allclose(loaded.rotation(sid), wizard.results[sid].rotation)
+        t_raw, acc_raw = loaded.raw["npose"][sid]
+        assert len(t_raw) == pytest.approx(2.0 * RATE_HZ, abs=2) and acc_raw.shape == (len(t_raw), 3)
+    assert set(loaded.raw["tap"]) == set(subject.segments)
+
+
+def test_biased_sensor_fails_with_reason(wizard, subject):
+    rng = np.random.default_rng(1)
+    bad = "st0/2"
+    up_in_sensor = subject.true_rotation[bad].T @ np.array([0.0, 1.0, 0.0])
+    subject.bias_g[bad] = 0.08 * up_in_sensor  # 0.08 g along gravity: |a| reads 1.08 g
+    t = run_to_npose(wizard, subject, rng)
+    feed(wizard, subject, t, t + 4.0, rng)
+    result = wizard.results[bad]
+    assert result.norm_error_g == pytest.approx(0.08, abs=0.003)
+    assert not result.passed and "bias or scale" in result.reasons[0]
+    assert all(r.passed for sid, r in wizard.results.items() if sid != bad)
+    assert wizard.quality()["passed"] is False
+
+
+def test_moving_subject_is_rejected_with_a_reason_then_captured(wizard, subject):
+    rng = np.random.default_rng(2)
+    t = run_to_npose(wizard, subject, rng)
+    mover = "st0/0"
+
+    def swing(t_arr, acc):  # arm swings 1.5 s into the capture
+        moving = t_arr > t + 2.0
+        return acc + np.outer(np.where(moving, 0.3 * np.sin(2 * np.pi * 1.5 * t_arr), 0.0), [0.0, 0.0, 1.0])
+
+    t = feed(wizard, subject, t, t + 3.0, rng, {mover: swing})
+    snap = wizard.snapshot()
+    assert snap["step"] == "npose" and snap["phase"] == "waiting_for_stillness" and wizard.rejections == 1
+    assert any(f"sensor {mover}" in m and "moved" in m for m in snap["messages"])
+    assert snap["sensors"][mover]["stillness"] < 0.5
+    t = feed(wizard, subject, t, t + 2.0, rng, {mover: swing})  # still moving: never starts
+    assert wizard.step == "npose" and wizard.rejections == 1
+    feed(wizard, subject, t, t + 4.0, rng)  # stands still again
+    assert wizard.step == "tap" and len(wizard.results) == len(subject.segments)
+
+
+def test_redo_of_one_step_keeps_the_others(wizard, subject):
+    rng = np.random.default_rng(3)
+    t = run_to_npose(wizard, subject, rng)
+    t = feed(wizard, subject, t, t + 4.0, rng)
+    t = feed(wizard, subject, t, t + 1.0, rng, {"st0/1": spike(t + 0.5)})
+    assert wizard.step == "review"
+    first_tap, first_results = wizard.tap, dict(wizard.results)
+    wizard.redo("tap")
+    assert wizard.step == "tap" and wizard.tap is None and wizard.results == first_results
+    t = feed(wizard, subject, t, t + 1.0, rng, {"st0/3": spike(t + 0.4)})
+    assert wizard.step == "review" and wizard.tap["sensor_id"] == "st0/3" and wizard.results == first_results
+    # the strap on st0/5 slipped: re-mount, redo only the N-pose
+    up = wizard.segments["chest"].expected_up
+    subject.true_rotation["st0/5"] = tilt_rotation(rng, up, 15.0) @ subject.true_rotation["st0/5"]
+    wizard.redo("npose")
+    assert wizard.step == "npose" and wizard.results == {} and wizard.tap is not None
+    feed(wizard, subject, t, t + 4.0, rng)
+    assert wizard.step == "review" and wizard.tap["sensor_id"] == "st0/3"
+    assert rotation_angle_deg(wizard.results["st0/5"].rotation @ subject.true_rotation["st0/5"].T) < 2.0
+
+
+def test_placement_check_refuses_an_upside_down_sensor(wizard, subject):
+    rng = np.random.default_rng(4)
+    flip = np.diag([-1.0, -1.0, 1.0])  # 180 deg about the sensor's z: its x (up on the lower back) points down
+    subject.true_rotation["st0/4"] = subject.true_rotation["st0/4"] @ flip
+    assert wizard.confirm()
+    feed(wizard, subject, 0.0, 0.5, rng)
+    assert not wizard.confirm() and wizard.step == "placement"
+    snap = wizard.snapshot()
+    assert snap["sensors"]["st0/4"]["placement_ok"] is False
+    assert "upside down" in snap["messages"][-1] and "st0/4" in snap["messages"][-1]
+    subject.true_rotation["st0/4"] = subject.true_rotation["st0/4"] @ flip  # fixed
+    feed(wizard, subject, 0.5, 1.0, rng)
+    assert wizard.confirm() and wizard.step == "npose"
+
+
+def test_operator_errors(specs):
+    from gateway.calibration import CalibrationWizard
+
+    wiz = CalibrationWizard(specs)
+    assert not wiz.confirm() and "assign at least one" in wiz.snapshot()["messages"][-1]
+    with pytest.raises(ValueError, match="unknown segment 'tail'"):
+        wiz.assign("x", "tail")
+    with pytest.raises(ValueError, match="cannot redo 'done'"):
+        wiz.redo("done")
+    with pytest.raises(RuntimeError, match="no N-pose"):
+        wiz.record()
+    wiz.assign("a", "chest")
+    wiz.assign("b", "chest")  # replaces a
+    assert wiz.assignment == {"b": "chest"}
+
+
+def test_record_load_errors_name_the_file(tmp_path, wizard, subject):
+    rng = np.random.default_rng(5)
+    t = run_to_npose(wizard, subject, rng)
+    feed(wizard, subject, t, t + 4.0, rng)
+    path = tmp_path / "cal.json"
+    wizard.record().save(path)
+    doc = json.loads(path.read_text())
+    doc["schema_version"] = 99
+    bad = tmp_path / "future.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(CalibrationRecordError, match="future.json: unsupported schema_version 99"):
+        CalibrationRecord.load(bad)
+    doc["schema_version"] = 1
+    doc["sensors"]["st0/0"]["rotation"] = [[2, 0, 0], [0, 1, 0], [0, 0, 1]]
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(CalibrationRecordError, match="'st0/0': rotation is not a proper"):
+        CalibrationRecord.load(bad)
+    (tmp_path / "cal.npz").write_bytes(b"garbage")
+    with pytest.raises(CalibrationRecordError, match="cal.npz: raw samples unreadable"):
+        CalibrationRecord.load(path)
+    assert CalibrationRecord.load(path, with_raw=False).raw == {}
