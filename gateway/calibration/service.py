@@ -1,0 +1,83 @@
+"""Calibration hook for the gateway daemon: request actions -> :class:`CalibrationWizard`, samples in.
+
+Contract (docs/gateway.md "Hooks"): ``handle(action, args) -> result``, ``state() -> dict`` and
+``on_samples(station, sensor, t_host_s, acc_g)``. Sensor ids in the wizard are ``"<station>/<sensor>"``.
+Reader threads push samples while client threads send actions, so one lock serialises both.
+
+Actions (``GatewayClient.calibration(action, **args)``):
+
+=========  =====================================  ==============================================
+action     args                                   result
+=========  =====================================  ==============================================
+state      -                                      the snapshot
+assign     ``sensor`` (id), ``segment``           the snapshot
+unassign   ``sensor``                             the snapshot
+confirm    -                                      ``{"accepted": bool, "state": snapshot}``
+redo       ``step``                               the snapshot
+save       ``path``, ``subject``, ``take``        ``{"json": path, "npz": path, "quality": {...}}``
+reset      -                                      the snapshot of a fresh wizard (same segments)
+=========  =====================================  ==============================================
+"""
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gateway.calibration.wizard import CalibrationWizard, SegmentSpec, WizardConfig
+from gateway.server import RequestError
+
+
+class CalibrationService:
+    """Thread-safe wrapper of a wizard for the gateway."""
+
+    def __init__(self, segments: dict[str, SegmentSpec], config: WizardConfig = WizardConfig()) -> None:
+        self._segments = segments
+        self._config = config
+        self._lock = threading.Lock()
+        self.wizard = CalibrationWizard(segments, config)
+
+    def on_samples(self, station: str, sensor: int | str, t_host_s: np.ndarray, acc_g: np.ndarray) -> None:
+        with self._lock:
+            self.wizard.push(f"{station}/{sensor}", t_host_s, acc_g)
+
+    def state(self) -> dict[str, Any]:
+        with self._lock:
+            return self.wizard.snapshot()
+
+    def handle(self, action: str, args: dict[str, Any]) -> Any:
+        """Run one action; operator mistakes come back to the client as a clean ``RequestError``."""
+        try:
+            return self._handle(action, args)
+        except KeyError as exc:
+            raise RequestError(f"calibration {action!r} needs argument {exc.args[0]!r}") from None
+        except (ValueError, RuntimeError, OSError) as exc:
+            raise RequestError(f"calibration {action!r}: {exc}") from None
+
+    def _handle(self, action: str, args: dict[str, Any]) -> Any:
+        with self._lock:
+            wiz = self.wizard
+            if action == "state":
+                pass
+            elif action == "assign":
+                wiz.assign(str(args["sensor"]), str(args["segment"]))
+            elif action == "unassign":
+                wiz.unassign(str(args["sensor"]))
+            elif action == "confirm":
+                accepted = wiz.confirm()
+                return {"accepted": accepted, "state": wiz.snapshot()}
+            elif action == "redo":
+                wiz.redo(str(args["step"]))
+            elif action == "save":
+                path = Path(args["path"])
+                record = wiz.record(subject=str(args.get("subject", "")), take=str(args.get("take", "")))
+                npz = record.save(path)
+                return {"json": str(path), "npz": str(npz), "quality": wiz.quality()}
+            elif action == "reset":
+                self.wizard = CalibrationWizard(self._segments, self._config)
+            else:
+                raise ValueError(f"unknown calibration action {action!r}; known: state, assign, unassign, "
+                                 "confirm, redo, save, reset")
+            return self.wizard.snapshot()

@@ -1,0 +1,103 @@
+"""Camera hook for the gateway daemon: a thread that reads frames, tracks the player and calls the sink.
+
+Contract (docs/gateway.md "Hooks"): ``start(sink)`` / ``stop()``; ``sink(observation: dict, jpeg: bytes | None)``
+with at least ``t_host_s``, ``position_m`` ``[x, y]`` (court frame) and ``heading_rad``. We add ``confidence``,
+``velocity_mps``, ``raw_position_m``, ``frame_index`` and ``tracking`` (False while warming up / lost; no
+position then).
+
+Why a thumbnail only every few frames: the console shows the camera picture for orientation; positions are the
+data. JPEG encoding every frame would cost more CPU than tracking on a small board.
+"""
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import replace
+from typing import Any, Callable
+
+import cv2
+
+from gateway.camera.sources import Frame, FrameSource
+from gateway.camera.tracker import PlayerTracker, TrackRecord
+
+log = logging.getLogger(__name__)
+Sink = Callable[[dict[str, Any], "bytes | None"], None]
+
+
+def observation(frame: Frame, record: TrackRecord | None) -> dict[str, Any]:
+    """The dict sent to the gateway for one frame."""
+    if record is None:
+        return {"t_host_s": frame.t_host_s, "frame_index": frame.index, "tracking": False}
+    return {
+        "t_host_s": record.t_host_s, "frame_index": frame.index, "tracking": True,
+        "position_m": [record.x_m, record.y_m], "heading_rad": record.heading_rad,
+        "confidence": record.confidence, "velocity_mps": [record.vx_mps, record.vy_mps],
+        "raw_position_m": [record.raw_x_m, record.raw_y_m],
+    }
+
+
+class CameraService:
+    """Runs ``source`` through ``tracker`` on a thread.
+
+    ``realtime=True`` is for recorded or synthetic sources: frame times are shifted onto ``time.monotonic()``
+    at start and the thread waits until each frame is due, so the gateway sees a live-like stream. Live cameras
+    (``OpenCVCamera``) already carry monotonic times and pace themselves.
+    """
+
+    def __init__(self, source: FrameSource, tracker: PlayerTracker, *, realtime: bool = False,
+                 thumbnail_every: int = 10, thumbnail_width_px: int = 320, jpeg_quality: int = 70) -> None:
+        self.source = source
+        self.tracker = tracker
+        self.realtime = realtime
+        self.thumbnail_every = thumbnail_every
+        self.thumbnail_width_px = thumbnail_width_px
+        self.jpeg_quality = jpeg_quality
+        self.frames = 0
+        self.tracked = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self, sink: Sink) -> None:
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, args=(sink,), name="camera", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+        self.source.close()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def _thumbnail(self, frame: Frame) -> bytes | None:
+        if not self.thumbnail_every or frame.index % self.thumbnail_every:
+            return None
+        h, w = frame.image.shape[:2]
+        small = cv2.resize(frame.image, (self.thumbnail_width_px, max(1, round(h * self.thumbnail_width_px / w))),
+                           interpolation=cv2.INTER_AREA)
+        ok, data = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
+        return data.tobytes() if ok else None
+
+    def _run(self, sink: Sink) -> None:
+        offset_s: float | None = None
+        try:
+            while not self._stop.is_set():
+                frame = self.source.read()
+                if frame is None:
+                    break
+                if self.realtime:
+                    if offset_s is None:
+                        offset_s = time.monotonic() - frame.t_host_s
+                    frame = replace(frame, t_host_s=frame.t_host_s + offset_s)
+                    if self._stop.wait(max(0.0, frame.t_host_s - time.monotonic())):
+                        break
+                record = self.tracker.update(frame)
+                self.frames += 1
+                self.tracked += record is not None
+                sink(observation(frame, record), self._thumbnail(frame))
+        except Exception:  # a camera failure must not take the gateway down; it is logged and the thread ends
+            log.exception("camera thread failed")
