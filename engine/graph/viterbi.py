@@ -19,8 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import TWO_PI, rotate_ground, wrap_angle
+from .geometry import TWO_PI, wrap_angle
 from .graph import MotionGraph
+from .layout import EdgeLayout
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,14 @@ class _Column:
 
 class ViterbiLattice:
     """The running search state; `ViterbiSearch` (batch) and `FixedLagSynthesizer` (online) both drive it,
-    so the two give identical paths when the lag covers the whole sequence."""
+    so the two give identical paths when the lag covers the whole sequence.
+
+    Internals, all for speed on large graphs: per-edge arrays are in `EdgeLayout` order (grouped by the
+    destination's in-degree) so the minimum over incoming edges is a few whole-array comparisons; nodes are
+    renumbered so the nodes with incoming edges come first in layout order (updates are slices, not
+    scatters); ground positions are complex numbers x + iz and each path's heading is also kept as
+    e^{-iO}, so moving an offset into the world is one complex multiply (R(h) v = v e^{-ih}) and the
+    position cost is one complex gather + add + abs. Back-pointer columns hold graph edge ids."""
 
     def __init__(self, graph: MotionGraph, weights: SearchWeights = SearchWeights(),
                  sensor_indices: tuple[int, ...] | None = None, prune_every: int = 32) -> None:
@@ -95,19 +103,35 @@ class ViterbiLattice:
         self.prune_every = prune_every
         sel = list(range(graph.n_sensors)) if sensor_indices is None else list(sensor_indices)
         self.n_sensors = len(sel)
-        e = np.ascontiguousarray(graph.meta_acc_g[:, sel, :].reshape(len(graph.meta_acc_g), -1), dtype=np.float64)
-        self._meta_acc = e
-        self._meta_acc_sq = np.einsum("ij,ij->i", e, e)
-        self._src = graph.edge_src.astype(np.intp)
-        self._meta = graph.edge_meta.astype(np.intp)
-        self._dpx = graph.meta_dpos_m[self._meta, 0].copy()
-        self._dpz = graph.meta_dpos_m[self._meta, 1].copy()
-        self._dh = graph.meta_dheading_rad[self._meta].copy()
-        self.seg_nodes, self.seg_starts = graph.segments()
-        self._seg_of_edge = np.repeat(np.arange(len(self.seg_starts)), np.diff(np.r_[self.seg_starts, graph.n_edges]))
-        self._seg_pos = np.full(graph.n_nodes, -1, dtype=np.int64)
-        self._seg_pos[self.seg_nodes] = np.arange(len(self.seg_nodes))
-        self._edge_ids = np.arange(graph.n_edges)
+        e = graph.meta_acc_g[:, sel, :].reshape(len(graph.meta_acc_g), -1).astype(np.float32)
+        self._meta_acc_t = np.ascontiguousarray(e.T)  # (3S, M): one contiguous row per sensor axis
+        self._meta_acc_sq = np.einsum("ij,ij->i", e.astype(np.float64), e.astype(np.float64))
+        self._dots = np.empty(len(e), dtype=np.float32)
+        self._axpy = np.empty(len(e), dtype=np.float32)
+        self.layout = EdgeLayout(graph.edge_dst, graph.n_nodes)
+        n = graph.n_nodes
+        self.n_seg = len(self.layout.nodes)
+        rest = np.setdiff1d(np.arange(n), self.layout.nodes)
+        self._to_graph = np.r_[self.layout.nodes, rest].astype(np.intp)  # internal id -> graph node
+        self._to_internal = np.empty(n, dtype=np.intp)
+        self._to_internal[self._to_graph] = np.arange(n)
+        order = self.layout.order
+        self._edge_id = order.astype(np.int32)
+        self._src = self._to_internal[graph.edge_src[order]]
+        self._meta = graph.edge_meta[order].astype(np.intp)
+        dpos = graph.meta_dpos_m[:, 0] + 1j * graph.meta_dpos_m[:, 1]
+        self._d = dpos[self._meta]
+        self._dh = graph.meta_dheading_rad[self._meta]
+        self._rot_dh = np.exp(-1j * self._dh)
+        self._arrival = graph.node_arrival[self._to_graph]
+        self._graph_src = graph.edge_src.astype(np.intp)
+        self._graph_d = dpos[graph.edge_meta]
+        self._graph_dh = graph.meta_dheading_rad[graph.edge_meta]
+        n_e = len(order)
+        self._cost = np.empty(n_e)
+        self._buf1 = np.empty(n_e)
+        self._buf2 = np.empty(n_e)
+        self._cbuf = np.empty(n_e, dtype=complex)
         self.columns: list[_Column] = []
         self.t = -1  # index of the last sample consumed
         self.first_column_time = 1  # time of columns[0]
@@ -115,13 +139,22 @@ class ViterbiLattice:
 
     # ----- costs --------------------------------------------------------------------------------
     def _acc_rows(self, acc_g: np.ndarray | None) -> np.ndarray | None:
-        """C_A for every metadata row (eq. 4), one GEMV with the square expanded."""
+        """W_A * C_A for every metadata row (eq. 4) with the square expanded: ||E||^2 is precomputed, and
+        the dot products E.M are 3S row-axpys over the transposed float32 metadata. (A BLAS GEMV on the
+        tall-skinny (M, 3S) matrix measured 2-5x slower here -- OpenBLAS threads fight over shared cores --
+        and elementwise axpys give bit-identical rows whether a sample comes alone (online) or in a batch.)"""
         if acc_g is None or self.n_sensors == 0 or self.weights.acc == 0:
             return None
         m = np.asarray(acc_g, dtype=np.float64).reshape(-1)
-        if m.size != self._meta_acc.shape[1]:
+        if m.size != self._meta_acc_t.shape[0]:
             raise ValueError(f"expected {self.n_sensors} sensors x 3 axes, got shape {np.shape(acc_g)}")
-        return (self._meta_acc_sq - 2.0 * (self._meta_acc @ m) + m @ m) * (self.weights.acc / self.n_sensors)
+        m32 = m.astype(np.float32)
+        dots, tmp = self._dots, self._axpy
+        np.multiply(self._meta_acc_t[0], m32[0], out=dots)
+        for i in range(1, len(m32)):
+            np.multiply(self._meta_acc_t[i], m32[i], out=tmp)
+            dots += tmp
+        return (self._meta_acc_sq - 2.0 * dots + m @ m) * (self.weights.acc / self.n_sensors)
 
     # ----- stepping -----------------------------------------------------------------------------
     def start(self, acc_g: np.ndarray | None, position_m: np.ndarray | None, heading_rad: float | None,
@@ -129,14 +162,46 @@ class ViterbiLattice:
         """First sample: every node may start a path; its cost is the arrival row's C_A, global state = input."""
         n = self.graph.n_nodes
         rows = self._acc_rows(acc_g)
-        self.G = np.zeros(n) if rows is None else rows[self.graph.node_arrival]
+        self._G = np.zeros(n) if rows is None else rows[self._arrival]
         pos = np.zeros(2) if position_m is None or np.any(np.isnan(position_m)) else np.asarray(position_m, float)
         head = 0.0 if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
-        self.P = np.tile(pos, (n, 1))
-        self.O = np.full(n, head)
-        self.Gr = np.zeros(n) if penalty is None else penalty.astype(float)
+        self._P = np.full(n, pos[0] + 1j * pos[1])
+        self._O = np.full(n, head)  # not wrapped: it only ever enters costs through wrap-safe terms
+        self._rot = np.full(n, np.exp(-1j * head))
+        self._Gr = np.zeros(n) if penalty is None else np.asarray(penalty, float)[self._to_graph]
+        self._spare = (np.empty(n), np.empty(n, dtype=complex), np.empty(n), np.empty(n, dtype=complex))
         self.constrained = penalty is not None
         self.t = 0
+
+    def _edge_costs(self, acc_g, position_m, heading_rad) -> np.ndarray:
+        """L(e, t) + G(src, t-1) for every edge (layout order), in preallocated buffers."""
+        src, cost, b1, b2 = self._src, self._cost, self._buf1, self._buf2
+        np.take(self._G, src, out=cost)
+        rows = self._acc_rows(acc_g)
+        if rows is not None:
+            np.take(rows, self._meta, out=b1)
+            cost += b1
+        if position_m is not None and not np.any(np.isnan(position_m)) and self.weights.position != 0:
+            u = (self._P - (position_m[0] + 1j * position_m[1])) * np.conj(self._rot)  # R(-O)(P - M)
+            cb = self._cbuf
+            np.take(u, src, out=cb)
+            cb += self._d
+            np.abs(cb, out=b1)
+            if self.weights.position != 1:
+                b1 *= self.weights.position
+            cost += b1
+        if heading_rad is not None and not np.isnan(heading_rad) and self.weights.heading != 0:
+            hd = self._O - heading_rad
+            hd -= TWO_PI * np.round(hd / TWO_PI)
+            np.take(hd, src, out=b1)
+            b1 += self._dh  # in [-2pi, 2pi]: |wrap(x)| = min(|x|, 2pi - |x|)
+            np.abs(b1, out=b1)
+            np.subtract(TWO_PI, b1, out=b2)
+            np.minimum(b1, b2, out=b1)
+            if self.weights.heading != 1:
+                b1 *= self.weights.heading
+            cost += b1
+        return cost
 
     def step(self, acc_g: np.ndarray | None, position_m: np.ndarray | None, heading_rad: float | None,
              penalty: np.ndarray | None = None) -> None:
@@ -144,84 +209,68 @@ class ViterbiLattice:
         if self.t < 0:
             self.start(acc_g, position_m, heading_rad, penalty)
             return
-        src = self._src
-        cost = self.G[src]
-        rows = self._acc_rows(acc_g)
-        if rows is not None:
-            cost += rows[self._meta]
-        if position_m is not None and not np.any(np.isnan(position_m)) and self.weights.position != 0:
-            d = self.P - np.asarray(position_m, float)
-            c, s = np.cos(self.O), np.sin(self.O)
-            ux = d[:, 0] * c - d[:, 1] * s
-            uz = d[:, 0] * s + d[:, 1] * c
-            ex = ux[src]
-            ex += self._dpx
-            ez = uz[src]
-            ez += self._dpz
-            np.multiply(ex, ex, out=ex)
-            np.multiply(ez, ez, out=ez)
-            ex += ez
-            np.sqrt(ex, out=ex)
-            ex *= self.weights.position
-            cost += ex
-        if heading_rad is not None and not np.isnan(heading_rad) and self.weights.heading != 0:
-            hd = wrap_angle(self.O - heading_rad)
-            x = hd[src]
-            x += self._dh
-            np.abs(x, out=x)
-            np.minimum(x, TWO_PI - x, out=x)
-            x *= self.weights.heading
-            cost += x
+        cost = self._edge_costs(acc_g, None if position_m is None else np.asarray(position_m, float), heading_rad)
         self.constrained |= penalty is not None
+        if self.constrained:  # eq. 8: only edges from sources with the fewest broken constraints compete
+            gr_e = self._Gr[self._src]
+            cost[gr_e > self.layout.broadcast(self.layout.block_min(gr_e))] = np.inf
+        seg_min, win = self.layout.argmin(cost)
+        wsrc = self._src[win]
+        k = self.n_seg
+        # write the new state into the spare buffers (double buffering: no per-step allocation of N arrays)
+        G, P, O, rot = self._spare
+        G[:k] = seg_min
+        G[k:] = np.inf
+        np.take(self._rot, wsrc, out=rot[:k])
+        np.take(self._P, wsrc, out=P[:k])
+        P[:k] += self._d[win] * rot[:k]  # eq. 5: P(n,t) = P(m,t-1) + R(O(m,t-1)) d(v)
+        np.take(self._O, wsrc, out=O[:k])
+        O[:k] += self._dh[win]
+        rot[:k] *= self._rot_dh[win]
+        P[k:], O[k:], rot[k:] = self._P[k:], self._O[k:], self._rot[k:]
         if self.constrained:
-            gr_e = self.Gr[src]
-            gr_min = np.minimum.reduceat(gr_e, self.seg_starts)
-            cost[gr_e > gr_min[self._seg_of_edge]] = np.inf
-        seg_min = np.minimum.reduceat(cost, self.seg_starts)
-        is_min = cost == seg_min[self._seg_of_edge]
-        win = np.minimum.reduceat(np.where(is_min, self._edge_ids, self.graph.n_edges), self.seg_starts)
-        wsrc = src[win]
-        n = self.graph.n_nodes
-        G = np.full(n, np.inf)
-        G[self.seg_nodes] = seg_min
-        newO = self.O.copy()
-        newP = self.P.copy()
-        o = self.O[wsrc]
-        c, s = np.cos(o), np.sin(o)
-        dx, dz = self._dpx[win], self._dpz[win]
-        newP[self.seg_nodes, 0] = self.P[wsrc, 0] + dx * c + dz * s
-        newP[self.seg_nodes, 1] = self.P[wsrc, 1] - dx * s + dz * c
-        newO[self.seg_nodes] = wrap_angle(o + self._dh[win])
-        Gr = self.Gr
-        if self.constrained:
-            Gr = np.full(n, np.inf)
-            Gr[self.seg_nodes] = self.Gr[wsrc]
+            Gr = np.full(self.graph.n_nodes, np.inf)
+            Gr[:k] = self._Gr[wsrc]
             if penalty is not None:
-                Gr += penalty
+                Gr += np.asarray(penalty, float)[self._to_graph]
             Gr[~np.isfinite(G)] = np.inf
-        self.G, self.P, self.O, self.Gr = G, newP, newO, Gr
-        self.columns.append(_Column(None, win.astype(np.int32)))
+            self._Gr = Gr
+        self._spare = (self._G, self._P, self._O, self._rot)
+        self._G, self._P, self._O, self._rot = G, P, O, rot
+        self.columns.append(_Column(None, self._edge_id[win]))
         self.t += 1
         self._since_prune += 1
         if self.prune_every and self._since_prune >= self.prune_every:
             self.prune()
 
+    # ----- state by graph node ------------------------------------------------------------------
+    def cost_of(self, node: int) -> float:
+        return float(self._G[self._to_internal[node]])
+
+    def broken_of(self, node: int) -> int:
+        return int(self._Gr[self._to_internal[node]])
+
+    def best_node(self) -> int:
+        """Graph node with the lowest (broken constraints, cost) at the current sample."""
+        return int(self._to_graph[np.lexsort((self._G, self._Gr))[0]])
+
     # ----- path memory --------------------------------------------------------------------------
     def _lookup(self, col: _Column, nodes: np.ndarray) -> np.ndarray:
-        idx = self._seg_pos[nodes] if col.nodes is None else np.searchsorted(col.nodes, nodes)
+        """Arriving graph edge of each graph node in `nodes` from one column."""
+        idx = self._to_internal[nodes] if col.nodes is None else np.searchsorted(col.nodes, nodes)
         return col.edges[idx].astype(np.intp)
 
     def prune(self) -> None:
         """Survivor-path memory reduction: keep only lattice entries on some live node's back-trace."""
         self._since_prune = 0
-        alive = np.flatnonzero(np.isfinite(self.G))
+        alive = np.sort(self._to_graph[np.flatnonzero(np.isfinite(self._G))])
         for k in range(len(self.columns) - 1, -1, -1):
             col = self.columns[k]
             if col.nodes is not None and len(col.nodes) == len(alive) and np.array_equal(col.nodes, alive):
                 break  # earlier columns were already pruned against this very set
             edges = self._lookup(col, alive)
             self.columns[k] = _Column(alive, edges.astype(np.int32))
-            alive = np.unique(self._src[edges])
+            alive = np.unique(self._graph_src[edges])
 
     def lattice_entries(self) -> int:
         return int(sum(len(c.edges) for c in self.columns))
@@ -230,11 +279,6 @@ class ViterbiLattice:
         """Uncompressed lattice size (N per sample) over the entries actually stored."""
         stored = self.lattice_entries()
         return float(self.graph.n_nodes * len(self.columns) / stored) if stored else 1.0
-
-    def best_node(self) -> int:
-        """Lowest (broken constraints, cost) node at the current sample."""
-        order = np.lexsort((self.G, self.Gr))
-        return int(order[0])
 
     def backtrace(self, node: int, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
         """Nodes and arriving edges of the path ending at `node` now, for the last `n_steps` + 1 samples
@@ -247,23 +291,23 @@ class ViterbiLattice:
             col = self.columns[len(self.columns) - 1 - i]
             e = int(self._lookup(col, np.array([nodes[n_steps - i]]))[0])
             edges[n_steps - i] = e
-            nodes[n_steps - i - 1] = self._src[e]
+            nodes[n_steps - i - 1] = self._graph_src[e]
         if n_steps < len(self.columns):
             col = self.columns[len(self.columns) - 1 - n_steps]
             edges[0] = int(self._lookup(col, np.array([nodes[0]]))[0])
         return nodes, edges
 
     def global_states(self, node: int, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Ground position and heading along a back-traced path, by undoing its edges from the current state
-        of `node` (the values the search carried, without storing them per sample). Vectorised inverse of
-        eq. 5: heading[i] = O_end - sum_{m>i} dh_m, ground[i] = P_end - sum_{m>i} R(heading[m-1]) d_m."""
+        """Ground position (T, 2) and heading (T,) along a back-traced path, by undoing its edges from the
+        current state of `node` (the values the search carried, without storing them per sample).
+        Vectorised inverse of eq. 5: O[i] = O_end - sum_{m>i} dh_m, P[i] = P_end - sum_{m>i} R(O[m-1]) d_m."""
         e = np.asarray(edges[1:], dtype=np.intp)
-        dh = self._dh[e]
-        after = np.r_[np.cumsum(dh[::-1])[::-1], 0.0]  # after[i] = sum of dh over edges later than sample i
-        heading = self.O[node] - after
-        steps = rotate_ground(np.stack([self._dpx[e], self._dpz[e]], axis=1), heading[:-1])
-        back = np.concatenate([np.cumsum(steps[::-1], axis=0)[::-1], np.zeros((1, 2))])
-        return self.P[node] - back, wrap_angle(heading)
+        i = self._to_internal[node]
+        after = np.r_[np.cumsum(self._graph_dh[e][::-1])[::-1], 0.0]  # sum of dh over later edges
+        heading = self._O[i] - after
+        steps = self._graph_d[e] * np.exp(-1j * heading[:-1])
+        ground = self._P[i] - np.r_[np.cumsum(steps[::-1])[::-1], 0.0]
+        return np.stack([ground.real, ground.imag], axis=1), wrap_angle(heading)
 
     def drop_before(self, time: int) -> None:
         """Forget columns of samples earlier than `time` (already emitted by a fixed-lag decoder)."""
@@ -314,5 +358,5 @@ def finish(lattice: ViterbiLattice) -> SearchResult:
     nodes, edges = lattice.backtrace(best, len(lattice.columns))
     ground, heading = lattice.global_states(best, edges)
     return SearchResult(nodes=nodes, edges=edges, ground_m=ground, heading_rad=heading,
-                        cost=float(lattice.G[best]), broken_constraints=int(lattice.Gr[best]),
+                        cost=lattice.cost_of(best), broken_constraints=lattice.broken_of(best),
                         compression_ratio=lattice.compression_ratio(), lattice_entries=lattice.lattice_entries())
