@@ -97,11 +97,11 @@ class MocapSource(TraceSource):
 
     @classmethod
     def from_clip(cls, path_or_motion: Any, placements: Any = None) -> MocapSource:
-        """`path_or_motion`: a .bvh path or an engine.mocap.Motion; `placements`: SensorPlacement list or sensor
-        names for `standard_placements` (default: the engine's standard set)."""
+        """`path_or_motion`: a .bvh / .amc (sibling .asf) path or an engine.mocap.Motion; `placements`:
+        SensorPlacement list or sensor names for `standard_placements` (default: the engine's seed-000 six)."""
         from engine import mocap  # lazy: the emulator must not need the engine unless a mocap source is used
 
-        motion = mocap.read_bvh(path_or_motion) if isinstance(path_or_motion, (str, Path)) else path_or_motion
+        motion = mocap.load_clip(path_or_motion) if isinstance(path_or_motion, (str, Path)) else path_or_motion
         if placements is None:
             placements = mocap.standard_placements(motion.skeleton)
         elif all(isinstance(p, str) for p in placements):

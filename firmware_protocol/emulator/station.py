@@ -143,7 +143,8 @@ class BaseStation:
         self.bytes_out = 0                       # bytes ever returned by advance()
         self._boot_index = -1
         self._misc_rng = np.random.default_rng([config.seed, 1])
-        self._wire_rng = np.random.default_rng([config.seed, 2])
+        self._wire_hit_rng = np.random.default_rng([config.seed, 2])     # which bytes (one draw per byte)
+        self._wire_xor_rng = np.random.default_rng([config.seed, 3])     # how they change (one per hit)
         self._sensors = [
             _Sensor(i, i, config.rate_hz, config.range_g,
                     radio_rng=np.random.default_rng([config.seed, 100, i]),
@@ -472,10 +473,10 @@ class BaseStation:
         p = self.config.byte_corruption
         damaged = np.zeros(0, np.int64)
         if p > 0 and data:
-            damaged = np.flatnonzero(self._wire_rng.random(len(data)) < p)
+            damaged = np.flatnonzero(self._wire_hit_rng.random(len(data)) < p)
             if damaged.size:
                 arr = np.frombuffer(data, np.uint8).copy()
-                arr[damaged] ^= self._wire_rng.integers(1, 256, damaged.size).astype(np.uint8)
+                arr[damaged] ^= self._wire_xor_rng.integers(1, 256, damaged.size).astype(np.uint8)
                 data = bytearray(arr.tobytes())
         base = self.bytes_out
         for frame in self._out_frames:
