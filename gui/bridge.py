@@ -9,6 +9,7 @@ from __future__ import annotations
 import collections
 import queue
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -18,6 +19,21 @@ from gui.widgets.traces import TraceStore
 
 SensorKey = tuple[str, int]  # (station id, sensor index)
 SampleSink = Callable[[SensorKey, np.ndarray, np.ndarray], None]
+
+
+def gateway_clock_offset_s(client: Any, pings: int = 3) -> float:
+    """Gateway clock minus local ``time.monotonic()`` (s), from the ping with the shortest round trip.
+
+    Lets the console show sample ages and recording durations on the gateway's clock even when the gateway
+    runs on another machine (same host: ~0). Called once at connect, before the GUI loop runs."""
+    best: tuple[float, float] | None = None
+    for _ in range(pings):
+        t_send = time.monotonic()
+        t_gateway = float(client.request("ping", timeout_s=2.0)["t_host_s"])
+        t_recv = time.monotonic()
+        if best is None or t_recv - t_send < best[0]:
+            best = (t_recv - t_send, t_gateway - (t_send + t_recv) / 2)
+    return best[1]
 
 
 class GatewayBridge:

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from PySide6 import QtCore, QtWidgets
 
-from gui.bridge import GatewayBridge, SensorKey
+from gui.bridge import GatewayBridge, SensorKey, gateway_clock_offset_s
 from gui.control import RequestRunner
 from gui.health import status_alarms
 from gui.playback import Playback
@@ -39,12 +39,16 @@ class SynthesisSetup:
     rate_hz: float
     parents: np.ndarray                       # skeleton parents of emitted poses
     lag_s: float = 0.5
+    # The overhead tracker's heading is a rule (direction of travel when running, else facing the net), not a
+    # measurement; feeding it as a constraint drags the path when the rule is wrong. Off unless trusted.
+    use_camera_heading: bool = False
 
 
 class TickStats:
     """GUI-thread health: ticks/s and tick cost, plus the age of the newest drawn sample."""
 
     def __init__(self) -> None:
+        self.stage_s: dict[str, float] = {}  # cumulative GUI-thread seconds per tick stage (for the bench)
         self.t0 = time.perf_counter()
         self.ticks = 0
         self.busy_s = 0.0
@@ -52,6 +56,12 @@ class TickStats:
         self.tick_ms = 0.0
         self.max_tick_ms = 0.0
         self._max = 0.0
+
+    def stage(self, name: str, t_start: float) -> float:
+        """Add the time since ``t_start`` to stage ``name``; returns now (chain the next stage from it)."""
+        now = time.perf_counter()
+        self.stage_s[name] = self.stage_s.get(name, 0.0) + now - t_start
+        return now
 
     def record(self, cost_s: float) -> None:
         self.ticks += 1
@@ -145,6 +155,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
 
         # synthesis
         self.worker: SynthesisWorker | None = None
+        self.use_camera_heading = bool(synthesis and synthesis.use_camera_heading)
         if synthesis is not None:
             self.skeleton.set_skeleton(synthesis.parents)
             self.worker = SynthesisWorker(synthesis.make_synthesizer, synthesis.sensors, synthesis.rate_hz,
@@ -162,8 +173,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.bridge.attach(client)
             hello = getattr(client, "server_hello", {}) or {}
             self.connection.setText(f"gateway {hello.get('gateway', '')} {client.host}:{client.port}")
-            # same-host gateway clocks are time.monotonic(); a remote one is offset by what hello reported
-            self._clock_offset_s = float(hello.get("t_host_s", time.monotonic())) - time.monotonic()
+            self._clock_offset_s = gateway_clock_offset_s(client)
         else:
             self._clock_offset_s = 0.0
 
@@ -181,28 +191,33 @@ class ConsoleWindow(QtWidgets.QMainWindow):
 
     # -- the tick ---------------------------------------------------------------------------------------------
     def tick(self) -> None:
-        t_start = time.perf_counter()
+        t_start = t = time.perf_counter()
         if self.playback is not None and self.playing:
             self.playback.advance_to(self._play_t0 + (time.monotonic() - self._play_wall0), self.bridge)
             self.playbar.show_position(self.playback.cursor_s - self.playback.t_start_s)
             if self.playback.finished:
                 self.playbar.play_button.setChecked(False)
         self.store.drain()
+        t = self.stats.stage("drain", t)
         for ev in self.bridge.drain_events():
             self.alarms.add_event(str(ev.get("level", "info")), str(ev.get("source", "")), str(ev.get("message", "")))
         self._update_status()
         header, jpeg, trail = self.bridge.camera_frame()
         self.camera.update_camera(header, jpeg, trail)
         if self.worker is not None and header:
-            self.worker.set_camera(header.get("position_m"), header.get("heading_rad"))
+            heading = header.get("heading_rad") if self.use_camera_heading else None
+            self.worker.set_camera(header.get("position_m"), heading)
         self.recording.show_state(self.bridge.latest("recording"), self.gateway_now_s())
         if self.wizard is not None:
             self.wizard.show_state(self.bridge.latest("calibration"))
         self._update_groups()
         self._update_poses()
+        t = self.stats.stage("panes", t)
         if self.tabs.currentWidget() is self.traces:
             self.traces.refresh()
+        t = self.stats.stage("traces", t)
         self.skeleton.refresh()
+        self.stats.stage("skeleton", t)
         self.stats.record(time.perf_counter() - t_start)
         self._update_statusbar()
 

@@ -107,6 +107,7 @@ class SynthesisWorker(threading.Thread):
     def run(self) -> None:
         resampler = FrameResampler(self.sensors, self.rate_hz)
         synth: Synthesizer | None = None
+        camera_seen = False
         window_t0, window_frames, window_cost = time.monotonic(), 0, 0.0
         while not self._stopping.is_set():
             with self._lock:
@@ -114,6 +115,11 @@ class SynthesisWorker(threading.Thread):
                 camera = self._camera
             if lag is not None:
                 synth = self._rebuild(lag) or synth
+            if camera is not None and not camera_seen:
+                # the search anchors its global path at the first sample's position: restart it on the first
+                # camera fix, otherwise the path stays wherever dead reckoning from (0, 0) took it
+                camera_seen = True
+                synth = self._rebuild(self.stats.lag_s) or synth
             try:
                 item = self._inbox.get(timeout=0.1)
             except queue.Empty:

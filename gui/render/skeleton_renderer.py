@@ -114,7 +114,8 @@ class SkeletonRenderer:
         width_px, height_px = max(16, int(width_px)), max(16, int(height_px))
         if self._fbo is not None and (width_px, height_px) == self.size:
             return
-        for fb in (self._fbo, self._resolve):
+        old = [self._fbo] if self._resolve is self._fbo else [self._fbo, self._resolve]
+        for fb in old:
             if fb is not None:
                 for att in (*fb.color_attachments, fb.depth_attachment):
                     att.release()

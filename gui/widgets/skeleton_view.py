@@ -32,7 +32,8 @@ def rgba_to_qimage(pixels: np.ndarray) -> QtGui.QImage:
 class SkeletonView(QtWidgets.QWidget):
     def __init__(self, renderer: SkeletonRenderer | None = None, parent: QtWidgets.QWidget | None = None) -> None:
         super().__init__(parent)
-        self.renderer = renderer or SkeletonRenderer(640, 360)
+        # no MSAA by default: on Mesa llvmpipe 4x MSAA triples the frame cost (14 ms vs 4 ms at 820x420)
+        self.renderer = renderer or SkeletonRenderer(640, 360, samples=0)
         self.camera = OrbitCamera()
         self.parents: np.ndarray | None = None
         self.estimate_m: np.ndarray | None = None

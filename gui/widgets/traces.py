@@ -133,6 +133,7 @@ class TracePanel(QtWidgets.QWidget):
                 plot.hideAxis("bottom")  # one shared time axis at the bottom saves vertical space
             else:
                 plot.setLabel("bottom", "gateway time", units="s")
+                plot.getAxis("bottom").enableAutoSIPrefix(False)
             plot.showGrid(x=True, y=True, alpha=0.2)
             plot.setMenuEnabled(False)
             if first is None:

@@ -92,3 +92,21 @@ def test_truth_skeleton_drawn_beside_estimate_and_court_lines_visible(renderer):
     assert 1 <= on_line[0] < w - 1 and 1 <= on_line[1] < h - 1
     patch = img[on_line[1] - 1:on_line[1] + 2, on_line[0] - 1:on_line[0] + 2, :3]
     assert (patch.min(axis=-1) > 180).any()
+
+
+@pytest.mark.parametrize("samples", [0, 4])
+def test_resize_keeps_rendering(samples):
+    """Resizing reallocates the framebuffers (with and without MSAA) and the next frame has the new size."""
+    from gui.render.skeleton_renderer import SkeletonRenderer
+
+    r = SkeletonRenderer(64, 48, samples=samples)
+    try:
+        cam = OrbitCamera()
+        cam.snap_to(ROOT)
+        for size in ((120, 80), (200, 100)):
+            r.resize(*size)
+            img = r.render(cam, [(POSE, PARENTS, ESTIMATE_STYLE)])
+            assert img.shape == (size[1], size[0], 4)
+            assert is_estimate_colour(img).any()
+    finally:
+        r.release()

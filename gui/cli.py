@@ -1,0 +1,147 @@
+"""`courtside console` and `courtside demo` (entry points declared in pyproject.toml).
+
+console: connect to a running gateway (`--connect host:port`) or open a recorded take (`--playback`).
+demo:    start everything in one process — emulated base stations replaying held-out real mocap as worn
+         accelerometers, a synthetic overhead camera with the real tracker, the gateway — and open the console
+         on it. `--duration` exits after that many seconds (CI / Xvfb); `--screenshots DIR` saves PNGs first."""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+log = logging.getLogger("courtside.console")
+
+
+def _host_port(text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not port.isdigit():
+        raise argparse.ArgumentTypeError(f"expected host:port, got {text!r}")
+    return host or "127.0.0.1", int(port)
+
+
+def _console_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="courtside console", description="Operator console for a Courtside gateway.")
+    p.add_argument("--connect", type=_host_port, default=("127.0.0.1", 7766), metavar="HOST:PORT",
+                   help="gateway to connect to (default 127.0.0.1:7766)")
+    p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
+    p.add_argument("--synth-station", default=None, metavar="ST",
+                   help="station whose sensors 0-5 are worn as the graph's sensors (default: the only station "
+                        "with >= 6 sensors, if there is exactly one)")
+    p.add_argument("--lag", type=float, default=0.5, help="synthesis fixed lag, seconds (default 0.5)")
+    p.add_argument("--duration", type=float, default=None, help="close after this many seconds")
+    p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs before closing")
+    return p
+
+
+def _demo_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="courtside demo", description=__doc__.split("\n")[0])
+    p.add_argument("--duration", type=float, default=None, help="exit after this many seconds (default: run until closed)")
+    p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs of the views before exiting")
+    p.add_argument("--lag", type=float, default=0.5, help="synthesis fixed lag, seconds (default 0.5)")
+    p.add_argument("--listen", type=_host_port, default=("127.0.0.1", 0), metavar="HOST:PORT",
+                   help="where the demo gateway listens for more consoles (default: a free port on 127.0.0.1)")
+    p.add_argument("--record-dir", type=Path, default=Path("recordings"), help="where takes go (default ./recordings)")
+    p.add_argument("--no-camera", action="store_true", help="skip the synthetic camera (saves CPU)")
+    return p
+
+
+def _pick_synth_station(stations: list[dict], wanted: str | None) -> str | None:
+    if wanted:
+        return wanted
+    big = [s["station"] for s in stations if len(s.get("sensors", [])) >= 6]
+    return big[0] if len(big) == 1 else None
+
+
+def console_main(argv: list[str]) -> int:
+    args = _console_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    from gateway.client import GatewayClient
+
+    from gui.app import application, run
+    from gui.engine_link import load_or_build_graph, synthesis_setup
+    from gui.main_window import ConsoleWindow
+
+    application()
+    client = None
+    if args.playback is None:
+        try:
+            client = GatewayClient(*args.connect).connect()
+        except OSError as exc:
+            print(f"courtside console: cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})",
+                  file=sys.stderr)
+            return 2
+    graph, skeleton, cache = load_or_build_graph()
+    log.info("motion graph %s (%d nodes)", cache, graph.n_nodes)
+    synth = None
+    station = _pick_synth_station(client.list_stations(), args.synth_station) if client else args.synth_station
+    if station:
+        synth = synthesis_setup(graph, skeleton, [(station, i) for i in range(graph.n_sensors)], args.lag)
+    else:
+        log.warning("synthesis off: pass --synth-station to say which station's sensors are worn")
+    window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton.parents)
+    window.resize(1500, 950)
+    if args.playback is not None:
+        window.load_playback(args.playback)
+    try:
+        return _run_window(window, args.duration, args.screenshots)
+    finally:
+        if client is not None:
+            client.close()
+
+
+def _run_window(window, duration_s: float | None, screenshots: Path | None) -> int:
+    from PySide6 import QtCore
+
+    from gui.app import run
+    from gui.screens import capture_console
+
+    if screenshots is not None and duration_s is not None:
+        QtCore.QTimer.singleShot(int(max(0.0, duration_s - 1.5) * 1000),
+                                 lambda: log.info("screenshots: %s", [str(p) for p in capture_console(window, screenshots)]))
+    code = run(window, duration_s)
+    window.shutdown()
+    return code
+
+
+def demo_main(argv: list[str]) -> int:
+    args = _demo_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    if args.screenshots is not None and args.duration is None:
+        print("courtside demo: --screenshots needs --duration (they are taken just before exiting)", file=sys.stderr)
+        return 2
+    from gateway.client import GatewayClient
+    from gateway.daemon import Gateway
+
+    from gui.app import application
+    from gui.demo import DemoCamera, TruthClock, build_performance, sensor_segments, start_stations, synthesis_sensors
+    from gui.engine_link import load_or_build_graph, synthesis_setup
+    from gui.main_window import ConsoleWindow
+
+    application()
+    perf = build_performance()
+    graph, skeleton, cache = load_or_build_graph(exclude=perf.clip_names)
+    log.info("motion graph %s: %d nodes from the shipped clips minus held-out %s", cache, graph.n_nodes,
+             ", ".join(perf.clip_names))
+    stations = start_stations(perf)
+    camera = None if args.no_camera else DemoCamera(perf, stations.t0_monotonic_s, (args.duration or 3600.0) + 5.0)
+    gateway = Gateway([], listen=args.listen, record_dir=args.record_dir, open_link=stations.open_link,
+                      camera=camera, status_interval_s=0.5, lock_after_s=5.0, name="courtside-demo")
+    gateway.start()
+    for station_id in stations.links:
+        gateway.add_station(f"demo-station-{station_id}")
+    client = None
+    try:
+        client = GatewayClient(*gateway.address).connect()
+        log.info("demo gateway on %s:%d (connect more consoles with `courtside console --connect ...`)",
+                 *gateway.address)
+        window = ConsoleWindow(client, synthesis=synthesis_setup(graph, skeleton, synthesis_sensors(), args.lag),
+                               truth=TruthClock(perf, stations.t0_monotonic_s), sensor_segments=sensor_segments(),
+                               title="Courtside demo — emulated stations replaying held-out CMU mocap")
+        window.resize(1500, 950)
+        return _run_window(window, args.duration, args.screenshots)
+    finally:
+        if client is not None:
+            client.close()
+        gateway.stop()

@@ -1,0 +1,252 @@
+"""The live demo scenario: real mocap replayed as body-worn accelerometers on emulated base stations, a synthetic
+overhead camera, and the in-process gateway — everything `courtside demo` starts before opening the console.
+
+A "performance" is a few shipped CMU clips that the motion graph does NOT contain (held out), played back to back
+on the court and looped. Every worn sensor reads the performance's virtual accelerometer; the same frames give the
+ground-truth skeleton drawn beside the synthesized one, so the operator sees how well the engine follows."""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.mocap import SEED000_SENSORS, forward_kinematics, load_clip, root_heading, sample_clips, standard_placements, virtual_accelerometers
+from firmware_protocol.emulator import BaseStation, StationConfig, TraceSource
+from firmware_protocol.emulator.link import EmulatorLink
+
+from gui.engine_link import GRAPH_FPS
+
+HELD_OUT_CLIPS = ("16_32", "16_36", "16_05")  # walk, run, forward jump: not in the demo's motion graph
+EXTRA_SENSORS = ("left_wrist", "right_wrist", "left_ankle", "right_ankle", "right_foot")
+STATION_SENSORS = {1: SEED000_SENSORS, 2: EXTRA_SENSORS}  # station id -> worn sensors, in sensor-index order
+COURT_START_M = np.array([-5.0, -10.0])  # court (x, y) where the performance starts: inside the near baseline
+
+
+@dataclass
+class Performance:
+    """Held-out clips back to back, placed on the court, played in a loop that never teleports.
+
+    Pass 0 plays the frames as placed (start S -> end E along the baseline); pass 1 plays the same frames turned
+    180 degrees about the midpoint of S and E, so it runs E -> S; and so on. A rigid turn leaves every worn
+    sensor's reading unchanged, so the stations simply loop the readings while the body shuttles along the
+    baseline — and the overhead camera's tracker never sees a jump."""
+
+    fps: float
+    positions_m: np.ndarray  # (F, J, 3) pass-0 world positions (X, Y up, Z) with (X, Z) = court (x, y)
+    heading_rad: np.ndarray  # (F,) pass-0 root heading
+    acc_g: dict[str, np.ndarray]  # sensor name -> (F, 3) virtual accelerometer reading, sensor frame
+    parents: np.ndarray
+    clip_names: tuple[str, ...]
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.positions_m)
+
+    def _frames(self, t_s: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        k = np.floor(np.asarray(t_s, float) * self.fps).astype(int)
+        return k % self.n_frames, (k // self.n_frames) % 2 == 1
+
+    def pose_at(self, t_s: float) -> np.ndarray:
+        """(J, 3) joint positions ``t_s`` seconds after the performance started."""
+        frame, turned = self._frames(t_s)
+        pos = self.positions_m[int(frame)].copy()
+        if turned:
+            pivot2 = self.positions_m[0, 0, [0, 2]] + self.positions_m[-1, 0, [0, 2]]
+            pos[:, [0, 2]] = pivot2 - pos[:, [0, 2]]
+        return pos
+
+    def ground_path(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Root court (x, y) (N, 2) and heading (N,) at times ``t_s``: what the overhead camera should see."""
+        frame, turned = self._frames(t_s)
+        xy = self.positions_m[frame, 0][:, [0, 2]]
+        pivot2 = self.positions_m[0, 0, [0, 2]] + self.positions_m[-1, 0, [0, 2]]
+        xy = np.where(turned[:, None], pivot2 - xy, xy)
+        heading = np.angle(np.exp(1j * (self.heading_rad[frame] + np.where(turned, np.pi, 0.0))))
+        return xy, heading
+
+
+def build_performance(clip_names: tuple[str, ...] = HELD_OUT_CLIPS, fps: float = GRAPH_FPS) -> Performance:
+    """Chain the clips: each starts where the previous one ended (ground position), all on one skeleton."""
+    clips = sample_clips()
+    missing = [c for c in clip_names if c not in clips]
+    if missing:
+        raise ValueError(f"unknown clip(s) {missing}; shipped: {sorted(clips)}")
+    names = sorted({n for sensors in STATION_SENSORS.values() for n in sensors})
+    positions, accs = [], {n: [] for n in names}
+    cursor = COURT_START_M.copy()
+    for name in clip_names:
+        motion = load_clip(clips[name], fps=fps)
+        pos, glob = forward_kinematics(motion)
+        acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, tuple(names)), fk=(pos, glob))
+        pos = pos.copy()
+        pos[..., 0] += cursor[0] - pos[0, 0, 0]
+        pos[..., 2] += cursor[1] - pos[0, 0, 2]
+        cursor = pos[-1, 0, [0, 2]]
+        positions.append(pos)
+        for k, n in enumerate(names):
+            accs[n].append(acc[:, k])
+        parents = np.asarray(motion.skeleton.parents)
+    pos = along_baseline(np.concatenate(positions), COURT_START_M)
+    heading = np.concatenate([root_heading(load_clip(clips[c], fps=fps), p)
+                              for c, p in zip(clip_names, np.split(pos, np.cumsum([len(p) for p in positions])[:-1]))])
+    return Performance(fps, pos, heading, {n: np.concatenate(v) for n, v in accs.items()}, parents,
+                       tuple(clip_names))
+
+
+def along_baseline(positions_m: np.ndarray, start_m: np.ndarray) -> np.ndarray:
+    """Turn the whole performance about its start so it travels along +X (parallel to the baseline), as a
+    baseline rally does; the accelerometers are unaffected (they read in the sensor frame)."""
+    root = positions_m[:, 0, [0, 2]]
+    dx, dz = root[-1] - root[0]
+    beta = math.pi / 2 - math.atan2(dx, dz)  # heading rotation that takes the travel direction onto +X
+    c, s = math.cos(beta), math.sin(beta)
+    rel = positions_m[..., [0, 2]] - root[0]
+    out = positions_m.copy()
+    out[..., 0] = start_m[0] + rel[..., 0] * c + rel[..., 1] * s
+    out[..., 2] = start_m[1] - rel[..., 0] * s + rel[..., 1] * c
+    return out
+
+
+class EmulatedStationLink:
+    """`gateway.links.Link` over an in-process emulated station running in real time (no pty, no thread)."""
+
+    transport = "emulated"
+
+    def __init__(self, source: str, link: EmulatorLink) -> None:
+        self.source = source
+        self._link = link
+
+    def read(self, max_bytes: int = 65536) -> bytes:
+        data = self._link.take(max_bytes)
+        if not data:
+            time.sleep(0.005)  # behave like a serial read timeout instead of spinning
+        return data
+
+    def write(self, data: bytes) -> None:
+        self._link.write(data)
+
+    def close(self) -> None:
+        """Nothing to release: the emulated station lives as long as the demo."""
+
+
+@dataclass
+class DemoStations:
+    """The emulated stations, their links, and the wall-clock (monotonic) time their performance started."""
+
+    links: dict[int, EmulatorLink]
+    t0_monotonic_s: float
+
+    def open_link(self, source: str) -> EmulatedStationLink:
+        """Gateway link factory: sources are ``demo-station-<id>``."""
+        return EmulatedStationLink(source, self.links[int(source.rsplit("-", 1)[1])])
+
+
+def start_stations(perf: Performance, rate_hz: int = 100, noise_g: float = 0.02, radio_loss: float = 0.002,
+                   drift_ppm: tuple[float, ...] = (35.0, -20.0)) -> DemoStations:
+    """One emulated station per entry of STATION_SENSORS, replaying the performance's readings in real time.
+
+    All stations share one start instant, so ground truth for any gateway time is ``perf.frame_at(t - t0)``."""
+    links = {}
+    t0 = time.monotonic()
+    for k, (station_id, sensors) in enumerate(STATION_SENSORS.items()):
+        trace = TraceSource(np.stack([perf.acc_g[n] for n in sensors], axis=1), perf.fps)
+        config = StationConfig(station_id=station_id, serial=0xC0DE0000 + station_id, n_sensors=len(sensors),
+                               rate_hz=rate_hz, noise_g=noise_g, radio_loss=radio_loss,
+                               drift_ppm=drift_ppm[k % len(drift_ppm)], tick_offset=977_000 * station_id,
+                               seed=station_id)
+        link = EmulatorLink(BaseStation(config, trace), realtime=True)
+        links[station_id] = link
+    return DemoStations(links, t0)
+
+
+def sensor_segments() -> dict[tuple[str, int], str]:
+    """(station, sensor) -> worn placement name, for the device panel's body diagram and the recording gate."""
+    return {(f"st{sid}", i): name for sid, names in STATION_SENSORS.items() for i, name in enumerate(names)}
+
+
+def synthesis_sensors() -> list[tuple[str, int]]:
+    """Live sensors feeding the graph's sensors (SEED000 order), all on station 1."""
+    return [("st1", i) for i in range(len(SEED000_SENSORS))]
+
+
+class TruthClock:
+    """Ground truth for the console: gateway time -> performance joint positions (looped)."""
+
+    def __init__(self, perf: Performance, t0_monotonic_s: float) -> None:
+        self.perf = perf
+        self.t0 = t0_monotonic_s
+
+    def __call__(self, t_host_s: float) -> np.ndarray | None:
+        if t_host_s < self.t0:
+            return None
+        return self.perf.pose_at(t_host_s - self.t0)
+
+
+class DemoCamera:
+    """Synthetic overhead camera on the performance, tracked by the gateway's player tracker, published to the
+    gateway as camera observations (with a JPEG thumbnail and the court->image homography for the overlay).
+
+    Runs as a gateway camera hook (``start(sink)`` / ``stop()``); frames are paced to the wall clock so their
+    times line up with the emulated stations' samples."""
+
+    def __init__(self, perf: Performance, t0_monotonic_s: float, duration_s: float, fps: float = 12.0,
+                 image_size: tuple[int, int] = (640, 360)) -> None:
+        from gateway.camera.court import COURT_KEYPOINTS_M
+        from gateway.camera.court_calibration import CourtCalibration
+        from gateway.camera.paths import PlayerPath
+        from gateway.camera.synthetic import SyntheticCourtCamera, default_court_camera
+        from gateway.camera.tracker import PlayerTracker
+
+        self.t0 = t0_monotonic_s
+        self.empty_s = 2.5  # empty court first: the tracker learns the background
+        t = np.arange(0.0, duration_s + 1.0, 1.0 / perf.fps)
+        xy, heading = perf.ground_path(t)
+        frames = np.floor(t * perf.fps).astype(int) % perf.n_frames
+        lift = np.clip(perf.positions_m[frames, 0, 1] - np.median(perf.positions_m[:, 0, 1]), 0.0, None)
+        path = PlayerPath(t + self.empty_s, xy, heading, lift)
+        camera = default_court_camera(image_size)
+        self.source = SyntheticCourtCamera(path, camera=camera, fps=fps, empty_s=self.empty_s)
+        names = list(COURT_KEYPOINTS_M)
+        clicks = camera.project(np.c_[[COURT_KEYPOINTS_M[n] for n in names], np.zeros(len(names))])
+        calibration = CourtCalibration.fit(clicks, names=names, image_size=image_size,
+                                           camera_matrix=camera.camera_matrix)
+        self.tracker = PlayerTracker(calibration)
+        self.court_to_image = camera.ground_homography()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.frames_published = 0
+
+    def start(self, sink) -> None:
+        self._thread = threading.Thread(target=self._run, args=(sink,), name="demo-camera", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2)
+
+    def _run(self, sink) -> None:
+        import cv2
+
+        # path time 0 is the empty-court start; the performance (station time 0) begins empty_s later
+        offset = self.t0 - self.empty_s
+        while not self._stop.is_set():
+            frame = self.source.read()
+            if frame is None:
+                return
+            wait = offset + frame.t_host_s - time.monotonic()
+            if wait > 0 and self._stop.wait(wait):
+                return
+            record = self.tracker.update(frame)
+            if record is None:
+                continue
+            obs = record.to_dict()
+            obs.update(t_host_s=offset + record.t_host_s, position_m=[record.x_m, record.y_m],
+                       heading_rad=record.heading_rad, frame_index=frame.index,
+                       court_to_image=self.court_to_image.tolist())
+            ok, jpeg = cv2.imencode(".jpg", frame.image, [cv2.IMWRITE_JPEG_QUALITY, 70])
+            sink(obs, jpeg.tobytes() if ok else None)
+            self.frames_published += 1
