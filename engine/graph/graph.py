@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.mocap.skeleton import Skeleton
 
 from .clips import ClipData
 from .config import GraphConfig
@@ -25,6 +26,7 @@ NODE_ORIGINAL, NODE_SLOW, NODE_INTERP = 0, 1, 2
 EDGE_NATURAL, EDGE_TRANSITION, EDGE_SPEEDUP, EDGE_SLOWDOWN, EDGE_INTERP = 0, 1, 2, 3, 4
 EDGE_KIND_NAMES = ("natural", "transition", "speed-up", "slow-down", "interpolated")
 FORMAT_VERSION = 1
+_NON_ARRAYS = {"config", "clip_names", "label_names", "skeleton"}
 
 
 @dataclass
@@ -89,6 +91,7 @@ class MotionGraph:
     meta_dpos_m: np.ndarray  # (M, 2) float64, local frame of the edge's source
     node_rotations: np.ndarray | None = None  # (N, J, 4) local joint rotations (w, x, y, z)
     node_root_m: np.ndarray | None = None  # (N, 3) root position in the source clip's frame
+    skeleton: Skeleton | None = None  # the database skeleton, so a synthesis can be written as BVH
 
     # ----- sizes and search helpers -------------------------------------------------------------
     @property
@@ -142,7 +145,8 @@ class MotionGraph:
         kwargs = {k: (v[keep] if v is not None else None) for k, v in node_arrays.items()}
         # metadata rows stay as they are (rows of dropped nodes are simply no longer referenced)
         return MotionGraph(
-            config=self.config, clip_names=self.clip_names, label_names=self.label_names, **kwargs,
+            config=self.config, clip_names=self.clip_names, label_names=self.label_names, skeleton=self.skeleton,
+            **kwargs,
             edge_src=new_id[self.edge_src[ekeep]].astype(np.int32),
             edge_dst=new_id[self.edge_dst[ekeep]].astype(np.int32),
             edge_kind=self.edge_kind[ekeep], edge_meta=self.edge_meta[ekeep],
@@ -152,9 +156,13 @@ class MotionGraph:
     def save(self, path: str | Path) -> None:
         """One .npz holding the arrays plus a JSON header (config, clip and label names)."""
         header = {"format_version": FORMAT_VERSION, "config": json.loads(self.config.to_json()),
-                  "clip_names": self.clip_names, "label_names": self.label_names}
+                  "clip_names": self.clip_names, "label_names": self.label_names,
+                  "skeleton_names": list(self.skeleton.names) if self.skeleton is not None else None}
         arrays = {f.name: getattr(self, f.name) for f in fields(self)
-                  if f.name not in ("config", "clip_names", "label_names") and getattr(self, f.name) is not None}
+                  if f.name not in _NON_ARRAYS and getattr(self, f.name) is not None}
+        if self.skeleton is not None:
+            arrays.update(skeleton_parents=self.skeleton.parents, skeleton_offsets_m=self.skeleton.offsets_m,
+                          skeleton_end_site=self.skeleton.end_site)
         with open(path, "wb") as fh:
             np.savez(fh, header_json=np.array(json.dumps(header)), **arrays)
 
@@ -170,23 +178,33 @@ class MotionGraph:
             header = json.loads(str(data["header_json"]))
             if header.get("format_version") != FORMAT_VERSION:
                 raise MalformedFileError(path, None, f"unsupported graph format {header.get('format_version')}")
-            names = {f.name for f in fields(cls)} - {"config", "clip_names", "label_names"}
+            names = {f.name for f in fields(cls)} - _NON_ARRAYS
             optional = {"node_rotations", "node_root_m"}
             missing = sorted(names - optional - set(data.files))
             if missing:
                 raise MalformedFileError(path, None, f"missing arrays: {', '.join(missing)}")
             arrays = {k: data[k] for k in names if k in data.files}
+            skeleton = None
+            if header.get("skeleton_names"):
+                skeleton = Skeleton(tuple(header["skeleton_names"]), data["skeleton_parents"],
+                                    data["skeleton_offsets_m"], data["skeleton_end_site"])
         return cls(config=GraphConfig(**header["config"]), clip_names=header["clip_names"],
-                   label_names=header["label_names"], **arrays)
+                   label_names=header["label_names"], skeleton=skeleton, **arrays)
 
     # ----- construction ----------------------------------------------------------------------------
     @classmethod
-    def build(cls, motions: list, placements: list, config: GraphConfig | None = None) -> "MotionGraph":
-        """Build from engine.mocap Motions and SensorPlacements (see engine.graph.mocap_adapter)."""
+    def build(cls, motions: list, placements: list, config: GraphConfig | None = None,
+              labels: list[str] | None = None) -> "MotionGraph":
+        """Build from engine.mocap Motions (one skeleton) and SensorPlacements; `labels` = one action label per
+        clip for human constraints (see engine.graph.mocap_adapter)."""
         from .mocap_adapter import clips_from_motions
 
         config = config or GraphConfig()
-        return build_from_clips(clips_from_motions(motions, placements, config), config)
+        if not config.sensor_names:
+            config.sensor_names = [p.name for p in placements]
+        graph = build_from_clips(clips_from_motions(motions, placements, config, labels), config)
+        graph.skeleton = motions[0].skeleton
+        return graph
 
 
 def _original_nodes(parts: GraphParts, clips: list[ClipData], label_names: list[str]) -> np.ndarray:

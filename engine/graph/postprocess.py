@@ -51,10 +51,13 @@ def place_path(graph: MotionGraph, nodes: np.ndarray, ground_m: np.ndarray,
 
 
 def transition_times(graph: MotionGraph, edges: np.ndarray) -> np.ndarray:
-    """Samples t whose arriving edge jumps between clips (transitions, entries/exits of interpolated clips)."""
+    """Samples t whose arriving edge jumps between clips (transitions, entries/exits of interpolated clips;
+    edge -1 after the first sample = no edge at all, as when a fixed-lag decoder changed its mind)."""
     e = np.asarray(edges)
     kinds = np.where(e >= 0, graph.edge_kind[np.maximum(e, 0)], -1)
-    return np.flatnonzero((kinds == EDGE_TRANSITION) | (kinds == EDGE_INTERP))
+    jump = (kinds == EDGE_TRANSITION) | (kinds == EDGE_INTERP) | (e < 0)
+    jump[:1] = False
+    return np.flatnonzero(jump)
 
 
 def _fade(n_frames: int, t: int, half_width: float) -> np.ndarray:

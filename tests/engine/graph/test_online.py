@@ -89,3 +89,24 @@ def test_resample_keeps_in_band_signal_and_removes_aliases():
     assert np.max(np.abs(y[inner, 0, 1] - want)) < 0.03
     naive = (slow + fast)[(t_out * fs_in).round().astype(int)]
     assert np.max(np.abs(naive[inner] - want)) > 0.5  # plain decimation would alias
+
+
+def test_error_on_held_out_real_clips_decreases_with_lag(sample_graph, sample_clipdata, sample_motions):
+    """Leave-one-out on the shipped CMU walks: deciding later (more context) gives better poses."""
+    from engine.graph.evaluate import Noise, root_local, simulate_inputs
+    from engine.mocap import SensorErrorModel, error_joint_indices
+
+    clips, _ = sample_clipdata
+    ej = error_joint_indices(sample_motions[0].skeleton)
+    errors = {0.0: [], 2.0: []}
+    for ci in sorted(range(len(clips)), key=lambda c: -clips[c].n_frames)[:3]:
+        sub = sample_graph.without_clips([ci])
+        obs = simulate_inputs(clips[ci], tuple(range(6)), SensorErrorModel.seed000(), Noise(),
+                              np.random.default_rng(1), 30.0)
+        truth = root_local(clips[ci].positions_m[:, ej], clips[ci].ground_m, clips[ci].heading_rad)
+        for lag in errors:
+            poses, _ = run_online(sub, obs, lag)
+            joints = np.array([p.joint_positions_m for p in poses])[:, ej]
+            got = root_local(joints, np.array([p.ground_m for p in poses]), np.array([p.heading_rad for p in poses]))
+            errors[lag].append(np.linalg.norm(got - truth, axis=2).mean())
+    assert np.mean(errors[2.0]) < 0.8 * np.mean(errors[0.0])

@@ -1,0 +1,203 @@
+"""`courtside build-graph | synthesize | evaluate` (entry points declared in pyproject.toml)."""
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from engine.errors import MalformedFileError
+from engine.mocap import SEED000_SENSORS, STANDARD_SENSORS, load_database, sample_clips, standard_placements, write_bvh
+
+from .config import GraphConfig
+from .graph import MotionGraph, build_from_clips
+from .mocap_adapter import clips_from_motions
+from .viterbi import SearchWeights
+
+_BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+")
+
+
+def clip_label(path: Path) -> str:
+    """Action label of a clip for human constraints: the Bandai content name, else the file stem."""
+    m = _BANDAI.match(path.stem)
+    return m.group("content") if m else path.stem
+
+
+def database_paths(args: argparse.Namespace) -> list[Path]:
+    """Clip files from positional paths, --sample (shipped CMU subject 16) or --mocap-dir + --pattern."""
+    paths = [Path(p) for p in getattr(args, "clips", []) or []]
+    if args.sample:
+        paths += [p for name, p in sample_clips().items() if name.startswith("16_")]
+    if args.mocap_dir:
+        paths += [Path(p) for p in sorted(glob.glob(str(Path(args.mocap_dir) / args.pattern)))]
+    if args.max_clips:
+        paths = paths[: args.max_clips]
+    if not paths:
+        raise SystemExit("no clips: give clip files, --sample, or --mocap-dir with --pattern")
+    return paths
+
+
+def _add_database_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--sample", action="store_true", help="use the CMU subject-16 clips shipped in engine/data")
+    p.add_argument("--mocap-dir", help="a mocap folder, e.g. /work/shared/mocap")
+    p.add_argument("--pattern", default="bandai-namco-1/data/*.bvh", help="glob under --mocap-dir")
+    p.add_argument("--max-clips", type=int, default=0, help="use only the first N clips (0 = all)")
+    p.add_argument("--sensors", nargs="+", default=list(SEED000_SENSORS), choices=STANDARD_SENSORS,
+                   help="worn sensor placements (seed 000: forearms, shins, lower back, chest)")
+    p.add_argument("--threshold", type=float, default=GraphConfig.transition_threshold_m,
+                   help="transition threshold, RMS point-cloud distance in metres")
+
+
+def load_clips(args: argparse.Namespace, config: GraphConfig):
+    paths = database_paths(args)
+    motions = load_database(paths, fps=config.fps)
+    placements = standard_placements(motions[0].skeleton, args.sensors)
+    config.sensor_names = list(args.sensors)
+    clips = clips_from_motions(motions, placements, config, [clip_label(p) for p in paths])
+    return motions, clips
+
+
+def build_graph_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="courtside build-graph", description="Build a motion graph from mocap clips.")
+    p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
+    _add_database_args(p)
+    p.add_argument("-o", "--output", required=True, help="graph .npz (a .json summary is written beside it)")
+    p.add_argument("--msv", action="store_true", help="add motion speed variations")
+    p.add_argument("--interp", action="store_true", help="add interpolated motions")
+    args = p.parse_args(argv)
+    config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold)
+    t0 = time.perf_counter()
+    try:
+        motions, clips = load_clips(args, config)
+    except MalformedFileError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    t1 = time.perf_counter()
+    graph = build_from_clips(clips, config)
+    graph.skeleton = motions[0].skeleton
+    t2 = time.perf_counter()
+    graph.save(args.output)
+    summary = {**graph.summary(), "config": json.loads(config.to_json()), "load_s": round(t1 - t0, 2),
+               "build_s": round(t2 - t1, 2), "frames": int(sum(c.n_frames for c in clips))}
+    Path(args.output).with_suffix(".json").write_text(json.dumps(summary, indent=2))
+    print(json.dumps(summary))
+    return 0
+
+
+def _weights(values: list[float]) -> SearchWeights:
+    return SearchWeights(*values)
+
+
+def synthesize_main(argv: list[str]) -> int:
+    from .inputs import load_take
+    from .online import FixedLagSynthesizer
+    from .postprocess import path_to_motion
+    from .viterbi import ViterbiSearch
+
+    p = argparse.ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
+    p.add_argument("--graph", required=True, help="graph .npz from build-graph")
+    p.add_argument("--input", required=True, help="take .npz (synthesis input format or a gateway export)")
+    p.add_argument("-o", "--output", required=True, help="output .bvh")
+    p.add_argument("--weights", nargs=3, type=float, default=[0.5, 1.0, 1.0], metavar=("W_A", "W_P", "W_O"))
+    p.add_argument("--lag", type=float, default=None, help="fixed-lag online decoding with this latency (s)")
+    p.add_argument("--sensor-map", nargs="*", default=None, metavar="STATION/SENSOR=NAME",
+                   help="gateway exports: which recorded sensor is which graph sensor")
+    p.add_argument("--no-blend", action="store_true")
+    p.add_argument("--no-ik", action="store_true")
+    args = p.parse_args(argv)
+    try:
+        graph = MotionGraph.load(args.graph)
+        sensor_map = dict(s.split("=", 1) for s in args.sensor_map) if args.sensor_map else None
+        obs = load_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map)
+    except MalformedFileError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    if graph.skeleton is None:
+        print(f"error: {args.graph}: graph holds no skeleton (rebuild it with build-graph)", file=sys.stderr)
+        return 1
+    weights = _weights(args.weights)
+    t0 = time.perf_counter()
+    if args.lag is None:
+        res = ViterbiSearch(graph, weights).run(obs)
+        nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
+    else:
+        syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)
+        poses = []
+        for t in range(obs.n_samples):
+            poses += syn.push(None if obs.acc_g is None else obs.acc_g[t],
+                              None if obs.position_m is None else obs.position_m[t],
+                              None if obs.heading_rad is None else float(obs.heading_rad[t]))
+        poses += syn.flush()
+        nodes = np.array([q.node for q in poses])
+        ground = np.array([q.ground_m for q in poses])
+        heading = np.array([q.heading_rad for q in poses])
+        edges = np.full(len(nodes), -1)
+        for t in range(1, len(nodes)):
+            try:
+                edges[t] = graph.edge_index(nodes[t - 1:t], nodes[t:t + 1])[0]
+            except KeyError:
+                edges[t] = -1  # the decoder changed its mind: blended like a transition
+    elapsed = time.perf_counter() - t0
+    motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
+                            foot_ik=not args.no_ik, name=Path(args.input).stem)
+    write_bvh(args.output, motion)
+    print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output}))
+    return 0
+
+
+def evaluate_main(argv: list[str]) -> int:
+    from .evaluate import Setting, leave_one_out, summarise
+
+    p = argparse.ArgumentParser(prog="courtside evaluate",
+                                description="Leave-one-out evaluation (seed 000 Tables 2/3) on real mocap.")
+    p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
+    _add_database_args(p)
+    p.add_argument("--variants", default="plain,msv", help="comma list of plain, msv, interp, msv+interp")
+    p.add_argument("--test-clips", type=int, default=0, help="evaluate on N clips spread over the set (0 = all)")
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args(argv)
+    if not (args.clips or args.sample or args.mocap_dir):
+        args.sample = True
+    variants = args.variants.split(",")
+    full = GraphConfig(msv="msv" in args.variants, interp="interp" in args.variants,
+                       transition_threshold_m=args.threshold)
+    try:
+        motions, clips = load_clips(args, full)
+    except MalformedFileError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    idx = {n: args.sensors.index(n) for n in args.sensors}
+    all_s = tuple(range(len(args.sensors)))
+    two = tuple(idx[n] for n in ("left_forearm", "right_forearm") if n in idx)
+    one = tuple(idx[n] for n in ("right_forearm",) if n in idx)
+    acc, ph, both = SearchWeights(0.5, 0, 0), SearchWeights(0, 1, 1), SearchWeights(0.5, 1, 1)
+    settings = [Setting(f"acc {len(all_s)}", all_s, acc), Setting(f"acc {len(two)}", two, acc),
+                Setting(f"acc {len(one)}", one, acc), Setting("pos+head", (), ph),
+                Setting(f"acc {len(all_s)} + pos+head", all_s, both), Setting(f"acc {len(two)} + pos+head", two, both),
+                Setting(f"acc {len(one)} + pos+head", one, both)]
+    n = len(clips)
+    tests = list(range(n)) if not args.test_clips else sorted(set(np.linspace(0, n - 1, args.test_clips).astype(int)))
+    print(f"database: {n} clips, {sum(c.n_frames for c in clips)} frames at {full.fps:g} Hz; "
+          f"test clips: {len(tests)}; sensors: {', '.join(args.sensors)}")
+    header = f"{'graph':12s} {'nodes':>7s} {'edges':>8s}  {'input':22s} {'joint cm (sd)':>14s} " \
+             f"{'position cm (sd)':>17s} {'heading deg (sd)':>17s} {'search s':>8s}"
+    print(header)
+    print("-" * len(header))
+    for v in variants:
+        cfg = GraphConfig(msv="msv" in v, interp="interp" in v, transition_threshold_m=args.threshold,
+                          sensor_names=list(args.sensors))
+        graph = build_from_clips(clips, cfg)
+        t0 = time.perf_counter()
+        scores = leave_one_out(graph, clips, motions[0].skeleton, settings, tests, seed=args.seed)
+        per = (time.perf_counter() - t0) / len(settings)
+        for s in settings:
+            r = summarise(scores[s.name])
+            print(f"{v:12s} {graph.n_nodes:7d} {graph.n_edges:8d}  {s.name:22s} "
+                  f"{r['joint_cm']:6.1f} ({r['joint_sd']:4.1f}) {r['pos_cm']:8.1f} ({r['pos_sd']:5.1f}) "
+                  f"{r['head_deg']:8.1f} ({r['head_sd']:5.1f}) {per:8.1f}")
+    return 0
