@@ -9,22 +9,25 @@ not per byte.
 from __future__ import annotations
 
 import struct
+from zlib import crc32
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from cobs.cobs import DecodeError as CobsDecodeError
 from cobs.cobs import decode as cobs_decode
 
 from .codec import UNPACKERS, PayloadError
-from .framing import CRC, HEADER, MAX_ENCODED_FRAME_BYTES, MIN_BODY_BYTES, SEQ_MODULUS, crc32
+from .framing import CRC, HEADER, MAX_ENCODED_FRAME_BYTES, MIN_BODY_BYTES, SEQ_MODULUS
 from .messages import PROTOCOL_VERSION, Message, MessageType
 
 _HALF_SEQ = SEQ_MODULUS // 2
 _UNPACKERS = {int(k): v for k, v in UNPACKERS.items()}
 _HELLO = int(MessageType.HELLO)
+HEADER_BYTES = HEADER.size
 
 
-@dataclass(frozen=True, slots=True)
-class DecodedFrame:
+class DecodedFrame(NamedTuple):
+    """One good frame: header fields plus the decoded message (a NamedTuple: cheapest object to build)."""
     station_id: int
     seq: int
     message: Message
@@ -81,57 +84,54 @@ class StreamDecoder:
             self._pending = b""
             self._skipping = True
         out: list[DecodedFrame] = []
+        # Hot loop: names bound to locals, one early exit per failure kind.
+        unpack_header, crc_unpack, unpackers, track = HEADER.unpack_from, CRC.unpack_from, _UNPACKERS, self._track_seq
         for part in parts:
-            if part:
-                self._decode_one(part, out)
+            if not part:
+                continue
+            if len(part) > MAX_ENCODED_FRAME_BYTES:
+                stats.length_errors += 1
+                stats.bytes_discarded += len(part)
+                continue
+            try:
+                body = cobs_decode(part)
+            except CobsDecodeError:
+                stats.cobs_errors += 1
+                stats.bytes_discarded += len(part)
+                continue
+            n = len(body)
+            if n < MIN_BODY_BYTES:
+                stats.length_errors += 1
+                stats.bytes_discarded += len(part)
+                continue
+            if crc32(body[:-4]) != crc_unpack(body, n - 4)[0]:
+                stats.crc_errors += 1
+                stats.bytes_discarded += len(part)
+                continue
+            version, msg_type, station_id, seq, length = unpack_header(body, 0)
+            if length != n - MIN_BODY_BYTES:
+                stats.length_errors += 1
+                stats.bytes_discarded += len(part)
+                continue
+            if version != PROTOCOL_VERSION:
+                stats.unsupported_version += 1
+                stats.bytes_discarded += len(part)
+                continue
+            track(station_id, seq, msg_type)
+            unpack = unpackers.get(msg_type)
+            if unpack is None:
+                stats.unknown_types += 1
+                stats.bytes_discarded += len(part)
+                continue
+            try:
+                message = unpack(body[HEADER_BYTES:-4])
+            except (PayloadError, struct.error, IndexError, ValueError):
+                stats.malformed_payloads += 1
+                stats.bytes_discarded += len(part)
+                continue
+            out.append(DecodedFrame(station_id, seq, message))
+        stats.frames_ok += len(out)
         return out
-
-    def _reject(self, part: bytes) -> None:
-        self.stats.bytes_discarded += len(part)
-
-    def _decode_one(self, part: bytes, out: list[DecodedFrame]) -> None:
-        stats = self.stats
-        if len(part) > MAX_ENCODED_FRAME_BYTES:
-            stats.length_errors += 1
-            self._reject(part)
-            return
-        try:
-            body = cobs_decode(part)
-        except CobsDecodeError:
-            stats.cobs_errors += 1
-            self._reject(part)
-            return
-        if len(body) < MIN_BODY_BYTES:
-            stats.length_errors += 1
-            self._reject(part)
-            return
-        if crc32(body[:-4]) != CRC.unpack_from(body, len(body) - 4)[0]:
-            stats.crc_errors += 1
-            self._reject(part)
-            return
-        version, msg_type, station_id, seq, length = HEADER.unpack_from(body, 0)
-        if length != len(body) - MIN_BODY_BYTES:
-            stats.length_errors += 1
-            self._reject(part)
-            return
-        if version != PROTOCOL_VERSION:
-            stats.unsupported_version += 1
-            self._reject(part)
-            return
-        self._track_seq(station_id, seq, msg_type)
-        unpack = _UNPACKERS.get(msg_type)
-        if unpack is None:
-            stats.unknown_types += 1
-            self._reject(part)
-            return
-        try:
-            message = unpack(body[HEADER.size:-4])
-        except (PayloadError, struct.error, IndexError, ValueError):
-            stats.malformed_payloads += 1
-            self._reject(part)
-            return
-        stats.frames_ok += 1
-        out.append(DecodedFrame(station_id, seq, message))
 
     def _track_seq(self, station_id: int, seq: int, msg_type: int) -> None:
         expected = self._expected_seq.get(station_id)

@@ -97,9 +97,10 @@ class Hello:
     sensors: tuple[SensorInfo, ...]
 
 
-@dataclass(frozen=True, slots=True, eq=False)
+@dataclass(slots=True, eq=False)
 class SampleBatch:
-    """N consecutive samples of one sensor.
+    """N consecutive samples of one sensor. Treat as read-only: it is the one message decoded tens of thousands
+    of times a second, and a non-frozen dataclass constructs about 4x faster than a frozen one.
 
     Sample i was latched at device tick `first_sample_ticks + i * sample_period_ticks` (mod 2**32) and has
     per-sensor counter `first_sample_counter + i` (mod 2**32); a jump in the counter is a radio loss.
