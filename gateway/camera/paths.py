@@ -7,6 +7,7 @@ mocap root trajectories are handled the same way. ``lift_m`` is the height of th
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -46,10 +47,18 @@ class PlayerPath:
         """Linear interpolation at ``t_s`` (clamped to the path's time span)."""
         x = float(np.interp(t_s, self.t_s, self.xy_m[:, 0]))
         y = float(np.interp(t_s, self.t_s, self.xy_m[:, 1]))
-        heading = float(np.interp(t_s, self.t_s, np.unwrap(self.heading_rad)))
+        heading = float(np.interp(t_s, self.t_s, self._unwrapped_heading_rad))
         lift = float(np.interp(t_s, self.t_s, self.lift_m))
-        speed = float(np.interp(t_s, self.t_s, self.speed_mps()))
+        speed = float(np.interp(t_s, self.t_s, self._speed_mps))
         return PlayerState(x, y, float(np.angle(np.exp(1j * heading))), lift, speed)
+
+    @cached_property
+    def _unwrapped_heading_rad(self) -> np.ndarray:
+        return np.unwrap(self.heading_rad)
+
+    @cached_property
+    def _speed_mps(self) -> np.ndarray:
+        return self.speed_mps()
 
     def speed_mps(self) -> np.ndarray:
         """Ground speed (N,) m/s by finite differences."""

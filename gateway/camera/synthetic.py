@@ -13,9 +13,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from gateway.camera.body import body_capsules, capsule_surface_points, STRIDE_M
+from typing import Callable
+
+from gateway.camera.body import Capsules, body_capsules, capsule_surface_points, STRIDE_M
 from gateway.camera.court import COURT_LINES_M, HALF_DOUBLES_M, HALF_LENGTH_M, LINE_WIDTH_M
-from gateway.camera.paths import PlayerPath
+from gateway.camera.paths import PlayerPath, PlayerState
 from gateway.camera.pinhole import PinholeCamera
 from gateway.camera.sources import Frame, _IterableSource
 
@@ -103,11 +105,14 @@ class SyntheticCourtCamera(_IterableSource):
     Frames are produced at ``fps`` for the path's duration; the first ``empty_s`` seconds show an empty court
     (the operator starts the camera before the player walks on, which is when the tracker learns the background).
     Frame ``k`` is exposed at ``t0_s + k / fps`` (true time); its ``t_host_s`` adds latency and jitter.
+    ``body(t_s, state, gait_phase_rad) -> Capsules`` draws the player: the parametric runner by default, or a
+    :class:`gateway.camera.mocap_body.MocapBody` (whose ``.path`` is then the matching ``path``).
     """
 
     def __init__(
         self, path: PlayerPath, *, camera: PinholeCamera | None = None, fps: float = 30.0, empty_s: float = 1.0,
         imperfections: CameraImperfections = CameraImperfections(), seed: int = 0,
+        body: Callable[[float, PlayerState, float], Capsules] | None = None,
     ) -> None:
         self.camera = camera or default_court_camera()
         self.path = path
@@ -115,9 +120,15 @@ class SyntheticCourtCamera(_IterableSource):
         self.image_size = self.camera.image_size
         self.empty_s = empty_s
         self.imperfections = imperfections
+        self._body = body or (lambda t_s, state, phase: body_capsules(state, phase))
         self._rng = np.random.default_rng(seed)
         self._background = render_court_background(self.camera).astype(np.float32)
         self._homography = self.camera.ground_homography()
+        # Sensor noise: one of 8 pre-drawn independent fields per frame, at random. Per-pixel statistics are those
+        # of fresh noise (what background subtraction sees) at a fraction of the cost of drawing 1M normals a frame.
+        shape = self._background.shape
+        self._noise_bank = [self._rng.standard_normal(shape, dtype=np.float32) * imperfections.sensor_noise_dn
+                            for _ in range(8)] if imperfections.sensor_noise_dn else []
         self._t0_s = float(path.t_s[0]) - empty_s
         self._n_frames = int(np.floor((path.duration_s + empty_s) * fps)) + 1
         self._k = 0
@@ -144,11 +155,11 @@ class SyntheticCourtCamera(_IterableSource):
             return Frame(k, t_host, image, truth)
         return None
 
-    def _render(self, state, t_true_s: float) -> np.ndarray:
+    def _render(self, state: PlayerState | None, t_true_s: float) -> np.ndarray:
         imp = self.imperfections
         img = self._background.copy()
         if state is not None:
-            caps = body_capsules(state, self._gait_phase)
+            caps = self._body(t_true_s, state, self._gait_phase)
             pts = capsule_surface_points(caps)  # (C, P, 3)
             sun = np.asarray(imp.sun_direction, float)
             ground = pts - (pts[..., 2:3] / sun[2]) * sun  # along the sun ray onto z = 0
@@ -156,7 +167,10 @@ class SyntheticCourtCamera(_IterableSource):
             for poly in ground:
                 hull = cv2.convexHull(_subpx(self._project_ground(poly[:, :2])))
                 cv2.fillConvexPoly(shadow, hull, 255, cv2.LINE_AA, _SUBPIXEL_BITS)
-            img *= (1.0 - (1.0 - imp.shadow_gain) * (shadow.astype(np.float32) / 255.0))[..., None]
+            x, y, w, h = cv2.boundingRect(shadow)  # darken only where the shadow is (speed)
+            if w and h:
+                darkness = (1.0 - imp.shadow_gain) * (shadow[y : y + h, x : x + w].astype(np.float32) / 255.0)
+                img[y : y + h, x : x + w] *= (1.0 - darkness)[..., None]
             canvas = img.astype(np.uint8)
             depth = np.linalg.norm(caps.start_m + caps.end_m - 2 * self.camera.position_m, axis=1)
             flat = self.camera.project(pts.reshape(-1, 3)).reshape(pts.shape[0], pts.shape[1], 2)
@@ -167,7 +181,7 @@ class SyntheticCourtCamera(_IterableSource):
         gain = 1.0 + imp.drift * np.sin(2 * np.pi * t_true_s / 9.0) + self._rng.normal(0.0, imp.flicker)
         img *= gain
         if imp.sensor_noise_dn:
-            img += self._rng.standard_normal(img.shape, dtype=np.float32) * imp.sensor_noise_dn
+            img += self._noise_bank[self._rng.integers(len(self._noise_bank))]
         return np.clip(img, 0, 255).astype(np.uint8)
 
     def _project_ground(self, points_m: np.ndarray) -> np.ndarray:
