@@ -10,6 +10,7 @@ from engine.mocap.c3d import MarkerData, read_c3d
 from engine.mocap.clips import DATA_DIR, default_cache_dir, load_clip, load_database, sample_clips
 from engine.mocap.ground import (ContactThresholds, foot_contacts, ground_positions, heading_from_positions,
                                  root_heading, wrap_angle)
+from engine.mocap.rest_pose import rebase_to_tpose, tpose_bases, tpose_skeleton
 from engine.mocap.roles import ERROR_ROLES, ROLES, error_joint_indices, joint_roles, left_right_pairs
 from engine.mocap.sensors import (GRAVITY_MPS2, SEED000_SENSORS, SEED003_SENSORS, SEED004_SENSORS,
                                   STANDARD_SENSORS, SensorErrorModel, SensorPlacement, mean_squared_error_g2,
@@ -23,7 +24,8 @@ __all__ = [
     "SEED004_SENSORS", "STANDARD_SENSORS", "SensorErrorModel", "SensorPlacement", "Skeleton",
     "default_cache_dir", "error_joint_indices", "foot_contacts", "forward_kinematics", "ground_positions",
     "heading_from_positions", "joint_roles", "left_right_pairs", "load_clip", "load_database",
-    "mean_squared_error_g2", "mirror", "read_amc", "read_asf", "read_bvh", "read_c3d", "resample",
-    "root_heading", "sample_clips", "standard_placements", "virtual_accelerometers", "virtual_gyroscopes",
+    "mean_squared_error_g2", "mirror", "read_amc", "read_asf", "read_bvh", "read_c3d", "rebase_to_tpose", "resample",
+    "root_heading", "sample_clips", "standard_placements", "tpose_bases", "tpose_skeleton",
+    "virtual_accelerometers", "virtual_gyroscopes",
     "wrap_angle", "write_bvh",
 ]

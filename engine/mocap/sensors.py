@@ -12,8 +12,10 @@ neighbour's reading). So a sensor at rest reads +1 g along world up, as a real M
 
 Standard placements (`standard_placements`) follow the seeds: forearms, shins, lower back, chest (seed 000),
 wrists and ankles at 87.5 % of the forearm/shin (seed 003, X along the bone distally, arms Z up in the
-T-pose, legs Z forward, Y = Z x X) and the right foot (seed 004). The frames are defined at the skeleton's
-zero pose, where every joint frame is world-aligned; "forward" is found from the hips."""
+T-pose, legs Z forward, Y = Z x X) and the right foot (seed 004). Offsets and frames are defined on the
+skeleton's T-pose (engine.mocap.rest_pose: same bones, frames re-based so the zero pose is a T-pose facing
++Z) and mapped back into the file's joint frames, so they are anatomical for every source, including
+Bandai and CMU BVH whose zero poses are not T-poses."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -21,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from engine.mocap import quaternions as quat
+from engine.mocap.rest_pose import tpose_bases, tpose_skeleton
 from engine.mocap.roles import joint_roles
 from engine.mocap.skeleton import Motion, Skeleton, forward_kinematics
 
@@ -67,19 +70,6 @@ STANDARD_SENSORS = tuple(_STANDARD)
 TRUNK_DEPTH_M = 0.10  # a back/chest sensor sits this far behind/in front of the spine joint
 
 
-def rest_forward(skeleton: Skeleton) -> np.ndarray:
-    """Unit forward direction of the zero pose (from the hips); +Z if the zero pose is not upright."""
-    roles = joint_roles(skeleton)
-    rest = skeleton.rest_positions()
-    lateral = rest[roles["left_hip"]] - rest[roles["right_hip"]]
-    fwd = np.cross(lateral, UP)
-    fwd[1] = 0.0
-    n = np.linalg.norm(fwd)
-    if n < 0.5 * np.linalg.norm(lateral) or n == 0:
-        return np.array([0.0, 0.0, 1.0])
-    return fwd / n
-
-
 def _frame(x_axis: np.ndarray, z_hint: np.ndarray, fallback: np.ndarray) -> np.ndarray:
     """Columns X, Y, Z with X along x_axis, Z the part of z_hint orthogonal to X, Y = Z x X."""
     x = x_axis / np.linalg.norm(x_axis)
@@ -90,13 +80,17 @@ def _frame(x_axis: np.ndarray, z_hint: np.ndarray, fallback: np.ndarray) -> np.n
 
 
 def standard_placements(skeleton: Skeleton, names: tuple[str, ...] | list[str] = SEED000_SENSORS) -> list[SensorPlacement]:
-    """Placements for the named standard sensors (see STANDARD_SENSORS) on this skeleton."""
+    """Placements for the named standard sensors (see STANDARD_SENSORS) on this skeleton.
+
+    Depends on the skeleton only, so every clip of one skeleton gets identical placements (see
+    rest_pose.tpose_bases for the one caveat: sensor roll on some Bandai segments)."""
     unknown = [n for n in names if n not in _STANDARD]
     if unknown:
         raise ValueError(f"unknown sensor name(s) {unknown}; known: {', '.join(STANDARD_SENSORS)}")
     roles = joint_roles(skeleton)
-    rest = skeleton.rest_positions()
-    fwd = rest_forward(skeleton)
+    bases = tpose_bases(skeleton)  # define every sensor on the T-pose, then map into the file's joint frames
+    rest = tpose_skeleton(skeleton, bases).rest_positions()
+    fwd = np.array([0.0, 0.0, 1.0])
     left = np.cross(UP, fwd)
     out = []
     for name in names:
@@ -112,7 +106,7 @@ def standard_placements(skeleton: Skeleton, names: tuple[str, ...] | list[str] =
             depth = -TRUNK_DEPTH_M if kind == "back" else TRUNK_DEPTH_M
             offset = depth * fwd
             rotation = _frame(UP, np.sign(depth) * fwd, outward)
-        out.append(SensorPlacement(name, joint, offset, rotation))
+        out.append(SensorPlacement(name, joint, bases[joint] @ offset, bases[joint] @ rotation))
     return out
 
 

@@ -38,7 +38,7 @@ def check_mirror_symmetric(motion: Motion, max_angle_deg: float = 20.0) -> None:
     """Raise ValueError unless the rest pose is left/right symmetric about the X = 0 plane.
 
     Mirroring by reflecting every local rotation is only right when the zero pose is itself symmetric with
-    the joint frames aligned to the world (CMU ASF and CMU BVH; not Bandai, whose zero pose lies along X)."""
+    the joint frames aligned to the world (CMU ASF and CMU BVH; Bandai only after `rebase_to_tpose`)."""
     skel = motion.skeleton
     pairs = left_right_pairs(skel)
     if not pairs:
@@ -51,7 +51,8 @@ def check_mirror_symmetric(motion: Motion, max_angle_deg: float = 20.0) -> None:
         cos = a @ b / max(na * nb, 1e-12)
         if cos < np.cos(np.radians(max_angle_deg)):
             raise ValueError(f"rest pose is not mirror-symmetric about X=0: {skel.names[left]!r} vs "
-                             f"{skel.names[right]!r} offsets differ by {np.degrees(np.arccos(np.clip(cos, -1, 1))):.0f} deg")
+                             f"{skel.names[right]!r} offsets differ by {np.degrees(np.arccos(np.clip(cos, -1, 1))):.0f} deg "
+                             "(re-base it first with engine.mocap.rebase_to_tpose)")
 
 
 def mirror(motion: Motion) -> Motion:
