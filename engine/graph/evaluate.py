@@ -15,9 +15,9 @@ import numpy as np
 from engine.mocap import SensorErrorModel, error_joint_indices
 
 from .clips import ClipData
-from .geometry import rotate_ground, wrap_angle
+from .geometry import wrap_angle
 from .graph import MotionGraph
-from .poses import world_joint_positions
+from .poses import root_local, world_joint_positions
 from .viterbi import Observations, SearchWeights, ViterbiSearch
 
 
@@ -43,15 +43,6 @@ class ClipScore:
     joint_cm: np.ndarray  # (T,) mean over error joints per frame
     position_cm: np.ndarray  # (T,)
     heading_deg: np.ndarray  # (T,)
-
-
-def root_local(joints_m: np.ndarray, ground_m: np.ndarray, heading_rad: np.ndarray) -> np.ndarray:
-    """Joints (T, J, 3) expressed in each frame's root frame (ground origin under the root, facing +Z)."""
-    out = np.array(joints_m, float, copy=True)
-    out[..., 0] -= ground_m[:, 0, None]
-    out[..., 2] -= ground_m[:, 1, None]
-    out[..., [0, 2]] = rotate_ground(out[..., [0, 2]], -np.asarray(heading_rad)[:, None])
-    return out
 
 
 def simulate_inputs(clip: ClipData, sensor_indices: tuple[int, ...], error_model: SensorErrorModel,

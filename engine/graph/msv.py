@@ -11,17 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from engine.mocap import quaternions as quat
+
 from .clips import ClipData
 from .geometry import wrap_angle
 from .graph import EDGE_SLOWDOWN, EDGE_SPEEDUP, NODE_SLOW, GraphParts
 from .metadata import step_offsets
-
-
-def _slerp_half(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Quaternion halfway between a and b along the short arc (normalised mean of hemisphere-aligned pair)."""
-    b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0, -b, b)
-    m = a + b
-    return m / np.linalg.norm(m, axis=-1, keepdims=True)
 
 
 def add_speed_variations(parts: GraphParts, clips: list[ClipData], offsets: np.ndarray,
@@ -46,7 +41,7 @@ def add_speed_variations(parts: GraphParts, clips: list[ClipData], offsets: np.n
             node_positions_m=pos.astype(np.float32), node_heading_rad=heading, node_ground_m=ground,
             node_contacts=clip.contacts[f], node_arrival=arrival)
         if has_rot:
-            arrays["node_rotations"] = _slerp_half(clip.local_rotations[f], clip.local_rotations[f + 1]).astype(
+            arrays["node_rotations"] = quat.slerp(clip.local_rotations[f], clip.local_rotations[f + 1], 0.5).astype(
                 np.float32)
             arrays["node_root_m"] = 0.5 * (clip.root_positions_m[f] + clip.root_positions_m[f + 1])
         slow = parts.add_nodes(**arrays)

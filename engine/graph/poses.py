@@ -20,3 +20,13 @@ def world_joint_positions(graph: MotionGraph, nodes: np.ndarray, ground_m: np.nd
     pts[..., 0] += np.asarray(ground_m)[:, 0][:, None]
     pts[..., 2] += np.asarray(ground_m)[:, 1][:, None]
     return pts
+
+
+def root_local(joints_m: np.ndarray, ground_m: np.ndarray, heading_rad: np.ndarray) -> np.ndarray:
+    """Joints (T, J, 3) expressed in each frame's root frame (ground origin under the root, facing +Z): the
+    frame in which poses are compared for the joint error and averaged for interpolation."""
+    out = np.array(joints_m, float, copy=True)
+    out[..., 0] -= np.asarray(ground_m)[:, 0, None]
+    out[..., 2] -= np.asarray(ground_m)[:, 1, None]
+    out[..., [0, 2]] = rotate_ground(out[..., [0, 2]], -np.asarray(heading_rad)[:, None])
+    return out

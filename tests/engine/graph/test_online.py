@@ -93,7 +93,8 @@ def test_resample_keeps_in_band_signal_and_removes_aliases():
 
 def test_error_on_held_out_real_clips_decreases_with_lag(sample_graph, sample_clipdata, sample_motions):
     """Leave-one-out on the shipped CMU walks: deciding later (more context) gives better poses."""
-    from engine.graph.evaluate import Noise, root_local, simulate_inputs
+    from engine.graph.evaluate import Noise, simulate_inputs
+    from engine.graph.poses import root_local
     from engine.mocap import SensorErrorModel, error_joint_indices
 
     clips, _ = sample_clipdata
