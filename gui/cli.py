@@ -115,7 +115,11 @@ def demo_main(argv: list[str]) -> int:
     from gateway.daemon import Gateway
 
     from gui.app import application
-    from gui.demo import DemoCamera, TruthClock, build_performance, sensor_segments, start_stations, synthesis_sensors
+    from gateway.calibration.service import CalibrationService
+    from gateway.calibration.wizard import segment_specs_from_placements
+
+    from gui.demo import (DemoCamera, TruthClock, build_performance, placements_for_demo, sensor_segments,
+                          start_stations, synthesis_sensors)
     from gui.engine_link import load_or_build_graph, synthesis_setup
     from gui.main_window import ConsoleWindow
 
@@ -125,19 +129,20 @@ def demo_main(argv: list[str]) -> int:
     log.info("motion graph %s: %d nodes from the shipped clips minus held-out %s", cache, graph.n_nodes,
              ", ".join(perf.clip_names))
     stations = start_stations(perf)
-    camera = None if args.no_camera else DemoCamera(perf, stations.t0_monotonic_s, (args.duration or 3600.0) + 5.0)
-    gateway = Gateway([], listen=args.listen, record_dir=args.record_dir, open_link=stations.open_link,
-                      camera=camera, status_interval_s=0.5, lock_after_s=5.0, name="courtside-demo")
+    t0 = stations[0].wall0_s
+    camera = None if args.no_camera else DemoCamera(perf, t0, (args.duration or 3600.0) + 5.0)
+    specs = segment_specs_from_placements(placements_for_demo(perf))
+    gateway = Gateway([st.path for st in stations], listen=args.listen, record_dir=args.record_dir, camera=camera,
+                      calibration=CalibrationService(specs), status_interval_s=0.5, lock_after_s=5.0,
+                      name="courtside-demo")
     gateway.start()
-    for station_id in stations.links:
-        gateway.add_station(f"demo-station-{station_id}")
     client = None
     try:
         client = GatewayClient(*gateway.address).connect()
         log.info("demo gateway on %s:%d (connect more consoles with `courtside console --connect ...`)",
                  *gateway.address)
         window = ConsoleWindow(client, synthesis=synthesis_setup(graph, skeleton, synthesis_sensors(), args.lag),
-                               truth=TruthClock(perf, stations.t0_monotonic_s), sensor_segments=sensor_segments(),
+                               truth=TruthClock(perf, t0), sensor_segments=sensor_segments(),
                                title="Courtside demo — emulated stations replaying held-out CMU mocap")
         window.resize(1500, 950)
         return _run_window(window, args.duration, args.screenshots)
@@ -145,3 +150,5 @@ def demo_main(argv: list[str]) -> int:
         if client is not None:
             client.close()
         gateway.stop()
+        for st in stations:
+            st.stop()

@@ -9,13 +9,13 @@ from __future__ import annotations
 import math
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from engine.mocap import SEED000_SENSORS, forward_kinematics, load_clip, root_heading, sample_clips, standard_placements, virtual_accelerometers
-from firmware_protocol.emulator import BaseStation, StationConfig, TraceSource
-from firmware_protocol.emulator.link import EmulatorLink
+from engine.mocap import SEED000_SENSORS, Skeleton, forward_kinematics, load_clip, root_heading, sample_clips, standard_placements, virtual_accelerometers
+from firmware_protocol.emulator import StationConfig, TraceSource
+from gateway.emulated import EmulatedStation, start_emulated_station
 
 from gui.engine_link import GRAPH_FPS
 
@@ -38,8 +38,12 @@ class Performance:
     positions_m: np.ndarray  # (F, J, 3) pass-0 world positions (X, Y up, Z) with (X, Z) = court (x, y)
     heading_rad: np.ndarray  # (F,) pass-0 root heading
     acc_g: dict[str, np.ndarray]  # sensor name -> (F, 3) virtual accelerometer reading, sensor frame
-    parents: np.ndarray
+    skeleton: Skeleton
     clip_names: tuple[str, ...]
+
+    @property
+    def parents(self) -> np.ndarray:
+        return np.asarray(self.skeleton.parents)
 
     @property
     def n_frames(self) -> int:
@@ -88,11 +92,11 @@ def build_performance(clip_names: tuple[str, ...] = HELD_OUT_CLIPS, fps: float =
         positions.append(pos)
         for k, n in enumerate(names):
             accs[n].append(acc[:, k])
-        parents = np.asarray(motion.skeleton.parents)
+        skeleton = motion.skeleton
     pos = along_baseline(np.concatenate(positions), COURT_START_M)
     heading = np.concatenate([root_heading(load_clip(clips[c], fps=fps), p)
                               for c, p in zip(clip_names, np.split(pos, np.cumsum([len(p) for p in positions])[:-1]))])
-    return Performance(fps, pos, heading, {n: np.concatenate(v) for n, v in accs.items()}, parents,
+    return Performance(fps, pos, heading, {n: np.concatenate(v) for n, v in accs.items()}, skeleton,
                        tuple(clip_names))
 
 
@@ -110,56 +114,30 @@ def along_baseline(positions_m: np.ndarray, start_m: np.ndarray) -> np.ndarray:
     return out
 
 
-class EmulatedStationLink:
-    """`gateway.links.Link` over an in-process emulated station running in real time (no pty, no thread)."""
-
-    transport = "emulated"
-
-    def __init__(self, source: str, link: EmulatorLink) -> None:
-        self.source = source
-        self._link = link
-
-    def read(self, max_bytes: int = 65536) -> bytes:
-        data = self._link.take(max_bytes)
-        if not data:
-            time.sleep(0.005)  # behave like a serial read timeout instead of spinning
-        return data
-
-    def write(self, data: bytes) -> None:
-        self._link.write(data)
-
-    def close(self) -> None:
-        """Nothing to release: the emulated station lives as long as the demo."""
-
-
-@dataclass
-class DemoStations:
-    """The emulated stations, their links, and the wall-clock (monotonic) time their performance started."""
-
-    links: dict[int, EmulatorLink]
-    t0_monotonic_s: float
-
-    def open_link(self, source: str) -> EmulatedStationLink:
-        """Gateway link factory: sources are ``demo-station-<id>``."""
-        return EmulatedStationLink(source, self.links[int(source.rsplit("-", 1)[1])])
-
-
 def start_stations(perf: Performance, rate_hz: int = 100, noise_g: float = 0.02, radio_loss: float = 0.002,
-                   drift_ppm: tuple[float, ...] = (35.0, -20.0)) -> DemoStations:
-    """One emulated station per entry of STATION_SENSORS, replaying the performance's readings in real time.
+                   drift_ppm: tuple[float, ...] = (35.0, -20.0)) -> list[EmulatedStation]:
+    """One real-time emulated station per entry of STATION_SENSORS on its own pty, replaying the performance's
+    readings (looped). Ground truth for gateway time t is ``perf.pose_at(t - stations[0].wall0_s)`` (the
+    stations start within a millisecond of each other)."""
+    stations = []
+    try:
+        for k, (station_id, sensors) in enumerate(STATION_SENSORS.items()):
+            trace = TraceSource(np.stack([perf.acc_g[n] for n in sensors], axis=1), perf.fps)
+            config = StationConfig(station_id=station_id, serial=0xC0DE0000 + station_id, n_sensors=len(sensors),
+                                   rate_hz=rate_hz, noise_g=noise_g, radio_loss=radio_loss,
+                                   drift_ppm=drift_ppm[k % len(drift_ppm)], tick_offset=977_000 * station_id,
+                                   seed=station_id, autostart=True)
+            stations.append(start_emulated_station(config, motion=trace))
+    except Exception:
+        for st in stations:
+            st.stop()
+        raise
+    return stations
 
-    All stations share one start instant, so ground truth for any gateway time is ``perf.frame_at(t - t0)``."""
-    links = {}
-    t0 = time.monotonic()
-    for k, (station_id, sensors) in enumerate(STATION_SENSORS.items()):
-        trace = TraceSource(np.stack([perf.acc_g[n] for n in sensors], axis=1), perf.fps)
-        config = StationConfig(station_id=station_id, serial=0xC0DE0000 + station_id, n_sensors=len(sensors),
-                               rate_hz=rate_hz, noise_g=noise_g, radio_loss=radio_loss,
-                               drift_ppm=drift_ppm[k % len(drift_ppm)], tick_offset=977_000 * station_id,
-                               seed=station_id)
-        link = EmulatorLink(BaseStation(config, trace), realtime=True)
-        links[station_id] = link
-    return DemoStations(links, t0)
+
+def placements_for_demo(perf: Performance) -> list:
+    """Standard placements of every worn demo sensor (the calibration wizard's segments)."""
+    return standard_placements(perf.skeleton, tuple(n for names in STATION_SENSORS.values() for n in names))
 
 
 def sensor_segments() -> dict[tuple[str, int], str]:
@@ -215,6 +193,7 @@ class DemoCamera:
                                            camera_matrix=camera.camera_matrix)
         self.tracker = PlayerTracker(calibration)
         self.court_to_image = camera.ground_homography()
+        self.thumbnail_every = 2
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.frames_published = 0
@@ -231,22 +210,22 @@ class DemoCamera:
     def _run(self, sink) -> None:
         import cv2
 
+        from gateway.camera.service import observation
+
         # path time 0 is the empty-court start; the performance (station time 0) begins empty_s later
         offset = self.t0 - self.empty_s
         while not self._stop.is_set():
             frame = self.source.read()
             if frame is None:
                 return
-            wait = offset + frame.t_host_s - time.monotonic()
-            if wait > 0 and self._stop.wait(wait):
+            frame = replace(frame, t_host_s=offset + frame.t_host_s)
+            if self._stop.wait(max(0.0, frame.t_host_s - time.monotonic())):
                 return
-            record = self.tracker.update(frame)
-            if record is None:
-                continue
-            obs = record.to_dict()
-            obs.update(t_host_s=offset + record.t_host_s, position_m=[record.x_m, record.y_m],
-                       heading_rad=record.heading_rad, frame_index=frame.index,
-                       court_to_image=self.court_to_image.tolist())
-            ok, jpeg = cv2.imencode(".jpg", frame.image, [cv2.IMWRITE_JPEG_QUALITY, 70])
-            sink(obs, jpeg.tobytes() if ok else None)
+            obs = observation(frame, self.tracker.update(frame))
+            obs["court_to_image"] = self.court_to_image.tolist()
+            jpeg = None
+            if frame.index % self.thumbnail_every == 0:
+                ok, data = cv2.imencode(".jpg", frame.image, [cv2.IMWRITE_JPEG_QUALITY, 70])
+                jpeg = data.tobytes() if ok else None
+            sink(obs, jpeg)
             self.frames_published += 1
