@@ -32,7 +32,9 @@ class LabelingConfig:
         with P lets the body search pick it up again.
     max_combinations: cap on one body's exhaustive search; beyond it the farthest candidates are dropped.
     reacquire_gate_scale: γ multiplier for the second-chance pass that offers missing labels the points no
-        body took (see OnlineLabeler._second_chance; 4 = twice the gate radius).
+        body took (see OnlineLabeler._second_chance; 25 = five times the gate radius).
+    reacquire_min_support: a point re-acquired that way must have a mean Eq. 5 link term of at least this with
+        its body's other assigned markers (guards the wide gate against ghosts and the other subject's points).
     """
 
     train_frames: int = 50
@@ -51,7 +53,8 @@ class LabelingConfig:
     min_observed_for_recovery: int = 1
     recovered_noise_scale: float = 25.0
     max_combinations: int = 20000
-    reacquire_gate_scale: float = 4.0
+    reacquire_gate_scale: float = 25.0
+    reacquire_min_support: float = 0.1
 
     def __post_init__(self) -> None:
         if self.recovery not in ("offsets", "kabsch"):

@@ -200,9 +200,11 @@ class OnlineLabeler:
             hit_label = hit.any(axis=1) & open_[self._body_of]
             if hit_label.any():
                 rows = np.flatnonzero(hit_label)
-                cleaned = np.where(hit[rows], -1, cand[rows])
-                cand[rows] = _valid_first(cleaned)
-                need[np.unique(self._body_of[rows])] = True
+                cand[rows] = _valid_first(np.where(hit[rows], -1, cand[rows]))
+                # Exact shortcut: removing candidates a body's best assignment does not use leaves that
+                # assignment optimal, so only bodies whose best used a taken point are searched again.
+                for r in np.unique(self._body_of[rows]):
+                    need[r] = bool(used[best_pid[r]].any())
 
         self._second_chance(points, finite, assigned, used, best_score, mean, std)
         return self._finish(points, assigned, mean_candidates)
@@ -244,9 +246,13 @@ class OnlineLabeler:
             pid, score, _ = search_body(
                 body_cand, ext_points[body_cand], mean[b, :n, :n], std[b, :n, :n], cfg.max_combinations
             )
-            if score > best_score[b]:
-                assigned[sl] = pid
-                taken[pid[pid >= 0]] = True
+            if score <= best_score[b]:
+                continue
+            new = np.flatnonzero((pid >= 0) & (assigned[sl] < 0))
+            support = _link_support(points, pid, new, mean[b, :n, :n], std[b, :n, :n])
+            pid[new[support < cfg.reacquire_min_support]] = -1  # a re-acquired point must fit its body
+            assigned[sl] = pid
+            taken[pid[pid >= 0]] = True
 
     def _finish(self, points: np.ndarray, assigned: np.ndarray, mean_candidates: float) -> FrameLabels:
         """Recovery of missing markers, model updates, and the result in caller order."""
@@ -307,6 +313,18 @@ class OnlineLabeler:
         valid = self._pad >= 0
         out[self._pad[valid]] = result[valid]
         return out
+
+
+def _link_support(points: np.ndarray, pid: np.ndarray, which: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """Mean Eq. 5 link term of each marker in ``which`` with the body's other assigned markers (0 if none)."""
+    others = np.flatnonzero(pid >= 0)
+    if len(which) == 0 or len(others) < 2:
+        return np.zeros(len(which))
+    d = np.linalg.norm(points[pid[which]][:, None] - points[pid[others]][None], axis=2)
+    z = (d - mean[np.ix_(which, others)]) / std[np.ix_(which, others)]
+    is_other = others[None] != which[:, None]
+    terms = np.where(is_other, np.nan_to_num(np.exp(-0.5 * z * z), nan=0.0), 0.0)
+    return terms.sum(axis=1) / np.maximum(is_other.sum(axis=1), 1)
 
 
 def _valid_first(rows: np.ndarray) -> np.ndarray:

@@ -16,19 +16,20 @@ _FORBIDDEN = -1e9  # score of a link that uses one observed point for two labels
 
 
 @lru_cache(maxsize=4096)
-def _combinations(counts: tuple[int, ...], missing_slot: int) -> np.ndarray:
-    """(C, n) option slots of every assignment; the last option of each marker maps to ``missing_slot``."""
-    idx = np.indices(counts).reshape(len(counts), -1).T
-    last = np.asarray(counts) - 1
-    out = np.where(idx == last, missing_slot, idx)
-    out.setflags(write=False)
-    return out
+def _enumeration(counts: tuple[int, ...], k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every assignment for these option counts, and where its link terms sit in the flattened link table.
 
-
-@lru_cache(maxsize=64)
-def _links(n: int) -> tuple[np.ndarray, np.ndarray]:
-    i, j = np.triu_indices(n, 1)
-    return i, j
+    Returns combos (C, n) option slots — the last option of each marker maps to the missing slot ``k`` — and
+    flat (C, n_links) indices into table.reshape(−1) for the unordered links i < j."""
+    n = len(counts)
+    idx = np.indices(counts).reshape(n, -1).T
+    combos = np.where(idx == np.asarray(counts) - 1, k, idx)
+    li, lj = np.triu_indices(n, 1)
+    width = k + 1
+    flat = ((li * width + combos[:, li]) * n + lj) * width + combos[:, lj]
+    combos.setflags(write=False)
+    flat.setflags(write=False)
+    return combos, flat
 
 
 def link_table(option_pos: np.ndarray, option_pid: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
@@ -36,15 +37,17 @@ def link_table(option_pos: np.ndarray, option_pid: np.ndarray, mean: np.ndarray,
 
     option_pos (n, K+1, 3) metres, NaN for absent options (incl. the missing slot); option_pid (n, K+1), −1 absent.
     A missing option contributes 0 (the paper's BIG constant taken to its limit). NaN model entries contribute 0."""
-    diff = option_pos[:, :, None, None, :] - option_pos[None, None, :, :, :]
-    dist = np.sqrt(np.einsum("abcdk,abcdk->abcd", diff, diff))
+    n, width = option_pid.shape
+    flat_pos = option_pos.reshape(-1, 3)
+    diff = flat_pos[:, None, :] - flat_pos[None, :, :]
+    dist = np.sqrt(np.einsum("abk,abk->ab", diff, diff)).reshape(n, width, n, width)
     z = (dist - mean[:, None, :, None]) / std[:, None, :, None]
-    with np.errstate(invalid="ignore"):
-        table = np.exp(-0.5 * z * z)
-    table = np.nan_to_num(table, nan=0.0)
-    pid = option_pid
-    clash = (pid[:, :, None, None] == pid[None, None, :, :]) & (pid[:, :, None, None] >= 0)
-    return np.where(clash, _FORBIDDEN, table)
+    table = np.exp(-0.5 * z * z)
+    table[np.isnan(table)] = 0.0
+    pid = option_pid.reshape(-1)
+    clash = (pid[:, None] == pid[None, :]) & (pid[:, None] >= 0)
+    table.reshape(n * width, n * width)[clash] = _FORBIDDEN
+    return table
 
 
 def search_body(
@@ -63,17 +66,16 @@ def search_body(
     valid = (cand_pid >= 0).sum(axis=1)
     while np.prod(valid + 1) > max_combinations:  # drop the farthest candidate of the busiest marker
         valid[np.argmax(valid)] -= 1
-    option_pid = np.full((n, k + 1), -1)
-    option_pos = np.full((n, k + 1, 3), np.nan)
     keep = np.arange(k)[None, :] < valid[:, None]
+    option_pid = np.full((n, k + 1), -1)
     option_pid[:, :k] = np.where(keep, cand_pid, -1)
+    combos, flat = _enumeration(tuple((valid + 1).tolist()), k)
+    if n < 2:
+        return option_pid[np.arange(n), combos[0]], 0.0, len(combos)
+    option_pos = np.full((n, k + 1, 3), np.nan)
     option_pos[:, :k] = np.where(keep[..., None], cand_pos, np.nan)
-    n_links = n * (n - 1) // 2
-    combos = _combinations(tuple(int(v) + 1 for v in valid), k)
-    if n_links == 0:
-        return np.where(combos[0] < k, option_pid[np.arange(n), combos[0]], -1), 0.0, len(combos)
-    table = link_table(option_pos, option_pid, mean, std)
-    li, lj = _links(n)
-    scores = table[li, combos[:, li], lj, combos[:, lj]].sum(axis=1) / n_links
+    with np.errstate(invalid="ignore"):
+        table = link_table(option_pos, option_pid, mean, std)
+    scores = table.reshape(-1)[flat].sum(axis=1) / flat.shape[1]
     best = int(np.argmax(scores))
     return option_pid[np.arange(n), combos[best]], float(scores[best]), len(combos)

@@ -102,14 +102,17 @@ def valid_points(points: np.ndarray) -> np.ndarray:
 
 def moments(points: np.ndarray, min_points: int = 4) -> Moments:
     """Centred moments of the valid points. O(N), vectorised."""
-    pts = valid_points(points)
+    return _moments_of_valid(valid_points(points), min_points)
+
+
+def _moments_of_valid(pts: np.ndarray, min_points: int) -> Moments:
     n = len(pts)
     if n < min_points:
         raise DegenerateFitError(f"need at least {min_points} valid points, got {n}")
     mean = pts.mean(axis=0)
     y = pts - mean
     cov = y.T @ y / (n - 1)
-    third = (y * np.einsum("ij,ij->i", y, y)[:, None]).sum(axis=0) / (n - 1)
+    third = y.T @ np.einsum("ij,ij->i", y, y) / (n - 1)
     return Moments(mean, cov, third, n)
 
 
@@ -117,14 +120,17 @@ def sphere_fit(points: np.ndarray) -> SphereFit:
     """GDKE sphere centre c = x̄ + ½ C⁻¹ S (Eq. 5) and RMS radius.
 
     Raises DegenerateFitError when fewer than 4 points or the points are coplanar (C singular)."""
-    m = moments(points, 4)
-    evals = np.linalg.eigvalsh(m.cov)
-    if evals[-1] <= 0 or evals[0] <= evals[-1] * 1e-12:
+    pts = valid_points(points)
+    m = _moments_of_valid(pts, 4)
+    # Coplanar data make C singular; the determinant test relative to the scale of C is a cheap 3x3 check.
+    scale = np.trace(m.cov) / 3.0
+    if scale <= 0 or np.linalg.det(m.cov) <= (scale**3) * 1e-12:
         raise DegenerateFitError(
-            f"points are coplanar or collinear (eigenvalues of C {evals}); a sphere is undetermined — use circle_fit"
+            f"points are coplanar or collinear (eigenvalues of C {np.linalg.eigvalsh(m.cov)}); "
+            "a sphere is undetermined — use circle_fit"
         )
     centre = m.mean + 0.5 * np.linalg.solve(m.cov, m.third)
-    return SphereFit(centre, _rms_radius(valid_points(points), centre))
+    return SphereFit(centre, _rms_radius(pts, centre))
 
 
 def plane_fit(points: np.ndarray) -> PlaneFit:

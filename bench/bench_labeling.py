@@ -1,0 +1,116 @@
+"""Seed 001 benchmark: online labeling accuracy and speed vs closest-point tracking, on real marker data.
+
+Tables (each baseline measured in the same run on the same degraded stream; frames/s from CPU time,
+so other processes on a shared machine distort them less):
+  1. two-player tennis serve (real, 2 x 39 markers, 50 Hz), players slid to 0.6 m after training;
+  2. two CMU subjects (real 41-marker trials, 120 Hz) brought together, at 120 / 60 / 30 fps (paper Exp. 1);
+  3. scaling: the tennis players replicated to 2..10 subjects on a 1.2 m grid, frames/s per subject count.
+
+    .venv/bin/python bench/bench_labeling.py [--mocap /work/shared/mocap] [--quick]
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from engine.labeling.baseline import ClosestPointTracker
+from engine.labeling.cli import subjects_of
+from engine.labeling.config import LabelingConfig
+from engine.labeling.labeler import RECOVERED, OnlineLabeler
+from engine.labeling.scenario import DegradeConfig, Score, bring_together, degrade, score_frame
+from engine.mocap import read_c3d
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from conftest import find_shared_mocap  # noqa: E402  (one place that knows where the shared data lives)
+
+
+def run_case(positions, subjects, fps, train, config, seed=0, baselines=True):
+    """Label one degraded stream; returns a dict of scores and frames/s for ours and both baselines."""
+    stream = degrade(positions, subjects, DegradeConfig(protect_frames=train), np.random.default_rng(seed))
+    labeler = OnlineLabeler(config)
+    labeler.train(positions[:train], subjects, fps)
+    ours, cands = Score(), []
+    start = time.process_time()
+    results = [labeler.step(cloud) for cloud in stream.clouds[train:]]
+    ours_fps = len(results) / (time.process_time() - start)
+    for t, r in enumerate(results, start=train):
+        cands.append(r.mean_candidates)
+        score_frame(ours, stream, t, r.label_point, np.where((r.status == RECOVERED)[:, None], r.positions_m, np.nan))
+    row = {"acc": ours.accuracy, "false": ours.false / max(ours.total, 1), "missed": ours.missed / max(ours.total, 1),
+           "swaps": ours.swaps, "fps": ours_fps, "cands": float(np.mean(cands)),
+           "rec_mm": 1000 * float(np.median(ours.recovery_err_m)) if ours.recovery_err_m else float("nan"),
+           "bodies": sorted(len(b) for b in labeler.bodies)}
+    if baselines:
+        for name, one_to_one in (("hung", True), ("naive", False)):
+            tracker, score = ClosestPointTracker(positions[train - 1], one_to_one), Score()
+            start = time.process_time()
+            picks = [tracker.step(cloud) for cloud in stream.clouds[train:]]
+            row[f"{name}_fps"] = len(picks) / (time.process_time() - start)
+            for t, lp in enumerate(picks, start=train):
+                score_frame(score, stream, t, lp)
+            row[f"{name}_acc"], row[f"{name}_swaps"] = score.accuracy, score.swaps
+    return row
+
+
+def _print(title, rows):
+    print(f"\n{title}")
+    print(f"{'case':<22}{'acc':>7}{'false':>7}{'miss':>7}{'swaps':>7}{'cand':>6}{'rec_mm':>8}{'fps':>8}"
+          f"{'hung_acc':>9}{'hung_sw':>8}{'hung_fps':>9}{'naive_acc':>10}")
+    for name, r in rows:
+        print(f"{name:<22}{r['acc']:>7.3f}{r['false']:>7.3f}{r['missed']:>7.3f}{r['swaps']:>7d}{r['cands']:>6.2f}"
+              f"{r['rec_mm']:>8.1f}{r['fps']:>8.0f}{r.get('hung_acc', np.nan):>9.3f}{r.get('hung_swaps', 0):>8d}"
+              f"{r.get('hung_fps', np.nan):>9.0f}{r.get('naive_acc', np.nan):>10.3f}")
+
+
+def tennis(mocap: Path):
+    data = read_c3d(mocap / "markers" / "ktk_kinematics_tennis_serve_2players.c3d")
+    subjects = subjects_of(data.labels)
+    return data, subjects, bring_together(data.positions_m, subjects, 1, 0.6, 150, 50)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--mocap", type=Path, default=find_shared_mocap())
+    parser.add_argument("--quick", action="store_true", help="fewer frames and subject counts")
+    args = parser.parse_args()
+    if args.mocap is None:
+        sys.exit("the shared mocap set is needed (--mocap)")
+
+    data, subjects, together = tennis(args.mocap)
+    rows = [(f"tennis 2x39 {rec}", run_case(together, subjects, data.fps, 150,
+                                           LabelingConfig(train_frames=150, recovery=rec))) for rec in ("offsets", "kabsch")]
+    _print("1. two-player tennis serve, 50 Hz, train 150 frames, players 0.6 m apart after training", rows)
+
+    a = read_c3d(args.mocap / "markers" / "cmu_135_02.c3d")
+    b = read_c3d(args.mocap / "markers" / "cmu_85_12.c3d")
+    frames = min(a.n_frames, b.n_frames, 1200 if args.quick else 2400)
+    pos = np.concatenate([a.positions_m[:frames], b.positions_m[:frames]], axis=1)
+    subj = np.repeat([0, 1], [a.positions_m.shape[1], b.positions_m.shape[1]])
+    rows = []
+    for step, fps in ((1, 120), (2, 60), (4, 30)):
+        sub = pos[::step]
+        train = max(150 // step, 40)
+        sub = bring_together(sub, subj, 1, 0.6, train, 50 // step)
+        rows.append((f"cmu 2x41 @{fps} fps", run_case(sub, subj, a.fps / step, train,
+                                                      LabelingConfig(train_frames=train, recovery="kabsch"))))
+    _print("2. two CMU subjects brought to 0.6 m, downsampled (paper Exp. 1; kabsch recovery)", rows)
+
+    rows = []
+    counts = (2, 4) if args.quick else (2, 4, 6, 10)
+    for n in counts:
+        copies = n // 2
+        grid = np.concatenate([together + np.array([1.2 * k, 2.5 * (k % 2), 0.0]) for k in range(copies)], axis=1)
+        subj = np.concatenate([subjects + 2 * k for k in range(copies)])
+        frames = 300 if args.quick else len(grid)
+        row = run_case(grid[:frames], subj, data.fps, 150, LabelingConfig(train_frames=150, recovery="kabsch"),
+                       baselines=(n == 2))
+        rows.append((f"{n} subjects ({len(subj)} mk)", row))
+    _print("3. scaling: tennis players replicated (frames/s per subject count; target >= 120 fps at 2 subjects)", rows)
+
+
+if __name__ == "__main__":
+    main()
