@@ -14,6 +14,7 @@ import pty
 import select
 import termios
 import threading
+import time
 import tty
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from .link import EmulatorLink
 
 _CHUNK = 4096
 _IDLE_POLL_MS = 2
+UNPLUG_DRAIN_S = 0.1
 
 
 class PtyTransport:
@@ -72,11 +74,18 @@ class PtyTransport:
             os.close(fd)
 
     def unplug(self) -> None:
-        """Pull the cable: the host's port dies; frames not yet read by the host are lost."""
+        """Pull the cable: the host's port dies. Frames still queued in the emulator are lost; bytes already in
+        the host's tty buffer get up to `UNPLUG_DRAIN_S` to be read first, so that the ground truth is exact for
+        a host that reads promptly (the kernel moves pty bytes through a flip buffer that FIONREAD cannot see,
+        so counting "unread" bytes at an arbitrary instant would be racy)."""
         if self._master < 0:
             return
         self._stop_thread()
-        delivered = self.link.bytes_taken - len(self._unsent) - self._unread_by_host()
+        deadline = time.monotonic() + UNPLUG_DRAIN_S
+        time.sleep(0.005)                     # let the flip buffer reach the line discipline
+        while (unread := self._unread_by_host()) and time.monotonic() < deadline:
+            time.sleep(0.002)
+        delivered = self.link.bytes_taken - len(self._unsent) - unread
         os.close(self._master)
         self._master = -1
         self.link.unplug(bytes_delivered=delivered)

@@ -5,6 +5,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import serial
@@ -38,7 +39,7 @@ def test_emulate_two_stations_on_ptys_and_stop_with_ctrl_c(tmp_path):
     try:
         assert [line[:2] for line in lines] == [["station", "1"], ["station", "2"]]
         for sid, path, symlink in ((int(a[1]), a[2], a[3]) for a in lines):
-            assert (tmp_path / "dev" / f"station-{sid}").resolve() == __import__("pathlib").Path(path).resolve()
+            assert (tmp_path / "dev" / f"station-{sid}").resolve() == Path(path).resolve()
             with serial.Serial(symlink, timeout=0.02) as port:
                 decoder = StreamDecoder()
                 frames = _read(port, decoder, 0.4)

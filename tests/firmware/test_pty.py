@@ -1,11 +1,15 @@
 """The emulated station over a real pseudo-terminal, opened with pyserial like /dev/ttyACM0."""
 from __future__ import annotations
 
+import threading
+import time
+from pathlib import Path
+
 import numpy as np
 import pytest
 import serial
 
-from firmware_protocol import Ack, ClockSync, Hello, Nack, NackReason, Opcode, SampleBatch, Status
+from firmware_protocol import Ack, ClockSync, Hello, Nack, NackReason, Opcode, SampleBatch, Status, StreamDecoder
 from firmware_protocol.emulator import BaseStation, Fate, StationConfig, TraceSource
 from firmware_protocol.emulator.link import EmulatorLink
 from firmware_protocol.emulator.pty_transport import PtyTransport
@@ -132,7 +136,7 @@ def test_unplug_replug_over_pty(pty_host, tmp_path):
         port.close()
         link.advance(2.0)                                                # unplugged: time passes, nothing sent
         transport.replug()
-        assert (tmp_path / "station0").resolve() == __import__("pathlib").Path(transport.slave_path).resolve()
+        assert (tmp_path / "station0").resolve() == Path(transport.slave_path).resolve()
         port = serial.Serial(str(tmp_path / "station0"), timeout=0.02)
         host2 = Host(link, read=lambda: port.read(port.in_waiting or 1), write=port.write,
                      delivered=lambda: link.station.bytes_out - transport.bytes_dropped_no_host - host.bytes_read)
@@ -145,3 +149,31 @@ def test_unplug_replug_over_pty(pty_host, tmp_path):
         assert_matches_ground_truth(host.frames, link.station, boot=0)
         assert_matches_ground_truth(host2.frames, link.station, boot=1)
         port.close()
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_unplug_mid_stream_keeps_ground_truth_exact_for_a_live_reader(seed):
+    """Real-time station, host reading in its own thread as a gateway does, cable pulled at an arbitrary moment:
+    the host decodes exactly the samples the ground truth calls delivered (the rest are LOST_UNPLUGGED)."""
+    link = EmulatorLink(BaseStation(StationConfig(n_sensors=6, autostart=True, burst_probability=0.02, seed=seed)),
+                        realtime=True, speed=2.0)
+    transport = PtyTransport(link)
+    port = serial.Serial(transport.slave_path, timeout=0.05)
+    decoder, frames = StreamDecoder(), []
+
+    def read_until_unplugged():
+        while True:
+            try:
+                frames.extend(decoder.feed(port.read(port.in_waiting or 1)))
+            except serial.SerialException:
+                return
+
+    reader = threading.Thread(target=read_until_unplugged)
+    reader.start()
+    time.sleep(0.25 + 0.05 * seed)
+    transport.unplug()
+    reader.join(timeout=5)
+    transport.close()
+    port.close()
+    fates = assert_matches_ground_truth(frames, link.station)
+    assert fates[Fate.DELIVERED] > 0 and fates[Fate.LOST_UNPLUGGED] > 0
