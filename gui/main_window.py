@@ -288,7 +288,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         from gui.widgets.calibration_wizard import CalibrationWizard
 
         if self.wizard is None:
-            self.wizard = CalibrationWizard(self._calibration_request, parent=self)
+            self.wizard = CalibrationWizard(self._calibration_request, self.devices.mapping_names, parent=self)
         self.wizard.show()
         self.wizard.raise_()
 

@@ -99,7 +99,8 @@ class DevicePanel(QtWidgets.QWidget):
         self.tree.setRootIsDecorated(True)
         self.tree.setUniformRowHeights(True)
         self.body = BodyDiagram()
-        self.mapping: dict[tuple[str, int], str] = {}  # (station, sensor) -> segment
+        self.mapping: dict[tuple[str, int], str] = {}  # (station, sensor) -> diagram segment
+        self.mapping_names: dict[tuple[str, int], str] = {}  # (station, sensor) -> placement name
         self._items: dict[Any, QtWidgets.QTreeWidgetItem] = {}
         self._new_rows = False
         layout = QtWidgets.QHBoxLayout(self)
@@ -108,7 +109,8 @@ class DevicePanel(QtWidgets.QWidget):
         layout.addWidget(self.body)
 
     def set_mapping(self, mapping: dict[tuple[str, int], str]) -> None:
-        """Sensor -> segment names (placement names are normalised with `segment_for`)."""
+        """Sensor -> placement names (e.g. "left_forearm"); drawn on the diagram segment `segment_for` finds."""
+        self.mapping_names = dict(mapping)
         self.mapping = {k: (segment_for(v) or v) for k, v in mapping.items()}
 
     def _item(self, key: Any, parent: QtWidgets.QTreeWidgetItem | None, label: str,
@@ -145,12 +147,13 @@ class DevicePanel(QtWidgets.QWidget):
                 idx = int(sensor.get("sensor", 0))
                 item = self._item(("sensor", sid, idx), row, f"sensor {idx}", (sid, idx))
                 seg = self.mapping.get((sid, idx), "")
+                placement = self.mapping_names.get((sid, idx), "")
                 healthy = sync if float(sensor.get("loss_pct") or 0) < 5 else Sync.RED
                 cols = {1: str(st.get("link", "?")), 2: _fmt(sensor.get("battery_v"), ".2f"),
                         3: _fmt(sensor.get("rssi_dbm"), ".0f"),
                         4: f"{_fmt(sensor.get('rate_hz'), '.1f')} / {_fmt(sensor.get('nominal_hz'), '.0f')}",
                         5: _fmt(sensor.get("loss_pct"), ".2f"), 6: str(sensor.get("lost", 0)), 11: healthy.value,
-                        12: seg}
+                        12: placement}
                 for col, text in cols.items():
                     item.setText(col, text)
                 item.setBackground(11, SYNC_QCOLOR[healthy])

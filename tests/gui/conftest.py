@@ -1,5 +1,7 @@
-"""GUI test fixtures: a shared EGL renderer (context creation is the slow part)."""
+"""GUI test fixtures: a shared EGL renderer, and a real in-process gateway fed by emulated stations on ptys."""
 from __future__ import annotations
+
+import contextlib
 
 import pytest
 
@@ -11,3 +13,24 @@ def renderer():
     r = SkeletonRenderer(480, 320)
     yield r
     r.release()
+
+
+@pytest.fixture()
+def live_gateway(tmp_path):
+    """Factory: ``live_gateway(motion, n_sensors, calibration=None)`` -> (gateway, station) running until the
+    test ends. Real parts only: BaseStation in real time behind a pty, the gateway's serial reader, TCP server."""
+    from firmware_protocol.emulator import StationConfig
+    from gateway.daemon import Gateway
+    from gateway.emulated import start_emulated_station
+
+    with contextlib.ExitStack() as stack:
+        def start(motion, n_sensors: int, calibration=None, station_id: int = 1):
+            station = start_emulated_station(StationConfig(station_id=station_id, n_sensors=n_sensors,
+                                                           autostart=True, noise_g=0.003), motion=motion)
+            stack.callback(station.stop)
+            gateway = Gateway([station.path], listen=("127.0.0.1", 0), record_dir=tmp_path / "rec",
+                              status_interval_s=0.2, lock_after_s=2.0, calibration=calibration)
+            gateway.start()
+            stack.callback(gateway.stop)
+            return gateway, station
+        yield start
