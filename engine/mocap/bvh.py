@@ -40,7 +40,8 @@ class _Joint:
         self.end_site = False
 
 
-def _tokens(path: Path, lines: list[str]) -> list[tuple[str, int]]:
+def _tokens(lines: list[str]) -> list[tuple[str, int]]:
+    """(token, 1-based line) pairs; braces are split off even when glued to a word."""
     out = []
     for number, text in enumerate(lines, start=1):
         out.extend((tok, number) for tok in text.replace("{", " { ").replace("}", " } ").split())
@@ -53,7 +54,7 @@ def _parse_hierarchy(path: Path, lines: list[str]) -> tuple[list[_Joint], int]:
         motion_line = next(i for i, l in enumerate(lines) if l.strip().upper() == "MOTION")
     except StopIteration:
         raise MalformedFileError(path, None, "no MOTION section") from None
-    toks = _tokens(path, lines[:motion_line])
+    toks = _tokens(lines[:motion_line])
     if not toks or toks[0][0].upper() != "HIERARCHY":
         raise MalformedFileError(path, toks[0][1] if toks else 1, "file does not start with HIERARCHY")
     joints: list[_Joint] = []
@@ -72,7 +73,7 @@ def _parse_hierarchy(path: Path, lines: list[str]) -> tuple[list[_Joint], int]:
         if key in ("ROOT", "JOINT"):
             if (key == "ROOT") != (not stack) or (key == "ROOT" and joints):
                 raise MalformedFileError(path, line, f"{tok} in the wrong place (one ROOT, then JOINTs inside it)")
-            (name, _), = need(2, "a joint name")[1:]
+            name = need(2, "a joint name")[1][0]
             pending = _Joint(name, stack[-1] if stack else -1, line)
             i += 2
         elif key == "END":

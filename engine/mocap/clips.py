@@ -34,7 +34,7 @@ def _sibling_asf(amc: Path) -> Path:
     raise MalformedFileError(amc, None, f"cannot tell which ASF skeleton goes with it ({len(found)} .asf files beside it)")
 
 
-_asf_cache: dict[Path, AsfSkeleton] = {}
+_asf_cache: dict[tuple[Path, int, int], AsfSkeleton] = {}  # (path, size, mtime): clips of a subject share one ASF
 
 
 def load_clip(path: str | Path, fps: float | None = None) -> Motion:
@@ -47,9 +47,11 @@ def load_clip(path: str | Path, fps: float | None = None) -> Motion:
         motion = read_bvh(path)
     elif suffix == ".amc":
         asf_path = _sibling_asf(path).resolve()
-        if asf_path not in _asf_cache:
-            _asf_cache[asf_path] = read_asf(asf_path)
-        motion = read_amc(path, _asf_cache[asf_path])
+        stat = asf_path.stat()
+        key = (asf_path, stat.st_size, stat.st_mtime_ns)
+        if key not in _asf_cache:
+            _asf_cache[key] = read_asf(asf_path)
+        motion = read_amc(path, _asf_cache[key])
     else:
         raise MalformedFileError(path, None, f"unsupported clip type {suffix!r} (expected .bvh or .amc)")
     return resample(motion, fps) if fps is not None else motion

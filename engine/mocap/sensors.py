@@ -30,6 +30,7 @@ from engine.mocap.skeleton import Motion, Skeleton, forward_kinematics
 GRAVITY_MPS2 = 9.80665
 G_WORLD = np.array([0.0, -GRAVITY_MPS2, 0.0])
 UP = np.array([0.0, 1.0, 0.0])
+SEED000_NOISE_G = 0.709  # solved by engine.mocap.bench.calibrate_seed000_noise; see SensorErrorModel.seed000
 
 
 @dataclass(frozen=True, eq=False)
@@ -209,5 +210,3 @@ def mean_squared_error_g2(a_g: np.ndarray, b_g: np.ndarray) -> float:
     """Seed-000 accelerometer error: mean over frames and sensors of the squared vector difference (g²)."""
     return float(np.mean(np.sum((np.asarray(a_g) - np.asarray(b_g)) ** 2, axis=-1)))
 
-
-SEED000_NOISE_G = 0.709  # solved by engine.mocap.bench.calibrate_seed000_noise; see SensorErrorModel.seed000
