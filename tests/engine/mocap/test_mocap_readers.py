@@ -4,6 +4,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import engine.mocap as M
 from engine.errors import MalformedFileError
@@ -280,3 +282,25 @@ def test_asf_amc_units_and_root_order_are_honoured(tmp_path):
     asf = M.read_asf(tmp_path / "16.asf")
     assert not asf.angle_in_degrees and asf.root_order == ("rx", "ry", "rz", "tx", "ty", "tz")
     np.testing.assert_allclose(M.forward_kinematics(M.load_clip(tmp_path / "16_45.amc"))[0], reference, atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), order=st.sampled_from(["ZYX", "ZXY", "XYZ", "YZX"]),
+       gimbal=st.booleans())
+def test_bvh_round_trip_holds_for_random_rotations_including_gimbal_lock(tmp_path_factory, seed, order, gimbal):
+    rng = np.random.default_rng(seed)
+    skel = M.Skeleton(("root", "a", "b", "b_end"), np.array([-1, 0, 1, 2]),
+                      rng.normal(scale=0.3, size=(4, 3)), np.array([False, False, False, True]))
+    n = 6
+    rotations = quat.normalize(rng.normal(size=(n, 4, 4)))
+    if gimbal:  # middle Euler angle at +-90 deg: the decomposition is not unique, the rotation must still be
+        angles = rng.uniform(-np.pi, np.pi, size=(n, 4, 3))
+        angles[..., 1] = np.pi / 2 * rng.choice([-1.0, 1.0], size=(n, 4))
+        rotations = quat.from_euler(angles, order)
+    rotations[:, 3] = quat.identity((n,))
+    motion = M.Motion(skel, 60.0, rng.normal(size=(n, 3)), rotations)
+    path = tmp_path_factory.mktemp("rt") / "random.bvh"
+    M.write_bvh(path, motion, order=order)
+    back = M.read_bvh(path, scale="cm")
+    np.testing.assert_allclose(M.forward_kinematics(back)[0], M.forward_kinematics(motion)[0], atol=1e-8)
+    np.testing.assert_allclose(np.abs(np.sum(back.rotations * motion.rotations, axis=-1)), 1.0, atol=1e-8)
