@@ -7,7 +7,7 @@ Joint names follow the BVH naming the rest of Courtside uses (Hips, LeftUpLeg, .
 
 Segment frames need, in order of preference: three markers (case 3); two markers plus the joint centre (case 2);
 one marker plus the joint centre and a hinge axis (case 1). A hand with only a finger marker cannot be oriented,
-so such markers are ``end`` sites of their parent (a bone tip for drawing), not segments.
+so such markers are landmarks of their parent segment (points fixed in its frame), not segments.
 """
 from __future__ import annotations
 
@@ -15,14 +15,31 @@ from dataclasses import dataclass
 
 
 @dataclass(frozen=True)
+class Landmark:
+    """A point fixed in a segment's frame at the mean of ``markers`` (e.g. the wrist between WRA and WRB).
+
+    It becomes a BVH joint that turns with its segment (identity local rotation) so the skeleton carries the
+    joints other parts expect (Chest, clavicle, wrist, toes), or an End Site when ``end`` is set. ``parent`` is
+    another landmark of the same segment, or None for the segment's own joint."""
+
+    name: str
+    markers: tuple[str, ...]
+    parent: str | None = None
+    end: bool = False
+
+
+@dataclass(frozen=True)
 class SegmentSpec:
-    """One body segment. ``markers`` define its frame (the first three are used); ``end`` is an optional marker
-    whose mean position in this segment's frame becomes a BVH End Site (e.g. the toe, the head top)."""
+    """One body segment; ``name`` is its joint's name (the joint at its rotation centre with the parent).
+
+    ``markers`` define its frame (the first three are used). ``attach`` is the BVH parent when it is a landmark
+    of the parent segment rather than the parent's own joint (the arm hangs from the clavicle landmark)."""
 
     name: str
     parent: str | None
     markers: tuple[str, ...]
-    end: str | None = None
+    attach: str | None = None
+    landmarks: tuple[Landmark, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -48,30 +65,41 @@ class MarkerSet:
     def marker_names(self) -> list[str]:
         """Every marker the set uses (frame markers and end sites)."""
         names = [m for seg in self.segments for m in seg.markers]
-        return names + [seg.end for seg in self.segments if seg.end]
+        names += [m for seg in self.segments for lm in seg.landmarks for m in lm.markers]
+        return list(dict.fromkeys(names))
 
 
 def _plug_in_gait(name: str, pelvis: tuple[str, ...], shank: str, foot: tuple[str, ...]) -> MarkerSet:
-    """Shared Plug-in-Gait layout; the variants differ only in pelvis, shank and foot marker names."""
+    """Shared Plug-in-Gait layout; the variants differ only in pelvis, shank and foot marker names.
 
-    def side(s: str, segs: list[SegmentSpec]) -> None:
-        side_name = "Left" if s == "L" else "Right"
-        segs += [
-            SegmentSpec(f"{side_name}UpLeg", "Hips", (f"{s}THI", f"{s}KNE")),
-            SegmentSpec(f"{side_name}Leg", f"{side_name}UpLeg", (f"{s}{shank}", f"{s}ANK")),
-            SegmentSpec(f"{side_name}Foot", f"{side_name}Leg", tuple(f"{s}{m}" for m in foot), end=f"{s}TOE"),
-            SegmentSpec(f"{side_name}Arm", "Spine", (f"{s}UPA", f"{s}ELB")),
-            SegmentSpec(f"{side_name}ForeArm", f"{side_name}Arm", (f"{s}WRA", f"{s}WRB", f"{s}FRM"), end=f"{s}FIN"),
+    Joint names follow the Bandai-Namco BVH convention known to engine.mocap.joint_roles, so the fitted motion
+    works with virtual sensors and the motion graph: Hips, Spine (lumbar joint, thorax segment), Chest, Neck
+    (head segment), Head, Shoulder_L (clavicle landmark at the acromion marker), UpperArm_L, LowerArm_L,
+    Hand_L (wrist landmark), Hand_L_end (finger), UpperLeg_L, LowerLeg_L, Foot_L, Toes_L."""
+
+    def side(s: str) -> list[SegmentSpec]:
+        return [
+            SegmentSpec(f"UpperLeg_{s}", "Hips", (f"{s}THI", f"{s}KNE")),
+            SegmentSpec(f"LowerLeg_{s}", f"UpperLeg_{s}", (f"{s}{shank}", f"{s}ANK")),
+            SegmentSpec(f"Foot_{s}", f"LowerLeg_{s}", tuple(f"{s}{m}" for m in foot),
+                        landmarks=(Landmark(f"Toes_{s}", (f"{s}TOE",)),)),
+            SegmentSpec(f"UpperArm_{s}", "Spine", (f"{s}UPA", f"{s}ELB"), attach=f"Shoulder_{s}"),
+            SegmentSpec(f"LowerArm_{s}", f"UpperArm_{s}", (f"{s}WRA", f"{s}WRB", f"{s}FRM"),
+                        landmarks=(Landmark(f"Hand_{s}", (f"{s}WRA", f"{s}WRB")),
+                                   Landmark(f"Hand_{s}_end", (f"{s}FIN",), f"Hand_{s}", True))),
         ]
 
+    thorax = ("C7", "CLAV", "STRN", "T10")
     segments = [
         SegmentSpec("Hips", None, pelvis),
-        SegmentSpec("Spine", "Hips", ("C7", "CLAV", "STRN", "T10")),
-        SegmentSpec("Head", "Spine", ("LFHD", "RFHD", "LBHD", "RBHD")),
+        SegmentSpec("Spine", "Hips", thorax, landmarks=(
+            Landmark("Chest", thorax),
+            Landmark("Shoulder_L", ("LSHO",), "Chest"),
+            Landmark("Shoulder_R", ("RSHO",), "Chest"))),
+        SegmentSpec("Neck", "Spine", ("LFHD", "RFHD", "LBHD", "RBHD"), attach="Chest",
+                    landmarks=(Landmark("Head", ("LFHD", "RFHD", "LBHD", "RBHD")),)),
     ]
-    side("L", segments)
-    side("R", segments)
-    return MarkerSet(name, tuple(segments))
+    return MarkerSet(name, tuple(segments + side("L") + side("R")))
 
 
 PLUG_IN_GAIT = _plug_in_gait("plug-in-gait", ("LASI", "RASI", "LPSI", "RPSI"), "TIB", ("HEE", "TOE"))

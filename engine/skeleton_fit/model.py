@@ -37,7 +37,7 @@ class FittedJoint:
     centre_local: np.ndarray  # (3,) v_j in the parent frame (root: zeros, the root frame origin)
     axis_local: np.ndarray | None  # (3,) hinge axis n_j in the parent frame
     fit: JointFit | None  # None for the root
-    end_local: np.ndarray | None  # (3,) end-site marker mean position in this segment's frame
+    landmarks_local: dict[str, np.ndarray]  # landmark name -> (3,) mean marker position in this segment's frame
 
 
 @dataclass
@@ -120,7 +120,7 @@ def fit_skeleton(
     for seg in marker_set.segments:
         if seg.parent is None:
             frames[seg.name] = _segment_frame(seg, markers, None, None)
-            joint = FittedJoint(seg.name, None, np.zeros(3), None, None, None)
+            joint = FittedJoint(seg.name, None, np.zeros(3), None, None, {})
         else:
             origin, rot = frames[seg.parent]
             local = [_subsample(to_local(markers[m], origin, rot), config.max_samples) for m in seg.markers]
@@ -129,12 +129,12 @@ def fit_skeleton(
             except DegenerateFitError as exc:
                 raise DegenerateFitError(f"joint {seg.parent}->{seg.name}: {exc}") from exc
             centre = fit.centre if fit.kind is not JointType.STATIC else np.mean([p.mean(axis=0) for p in local], 0)
-            joint = FittedJoint(seg.name, seg.parent, centre, fit.axis, fit, None)
+            joint = FittedJoint(seg.name, seg.parent, centre, fit.axis, fit, {})
             centre_world = to_world(centre, origin, rot)
             axis_world = None if fit.axis is None else np.einsum("fij,j->fi", rot, fit.axis)
             frames[seg.name] = _segment_frame(seg, markers, centre_world, axis_world)
-        if seg.end is not None:
-            end_local = np.nanmean(to_local(markers[seg.end], *frames[seg.name]), axis=0)
-            joint = FittedJoint(joint.segment, joint.parent, joint.centre_local, joint.axis_local, joint.fit, end_local)
+        for landmark in seg.landmarks:
+            point = np.mean([markers[m] for m in landmark.markers], axis=0)
+            joint.landmarks_local[landmark.name] = np.nanmean(to_local(point, *frames[seg.name]), axis=0)
         joints[seg.name] = joint
     return SkeletonModel(marker_set, [joints[s.name] for s in marker_set.segments])

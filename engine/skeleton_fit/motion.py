@@ -33,7 +33,8 @@ def fill_gaps(track: np.ndarray) -> np.ndarray:
 
 
 def to_motion(model: SkeletonModel, markers: dict[str, np.ndarray], fps: float, z_up: bool = True, name: str = "") -> Motion:
-    """Replay ``model`` on ``markers`` ({name: (F,3)} metres) and return the Motion (joints = segments + ends)."""
+    """Replay ``model`` on ``markers`` ({name: (F,3)} metres) and return the Motion (joints = segments followed by
+    their landmarks; a segment hangs from its ``attach`` landmark when it has one)."""
     filled = {k: fill_gaps(np.asarray(v, dtype=float)) for k, v in markers.items()}
     frames = model.segment_frames(filled)
     centres = model.joint_positions(filled)
@@ -44,17 +45,20 @@ def to_motion(model: SkeletonModel, markers: dict[str, np.ndarray], fps: float, 
     positions: list[np.ndarray] = []  # (F,3) world (Y-up) per output joint
     rotations: list[np.ndarray | None] = []  # (F,3,3) global frame per output joint, None for end sites
     index: dict[str, int] = {}
-    for joint in model.joints:
-        index[joint.segment] = len(names)
-        names.append(joint.segment)
-        parents.append(-1 if joint.parent is None else index[joint.parent])
-        positions.append(centres[joint.segment] @ turn.T)
-        rotations.append(turn @ frames[joint.segment][1])
-        if joint.end_local is not None:
-            names.append(f"{joint.segment}_End")
-            parents.append(index[joint.segment])
-            positions.append(to_world(joint.end_local, *frames[joint.segment]) @ turn.T)
-            rotations.append(None)
+
+    def add(name: str, parent: str | None, pos: np.ndarray, rot: np.ndarray | None) -> None:
+        index[name] = len(names)
+        names.append(name)
+        parents.append(-1 if parent is None else index[parent])
+        positions.append(pos @ turn.T)
+        rotations.append(None if rot is None else turn @ rot)
+
+    for seg, joint in zip(model.marker_set.segments, model.joints):
+        frame = frames[seg.name]
+        add(seg.name, seg.attach or seg.parent, centres[seg.name], frame[1])
+        for landmark in seg.landmarks:
+            point = to_world(joint.landmarks_local[landmark.name], *frame)
+            add(landmark.name, landmark.parent or seg.name, point, None if landmark.end else frame[1])
 
     order = _preorder(parents)  # BVH nests children inside parents: joints must be in depth-first order
     remap = {old: new for new, old in enumerate(order)}

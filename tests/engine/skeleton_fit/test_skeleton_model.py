@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from engine.labeling.cli import main as label_main
-from engine.mocap import forward_kinematics, read_bvh, read_c3d
+from engine.graph.graph import GraphConfig, MotionGraph
+from engine.mocap import forward_kinematics, joint_roles, read_bvh, read_c3d, standard_placements
 from engine.skeleton_fit.cli import main as fit_main
 from engine.skeleton_fit.frames import frame_from_three, to_local
 from engine.skeleton_fit.gdke import JointType, fit_joint
@@ -132,7 +133,7 @@ def test_real_hip_trial_centre_is_plausible_and_knee_is_a_hinge(shared_mocap):
 
 
 def test_pipeline_unlabelled_markers_to_bvh_motion(shared_mocap, tmp_path, capsys):
-    """courtside label (scrambled input) → courtside fit-skeleton → BVH → engine.mocap.read_bvh + FK."""
+    """courtside label (scrambled input) → courtside fit-skeleton → BVH → engine.mocap (roles, FK) → motion graph."""
     source = shared_mocap / "markers" / "ktk_kinematics_tennis_serve_2players.c3d"
     labelled, bvh = tmp_path / "labelled.c3d", tmp_path / "skel.bvh"
     assert label_main([str(source), "-o", str(labelled), "--train-frames", "150", "--recovery", "kabsch",
@@ -148,9 +149,13 @@ def test_pipeline_unlabelled_markers_to_bvh_motion(shared_mocap, tmp_path, capsy
     assert np.isfinite(positions).all()
     height = positions[:, motion.skeleton.index("Head"), 1] - positions[:, :, 1].min(axis=1)
     assert 1.3 < np.median(height) < 2.0  # Y is up and the head sits a body height above the feet
-    left, right = motion.skeleton.index("LeftLeg"), motion.skeleton.index("LeftUpLeg")
-    thigh = np.linalg.norm(positions[:, left] - positions[:, right], axis=1)
+    knee, hip = motion.skeleton.index("LowerLeg_L"), motion.skeleton.index("UpperLeg_L")
+    thigh = np.linalg.norm(positions[:, knee] - positions[:, hip], axis=1)
     assert 0.3 < np.median(thigh) < 0.55
+    roles = joint_roles(motion.skeleton)  # the skeleton speaks the engine's joint-role convention
+    assert roles["right_wrist"] == motion.skeleton.index("Hand_R")
+    graph = MotionGraph.build([motion], standard_placements(motion.skeleton), GraphConfig())
+    assert len(graph.node_frame) > 0 and len(graph.edge_src) > 0
 
 
 def test_fit_skeleton_cli_reports_bad_input(tmp_path, capsys):
