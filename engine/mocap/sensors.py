@@ -14,8 +14,9 @@ Standard placements (`standard_placements`) follow the seeds: forearms, shins, l
 wrists and ankles at 87.5 % of the forearm/shin (seed 003, X along the bone distally, arms Z up in the
 T-pose, legs Z forward, Y = Z x X) and the right foot (seed 004). Offsets and frames are defined on the
 skeleton's T-pose (engine.mocap.rest_pose: same bones, frames re-based so the zero pose is a T-pose facing
-+Z) and mapped back into the file's joint frames, so they are anatomical for every source, including
-Bandai and CMU BVH whose zero poses are not T-poses."""
++Z) and mapped back into the file's joint frames, so they are anatomical for CMU ASF and CMU BVH (whose
+zero pose is not a T-pose); on Bandai the right limbs and feet keep a fixed roll from the file's frame
+convention (see rest_pose.tpose_bases)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
