@@ -15,8 +15,11 @@ class Sync(str, Enum):
     RED = "red"       # link lost/stale or residual too large to trust sample times
 
 
-SYNC_GREEN_RESIDUAL_S = 0.001
-SYNC_AMBER_RESIDUAL_S = 0.005
+# The gateway's residual is the median height of per-bin delay minima above the fitted clock envelope
+# (gateway/clock.py): a few ms on a radio link with ms jitter. Green while it stays under half a sample period
+# at 100 Hz; beyond 20 ms, two samples could be swapped in time, so the mapping is not trusted.
+SYNC_GREEN_RESIDUAL_S = 0.005
+SYNC_AMBER_RESIDUAL_S = 0.020
 LOW_BATTERY_V = 3.5
 SENSOR_SILENT_S = 1.0
 LOW_DISK_BYTES = 1 << 30

@@ -31,7 +31,8 @@ BODY_SEGMENTS: dict[str, tuple[tuple[float, float], ...]] = {
 _ALIASES = {"hips": "pelvis", "root": "pelvis", "spine": "chest", "torso": "chest", "sternum": "chest",
             "trunk": "chest", "wrist": "forearm", "hand": "forearm", "lowerarm": "forearm", "forearm": "forearm",
             "ankle": "shin", "foot": "shin", "leg": "shin", "shank": "shin", "upleg": "thigh", "thigh": "thigh",
-            "knee": "shin", "arm": "upper_arm", "shoulder": "upper_arm", "neck": "head", "head": "head"}
+            "knee": "shin", "shin": "shin", "arm": "upper_arm", "shoulder": "upper_arm", "neck": "head",
+            "head": "head", "back": "pelvis", "lumbar": "pelvis", "pelvis": "pelvis", "chest": "chest"}
 
 
 def segment_for(name: str) -> str | None:
@@ -132,6 +133,7 @@ class DevicePanel(QtWidgets.QWidget):
     def update_status(self, status: dict[str, Any]) -> None:
         """Refresh every row from a status snapshot (docs/gateway.md); rows appear as devices do."""
         body: dict[str, tuple[str, Sync]] = {}
+        self._drop_rows_not_in(status)
         for st in status.get("stations", []):
             sid = str(st.get("station"))
             sync = sync_status(st)
@@ -164,6 +166,16 @@ class DevicePanel(QtWidgets.QWidget):
             for col in range(len(COLUMNS)):
                 self.tree.resizeColumnToContents(col)
             self._new_rows = False
+
+    def _drop_rows_not_in(self, status: dict[str, Any]) -> None:
+        """Forget rows of stations the gateway no longer lists (a reader is named by its port until the first
+        frame tells the station id, then it becomes ``st<id>``)."""
+        present = {str(st.get("station")) for st in status.get("stations", [])}
+        for key in [k for k in self._items if k[0] == "station" and k[1] not in present]:
+            item = self._items.pop(key)
+            self.tree.takeTopLevelItem(self.tree.indexOfTopLevelItem(item))
+            for child in [k for k in self._items if k[0] == "sensor" and k[1] == key[1]]:
+                self._items.pop(child)
 
     def row_texts(self, key: Any) -> list[str]:
         """Texts of one row (("station", id) or ("sensor", id, idx)) — for tests."""

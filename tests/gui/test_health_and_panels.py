@@ -1,0 +1,87 @@
+"""Health rules (sync colour, alarms) on exact status dicts, and the panels that show them."""
+from __future__ import annotations
+
+import numpy as np
+
+from gui.health import Sync, status_alarms, sync_status
+from gui.widgets.alarms import AlarmBar
+from gui.widgets.camera_pane import CourtMinimap, apply_homography
+from gui.widgets.device_panel import DevicePanel, segment_for
+
+
+def station(name="st1", link="streaming", residual=0.002, locked=True, battery=3.9, last=10.0, loss=0.0):
+    return {"station": name, "link": link, "crc_errors": 0,
+            "clock": {"offset_s": 1.0, "skew_ppm": 10.0, "residual_s": residual, "locked": locked},
+            "sensors": [{"sensor": 0, "nominal_hz": 100, "rate_hz": 100.0, "loss_pct": loss, "lost": 0,
+                         "battery_v": battery, "rssi_dbm": -50, "last_t_host_s": last}]}
+
+
+def test_sync_traffic_light():
+    assert sync_status(station(residual=0.002)) is Sync.GREEN
+    assert sync_status(station(residual=0.010)) is Sync.AMBER
+    assert sync_status(station(locked=False)) is Sync.AMBER
+    assert sync_status(station(residual=0.050)) is Sync.RED
+    assert sync_status(station(link="stale")) is Sync.RED
+
+
+def test_alarms_sensor_lost_sync_lost_battery_disk(tmp_path):
+    was_locked: set[str] = set()
+    ok = {"t_host_s": 10.2, "stations": [station()]}
+    assert status_alarms(ok, str(tmp_path), was_locked) == []
+    assert was_locked == {"st1"}
+    bad = {"t_host_s": 12.0, "stations": [station(locked=False, battery=3.3, last=10.0)]}
+    keys = {a.key for a in status_alarms(bad, None, was_locked)}
+    assert keys == {"sync:st1", "battery:st1/0", "lost:st1/0"}
+    # a station still warming up (never locked) is not "sync lost"
+    assert not [a for a in status_alarms({"t_host_s": 1, "stations": [station("st2", locked=False, last=1)]},
+                                         None, set()) if a.key.startswith("sync")]
+
+
+def test_alarm_bar_shows_clears_and_dismisses(qtbot):
+    from gui.health import Alarm
+
+    bar = AlarmBar()
+    qtbot.addWidget(bar)
+    a, b = Alarm("lost:st1/0", "alarm", "sensor st1/0: no data"), Alarm("disk", "warning", "low disk")
+    bar.set_conditions([a, b])
+    assert set(bar.active()) == {"lost:st1/0", "disk"}
+    bar._dismiss("disk")
+    bar.set_conditions([a, b])
+    assert set(bar.active()) == {"lost:st1/0"}   # acknowledged: stays hidden while the condition lasts
+    bar.set_conditions([])
+    assert bar.active() == {}                   # cleared conditions disappear by themselves
+    bar.set_conditions([b])
+    assert set(bar.active()) == {"disk"}        # and come back if the condition returns
+    bar.add_event("warning", "st1", "reconnected")
+    assert "event:st1:reconnected" in bar.active()
+
+
+def test_device_panel_rows_and_renamed_station(qtbot):
+    panel = DevicePanel()
+    qtbot.addWidget(panel)
+    panel.set_mapping({("st1", 0): "left_wrist"})
+    panel.update_status({"t_host_s": 1.0, "stations": [{"station": "/dev/pts/3", "link": "connecting", "sensors": []}]})
+    panel.update_status({"t_host_s": 2.0, "stations": [station()]})
+    assert ("station", "/dev/pts/3") not in panel._items and panel.tree.topLevelItemCount() == 1
+    row = panel.row_texts(("sensor", "st1", 0))
+    assert row[1] == "streaming" and row[2] == "3.90" and row[11] == "green" and row[12] == "left_wrist"
+    assert panel.body.segment_state["left_forearm"][1] is Sync.GREEN
+
+
+def test_segment_names_map_to_the_body_diagram():
+    assert segment_for("left_wrist") == "left_forearm"
+    assert segment_for("right_shin") == "right_shin"
+    assert segment_for("lower_back") == "pelvis"
+    assert segment_for("right_foot") == "right_shin"
+    assert segment_for("chest") == "chest"
+
+
+def test_minimap_and_homography():
+    h = np.array([[2.0, 0, 10], [0, -2.0, 20], [0, 0, 1]])
+    np.testing.assert_allclose(apply_homography(h, np.array([[1.0, 1.0]])), [[12.0, 18.0]])
+    m = CourtMinimap()
+    m.resize(200, 400)
+    t = m.court_to_widget()
+    far = t.map(0.0, 11.885)
+    near = t.map(0.0, -11.885)
+    assert far[1] < near[1]  # far baseline drawn at the top
