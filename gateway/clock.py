@@ -111,13 +111,12 @@ class ClockEstimator:
         self.lock_after_s = lock_after_s
         self.state = ClockState()
         self._origin_s: float | None = None  # device time origin, keeps floats small
-        self._bins: deque[tuple[float, float]] = deque()  # (x = device time - origin, min y) per closed bin
-        self._open_bin = -1
-        self._open_x = 0.0
-        self._open_y = float("inf")
+        # bin index -> (x = device time - origin, min y). A dict, not a queue: sample batches delayed on the
+        # radio arrive after newer clock beacons, so points do not come in device-time order.
+        self._bins: dict[int, tuple[float, float]] = {}
+        self._newest_bin = -1
         self._a = 0.0  # y = a + b * x
         self._b = 0.0
-        self._first_x = 0.0
 
     def restart(self) -> None:
         resets = self.state.resets + 1
@@ -125,42 +124,39 @@ class ClockEstimator:
         self.state.resets = resets
 
     def add(self, device_s: float, arrival_s: float) -> None:
-        """One (device time, host arrival time) pair, both seconds."""
+        """One (device time, host arrival time) pair, both seconds, in any order."""
         if self._origin_s is None:
             self._origin_s = device_s
-            self._first_x = 0.0
         x = device_s - self._origin_s
         y = arrival_s - device_s
         index = int(np.floor(x / self.bin_s))
-        if index != self._open_bin:
-            if self._open_bin >= 0 and np.isfinite(self._open_y):
-                self._close_bin()
-            self._open_bin, self._open_y = index, float("inf")
-        if y < self._open_y:
-            self._open_x, self._open_y = x, y
-        if len(self._bins) < 2:  # until two bins close: best single-point guess, no skew
-            points = [p[1] for p in self._bins] + [self._open_y]
-            self._a, self._b = min(points), 0.0
-            self.state.offset_s = self._a
-
-    def _close_bin(self) -> None:
-        self._bins.append((self._open_x, self._open_y))
-        newest = self._open_x
-        while self._bins and self._bins[0][0] < newest - self.window_s:
-            self._bins.popleft()
-        if len(self._bins) >= 2:
+        if index < self._newest_bin - self.window_s / self.bin_s:
+            return  # older than the window
+        current = self._bins.get(index)
+        # lowest relative to the current skew: at large skew the raw minimum is just the bin's last point
+        if current is None or y - self._b * x < current[1] - self._b * current[0]:
+            self._bins[index] = (x, y)
+        if index > self._newest_bin:  # time moved on by a bin: refit (a few times per second at most)
+            self._newest_bin = index
+            oldest = index - int(self.window_s / self.bin_s)
+            for old in [k for k in self._bins if k < oldest]:
+                del self._bins[old]
             self._fit()
-        self.state.points = len(self._bins)
-        self.state.locked = newest - self._first_x >= self.lock_after_s
 
     def _fit(self) -> None:
-        pts = np.array(self._bins)
-        a, b = lower_envelope_line(pts[:, 0], pts[:, 1])
+        pts = np.array([self._bins[k] for k in sorted(self._bins)])
+        self.state.points = len(pts)
+        if len(pts) < 3:  # too short for a slope: best single-point guess, no skew
+            self._a, self._b = float(pts[:, 1].min()), 0.0
+            self.state.offset_s = self._a
+            return
+        a, b = segment_envelope_line(pts[:, 0], pts[:, 1])
         self._a, self._b = a, b
         newest = pts[-1, 0]
-        self.state.offset_s = a + b * newest
-        self.state.skew_ppm = b * 1e6
+        self.state.offset_s = float(a + b * newest)
+        self.state.skew_ppm = float(b * 1e6)
         self.state.residual_s = float(np.median(pts[:, 1] - (a + b * pts[:, 0])))
+        self.state.locked = bool(newest >= self.lock_after_s)
 
     def to_host(self, device_s: np.ndarray | float) -> np.ndarray:
         """Device time (s) -> gateway host time (s) with the current estimate."""
@@ -168,6 +164,31 @@ class ClockEstimator:
             raise RuntimeError("clock estimator has no points yet")
         x = np.asarray(device_s, dtype=np.float64) - self._origin_s
         return np.asarray(device_s, dtype=np.float64) + self._a + self._b * x
+
+
+def segment_envelope_line(x: np.ndarray, y: np.ndarray, segments: int = 8) -> tuple[float, float]:
+    """Lower-envelope line with a stable slope.
+
+    1. Rough slope from the lower hull edge spanning mean(x) (`lower_envelope_line`).
+    2. In each of ``segments`` equal spans of x, the point lowest *relative to that slope* (detrending matters:
+       with 100 ppm skew, y moves 0.75 ms across a 7.5 s span, more than the latency differences we look for).
+    3. Least-squares slope through those per-span minima, then the line is lowered until it touches the lowest
+       point, so it stays below every point.
+    Why not the hull edge alone: when two low points happen to lie close together, that edge's slope is wild
+    (measured +-40 ppm, 2 ms at the window's end under 20 ms jitter); per-span minima spread over the whole
+    window pin the slope to a few ppm. ``x`` sorted ascending."""
+    a0, b0 = lower_envelope_line(x, y)
+    edges = np.linspace(x[0], x[-1], segments + 1)
+    span = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, segments - 1)
+    starts = np.flatnonzero(np.r_[True, span[1:] != span[:-1]])
+    if len(starts) < 3:
+        return a0, b0
+    ends = np.r_[starts[1:], len(x)]
+    detrended = y - b0 * x
+    lowest = np.array([s + int(np.argmin(detrended[s:e])) for s, e in zip(starts, ends)])
+    b = float(np.polyfit(x[lowest], y[lowest], 1)[0])
+    a = float(np.min(y - b * x))
+    return a, b
 
 
 def lower_envelope_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
@@ -217,12 +238,12 @@ def realign_offline(device_s: np.ndarray, arrival_s: np.ndarray, query_device_s:
     origin = device_s[0]
     x = device_s - origin
     y = arrival_s - device_s
+    detrended = y - np.polyfit(x, y, 1)[0] * x  # pick bin minima relative to the overall skew
     index = np.floor(x / bin_s).astype(np.int64)
     starts = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])
-    mins = np.minimum.reduceat(y, starts)
     ends = np.r_[starts[1:], len(y)]
-    bx = np.array([x[s + int(np.argmin(y[s:e]))] for s, e in zip(starts, ends)])
-    by = mins
+    lowest = np.array([s + int(np.argmin(detrended[s:e])) for s, e in zip(starts, ends)])
+    bx, by = x[lowest], y[lowest]
     centres = np.arange(0.0, x[-1] + window_s / 4, window_s / 4)
     offsets = np.empty_like(centres)
     for i, c in enumerate(centres):
@@ -231,7 +252,7 @@ def realign_offline(device_s: np.ndarray, arrival_s: np.ndarray, query_device_s:
         if sel.sum() < 2:
             offsets[i] = by[sel].min() if sel.any() else np.nan
             continue
-        a, b = lower_envelope_line(bx[sel], by[sel])
+        a, b = segment_envelope_line(bx[sel], by[sel])
         offsets[i] = a + b * c
     good = np.isfinite(offsets)
     q = np.asarray(query_device_s, np.float64)

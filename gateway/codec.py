@@ -57,6 +57,15 @@ def _portable(array: np.ndarray) -> np.ndarray:
     return array
 
 
+def _json_default(value: Any) -> Any:
+    """numpy scalars and small arrays in headers become plain JSON (producers need not convert them)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"header value of type {type(value).__name__} is not JSON-serialisable")
+
+
 def encode(kind: str, header: dict[str, Any] | None = None, arrays: dict[str, np.ndarray] | None = None) -> bytes:
     """Encode one message body (without any outer framing)."""
     head: dict[str, Any] = {"kind": kind, **(header or {})}
@@ -70,7 +79,7 @@ def encode(kind: str, header: dict[str, Any] | None = None, arrays: dict[str, np
             specs.append({"name": name, "dtype": array.dtype.str, "shape": list(array.shape)})
             payload_parts.append(array.tobytes())
         head["arrays"] = specs
-    header_bytes = json.dumps(head, separators=(",", ":"), allow_nan=True).encode("utf-8")
+    header_bytes = json.dumps(head, separators=(",", ":"), allow_nan=True, default=_json_default).encode("utf-8")
     return b"".join([_U32.pack(len(header_bytes)), header_bytes, *payload_parts])
 
 

@@ -67,6 +67,7 @@ class Gateway:
         status_interval_s: float = 1.0,
         clock_window_s: float = 60.0,
         lock_after_s: float = 30.0,
+        reconnect_interval_s: float = 0.2,
         display_queue_frames: int = 2048,
         status_line: Callable[[str], None] | None = None,
         name: str = "courtside-gateway",
@@ -78,7 +79,8 @@ class Gateway:
         self.status_interval_s = status_interval_s
         self._status_line = status_line
         self._open_link = open_link
-        self._reader_options = {"clock_window_s": clock_window_s, "lock_after_s": lock_after_s}
+        self._reader_options = {"clock_window_s": clock_window_s, "lock_after_s": lock_after_s,
+                                "reconnect_interval_s": reconnect_interval_s}
         self.readers: list[StationReader] = []
         self._readers_lock = threading.Lock()
         self.server = StreamServer(self.handle_request, host=listen[0], port=listen[1], hello=self._hello,
