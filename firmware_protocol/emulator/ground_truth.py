@@ -28,6 +28,7 @@ class BatchRecord:
     t_true_s: np.ndarray       # (k,) true sampling times
     acc_true_g: np.ndarray     # (k, 3) before noise and quantisation
     counts: np.ndarray         # (k, 3) int16 what the sensor quantised
+    flags: int                 # BatchFlags at sampling time (calibration mode)
     fate: Fate = Fate.IN_FLIGHT
     frame: int = -1            # index into the frame table once sent
 

@@ -120,12 +120,12 @@ class _Sensor:
     index: int                           # column in the motion source
     rate_hz: int
     range_g: int
+    radio_rng: np.random.Generator = field(repr=False)
+    noise_rng: np.random.Generator = field(repr=False)
     next_counter: int = 0                # counter of the next sample to be taken
     grid_start_ticks: float = 0.0        # since-boot ticks of run sample 0
     next_j: int = 0                      # run index of the next sample not yet in a batch
     radio_free_s: float = 0.0            # the radio delivers in order: next arrival no earlier than this
-    radio_rng: np.random.Generator = field(default=None, repr=False)  # type: ignore[assignment]
-    noise_rng: np.random.Generator = field(default=None, repr=False)  # type: ignore[assignment]
 
 
 class BaseStation:
@@ -147,8 +147,7 @@ class BaseStation:
         self._wire_xor_rng = np.random.default_rng([config.seed, 3])     # how they change (one per hit)
         self._sensors = [
             _Sensor(i, i, config.rate_hz, config.range_g,
-                    radio_rng=np.random.default_rng([config.seed, 100, i]),
-                    noise_rng=np.random.default_rng([config.seed, 200, i]))
+                    np.random.default_rng([config.seed, 100, i]), np.random.default_rng([config.seed, 200, i]))
             for i in range(config.n_sensors)
         ]
         self._last_wire_byte_damaged = False
@@ -386,9 +385,10 @@ class BaseStation:
         scale = scale_for_range(s.range_g)
         counts = np.clip(np.rint(measured / scale), -INT16_FULL_SCALE, INT16_FULL_SCALE).astype(np.int16)
         latched = self.clock.counter(ticks_since_boot)
+        flags = int(BatchFlags.CALIBRATING) if self._calibrating else 0
         records = [
             BatchRecord(s.sensor_id, self._boot_index, s.next_counter + i, latched[i:i + per_batch],
-                        t_true[i:i + per_batch], acc[i:i + per_batch], counts[i:i + per_batch])
+                        t_true[i:i + per_batch], acc[i:i + per_batch], counts[i:i + per_batch], flags)
             for i in range(0, n, per_batch)
         ]
         self.truth.batches.extend(records)
@@ -417,8 +417,7 @@ class BaseStation:
     def _send_batch(self, rec: BatchRecord) -> None:
         s = self._sensors[rec.sensor_id]
         period_q8 = round(self.config.tick_rate_hz * 256 / s.rate_hz)
-        flags = BatchFlags.CALIBRATING if self._calibrating else 0
-        msg = SampleBatch(rec.sensor_id, int(flags), rec.first_counter % SEQ_MODULUS, int(rec.ticks[0]),
+        msg = SampleBatch(rec.sensor_id, rec.flags, rec.first_counter % SEQ_MODULUS, int(rec.ticks[0]),
                           period_q8, scale_for_range(s.range_g), rec.counts)
         self._send(msg, rec)
 
