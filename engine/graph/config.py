@@ -20,7 +20,7 @@ class GraphConfig:
 
     fps: float = 30.0
     window_frames: int = 9
-    transition_threshold_m: float = 0.12
+    transition_threshold_m: float = 0.06
     joint_weights: list[float] | None = None
     min_jump_frames: int = 8
     msv: bool = False

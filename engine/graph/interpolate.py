@@ -101,7 +101,8 @@ def find_alignments(clips: list[ClipData], config: GraphConfig, joint_weights: n
                 inside = labels[box] == box_i
                 cells = np.argwhere(inside)
                 first = cells[np.argmin(cells.sum(axis=1))]
-                last = cells[np.argmax(cells.sum(axis=1))]
+                after = cells[np.all(cells >= first, axis=1)]  # the path must end below-right of its start
+                last = after[np.argmax(after.sum(axis=1))]
                 sub = np.where(inside, dist[box], np.inf)[first[0]:last[0] + 1, first[1]:last[1] + 1]
                 path = slope_constrained_dtw(sub)
                 if path is None or len(path[0]) < min_len:

@@ -88,3 +88,16 @@ def test_interpolated_nodes_are_wired_searchable_and_left_out_with_either_parent
     for gone in (0, 1):
         h = g.without_clips([gone])
         assert not np.any(h.node_kind == NODE_INTERP)
+
+
+def test_groups_whose_latest_cell_lies_left_of_the_start_are_handled():
+    """An anti-diagonal group: the cell with the largest a+b is not below-right of the smallest one."""
+    from engine.graph.clips import ClipData
+
+    f = 40
+    a = gait_clip("a", n_frames=f, seed=1)
+    rev = ClipData("r", a.positions_m[::-1].copy(), a.contacts[::-1].copy(), a.heading_rad[::-1].copy(),
+                   a.acc_g[::-1].copy(), label="walk")
+    als = find_alignments([a, rev], CFG, np.ones(5))
+    for al in als:
+        assert np.all(np.diff(al.a) > 0) and np.all(np.diff(al.b) > 0)

@@ -1,0 +1,159 @@
+"""Viterbi search speed and memory (seed 000: 24 s on G_A in 5 s, on G_E (317,600 edges) in 163 s, 2012 CPU).
+
+    .venv/bin/python bench/bench_viterbi.py [--graph big.npz] [--min-edges 300000] [--samples 720]
+
+1. Vectorised search vs a straightforward per-edge Python loop (same costs: eqs. 4/6/7 with position and
+   heading) on the small shipped-sample graph, in this process: edges x samples per second and the ratio.
+2. A 720-sample (24 s at 30 Hz) sequence on a graph of >= --min-edges edges: `--graph` (e.g. built with
+   `courtside build-graph --mocap-dir /work/shared/mocap --pattern 'bandai-namco-*/data/*.bvh' --msv --interp`);
+   if it has fewer edges, disjoint copies of it (with perturbed acceleration metadata, so no two copies tie)
+   are stacked until it does -- the table says how many. Times: batch with accelerometers only and with
+   accelerometers + position + heading; fixed-lag online samples/s; survivor-memory compression and MB.
+Times are CPU seconds of this process (time.process_time), so other jobs on the machine inflate them less.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from engine.graph.config import GraphConfig
+from engine.graph.graph import MotionGraph, build_from_clips
+from engine.graph.mocap_adapter import clips_from_motions
+from engine.graph.online import FixedLagSynthesizer
+from engine.graph.viterbi import Observations, SearchWeights, ViterbiLattice, ViterbiSearch
+from engine.mocap import SensorErrorModel, load_database, sample_clips, standard_placements
+
+
+def reference_loop(g: MotionGraph, obs: Observations, w: SearchWeights) -> float:
+    """Plain Python Viterbi (one edge at a time); returns the best final cost."""
+    src, dst, meta = g.edge_src.tolist(), g.edge_dst.tolist(), g.edge_meta.tolist()
+    acc_meta = g.meta_acc_g.reshape(len(g.meta_acc_g), -1).astype(float).tolist()
+    dpos, dh = g.meta_dpos_m.tolist(), g.meta_dheading_rad.tolist()
+    n, s = g.n_nodes, g.n_sensors
+    m0 = obs.acc_g[0].reshape(-1).tolist()
+    arrival = g.node_arrival.tolist()
+    G = [w.acc * sum((a - b) ** 2 for a, b in zip(acc_meta[arrival[i]], m0)) / s for i in range(n)]
+    P = [tuple(obs.position_m[0])] * n
+    O = [float(obs.heading_rad[0])] * n
+    for t in range(1, obs.n_samples):
+        m = obs.acc_g[t].reshape(-1).tolist()
+        mx, mz = obs.position_m[t]
+        mh = float(obs.heading_rad[t])
+        newG, newP, newO = [math.inf] * n, list(P), list(O)
+        for e in range(len(src)):
+            a, b, r = src[e], dst[e], meta[e]
+            c, sn = math.cos(O[a]), math.sin(O[a])
+            px = P[a][0] + dpos[r][0] * c + dpos[r][1] * sn
+            pz = P[a][1] - dpos[r][0] * sn + dpos[r][1] * c
+            oh = O[a] + dh[r]
+            cost = (G[a] + w.acc * sum((x - y) ** 2 for x, y in zip(acc_meta[r], m)) / s
+                    + w.position * math.hypot(px - mx, pz - mz)
+                    + w.heading * abs((oh - mh + math.pi) % (2 * math.pi) - math.pi))
+            if cost < newG[b]:
+                newG[b], newP[b], newO[b] = cost, (px, pz), oh
+        G, P, O = newG, newP, newO
+    return min(G)
+
+
+def replicate(g: MotionGraph, copies: int, rng: np.random.Generator) -> MotionGraph:
+    """`copies` disjoint copies of `g` in one graph (acceleration metadata perturbed by 0.3 g per copy)."""
+    n, m = g.n_nodes, len(g.meta_dheading_rad)
+
+    def ids(a, step):
+        return np.concatenate([a.astype(np.int64) + i * step for i in range(copies)]).astype(np.int32)
+
+    def tile(a):
+        return np.concatenate([a] * copies)
+    src, dst = ids(g.edge_src, n), ids(g.edge_dst, n)
+    order = np.lexsort((src, dst))
+    acc = np.concatenate([g.meta_acc_g + (rng.normal(0, 0.3, g.meta_acc_g.shape) if i else 0)
+                          for i in range(copies)]).astype(np.float32)
+    return MotionGraph(
+        config=g.config, clip_names=g.clip_names, label_names=g.label_names, node_clip=tile(g.node_clip),
+        node_clip2=tile(g.node_clip2), node_frame=tile(g.node_frame), node_kind=tile(g.node_kind),
+        node_label=tile(g.node_label), node_positions_m=tile(g.node_positions_m),
+        node_heading_rad=tile(g.node_heading_rad), node_ground_m=tile(g.node_ground_m),
+        node_contacts=tile(g.node_contacts), node_arrival=ids(g.node_arrival, m), edge_src=src[order],
+        edge_dst=dst[order], edge_kind=tile(g.edge_kind)[order], edge_meta=ids(g.edge_meta, m)[order],
+        meta_acc_g=acc, meta_dheading_rad=tile(g.meta_dheading_rad), meta_dpos_m=tile(g.meta_dpos_m))
+
+
+def sample_graph_and_take(n_samples: int, rng: np.random.Generator) -> tuple[MotionGraph, Observations]:
+    """The shipped CMU graph (MSV) and an input sequence: the clips' own virtual sensors, concatenated and
+    repeated to `n_samples`, with the seed-000 sensor error model and 5 cm / 10 deg camera noise."""
+    motions = load_database([p for k, p in sample_clips().items() if k.startswith("16_")], fps=30.0)
+    cfg = GraphConfig(msv=True)
+    clips = clips_from_motions(motions, standard_placements(motions[0].skeleton), cfg)
+    g = build_from_clips(clips, cfg)
+    acc = np.concatenate([c.acc_g for c in clips])
+    ground = np.concatenate([c.ground_m - c.ground_m[0] for c in clips])
+    head = np.concatenate([c.heading_rad for c in clips])
+    reps = -(-n_samples // len(acc))
+    acc, ground, head = (np.concatenate([x] * reps)[:n_samples] for x in (acc, ground, head))
+    acc = SensorErrorModel.seed000().apply(acc, 30.0, rng)
+    return g, Observations(acc, ground + rng.normal(0, 0.05, ground.shape), head + rng.normal(0, 0.17, len(head)))
+
+
+def cpu(fn):
+    t = time.process_time()
+    out = fn()
+    return out, time.process_time() - t
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--graph", help="a large graph .npz (default: replicate the shipped-sample graph)")
+    p.add_argument("--min-edges", type=int, default=300_000)
+    p.add_argument("--samples", type=int, default=720)
+    p.add_argument("--lag", type=float, default=2.0)
+    p.add_argument("--ref-samples", type=int, default=20)
+    args = p.parse_args()
+    rng = np.random.default_rng(0)
+    small, obs = sample_graph_and_take(args.samples, rng)
+    w = SearchWeights()
+
+    short = Observations(obs.acc_g[: args.ref_samples], obs.position_m[: args.ref_samples],
+                         obs.heading_rad[: args.ref_samples])
+    ref_cost, t_ref = cpu(lambda: reference_loop(small, short, w))
+    res, t_vec = cpu(lambda: ViterbiSearch(small, w).run(short))
+    work = small.n_edges * (short.n_samples - 1)
+    print(f"1. small graph: {small.n_nodes} nodes, {small.n_edges} edges, {short.n_samples} samples "
+          f"(acc + position + heading)")
+    print(f"   per-edge Python loop : {work / t_ref:12.3e} edges*samples/s   (best cost {ref_cost:.4f})")
+    print(f"   vectorised (numpy)   : {work / t_vec:12.3e} edges*samples/s   (best cost {res.cost:.4f})")
+    print(f"   speed-up             : {t_ref / t_vec:12.1f} x")
+
+    base = MotionGraph.load(args.graph) if args.graph else small
+    copies = max(1, -(-args.min_edges // base.n_edges))
+    big = replicate(base, copies, rng) if copies > 1 else base
+    how = f"{copies} disjoint copies of {'the graph in ' + args.graph if args.graph else 'the sample graph'}"
+    print(f"2. large graph: {big.n_nodes} nodes, {big.n_edges} edges ({how}); {obs.n_samples} samples "
+          f"= {obs.n_samples / 30:.0f} s at 30 Hz")
+    if big.n_sensors != obs.acc_g.shape[1]:
+        raise SystemExit("the --graph must have the six seed-000 sensors")
+    acc_only = Observations(obs.acc_g, np.r_[obs.position_m[:1], np.full((obs.n_samples - 1, 2), np.nan)],
+                            np.r_[obs.heading_rad[:1], np.full(obs.n_samples - 1, np.nan)])
+    for name, o, weights in (("acc only", acc_only, SearchWeights(0.5, 0, 0)), ("acc+pos+head", obs, w)):
+        r, t = cpu(lambda: ViterbiSearch(big, weights).run(o))
+        print(f"   batch {name:13s}: {t:7.2f} s CPU  {big.n_edges * (o.n_samples - 1) / t:10.3e} edges*samples/s  "
+              f"compression {r.compression_ratio:7.1f}:1  lattice {r.lattice_entries * 4 / 1e6:7.2f} MB "
+              f"(uncompressed {big.n_nodes * (o.n_samples - 1) * 4 / 1e6:.0f} MB)")
+    syn = FixedLagSynthesizer(big, args.lag, w)
+
+    def online():
+        for t in range(obs.n_samples):
+            syn.push(obs.acc_g[t], obs.position_m[t], obs.heading_rad[t])
+        syn.flush()
+    _, t_on = cpu(online)
+    print(f"   fixed-lag online (lag {args.lag:g} s): {obs.n_samples / t_on:7.1f} samples/s "
+          f"({t_on / obs.n_samples * 1000:.1f} ms per sample)")
+    lat = ViterbiLattice(big, w)
+    print(f"   per-step arrays: {big.n_edges} edges x {lat._cost.itemsize * 3 + 16} B buffers, "
+          f"graph {sum(a.nbytes for a in (big.meta_acc_g, big.edge_src, big.edge_dst, big.edge_meta)) / 1e6:.0f} MB")
+
+
+if __name__ == "__main__":
+    main()
