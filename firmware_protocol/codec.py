@@ -41,6 +41,7 @@ _ERROR_HEAD = struct.Struct("<H")
 
 MAX_BATCH_SAMPLES = (MAX_PAYLOAD_BYTES - _BATCH_HEAD.size) // 6
 _INT16_LE = np.dtype("<i2")
+_XYZ_INT16_LE = np.dtype(("<i2", (3,)))          # one sample; frombuffer with it yields (N, 3) directly
 
 
 class PayloadError(ValueError):
@@ -95,7 +96,7 @@ def unpack_sample_batch(p: bytes) -> SampleBatch:
     sensor, flags, n, counter, ticks, period_q8, scale = _BATCH_HEAD.unpack_from(p, 0)
     if len(p) != _BATCH_HEAD.size + 6 * n or n == 0:
         raise PayloadError(f"SAMPLE_BATCH says {n} samples but carries {len(p) - _BATCH_HEAD.size} sample bytes")
-    samples = np.frombuffer(p, dtype=_INT16_LE, count=3 * n, offset=_BATCH_HEAD.size).reshape(n, 3)
+    samples = np.frombuffer(p, dtype=_XYZ_INT16_LE, count=n, offset=_BATCH_HEAD.size)
     return SampleBatch(sensor, flags, counter, ticks, period_q8, scale, samples)
 
 

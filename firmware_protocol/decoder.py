@@ -21,6 +21,7 @@ from .framing import CRC, HEADER, MAX_ENCODED_FRAME_BYTES, MIN_BODY_BYTES, SEQ_M
 from .messages import PROTOCOL_VERSION, Message, MessageType
 
 _HALF_SEQ = SEQ_MODULUS // 2
+_SEQ_MASK = SEQ_MODULUS - 1
 _UNPACKERS = {int(k): v for k, v in UNPACKERS.items()}
 _HELLO = int(MessageType.HELLO)
 HEADER_BYTES = HEADER.size
@@ -85,7 +86,8 @@ class StreamDecoder:
             self._skipping = True
         out: list[DecodedFrame] = []
         # Hot loop: names bound to locals, one early exit per failure kind.
-        unpack_header, crc_unpack, unpackers, track = HEADER.unpack_from, CRC.unpack_from, _UNPACKERS, self._track_seq
+        unpack_header, crc_unpack, unpackers = HEADER.unpack_from, CRC.unpack_from, _UNPACKERS
+        expected, track = self._expected_seq, self._track_seq
         for part in parts:
             if not part:
                 continue
@@ -117,7 +119,10 @@ class StreamDecoder:
                 stats.unsupported_version += 1
                 stats.bytes_discarded += len(part)
                 continue
-            track(station_id, seq, msg_type)
+            if expected.get(station_id) == seq:              # the common case, inline
+                expected[station_id] = (seq + 1) & _SEQ_MASK
+            else:
+                track(station_id, seq, msg_type)
             unpack = unpackers.get(msg_type)
             if unpack is None:
                 stats.unknown_types += 1

@@ -111,7 +111,7 @@ class SampleBatch:
     first_sample_ticks: int
     period_ticks_q8: int                 # sample period in 1/256 device ticks (exact for 32768 Hz / 100 Hz too)
     scale_g_per_lsb: float               # float32 on the wire
-    samples: np.ndarray                  # (N, 3) int16 counts, x y z
+    samples: np.ndarray                  # (N, 3) int16 counts, x y z (decoded: a read-only view of the frame)
 
     @property
     def n_samples(self) -> int:
