@@ -34,7 +34,10 @@ class EnergyConfig:
     epsilon: float = 1e-3                # pseudo-Huber floor inside sqrt(|r|): sqrt has infinite slope at 0
     variance_kept: float = 0.99          # weighted-PCA subspace keeps this fraction of the weighted variance
     min_components: int = 3              # guard when all weight sits on one pose
-    max_nfev: int = 30                   # least_squares budget per frame ("converges after few iterations")
+    solver: str = "auto"                 # "auto": majorise-minimise (sqrt kernel) / Levenberg-Marquardt (Mahalanobis);
+                                         # "trf": scipy least_squares as the spec suggests (slow: SVD per iteration)
+    max_iterations: int = 10             # iterations per frame ("converges after few iterations")
+    max_nfev: int = 30                   # least_squares budget per frame (solver="trf")
     length_unit_m: float = 0.01          # energy positions in cm so angle (rad) and length terms are O(1)
     kernel: str = "sqrt"                 # "sqrt" (paper) or "mahalanobis" (Fig. 11 baseline b)
     control_reading: str = "previous"    # "previous": alpha^t drives E_contr as in the paper; "current": alpha^{t+1}
