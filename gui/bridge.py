@@ -113,11 +113,12 @@ class GatewayBridge:
         self.traces.put_event(float(header.get("t_host_s", 0.0)), str(header.get("message", ""))[:24])
 
     def reset_history(self) -> None:
-        """Forget buffered traces, event markers and the camera trail (playback seek)."""
+        """Forget buffered traces, event markers, the camera trail and fix (playback seek / back to live)."""
         self.traces.rings.clear()
         self.traces.events.clear()
         with self._lock:
             self._trail.clear()
+            self._latest.pop("camera", None)  # a fix from the old time line must not anchor the new one
 
     # -- reads (GUI thread) -------------------------------------------------------------------------------------
     def latest(self, kind: str) -> dict[str, Any] | None:

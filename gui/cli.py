@@ -111,44 +111,10 @@ def demo_main(argv: list[str]) -> int:
     if args.screenshots is not None and args.duration is None:
         print("courtside demo: --screenshots needs --duration (they are taken just before exiting)", file=sys.stderr)
         return 2
-    from gateway.client import GatewayClient
-    from gateway.daemon import Gateway
-
     from gui.app import application
-    from gateway.calibration.service import CalibrationService
-    from gateway.calibration.wizard import segment_specs_from_placements
-
-    from gui.demo import (DemoCamera, TruthClock, build_performance, placements_for_demo, sensor_segments,
-                          start_stations, synthesis_sensors)
-    from gui.engine_link import load_or_build_graph, synthesis_setup
-    from gui.main_window import ConsoleWindow
+    from gui.demo import demo_session
 
     application()
-    perf = build_performance()
-    graph, skeleton, cache = load_or_build_graph(exclude=perf.clip_names)
-    log.info("motion graph %s: %d nodes from the shipped clips minus held-out %s", cache, graph.n_nodes,
-             ", ".join(perf.clip_names))
-    stations = start_stations(perf)
-    t0 = stations[0].wall0_s
-    camera = None if args.no_camera else DemoCamera(perf, t0, (args.duration or 3600.0) + 5.0)
-    specs = segment_specs_from_placements(placements_for_demo(perf))
-    gateway = Gateway([st.path for st in stations], listen=args.listen, record_dir=args.record_dir, camera=camera,
-                      calibration=CalibrationService(specs), status_interval_s=0.5, lock_after_s=5.0,
-                      name="courtside-demo")
-    gateway.start()
-    client = None
-    try:
-        client = GatewayClient(*gateway.address).connect()
-        log.info("demo gateway on %s:%d (connect more consoles with `courtside console --connect ...`)",
-                 *gateway.address)
-        window = ConsoleWindow(client, synthesis=synthesis_setup(graph, skeleton, synthesis_sensors(), args.lag),
-                               truth=TruthClock(perf, t0), sensor_segments=sensor_segments(),
-                               title="Courtside demo — emulated stations replaying held-out CMU mocap")
-        window.resize(1500, 950)
-        return _run_window(window, args.duration, args.screenshots)
-    finally:
-        if client is not None:
-            client.close()
-        gateway.stop()
-        for st in stations:
-            st.stop()
+    with demo_session(lag_s=args.lag, listen=args.listen, record_dir=args.record_dir, camera=not args.no_camera,
+                      duration_s=args.duration) as session:
+        return _run_window(session.window, args.duration, args.screenshots)

@@ -6,10 +6,14 @@ on the court and looped. Every worn sensor reads the performance's virtual accel
 ground-truth skeleton drawn beside the synthesized one, so the operator sees how well the engine follows."""
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -229,3 +233,58 @@ class DemoCamera:
                 jpeg = data.tobytes() if ok else None
             sink(obs, jpeg)
             self.frames_published += 1
+
+
+log = logging.getLogger("courtside.demo")
+
+
+@dataclass
+class DemoSession:
+    """Everything `courtside demo` runs, for the CLI, the screenshot script and tests."""
+
+    perf: Performance
+    stations: list[EmulatedStation]
+    gateway: object  # gateway.daemon.Gateway
+    client: object   # gateway.client.GatewayClient
+    window: object   # gui.main_window.ConsoleWindow
+
+
+@contextlib.contextmanager
+def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
+                 record_dir: Path = Path("recordings"), camera: bool = True,
+                 duration_s: float | None = None) -> Iterator[DemoSession]:
+    """Start stations, camera and gateway, open the console window on them; stop everything on exit."""
+    from gateway.calibration.service import CalibrationService
+    from gateway.calibration.wizard import segment_specs_from_placements
+    from gateway.client import GatewayClient
+    from gateway.daemon import Gateway
+
+    from gui.engine_link import load_or_build_graph, synthesis_setup
+    from gui.main_window import ConsoleWindow
+
+    perf = build_performance()
+    graph, skeleton, cache = load_or_build_graph(exclude=perf.clip_names)
+    log.info("motion graph %s: %d nodes from the shipped clips minus held-out %s", cache, graph.n_nodes,
+             ", ".join(perf.clip_names))
+    with contextlib.ExitStack() as stack:
+        stations = start_stations(perf)
+        for st in stations:
+            stack.callback(st.stop)
+        t0 = stations[0].wall0_s
+        cam = DemoCamera(perf, t0, (duration_s or 3600.0) + 5.0) if camera else None
+        specs = segment_specs_from_placements(placements_for_demo(perf))
+        gateway = Gateway([st.path for st in stations], listen=listen, record_dir=record_dir, camera=cam,
+                          calibration=CalibrationService(specs), status_interval_s=0.5, lock_after_s=5.0,
+                          name="courtside-demo")
+        gateway.start()
+        stack.callback(gateway.stop)
+        client = GatewayClient(*gateway.address).connect()
+        stack.callback(client.close)
+        log.info("demo gateway on %s:%d (connect more consoles with `courtside console --connect ...`)",
+                 *gateway.address)
+        window = ConsoleWindow(client, synthesis=synthesis_setup(graph, skeleton, synthesis_sensors(), lag_s),
+                               truth=TruthClock(perf, t0), sensor_segments=sensor_segments(),
+                               title="Courtside demo — emulated stations replaying held-out CMU mocap")
+        stack.callback(window.shutdown)
+        window.resize(1500, 950)
+        yield DemoSession(perf, stations, gateway, client, window)

@@ -83,6 +83,7 @@ class SynthesisWorker(threading.Thread):
         """Forget buffered samples and the synthesizer's window (playback seek / back to live)."""
         with self._lock:
             self._pose = None
+            self._camera = None  # the old position belongs to the old time line; wait for a fresh fix
         self._inbox.put(_RESET)  # in-band, so batches queued after the reset are kept
 
     def stop(self) -> None:
@@ -134,6 +135,7 @@ class SynthesisWorker(threading.Thread):
                 if entry is _RESET:
                     resampler = FrameResampler(self.sensors, self.rate_hz)
                     synth = self._rebuild(self.stats.lag_s)
+                    camera_seen = False
                 elif entry is not None:
                     resampler.add(*entry)
             times, frames = resampler.frames()
