@@ -228,3 +228,41 @@ def test_sample_batch_helpers(batch):
 def test_command_round_trip_through_station_direction():
     cmd = Command(command_id=65535, opcode=3, target=255, value=-5)
     assert StreamDecoder().feed(encode(cmd, 0, 0))[0].message == cmd
+
+
+def _body(frame: bytes) -> bytes:
+    from cobs.cobs import decode
+    body = decode(frame[:-1])
+    assert zlib.crc32(body[:-4]) == int.from_bytes(body[-4:], "little")
+    return body
+
+
+def test_payload_offsets_match_protocol_md():
+    """Payload bytes written by hand from the PROTOCOL.md tables (offsets, widths, little-endian)."""
+    import struct as s
+    from firmware_protocol import Error, Nack, SensorInfo, SensorLink, Status
+
+    samples = np.array([[1, -2, 3], [-32768, 32767, 0]], np.int16)
+    batch = SampleBatch(sensor_id=4, flags=1, first_sample_counter=70000, first_sample_ticks=0xFFFFFFF0,
+                        period_ticks_q8=2560000, scale_g_per_lsb=scale_for_range(8), samples=samples)
+    want = (bytes([4, 1]) + s.pack("<H", 2) + s.pack("<I", 70000) + s.pack("<I", 0xFFFFFFF0)
+            + s.pack("<I", 2560000) + s.pack("<f", 8 / 32767) + s.pack("<6h", 1, -2, 3, -32768, 32767, 0))
+    body = _body(encode(batch, station_id=0x0102, seq=0x0A0B0C0D))
+    assert body[:10] == bytes([1, 2, 0x02, 0x01, 0x0D, 0x0C, 0x0B, 0x0A]) + s.pack("<H", len(want))
+    assert body[10:-4] == want
+
+    hello = Hello((1, 2, 300), 0xC0DE0001, 77, 32768, (100, 200), (8, 16),
+                  (SensorInfo(0, 1, 100, 8), SensorInfo(5, 1, 200, 16)))
+    want = (bytes([1, 2]) + s.pack("<H", 300) + s.pack("<III", 0xC0DE0001, 77, 32768) + bytes([2])
+            + s.pack("<2H", 100, 200) + bytes([2, 8, 16, 2]) + bytes([0, 1]) + s.pack("<H", 100) + bytes([8])
+            + bytes([5, 1]) + s.pack("<H", 200) + bytes([16]))
+    assert _body(encode(hello, 1, 0))[10:-4] == want
+
+    status = Status(0x03, 87, 4950, 123456, 42, 7, 2, (SensorLink(0, -61, 90), SensorLink(1, -70, 80)))
+    want = (bytes([3, 87]) + s.pack("<H", 4950) + s.pack("<IIII", 123456, 42, 7, 2) + bytes([2])
+            + bytes([0]) + s.pack("<b", -61) + bytes([90, 1]) + s.pack("<b", -70) + bytes([80]))
+    assert _body(encode(status, 1, 0))[10:-4] == want
+
+    assert _body(encode(Command(513, 3, 0xFF, -7), 1, 0))[10:-4] == s.pack("<HBBi", 513, 3, 255, -7)
+    assert _body(encode(Nack(513, 3, 4), 1, 0))[10:-4] == bytes([1, 2, 3, 4])
+    assert _body(encode(Error(1, "bad ∆"), 1, 0))[10:-4] == bytes([1, 0]) + "bad ∆".encode()
