@@ -22,7 +22,7 @@ from .link import EmulatorLink
 
 _CHUNK = 4096
 _IDLE_POLL_MS = 2
-UNPLUG_DRAIN_S = 0.1
+UNPLUG_DRAIN_S = 0.5
 
 
 class PtyTransport:

@@ -23,10 +23,12 @@ def _start(*args: str) -> tuple[subprocess.Popen, list[list[str]]]:
     return proc, lines
 
 
-def _read(port: serial.Serial, decoder: StreamDecoder, seconds: float) -> list:
+def _read_until(port: serial.Serial, decoder: StreamDecoder, done, timeout_s: float = 10.0) -> list:
+    """Read until `done(frames)` holds (generous timeout: the machine may be busy)."""
     frames = []
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
+    end = time.monotonic() + timeout_s
+    while not done(frames):
+        assert time.monotonic() < end, "emulator did not deliver in time"
         frames += decoder.feed(port.read(port.in_waiting or 1))
     return frames
 
@@ -42,9 +44,10 @@ def test_emulate_two_stations_on_ptys_and_stop_with_ctrl_c(tmp_path):
             assert (tmp_path / "dev" / f"station-{sid}").resolve() == Path(path).resolve()
             with serial.Serial(symlink, timeout=0.02) as port:
                 decoder = StreamDecoder()
-                frames = _read(port, decoder, 0.4)
+                frames = _read_until(port, decoder,
+                                     lambda fs: sum(isinstance(f.message, SampleBatch) for f in fs) >= 30)
                 port.write(encode(Command(7, Opcode.REQUEST_HELLO), sid, 0))
-                frames += _read(port, decoder, 0.3)
+                frames += _read_until(port, decoder, lambda fs: any(isinstance(f.message, Hello) for f in fs))
             assert {f.station_id for f in frames} == {sid}
             assert any(isinstance(f.message, Ack) and f.message.command_id == 7 for f in frames)
             hello = next(f.message for f in frames if isinstance(f.message, Hello))
