@@ -92,22 +92,32 @@ def test_resample_keeps_in_band_signal_and_removes_aliases():
 
 
 def test_error_on_held_out_real_clips_decreases_with_lag(sample_graph, sample_clipdata, sample_motions):
-    """Leave-one-out on the shipped CMU walks: deciding later (more context) gives better poses."""
+    """Leave-one-out on the four shipped CMU walks with accelerometers only: deciding later (more context)
+    gives better poses. (Accelerometer-only is the Markov case, where a longer lag converges to the optimal
+    sensor fit; with position/heading terms the objective also trades pose for global position.)"""
     from engine.graph.evaluate import Noise, simulate_inputs
     from engine.graph.poses import root_local
+    from engine.graph.viterbi import SearchWeights
     from engine.mocap import SensorErrorModel, error_joint_indices
 
     clips, _ = sample_clipdata
     ej = error_joint_indices(sample_motions[0].skeleton)
-    errors = {0.0: [], 2.0: []}
-    for ci in sorted(range(len(clips)), key=lambda c: -clips[c].n_frames)[:3]:
+    from engine.mocap import sample_clips
+
+    stems = [name for name in sample_clips() if name.startswith("16_")]  # the fixture's clip order
+    walks = [i for i, name in enumerate(stems) if name in ("16_11", "16_15", "16_21", "16_32")]
+    assert len(walks) == 4
+    errors = {0.0: [], 1.0: [], 10.0: []}
+    for ci in walks:
         sub = sample_graph.without_clips([ci])
         obs = simulate_inputs(clips[ci], tuple(range(6)), SensorErrorModel.seed000(), Noise(),
                               np.random.default_rng(1), 30.0)
         truth = root_local(clips[ci].positions_m[:, ej], clips[ci].ground_m, clips[ci].heading_rad)
         for lag in errors:
-            poses, _ = run_online(sub, obs, lag)
+            syn = FixedLagSynthesizer(sub, lag, SearchWeights(0.5, 0, 0))
+            poses = [p for t in range(obs.n_samples) for p in syn.push(obs.acc_g[t])] + syn.flush()
             joints = np.array([p.joint_positions_m for p in poses])[:, ej]
             got = root_local(joints, np.array([p.ground_m for p in poses]), np.array([p.heading_rad for p in poses]))
             errors[lag].append(np.linalg.norm(got - truth, axis=2).mean())
-    assert np.mean(errors[2.0]) < 0.8 * np.mean(errors[0.0])
+    assert np.mean(errors[1.0]) < 0.85 * np.mean(errors[0.0])
+    assert np.mean(errors[10.0]) < 0.85 * np.mean(errors[0.0])
