@@ -85,22 +85,29 @@ class Serial(SerialBase):
             raise SerialException("device disconnected (emulated unplug)")
         return self.link
 
+    def _fill(self) -> bool:
+        """Move the station's output into the receive buffer; False once unplugged. Bytes already taken stay
+        readable after an unplug (the ground truth counts them as delivered); then reads raise."""
+        if not self.is_open or self.link is None:
+            raise PortNotOpenError()
+        if self.link.station.plugged:
+            self._rx += self.link.take()
+            return True
+        if not self._rx:
+            raise SerialException("device disconnected (emulated unplug)")
+        return False
+
     @property
     def in_waiting(self) -> int:
-        self._rx += self._check().take()
+        self._fill()
         return len(self._rx)
 
     def read(self, size: int = 1) -> bytes:
-        link = self._check()
         deadline = None if self._timeout is None else time.monotonic() + self._timeout
-        while True:
-            self._rx += link.take()
-            if len(self._rx) >= size or self._timeout == 0:
-                break
+        while self._fill() and len(self._rx) < size and self._timeout != 0:
             if deadline is not None and time.monotonic() >= deadline:
                 break
             time.sleep(_POLL_S)
-            link = self._check()
         data = bytes(self._rx[:size])
         del self._rx[:size]
         return data

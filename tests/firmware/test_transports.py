@@ -150,3 +150,16 @@ def test_hid_transport_counts_foreign_reports():
     assert transport.read(1) == b"" and transport.bad_reports == 1
     assert transport.read(1) == b"\x00abc"
     assert transport.read(1) == b""
+
+
+def test_emu_url_bytes_taken_before_unplug_stay_readable():
+    port = serial.serial_for_url("emu://buffered?clock=manual&sensors=2&autostart=1&seed=4", timeout=0)
+    port.link.advance(1.0)
+    assert port.in_waiting > 0                      # now in the port's receive buffer
+    port.link.advance(0.5)                          # more output, still inside the station link
+    port.link.unplug()
+    frames = StreamDecoder().feed(port.read(1_000_000))
+    with pytest.raises(serial.SerialException):
+        port.read(1)
+    fates = assert_matches_ground_truth(frames, port.link.station)
+    assert fates[1] > 0 and fates[4] > 0            # delivered before the cut, lost after it
