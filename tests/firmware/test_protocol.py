@@ -6,7 +6,7 @@ import zlib
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from firmware_protocol import (
@@ -16,6 +16,10 @@ from firmware_protocol.framing import MAX_ENCODED_FRAME_BYTES, crc32, frame_payl
 from firmware_protocol.codec import pack_sample_batch
 
 from .strategies import messages, sample_batches, u16, u32
+
+
+# The machine is shared: never fail on wall-clock deadlines or slow data generation.
+RELAXED = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 
 def _stream(msgs: list, station_id: int = 7, first_seq: int = 1) -> tuple[bytes, list[tuple[int, int]]]:
@@ -45,7 +49,7 @@ def test_known_frame_bytes():
 
 
 @given(msg=messages, station_id=u16, seq=u32)
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=400, **RELAXED)
 def test_round_trip_every_message_type(msg, station_id, seq):
     decoder = StreamDecoder()
     frames = decoder.feed(encode(msg, station_id, seq))
@@ -56,7 +60,7 @@ def test_round_trip_every_message_type(msg, station_id, seq):
 
 
 @given(msgs=st.lists(messages, min_size=1, max_size=20), data=st.data())
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=150, **RELAXED)
 def test_chunk_splitting_anywhere_changes_nothing(msgs, data):
     stream, _ = _stream(msgs)
     cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=30)))
@@ -71,7 +75,7 @@ def test_chunk_splitting_anywhere_changes_nothing(msgs, data):
 
 
 @given(msgs=st.lists(messages, min_size=3, max_size=25), data=st.data())
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=200, **RELAXED)
 def test_single_byte_damage_is_counted_exactly(msgs, data):
     """One non-zero-producing byte change in k frames: exactly k corrupt frames, k missing, nothing else lost.
 
@@ -109,7 +113,7 @@ def _damage(draw, length: int):
 
 
 @given(msgs=st.lists(messages, min_size=1, max_size=15), data=st.data())
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=150, **RELAXED)
 def test_random_damage_never_crashes_and_keeps_every_untouched_frame(msgs, data):
     """Flip / delete / insert / truncate anywhere, then chunk anywhere: every frame whose bytes and both
     delimiters survive unaltered and adjacent is still decoded, in order, and nothing is invented."""
@@ -217,6 +221,7 @@ def test_encode_rejects_bad_messages():
 
 
 @given(batch=sample_batches(max_samples=8))
+@settings(**RELAXED)
 def test_sample_batch_helpers(batch):
     np.testing.assert_array_equal(batch.acc_g(), batch.samples * batch.scale_g_per_lsb)
     ticks = batch.sample_ticks()
