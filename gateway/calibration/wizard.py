@@ -52,6 +52,7 @@ class WizardConfig:
     tap_threshold_g: float = 1.0
     max_gap_s: float = 0.5
     live_window_s: float = 0.25
+    eval_interval_s: float = 0.05
 
 
 def segment_specs_from_placements(placements: list[Any]) -> dict[str, SegmentSpec]:
@@ -80,7 +81,7 @@ class CalibrationWizard:
         self._now = -np.inf
         self._phase_start_s = -np.inf
         self._capturing = False
-        self._last_tap_check_s = -np.inf
+        self._last_eval_s = -np.inf
 
     # ------------------------------------------------------------------ operator actions
     def assign(self, sensor_id: str, segment: str) -> None:
@@ -147,6 +148,11 @@ class CalibrationWizard:
 
     # ------------------------------------------------------------------ state machine
     def _advance(self) -> None:
+        # Evaluate at most every eval_interval_s of sample time: every sensor's packet triggers a push, and the
+        # window statistics of all sensors need not be recomputed that often.
+        if self._now - self._last_eval_s < self.config.eval_interval_s:
+            return
+        self._last_eval_s = self._now
         if self.step == "npose":
             self._advance_npose()
         elif self.step == "tap":
@@ -156,8 +162,13 @@ class CalibrationWizard:
         cfg = self.config
         sensors = list(self.assignment)
         if not self._capturing:
-            stats = [self._stillness(s, self._now - cfg.still_required_s, self._now) for s in sensors]
-            if all(st.span_s >= 0.95 * cfg.still_required_s and st.worst_g <= cfg.still_std_g for st in stats):
+            # Each sensor's window ends at its own latest sample: sensors arrive in separate packets, so at any
+            # push the others are up to one packet behind.
+            last = {s: self._buffers[s].last_t_s if s in self._buffers else -np.inf for s in sensors}
+            stats = [self._stillness(s, last[s] - cfg.still_required_s, last[s]) for s in sensors]
+            fresh = all(self._now - t <= cfg.max_gap_s for t in last.values())
+            if fresh and all(st.span_s >= 0.9 * cfg.still_required_s and st.worst_g <= cfg.still_std_g
+                             for st in stats):
                 self._capturing = True
                 self._phase_start_s = self._now
                 self._say(f"everyone still for {cfg.still_required_s:g} s: capturing the N-pose, hold still")
@@ -207,9 +218,6 @@ class CalibrationWizard:
         self._leave("npose")
 
     def _advance_tap(self) -> None:
-        if self._now - self._last_tap_check_s < 0.1:
-            return
-        self._last_tap_check_s = self._now
         events: list[tuple[TapEvent, str]] = []
         for sid in self.assignment:
             if sid in self._buffers:
@@ -243,7 +251,7 @@ class CalibrationWizard:
         self.step = step
         self._capturing = False
         self._phase_start_s = self._now
-        self._last_tap_check_s = -np.inf
+        self._last_eval_s = -np.inf
 
     def _refuse(self, message: str) -> bool:
         self._say(message)

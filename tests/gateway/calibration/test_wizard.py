@@ -174,3 +174,4 @@ def test_record_load_errors_name_the_file(tmp_path, wizard, subject):
     with pytest.raises(CalibrationRecordError, match="cal.npz: raw samples unreadable"):
         CalibrationRecord.load(path)
     assert CalibrationRecord.load(path, with_raw=False).raw == {}
+
