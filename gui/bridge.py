@@ -15,9 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from gui.widgets.traces import TraceStore
-
-SensorKey = tuple[str, int]  # (station id, sensor index)
+from gui.ringbuffer import TraceStore
+from gui.synthesis import SensorKey
 SampleSink = Callable[[SensorKey, np.ndarray, np.ndarray], None]
 
 

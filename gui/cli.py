@@ -44,6 +44,8 @@ def _demo_parser() -> argparse.ArgumentParser:
                    help="where the demo gateway listens for more consoles (default: a free port on 127.0.0.1)")
     p.add_argument("--record-dir", type=Path, default=Path("recordings"), help="where takes go (default ./recordings)")
     p.add_argument("--no-camera", action="store_true", help="skip the synthetic camera (saves CPU)")
+    p.add_argument("--single-process", action="store_true",
+                   help="run stations, camera and gateway in the console's process (default: a child process)")
     return p
 
 
@@ -116,5 +118,5 @@ def demo_main(argv: list[str]) -> int:
 
     application()
     with demo_session(lag_s=args.lag, listen=args.listen, record_dir=args.record_dir, camera=not args.no_camera,
-                      duration_s=args.duration) as session:
+                      duration_s=args.duration, separate_process=not args.single_process) as session:
         return _run_window(session.window, args.duration, args.screenshots)

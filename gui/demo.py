@@ -238,34 +238,15 @@ class DemoCamera:
 log = logging.getLogger("courtside.demo")
 
 
-@dataclass
-class DemoSession:
-    """Everything `courtside demo` runs, for the CLI, the screenshot script and tests."""
-
-    perf: Performance
-    stations: list[EmulatedStation]
-    gateway: object  # gateway.daemon.Gateway
-    client: object   # gateway.client.GatewayClient
-    window: object   # gui.main_window.ConsoleWindow
-
-
 @contextlib.contextmanager
-def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
-                 record_dir: Path = Path("recordings"), camera: bool = True,
-                 duration_s: float | None = None) -> Iterator[DemoSession]:
-    """Start stations, camera and gateway, open the console window on them; stop everything on exit."""
+def demo_hardware(listen: tuple[str, int], record_dir: Path, camera: bool,
+                  duration_s: float | None) -> Iterator[tuple[tuple[str, int], float]]:
+    """Stations + camera + gateway in THIS process; yields (gateway address, performance start time)."""
     from gateway.calibration.service import CalibrationService
     from gateway.calibration.wizard import segment_specs_from_placements
-    from gateway.client import GatewayClient
     from gateway.daemon import Gateway
 
-    from gui.engine_link import load_or_build_graph, synthesis_setup
-    from gui.main_window import ConsoleWindow
-
     perf = build_performance()
-    graph, skeleton, cache = load_or_build_graph(exclude=perf.clip_names)
-    log.info("motion graph %s: %d nodes from the shipped clips minus held-out %s", cache, graph.n_nodes,
-             ", ".join(perf.clip_names))
     with contextlib.ExitStack() as stack:
         stations = start_stations(perf)
         for st in stations:
@@ -278,13 +259,82 @@ def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
                           name="courtside-demo")
         gateway.start()
         stack.callback(gateway.stop)
-        client = GatewayClient(*gateway.address).connect()
+        yield gateway.address, t0
+
+
+def _hardware_process(conn, listen, record_dir, camera, duration_s) -> None:
+    """Child-process body: run the demo hardware until the parent says stop (or goes away)."""
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    with demo_hardware(listen, record_dir, camera, duration_s) as (address, t0):
+        conn.send((address, t0))
+        try:
+            conn.recv()
+        except EOFError:  # the console process died: shut down too
+            pass
+
+
+@contextlib.contextmanager
+def hardware_in_subprocess(listen: tuple[str, int], record_dir: Path, camera: bool,
+                           duration_s: float | None) -> Iterator[tuple[tuple[str, int], float]]:
+    """The same hardware in a child process, so the console's GUI thread never shares a GIL with the station
+    readers, emulators and camera renderer (on 2 cores this alone roughly doubles the console's frame rate).
+    CLOCK_MONOTONIC is system-wide, so the child's gateway times are directly comparable here."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("spawn")
+    parent, child = ctx.Pipe()
+    proc = ctx.Process(target=_hardware_process, args=(child, listen, Path(record_dir).resolve(), camera,
+                                                        duration_s), name="courtside-demo-hardware", daemon=True)
+    proc.start()
+    try:
+        if not parent.poll(120.0):
+            raise RuntimeError("demo hardware process did not start within 120 s")
+        address, t0 = parent.recv()
+        yield tuple(address), float(t0)
+    finally:
+        try:
+            parent.send("stop")
+        except (BrokenPipeError, OSError):
+            pass
+        proc.join(15.0)
+        if proc.is_alive():
+            proc.terminate()
+            proc.join(5.0)
+
+
+@dataclass
+class DemoSession:
+    """Everything `courtside demo` runs, for the CLI, the screenshot script and tests."""
+
+    perf: Performance
+    address: tuple[str, int]
+    client: object   # gateway.client.GatewayClient
+    window: object   # gui.main_window.ConsoleWindow
+
+
+@contextlib.contextmanager
+def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
+                 record_dir: Path = Path("recordings"), camera: bool = True, duration_s: float | None = None,
+                 separate_process: bool = True) -> Iterator[DemoSession]:
+    """Start the demo hardware (by default in a child process) and open the console window on it."""
+    from gateway.client import GatewayClient
+
+    from gui.engine_link import load_or_build_graph, synthesis_setup
+    from gui.main_window import ConsoleWindow
+
+    hardware = hardware_in_subprocess if separate_process else demo_hardware
+    perf = build_performance()  # deterministic: the same frames the stations replay, for ground truth here
+    graph, skeleton, cache = load_or_build_graph(exclude=perf.clip_names)
+    log.info("motion graph %s: %d nodes from the shipped clips minus held-out %s", cache, graph.n_nodes,
+             ", ".join(perf.clip_names))
+    with contextlib.ExitStack() as stack:
+        address, t0 = stack.enter_context(hardware(listen, record_dir, camera, duration_s))
+        client = GatewayClient(*address).connect()
         stack.callback(client.close)
-        log.info("demo gateway on %s:%d (connect more consoles with `courtside console --connect ...`)",
-                 *gateway.address)
+        log.info("demo gateway on %s:%d (connect more consoles with `courtside console --connect ...`)", *address)
         window = ConsoleWindow(client, synthesis=synthesis_setup(graph, skeleton, synthesis_sensors(), lag_s),
                                truth=TruthClock(perf, t0), sensor_segments=sensor_segments(),
                                title="Courtside demo — emulated stations replaying held-out CMU mocap")
         stack.callback(window.shutdown)
         window.resize(1500, 950)
-        yield DemoSession(perf, stations, gateway, client, window)
+        yield DemoSession(perf, address, client, window)

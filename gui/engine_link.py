@@ -17,8 +17,7 @@ from engine.graph.graph import MotionGraph
 from engine.graph.online import FixedLagSynthesizer
 from engine.mocap import SEED000_SENSORS, Skeleton, default_cache_dir, load_clip, sample_clips, standard_placements
 
-from gui.bridge import SensorKey
-from gui.main_window import SynthesisSetup
+from gui.synthesis import SensorKey, SynthesisSetup
 
 GRAPH_FPS = 30.0
 

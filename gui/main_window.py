@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,30 +17,17 @@ from gui.bridge import GatewayBridge, SensorKey, gateway_clock_offset_s
 from gui.control import RequestRunner
 from gui.health import status_alarms
 from gui.playback import Playback
-from gui.synthesis import SynthesisWorker
+from gui.synthesis import SynthesisSetup, SynthesisWorker
 from gui.widgets.alarms import AlarmBar
 from gui.widgets.camera_pane import CameraPane
 from gui.widgets.device_panel import DevicePanel
 from gui.widgets.recording import PlaybackBar, RecordingPanel
 from gui.widgets.skeleton_view import SkeletonView
-from gui.widgets.traces import TracePanel, TraceStore
+from gui.ringbuffer import TraceStore
+from gui.widgets.traces import TracePanel
 
 TICK_MS = 33
 TruthProvider = Callable[[float], "np.ndarray | None"]  # gateway time (s) -> (J,3) m or None
-
-
-@dataclass
-class SynthesisSetup:
-    """Everything the console needs to run windowed synthesis (built by `gui.engine_link`)."""
-
-    make_synthesizer: Callable[[float], Any]  # lag_s -> object with push(acc (S,3), pos (2,)|None, heading|None)
-    sensors: list[SensorKey]                  # live sensor feeding each graph sensor column, in order
-    rate_hz: float
-    parents: np.ndarray                       # skeleton parents of emitted poses
-    lag_s: float = 0.5
-    # The overhead tracker's heading is a rule (direction of travel when running, else facing the net), not a
-    # measurement; feeding it as a constraint drags the path when the rule is wrong. Off unless trusted.
-    use_camera_heading: bool = False
 
 
 class TickStats:

@@ -5,6 +5,9 @@ Why a ring per sensor: the console keeps the last N seconds of every stream whet
 allocation in steady state."""
 from __future__ import annotations
 
+import queue
+from collections.abc import Hashable
+
 import numpy as np
 
 
@@ -64,3 +67,42 @@ def minmax_decimate(t: np.ndarray, y: np.ndarray, max_points: int) -> tuple[np.n
     t_out = np.stack([tb[:, 0], tb[:, -1]], axis=1).reshape(-1)
     y_out = np.stack([yb.min(axis=1), yb.max(axis=1)], axis=1).reshape(2 * bins, -1)
     return t_out, y_out
+
+
+class TraceStore:
+    """Thread-safe ingress + per-sensor rings. ``put`` from any thread; ``drain`` from the GUI thread only."""
+
+    def __init__(self, history_s: float = 30.0, nominal_rate_hz: float = 100.0) -> None:
+        self.capacity = int(history_s * nominal_rate_hz * 1.5)  # headroom for rate over nominal
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self.rings: dict[Hashable, SampleRing] = {}
+        self.events: list[tuple[float, str]] = []
+
+    def put(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
+        """Enqueue a batch of samples for one sensor (any thread; never blocks)."""
+        self._queue.put((sensor, t_s, acc_g))
+
+    def put_event(self, t_s: float, label: str) -> None:
+        self._queue.put((None, t_s, label))
+
+    def drain(self, max_batches: int = 5000) -> int:
+        """Move queued batches into the rings (GUI thread). Bounded so one tick cannot stall the UI."""
+        n = 0
+        while n < max_batches:
+            try:
+                sensor, t_s, payload = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            n += 1
+            if sensor is None:
+                self.events.append((float(t_s), str(payload)))
+                continue
+            ring = self.rings.get(sensor)
+            if ring is None:
+                ring = self.rings[sensor] = SampleRing(self.capacity, 3)
+            ring.append(t_s, payload)
+        return n
+
+    def latest_time(self) -> float | None:
+        times = [r.latest_time() for r in self.rings.values() if r.count]
+        return max(times) if times else None

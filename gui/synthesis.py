@@ -19,6 +19,7 @@ from gui.resample import FrameResampler
 
 
 _RESET = object()
+SensorKey = tuple[str, int]  # (station id, sensor index), as the gateway names streams
 
 
 class Synthesizer(Protocol):
@@ -159,3 +160,17 @@ class SynthesisWorker(threading.Thread):
                 self.stats.frames_per_s = window_frames / (now - window_t0)
                 self.stats.push_ms = 1e3 * window_cost / max(1, window_frames)
                 window_t0, window_frames, window_cost = now, 0, 0.0
+
+
+@dataclass
+class SynthesisSetup:
+    """Everything the console needs to run windowed synthesis (built by `gui.engine_link`)."""
+
+    make_synthesizer: Callable[[float], Any]  # lag_s -> object with push(acc (S,3), pos (2,)|None, heading|None)
+    sensors: list[SensorKey]                  # live sensor feeding each graph sensor column, in order
+    rate_hz: float
+    parents: np.ndarray                       # skeleton parents of emitted poses
+    lag_s: float = 0.5
+    # The overhead tracker's heading is a rule (direction of travel when running, else facing the net), not a
+    # measurement; feeding it as a constraint drags the path when the rule is wrong. Off unless trusted.
+    use_camera_heading: bool = False

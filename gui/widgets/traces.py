@@ -6,14 +6,13 @@ min-max decimates each visible curve to about the plot's pixel width, so the dra
 the data rate (24 sensors x 100 Hz or 1 kHz alike)."""
 from __future__ import annotations
 
-import queue
 from collections.abc import Hashable, Sequence
 
 import numpy as np
 import pyqtgraph as pg
 from PySide6 import QtCore, QtWidgets
 
-from gui.ringbuffer import SampleRing, minmax_decimate
+from gui.ringbuffer import TraceStore, minmax_decimate
 
 RANGE_PRESETS_G = (2.0, 6.0, 12.0)
 CHANNEL_PENS = (("x", (230, 80, 80)), ("y", (90, 200, 90)), ("z", (90, 140, 250)), ("|a|", (235, 235, 235)))
@@ -22,45 +21,6 @@ CHANNEL_PENS = (("x", (230, 80, 80)), ("y", (90, 200, 90)), ("z", (90, 140, 250)
 def sensor_label(sensor: Hashable) -> str:
     """("st0", 3) -> "st0/3" (bridge keys are (station, sensor) tuples)."""
     return "/".join(map(str, sensor)) if isinstance(sensor, tuple) else str(sensor)
-
-
-class TraceStore:
-    """Thread-safe ingress + per-sensor rings. ``put`` from any thread; ``drain`` from the GUI thread only."""
-
-    def __init__(self, history_s: float = 30.0, nominal_rate_hz: float = 100.0) -> None:
-        self.capacity = int(history_s * nominal_rate_hz * 1.5)  # headroom for rate over nominal
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
-        self.rings: dict[Hashable, SampleRing] = {}
-        self.events: list[tuple[float, str]] = []
-
-    def put(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
-        """Enqueue a batch of samples for one sensor (any thread; never blocks)."""
-        self._queue.put((sensor, t_s, acc_g))
-
-    def put_event(self, t_s: float, label: str) -> None:
-        self._queue.put((None, t_s, label))
-
-    def drain(self, max_batches: int = 5000) -> int:
-        """Move queued batches into the rings (GUI thread). Bounded so one tick cannot stall the UI."""
-        n = 0
-        while n < max_batches:
-            try:
-                sensor, t_s, payload = self._queue.get_nowait()
-            except queue.Empty:
-                break
-            n += 1
-            if sensor is None:
-                self.events.append((float(t_s), str(payload)))
-                continue
-            ring = self.rings.get(sensor)
-            if ring is None:
-                ring = self.rings[sensor] = SampleRing(self.capacity, 3)
-            ring.append(t_s, payload)
-        return n
-
-    def latest_time(self) -> float | None:
-        times = [r.latest_time() for r in self.rings.values() if r.count]
-        return max(times) if times else None
 
 
 class TracePanel(QtWidgets.QWidget):

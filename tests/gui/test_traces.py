@@ -5,7 +5,8 @@ import threading
 
 import numpy as np
 
-from gui.widgets.traces import TracePanel, TraceStore
+from gui.ringbuffer import TraceStore
+from gui.widgets.traces import TracePanel
 
 RATE_HZ = 100.0
 
