@@ -92,7 +92,7 @@ def test_resample_keeps_in_band_signal_and_removes_aliases():
 
 
 def test_error_on_held_out_real_clips_decreases_with_lag(sample_graph, sample_clipdata, sample_motions):
-    """Leave-one-out on the four shipped CMU walks with accelerometers only: deciding later (more context)
+    """Leave-one-out on the shipped CMU walks with accelerometers only: deciding later (more context)
     gives better poses. (Accelerometer-only is the Markov case, where a longer lag converges to the optimal
     sensor fit; with position/heading terms the objective also trades pose for global position.)"""
     from engine.graph.evaluate import Noise, simulate_inputs
@@ -102,11 +102,9 @@ def test_error_on_held_out_real_clips_decreases_with_lag(sample_graph, sample_cl
 
     clips, _ = sample_clipdata
     ej = error_joint_indices(sample_motions[0].skeleton)
-    from engine.mocap import sample_clips
-
-    stems = [name for name in sample_clips() if name.startswith("16_")]  # the fixture's clip order
-    walks = [i for i, name in enumerate(stems) if name in ("16_11", "16_15", "16_21", "16_32")]
-    assert len(walks) == 4
+    speed = [np.linalg.norm(np.diff(c.ground_m, axis=0), axis=1).mean() * 30.0 for c in clips]
+    walks = [i for i, v in enumerate(speed) if 0.7 < v < 2.0]  # the walks (not the jumps and runs)
+    assert len(walks) >= 3
     errors = {0.0: [], 1.0: [], 10.0: []}
     for ci in walks:
         sub = sample_graph.without_clips([ci])
