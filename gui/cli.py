@@ -61,7 +61,7 @@ def console_main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     from gateway.client import GatewayClient
 
-    from gui.app import application, run
+    from gui.app import application
     from gui.engine_link import load_or_build_graph, synthesis_setup
     from gui.main_window import ConsoleWindow
 
