@@ -28,7 +28,7 @@ import numpy as np
 
 import firmware_protocol as fp
 from gateway import wire
-from gateway.links import Link, LinkError, SerialLink
+from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
 from gateway.recorder import Recorder, export_csv, export_npz
 from gateway.server import RequestError, StreamServer
 from gateway.station import SampleBlock, StationReader
@@ -36,6 +36,7 @@ from gateway.station import SampleBlock, StationReader
 log = logging.getLogger("gateway")
 
 DEFAULT_LISTEN = "127.0.0.1:7766"
+DISCOVERY_INTERVAL_S = 2.0
 STATION_COMMANDS = {
     "identify": fp.Opcode.IDENTIFY,
     "set_rate": fp.Opcode.SET_RATE,
@@ -61,7 +62,7 @@ class Gateway:
         *,
         listen: tuple[str, int] = ("127.0.0.1", 7766),
         record_dir: str | Path = "recordings",
-        open_link: Callable[[str], Link] = SerialLink,
+        open_link: Callable[[str], Link] = open_link,
         camera: Any = None,
         calibration: Any = None,
         status_interval_s: float = 1.0,
@@ -70,6 +71,7 @@ class Gateway:
         reconnect_interval_s: float = 0.2,
         display_queue_frames: int = 2048,
         status_line: Callable[[str], None] | None = None,
+        discover: bool | list[Callable[[], list[DiscoveredPort]]] = False,
         name: str = "courtside-gateway",
     ):
         self.name = name
@@ -85,6 +87,8 @@ class Gateway:
         self._readers_lock = threading.Lock()
         self.server = StreamServer(self.handle_request, host=listen[0], port=listen[1], hello=self._hello,
                                    display_queue_frames=display_queue_frames)
+        # discovery functions polled for hot-plugged stations (True = USB serial + HID by VID:PID)
+        self.discoverers = [discover_serial, discover_hid] if discover is True else list(discover or [])
         self.samples_in = 0
         self.camera_frames = 0
         self._last_calibration_state: Any = None
@@ -209,8 +213,26 @@ class Gateway:
     def _hello(self) -> dict[str, Any]:
         return {"gateway": self.name, "t_host_s": time.monotonic(), "stations": self.list_stations()}
 
+    def discover_stations(self) -> list[str]:
+        """Hot-plug: add every base station found by USB VID:PID (serial and HID) that is not read yet.
+        A station that disappears is handled by its reader (state "lost", reconnect when it is back)."""
+        with self._readers_lock:
+            known = {r.source for r in self.readers}
+        added = []
+        for port in [p for discoverer in self.discoverers for p in discoverer()]:
+            if port.source not in known:
+                self.add_station(port.source)
+                self.publish_event("info", "discovery", f"found {port.transport} station {port.source} "
+                                   f"(serial number {port.serial_number})")
+                added.append(port.source)
+        return added
+
     def _status_loop(self) -> None:
+        last_discovery = 0.0
         while not self._stop.wait(self.status_interval_s):
+            if self.discoverers and time.monotonic() - last_discovery >= DISCOVERY_INTERVAL_S:
+                last_discovery = time.monotonic()
+                self.discover_stations()
             status = self.status()
             self.server.publish("status", status)
             self.server.publish("recording", status["recording"])
@@ -324,8 +346,11 @@ def format_status_lines(status: dict[str, Any]) -> list[str]:
 # ---------------------------------------------------------------------------------------------------- CLI
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="courtside gateway", description=__doc__.split("\n")[0])
-    p.add_argument("--port", action="append", default=[], metavar="PATH", help="serial port path (repeatable)")
+    p.add_argument("--port", action="append", default=[], metavar="PATH",
+                   help="serial port path, or hid:<path> / hid:VVVV:PPPP[:serial] (repeatable)")
     p.add_argument("--url", action="append", default=[], metavar="URL", help="pyserial URL, e.g. emu://... (repeatable)")
+    p.add_argument("--discover", action="store_true",
+                   help="find stations by USB VID:PID 1209:C0DE (serial + HID), also hot-plugged ones")
     p.add_argument("--emulate", type=int, default=0, metavar="N", help="start N emulated stations over ptys")
     p.add_argument("--config", type=Path, help="TOML file with the same keys (ports, urls, emulate, listen, record_dir)")
     p.add_argument("--record-dir", type=Path, default=None, help="where takes are written (default ./recordings)")
@@ -353,7 +378,7 @@ def _load_config(path: Path) -> dict[str, Any]:
         raise SystemExit(f"courtside gateway: cannot read config {path}: {exc.strerror}")
     except tomllib.TOMLDecodeError as exc:
         raise SystemExit(f"courtside gateway: {path}: {exc}")
-    known = {"ports", "urls", "emulate", "listen", "record_dir"}
+    known = {"ports", "urls", "emulate", "listen", "record_dir", "discover"}
     unknown = set(config) - known
     if unknown:
         raise SystemExit(f"courtside gateway: {path}: unknown keys {sorted(unknown)} (valid: {sorted(known)})")
@@ -396,14 +421,17 @@ def main(argv: list[str] | None = None) -> int:
 
         emulators, pty_paths = start_emulated_stations(emulate)
         sources += pty_paths
-    if not sources:
-        print("courtside gateway: no stations (give --port, --url, --emulate or --config)", file=sys.stderr)
+    discover = args.discover or bool(config.get("discover", False))
+    if not sources and not discover:
+        print("courtside gateway: no stations (give --port, --url, --emulate, --discover or --config)",
+              file=sys.stderr)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     printer = None if args.quiet else (lambda line: print(line, flush=True))
     try:
-        gateway = Gateway(sources, listen=listen, record_dir=record_dir, status_line=printer).start()
+        gateway = Gateway(sources, listen=listen, record_dir=record_dir, status_line=printer,
+                          discover=discover).start()
     except OSError as exc:
         print(f"courtside gateway: cannot listen on {listen[0]}:{listen[1]}: {exc.strerror}", file=sys.stderr)
         for emulator in emulators:

@@ -10,6 +10,7 @@ number that is stable across replugs.
 from __future__ import annotations
 
 import logging
+import re
 from dataclasses import dataclass
 from typing import Any, Callable, Protocol
 
@@ -69,6 +70,65 @@ class SerialLink:
             self._port.close()
         except (serial.SerialException, OSError):
             pass
+
+
+HID_READ_TIMEOUT_MS = int(READ_TIMEOUT_S * 1000)
+_HID_IDS = re.compile(r"^([0-9a-fA-F]{4}):([0-9a-fA-F]{4})(?::(.+))?$")
+
+
+class HidLink:
+    """A base station on USB HID: ``hid:<hidapi path>`` or ``hid:VVVV:PPPP[:serial]`` (hex VID:PID).
+
+    The 64-byte report framing lives in firmware_protocol (`HidapiTransport`); this class adapts it to `Link`.
+    ``hid_module`` is anything with the hidapi module API (``device()``, ``enumerate()``): the real ``hid``
+    (hidapi) by default, `firmware_protocol.emulator.hid_transport.FakeHidBus` in tests."""
+
+    transport = "hid"
+
+    def __init__(self, source: str, hid_module: Any = None):
+        from firmware_protocol.emulator.hid_transport import HidapiTransport
+
+        self.source = source
+        if not source.startswith("hid:"):
+            raise LinkError(f"{source}: HID sources look like hid:<path> or hid:VVVV:PPPP[:serial]")
+        spec = source[4:]
+        if hid_module is None:
+            try:
+                import hid as hid_module  # hidapi
+            except ImportError as exc:
+                raise LinkError(f"{source}: hidapi is not available ({exc})") from exc
+        ids = _HID_IDS.match(spec)
+        try:
+            if ids:
+                self._transport = HidapiTransport.open(int(ids[1], 16), int(ids[2], 16), ids[3],
+                                                       device_factory=hid_module.device)
+            else:
+                self._transport = HidapiTransport.open(path=spec.encode(), device_factory=hid_module.device)
+        except (OSError, ValueError) as exc:
+            raise LinkError(f"{source}: cannot open ({exc})") from exc
+
+    def read(self, max_bytes: int = 65536) -> bytes:
+        try:
+            return self._transport.read(HID_READ_TIMEOUT_MS)
+        except (OSError, ValueError) as exc:
+            raise LinkError(f"{self.source}: read failed ({exc})") from exc
+
+    def write(self, data: bytes) -> None:
+        try:
+            self._transport.write(data)
+        except (OSError, ValueError) as exc:
+            raise LinkError(f"{self.source}: write failed ({exc})") from exc
+
+    def close(self) -> None:
+        try:
+            self._transport.close()
+        except (OSError, ValueError):
+            pass
+
+
+def open_link(source: str) -> Link:
+    """The default link factory: ``hid:...`` sources over HID, everything else through pyserial."""
+    return HidLink(source) if source.startswith("hid:") else SerialLink(source)
 
 
 @dataclass(frozen=True)

@@ -100,7 +100,7 @@ class StationReader:
         self._command_ids = 0
         self._pending: dict[int, _Pending] = {}
         self.link_state = "connecting"
-        self.transport = getattr(open_link, "transport", "serial")
+        self.transport = "hid" if source.startswith("hid:") else "serial"
         self.station_id: int | None = None
         self.hello: fp.Hello | None = None
         self.reconnects = 0
@@ -169,6 +169,7 @@ class StationReader:
             if self.connected_at_s is not None:
                 self.reconnects += 1
             self._link = link
+            self.transport = getattr(link, "transport", self.transport)
             self._decoder = fp.StreamDecoder()
             self.connected_at_s = time.monotonic()
             self.link_state = "connecting"

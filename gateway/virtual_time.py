@@ -41,10 +41,11 @@ class _Collector:
     """Sink keeping only what scoring needs (sensor, counter, epoch, host time) to bound memory over hours."""
 
     def __init__(self) -> None:
-        self.parts: list[tuple[int, int, np.ndarray, np.ndarray]] = []
+        self.parts: list[tuple[int, int, np.ndarray, np.ndarray, float]] = []
 
     def on_samples(self, block: SampleBlock) -> None:
-        self.parts.append((block.sensor, block.epoch, block.counter.astype(np.int64), block.t_host_s))
+        self.parts.append((block.sensor, block.epoch, block.counter.astype(np.int64), block.t_host_s,
+                           float(block.arrival_s[0])))
 
     def on_station_event(self, station: str, level: str, message: str, details: dict | None = None) -> None:
         pass
@@ -56,6 +57,7 @@ class VirtualRun:
 
     error_s: np.ndarray
     age_s: np.ndarray
+    naive_error_s: np.ndarray  # baseline: stamping each sample with its batch's host arrival time
     delivered: int  # samples the station delivered intact (ground truth)
     received: int  # samples the reader produced
     status: dict
@@ -105,15 +107,15 @@ def _score(station: BaseStation, sink: _Collector, reader: StationReader) -> Vir
     key_truth = (truth.boot * 256 + truth.sensor_id) * (1 << 40) + truth.counter
     order = np.argsort(key_truth)
     boot_start = {int(b): float(truth.t_true_s[truth.boot == b].min()) for b in np.unique(truth.boot)}
-    errors, ages = [], []
-    for sensor, epoch, counter, t_host in sink.parts:
+    errors, ages, naive = [], [], []
+    for sensor, epoch, counter, t_host, arrival_s in sink.parts:
         keys = (epoch * 256 + sensor) * (1 << 40) + counter
         rows = order[np.searchsorted(key_truth, keys, sorter=order)]
         if not np.array_equal(key_truth[rows], keys):
             raise AssertionError("reader produced a sample the station never took")
         t_true = truth.t_true_s[rows]
         errors.append(t_host - (HOST_EPOCH_S + t_true))
+        naive.append(arrival_s - (HOST_EPOCH_S + t_true))
         ages.append(t_true - np.array([boot_start[epoch]]))
-    error = np.concatenate(errors) if errors else np.zeros(0)
-    age = np.concatenate(ages) if ages else np.zeros(0)
-    return VirtualRun(error, age, int(truth.delivered.sum()), len(error), reader.status())
+    error, age, naive_error = (np.concatenate(x) if x else np.zeros(0) for x in (errors, ages, naive))
+    return VirtualRun(error, age, naive_error, int(truth.delivered.sum()), len(error), reader.status())
