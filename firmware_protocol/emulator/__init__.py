@@ -2,13 +2,19 @@
 
 Core: `BaseStation(StationConfig(...), motion)` -- `write(bytes)`, `advance(seconds) -> bytes`, `unplug()`,
 `replug()`, ground truth in `.truth` (`samples()`, `frames()`, `beacons()` as numpy arrays).
+Transports: `EmulatorLink` (thread-safe handle, manual or wall-clock time) under `PtyTransport`, the `emu://`
+pyserial URL (`protocol_emu`), and `FakeHidBus` / `HidapiTransport` (64-byte HID reports).
 """
 from .clock import TICK_MODULUS, CrystalClock
 from .ground_truth import BeaconTruth, Fate, FrameTruth, SampleTruth
+from .hid_transport import FakeHidBus, FakeHidDevice, HidapiTransport
+from .link import EmulatorLink
 from .motion import MocapSource, MotionSource, StillSource, TraceSource
+from .pty_transport import PtyTransport
 from .station import BaseStation, StationConfig
 
 __all__ = [
-    "TICK_MODULUS", "BaseStation", "BeaconTruth", "CrystalClock", "Fate", "FrameTruth", "MocapSource",
-    "MotionSource", "SampleTruth", "StationConfig", "StillSource", "TraceSource",
+    "TICK_MODULUS", "BaseStation", "BeaconTruth", "CrystalClock", "EmulatorLink", "FakeHidBus", "FakeHidDevice",
+    "Fate", "FrameTruth", "HidapiTransport", "MocapSource", "MotionSource", "PtyTransport", "SampleTruth",
+    "StationConfig", "StillSource", "TraceSource",
 ]
