@@ -53,8 +53,11 @@ class EmulatorLink:
             return len(self._outbox)
 
     def write(self, data: bytes) -> None:
-        """Host->station bytes."""
+        """Host->station bytes. In real time the station first catches up, so replies (e.g. a round-trip
+        CLOCK_SYNC) carry the station time of the moment the command arrived."""
         with self._lock:
+            if self.realtime:
+                self._catch_up()
             self.station.write(data)
 
     def discard(self, start: int, end: int) -> None:
