@@ -23,6 +23,7 @@ class EmulatorLink:
         self._lock = threading.Lock()
         self._outbox = bytearray()
         self._wall_s = time.monotonic()
+        self.wall_origin_s = self._wall_s     # time.monotonic() at emulated time 0 (real-time mode)
         self.bytes_taken = 0                  # stream offset of the next byte take() will return
 
     def advance(self, seconds: float) -> None:
@@ -34,6 +35,10 @@ class EmulatorLink:
         now = time.monotonic()
         elapsed, self._wall_s = now - self._wall_s, now
         self._outbox += self.station.advance(elapsed * self.speed)
+
+    def true_to_monotonic(self, t_true_s: float) -> float:
+        """Host `time.monotonic()` at which real-time emulation reaches true time `t_true_s`."""
+        return self.wall_origin_s + t_true_s / self.speed
 
     def take(self, max_bytes: int | None = None) -> bytes:
         """Station->host bytes available now (at most `max_bytes`)."""

@@ -7,7 +7,7 @@ import pytest
 import serial
 
 import firmware_protocol  # noqa: F401  (registers emu://)
-from firmware_protocol import Ack, Hello, Opcode, SampleBatch, StreamDecoder, encode, Command
+from firmware_protocol import Ack, ClockSync, Command, Hello, Opcode, SampleBatch, StreamDecoder, encode
 from firmware_protocol.emulator import BaseStation, StationConfig
 from firmware_protocol.emulator.hid_transport import (
     IN_REPORT_ID, OUT_REPORT_ID, FakeHidBus, HidapiTransport, pack_reports, unpack_report,
@@ -163,3 +163,22 @@ def test_emu_url_bytes_taken_before_unplug_stay_readable():
         port.read(1)
     fates = assert_matches_ground_truth(frames, port.link.station)
     assert fates[1] > 0 and fates[4] > 0            # delivered before the cut, lost after it
+
+
+def test_realtime_round_trip_clock_sync_is_stamped_between_send_and_reply():
+    """In wall-clock mode a REQUEST_CLOCK_SYNC is answered with the station time of its arrival: mapped back
+    to the host clock it lies between the send and the receipt (what a round-trip estimator relies on)."""
+    port = serial.serial_for_url("emu://rtt?sensors=1&drift=0", timeout=0.01)
+    decoder = StreamDecoder()
+    for command_id in range(1, 6):
+        sent = time.monotonic()
+        port.write(encode(Command(command_id, Opcode.REQUEST_CLOCK_SYNC), 1, command_id))
+        reply = None
+        while reply is None:
+            for f in decoder.feed(port.read(port.in_waiting or 1)):
+                if isinstance(f.message, ClockSync) and f.message.echo_command_id == command_id:
+                    reply = f.message
+        received = time.monotonic()
+        t_true = port.link.station.boot_time_s + reply.station_ticks / 1e6
+        assert sent - 1e-6 <= port.link.true_to_monotonic(t_true) <= received + 1e-6
+    port.close()
