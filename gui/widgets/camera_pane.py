@@ -31,11 +31,13 @@ class CameraView(QtWidgets.QWidget):
     def __init__(self, parent: QtWidgets.QWidget | None = None) -> None:
         super().__init__(parent)
         self.image: QtGui.QImage | None = None
+        self._jpeg: bytes | None = None
         self.header: dict[str, Any] = {}
         self.setMinimumSize(240, 160)
 
     def set_frame(self, header: dict[str, Any] | None, jpeg: bytes | None) -> None:
-        if jpeg:
+        if jpeg and jpeg is not self._jpeg:
+            self._jpeg = jpeg
             img = QtGui.QImage.fromData(jpeg)
             if not img.isNull():
                 self.image = img
@@ -151,6 +153,8 @@ class CameraPane(QtWidgets.QWidget):
         self.view = CameraView()
         self.minimap = CourtMinimap()
         self.info = QtWidgets.QLabel("camera: –")
+        self._last_header: dict[str, Any] | None = None
+        self._last_jpeg: bytes | None = None
         right = QtWidgets.QVBoxLayout()
         right.addWidget(self.minimap, 1)
         right.addWidget(self.info)
@@ -160,7 +164,11 @@ class CameraPane(QtWidgets.QWidget):
         layout.addLayout(right, 1)
 
     def update_camera(self, header: dict[str, Any] | None, jpeg: bytes | None, trail: np.ndarray) -> None:
-        """trail: (N, 3) [t_s, x_m, y_m] as kept by `gui.bridge.GatewayBridge`."""
+        """trail: (N, 3) [t_s, x_m, y_m] as kept by `gui.bridge.GatewayBridge`. Called every tick; does nothing
+        unless a new observation arrived (the bridge stores a new header object per camera message)."""
+        if header is self._last_header and jpeg is self._last_jpeg:
+            return
+        self._last_header, self._last_jpeg = header, jpeg
         self.view.set_frame(header, jpeg)
         header = header or {}
         self.minimap.set_track(trail[:, 1:3], header.get("position_m"), header.get("heading_rad"))

@@ -85,3 +85,37 @@ def test_minimap_and_homography():
     far = t.map(0.0, 11.885)
     near = t.map(0.0, -11.885)
     assert far[1] < near[1]  # far baseline drawn at the top
+
+
+def test_camera_pane_overlays_court_and_player_where_the_homography_says(qtbot):
+    import cv2
+    from PySide6 import QtGui
+
+    from gui.widgets.camera_pane import CameraPane
+
+    # a 400x300 black frame; homography: court metres -> pixels, 10 px/m, court centre at (200, 150), y up
+    h = np.array([[10.0, 0, 200], [0, -10.0, 150], [0, 0, 1]])
+    ok, jpeg = cv2.imencode(".jpg", np.zeros((300, 400, 3), np.uint8))
+    pane = CameraPane()
+    qtbot.addWidget(pane)
+    pane.view.setFixedSize(400, 300)  # 1:1 with the frame, so frame pixels are widget pixels
+    pane.resize(700, 320)
+    pane.show()
+    header = {"t_host_s": 5.0, "position_m": [2.0, -8.0], "heading_rad": 0.0, "confidence": 0.9,
+              "court_to_image": h.tolist()}
+    trail = np.array([[4.0, 0.0, -8.0], [4.5, 1.0, -8.0], [5.0, 2.0, -8.0]])
+    pane.update_camera(header, jpeg.tobytes(), trail)
+    qtbot.wait(50)
+    img = pane.view.grab().toImage().convertToFormat(QtGui.QImage.Format_RGB888)
+    px = np.frombuffer(img.constBits(), np.uint8).reshape(img.height(), img.bytesPerLine())[:, :3 * img.width()]
+    px = px.reshape(img.height(), img.width(), 3).astype(int)
+    # near baseline corner (-5.485, -11.885) m -> (145, 269) px: court-line colour (cyan: low red, high blue)
+    col, row = apply_homography(h, np.array([[-5.485 + 2.0, -11.885]]))[0].round().astype(int)
+    patch = px[row - 1:row + 2, col - 1:col + 2]
+    assert ((patch[..., 2] > 150) & (patch[..., 0] < 120)).any()
+    # the player marker (orange) sits at the projected position (220, 230) px
+    col, row = apply_homography(h, np.array([[2.0, -8.0]]))[0].round().astype(int)
+    ring = px[row - 8:row + 9, col - 8:col + 9]
+    assert ((ring[..., 0] > 200) & (ring[..., 2] < 100)).any()
+    np.testing.assert_allclose(pane.minimap.trail_m, trail[:, 1:])
+    assert "+2.00, -8.00" in pane.info.text()
