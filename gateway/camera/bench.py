@@ -116,7 +116,7 @@ def lag_table(camera, quick: bool) -> None:
     lift = jump_lift_m(t, ((1.0, 0.35), (2.6, 0.25)))
     path = PlayerPath(t, np.tile([1.0, -8.0], (len(t), 1)), np.zeros(len(t)), lift)
     t_imu = np.arange(0.0, 4.0, 0.01)
-    vertical = np.interp(t_imu, t, np.gradient(np.gradient(lift, t), t)) / GRAVITY_MPS2
+    vertical = np.interp(t_imu, t, path.vertical_acceleration_mps2()) / GRAVITY_MPS2
     acc = np.column_stack([np.zeros_like(t_imu), 1 + vertical, np.zeros_like(t_imu)])
     acc += np.random.default_rng(0).normal(0, 0.02, acc.shape)
     imu = imu_event_signal(t_imu, acc)

@@ -47,7 +47,7 @@ def test_jump_seen_by_imu_and_rendered_camera_gives_the_injected_latency(court_c
     cam = camera_event_signal(t_cam, upward_image_displacement_px(calibration, np.array([r.centroid_px for r in records])))
     # trunk accelerometer at 100 Hz on the true clock: gravity + vertical acceleration, noise
     t_imu = np.arange(0.0, 4.0, 0.01)
-    vertical_g = np.interp(t_imu, t, np.gradient(np.gradient(lift, t), t)) / GRAVITY_MPS2
+    vertical_g = np.interp(t_imu, t, path.vertical_acceleration_mps2()) / GRAVITY_MPS2
     acc = np.column_stack([np.zeros_like(t_imu), 1 + vertical_g, np.zeros_like(t_imu)])
     acc += np.random.default_rng(0).normal(0, 0.02, acc.shape)
     est = estimate_lag(t_imu, imu_event_signal(t_imu, acc), t_cam, cam, max_lag_s=0.3)
