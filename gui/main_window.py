@@ -79,6 +79,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self._last_status_t: float | None = None
         self._groups_key: tuple = ()
         self._was_locked: set[str] = set()
+        self._last_tap_t: float | None = None
         self._play_wall0 = 0.0
         self._play_t0 = 0.0
 
@@ -194,8 +195,10 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             heading = header.get("heading_rad") if self.use_camera_heading else None
             self.worker.set_camera(header.get("position_m"), heading)
         self.recording.show_state(self.bridge.latest("recording"), self.gateway_now_s())
+        calibration = self.bridge.latest("calibration")
+        self._mark_tap(calibration)
         if self.wizard is not None:
-            self.wizard.show_state(self.bridge.latest("calibration"))
+            self.wizard.show_state(calibration)
         self._update_groups()
         self._update_poses()
         t = self.stats.stage("panes", t)
@@ -217,6 +220,13 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         rec = self.bridge.latest("recording") or {}
         disk = str(Path(rec["path"]).parent) if rec.get("path") and Path(rec["path"]).parent.exists() else "."
         self.alarms.set_conditions(status_alarms(status, disk, self._was_locked))
+
+    def _mark_tap(self, calibration: dict[str, Any] | None) -> None:
+        """A sync tap found by the calibration workflow becomes an event marker on the traces."""
+        tap = ((calibration or {}).get("state") or {}).get("tap")
+        if tap and tap.get("t_s") != self._last_tap_t:
+            self._last_tap_t = tap.get("t_s")
+            self.store.put_event(float(tap["t_s"]), f"tap {tap.get('sensor_id', '')}")
 
     def _update_groups(self) -> None:
         groups = self.bridge.sensor_groups()

@@ -155,6 +155,9 @@ class CameraPane(QtWidgets.QWidget):
         self.info = QtWidgets.QLabel("camera: –")
         self._last_header: dict[str, Any] | None = None
         self._last_jpeg: bytes | None = None
+        self._last_obs: tuple[float, int | None] | None = None
+        self.fps = 0.0
+        self.dropped = 0
         right = QtWidgets.QVBoxLayout()
         right.addWidget(self.minimap, 1)
         right.addWidget(self.info)
@@ -173,6 +176,21 @@ class CameraPane(QtWidgets.QWidget):
         header = header or {}
         self.minimap.set_track(trail[:, 1:3], header.get("position_m"), header.get("heading_rad"))
         if header:
+            self._count_frames(header)
             pos = header.get("position_m") or [float("nan")] * 2
+            state = "" if header.get("tracking", True) else "  NOT TRACKING"
             self.info.setText(f"t {header.get('t_host_s', 0):.2f} s  pos ({pos[0]:+.2f}, {pos[1]:+.2f}) m  "
-                              f"conf {float(header.get('confidence', float('nan'))):.2f}")
+                              f"conf {float(header.get('confidence', float('nan'))):.2f}{state}\n"
+                              f"camera {self.fps:.1f} fps, {self.dropped} dropped")
+
+    def _count_frames(self, header: dict[str, Any]) -> None:
+        """Camera rate from observation times (EMA) and dropped frames from gaps in ``frame_index``."""
+        t, index = header.get("t_host_s"), header.get("frame_index")
+        if self._last_obs is not None and t is not None:
+            t_prev, i_prev = self._last_obs
+            if t > t_prev:
+                rate = (index - i_prev) / (t - t_prev) if index is not None and i_prev is not None else 1 / (t - t_prev)
+                self.fps = rate if self.fps == 0 else 0.9 * self.fps + 0.1 * rate
+            if index is not None and i_prev is not None and index > i_prev + 1:
+                self.dropped += index - i_prev - 1
+        self._last_obs = (t, index)

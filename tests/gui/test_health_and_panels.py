@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from gui.health import Sync, status_alarms, sync_status
 from gui.widgets.alarms import AlarmBar
@@ -101,7 +102,7 @@ def test_camera_pane_overlays_court_and_player_where_the_homography_says(qtbot):
     pane.view.setFixedSize(400, 300)  # 1:1 with the frame, so frame pixels are widget pixels
     pane.resize(700, 320)
     pane.show()
-    header = {"t_host_s": 5.0, "position_m": [2.0, -8.0], "heading_rad": 0.0, "confidence": 0.9,
+    header = {"t_host_s": 5.0, "frame_index": 8, "position_m": [2.0, -8.0], "heading_rad": 0.0, "confidence": 0.9,
               "court_to_image": h.tolist()}
     trail = np.array([[4.0, 0.0, -8.0], [4.5, 1.0, -8.0], [5.0, 2.0, -8.0]])
     pane.update_camera(header, jpeg.tobytes(), trail)
@@ -119,3 +120,7 @@ def test_camera_pane_overlays_court_and_player_where_the_homography_says(qtbot):
     assert ((ring[..., 0] > 200) & (ring[..., 2] < 100)).any()
     np.testing.assert_allclose(pane.minimap.trail_m, trail[:, 1:])
     assert "+2.00, -8.00" in pane.info.text()
+    for k in [i for i in range(9, 30) if i != 15]:  # 12 fps with frame 15 dropped
+        pane.update_camera(dict(header, t_host_s=5.0 + (k - 8) / 12.0, frame_index=k), None, trail)
+    assert pane.dropped == 1 and pane.fps == pytest.approx(12.0, rel=0.05)
+    assert "1 dropped" in pane.info.text()
