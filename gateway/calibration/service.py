@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from gateway.calibration.wizard import CalibrationWizard, SegmentSpec, WizardConfig
+from gateway.calibration.wizard import CalibrationWizard, SegmentSpec, WizardConfig, segment_specs_from_placements
 from gateway.server import RequestError
 
 
@@ -38,6 +38,17 @@ class CalibrationService:
         self._config = config
         self._lock = threading.Lock()
         self.wizard = CalibrationWizard(segments, config)
+
+    @classmethod
+    def standard(cls, sensor_names: tuple[str, ...] | None = None, config: WizardConfig = WizardConfig()
+                 ) -> "CalibrationService":
+        """Segments = the engine's standard sensor placements (default: the six seed-000 sensors) on the
+        shipped CMU skeleton, i.e. exactly the mounting the engine's virtual sensors assume."""
+        from engine.mocap import SEED000_SENSORS, load_clip, sample_clips, standard_placements
+
+        skeleton = load_clip(sample_clips()["16_01"]).skeleton
+        placements = standard_placements(skeleton, sensor_names or SEED000_SENSORS)
+        return cls(segment_specs_from_placements(placements), config)
 
     def on_samples(self, station: str, sensor: int | str, t_host_s: np.ndarray, acc_g: np.ndarray) -> None:
         with self._lock:

@@ -6,13 +6,15 @@ Headless (OpenCV + numpy only). Public API, all importable from here:
   :class:`SyntheticCourtCamera` (+ :class:`GroundTruth`, :class:`CameraImperfections`, :func:`default_court_camera`)
 - court: :data:`COURT_KEYPOINTS_M`, :data:`COURT_LINES_M`, :class:`CourtCalibration` (fit / save / load / map)
 - tracking: :class:`PlayerTracker`, :class:`TrackerConfig`, :class:`TrackRecord`
-- lag check: :func:`imu_event_signal`, :func:`camera_event_signal`, :func:`upward_image_displacement_px`,
+- lag check: :func:`jump_lag` (one call), :func:`imu_event_signal`, :func:`camera_event_signal`, :func:`upward_image_displacement_px`,
   :func:`estimate_lag`, :class:`LagEstimate`
 """
 from gateway.camera.court import COURT_KEYPOINTS_M, COURT_LINES_M, keypoints_array
 from gateway.camera.court_calibration import CourtCalibration
 from gateway.camera.errors import CameraError, CourtCalibrationFileError, FrameSourceError
-from gateway.camera.lag import LagEstimate, camera_event_signal, estimate_lag, imu_event_signal, upward_image_displacement_px
+from gateway.camera.lag import (
+    LagEstimate, camera_event_signal, estimate_lag, imu_event_signal, jump_lag, upward_image_displacement_px,
+)
 from gateway.camera.paths import PlayerPath, jump_lift_m, scripted_rally_path
 from gateway.camera.pinhole import PinholeCamera
 from gateway.camera.sources import Frame, FrameSource, OpenCVCamera, VideoFileSource
@@ -22,7 +24,7 @@ from gateway.camera.tracker import PlayerTracker, TrackerConfig, TrackRecord
 __all__ = [
     "COURT_KEYPOINTS_M", "COURT_LINES_M", "keypoints_array", "CourtCalibration", "CameraError",
     "CourtCalibrationFileError", "FrameSourceError", "LagEstimate", "camera_event_signal", "estimate_lag",
-    "imu_event_signal", "upward_image_displacement_px", "PlayerPath", "jump_lift_m", "scripted_rally_path",
+    "imu_event_signal", "jump_lag", "upward_image_displacement_px", "PlayerPath", "jump_lift_m", "scripted_rally_path",
     "PinholeCamera", "Frame", "FrameSource", "OpenCVCamera", "VideoFileSource", "CameraImperfections",
     "GroundTruth", "SyntheticCourtCamera", "default_court_camera", "PlayerTracker", "TrackerConfig", "TrackRecord",
 ]

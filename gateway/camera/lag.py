@@ -105,3 +105,13 @@ def estimate_lag(
         denom = a - 2 * b + c
         offset = 0.5 * (a - c) / denom if denom < 0 else 0.0
     return LagEstimate(float((k + offset - m) * dt), float(corr[k]), float(rate_hz))
+
+
+def jump_lag(t_imu_s: np.ndarray, trunk_acc_g: np.ndarray, t_cam_s: np.ndarray, centroid_px: np.ndarray,
+             calibration: CourtCalibration, max_lag_s: float = 0.5) -> LagEstimate:
+    """Camera lag behind the IMU from a jump (or jumps) seen by a trunk accelerometer and by the tracker.
+
+    ``trunk_acc_g`` (N, 3) at ``t_imu_s``; ``t_cam_s`` and ``centroid_px`` (M, 2) from the tracker's records
+    (``TrackRecord.t_host_s``, ``.centroid_px``). Subtract ``lag_s`` from camera times to align them."""
+    camera = camera_event_signal(t_cam_s, upward_image_displacement_px(calibration, centroid_px))
+    return estimate_lag(t_imu_s, imu_event_signal(t_imu_s, trunk_acc_g), t_cam_s, camera, max_lag_s=max_lag_s)

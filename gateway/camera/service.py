@@ -17,6 +17,7 @@ from dataclasses import replace
 from typing import Any, Callable
 
 import cv2
+import numpy as np
 
 from gateway.camera.sources import Frame, FrameSource
 from gateway.camera.tracker import PlayerTracker, TrackRecord
@@ -57,6 +58,33 @@ class CameraService:
         self.tracked = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+
+    @classmethod
+    def synthetic(cls, seconds: float = 600.0, *, seed: int = 0, clip: str | None = None,
+                  thumbnail_every: int = 10) -> "CameraService":
+        """A paced synthetic court camera (scripted rally, or a shipped CMU ``clip``) with its exact calibration:
+        the camera of ``courtside gateway --emulate`` and the demo."""
+        from gateway.camera.court import COURT_KEYPOINTS_M, keypoints_array
+        from gateway.camera.court_calibration import CourtCalibration
+        from gateway.camera.paths import scripted_rally_path
+        from gateway.camera.synthetic import SyntheticCourtCamera, default_court_camera
+
+        camera = default_court_camera()
+        names = list(COURT_KEYPOINTS_M)
+        clicks = camera.project(np.column_stack([keypoints_array(names), np.zeros(len(names))]))
+        calibration = CourtCalibration.fit(clicks, names=names, image_size=camera.image_size,
+                                           camera_matrix=camera.camera_matrix)
+        body = None
+        if clip is not None:
+            from engine.mocap import load_clip, sample_clips
+            from gateway.camera.mocap_body import MocapBody
+
+            body = MocapBody(load_clip(sample_clips()[clip], fps=30.0))
+            path = body.path
+        else:
+            path = scripted_rally_path(seconds, seed=seed)
+        source = SyntheticCourtCamera(path, camera=camera, body=body, seed=seed)
+        return cls(source, PlayerTracker(calibration), realtime=True, thumbnail_every=thumbnail_every)
 
     def start(self, sink: Sink) -> None:
         self._stop.clear()

@@ -54,3 +54,21 @@ def test_calibration_through_the_gateway(tmp_path, specs, subject):
             assert CalibrationRecord.load(saved["json"]).subject == "p1"
     finally:
         station.stop()
+
+
+def test_standard_service_uses_engine_placements_and_refuses_cleanly():
+    from engine.mocap import SEED000_SENSORS
+    from gateway.server import RequestError
+
+    service = CalibrationService.standard()
+    assert set(service.state()["unassigned_segments"]) == set(SEED000_SENSORS)
+    with pytest.raises(RequestError, match="needs argument 'segment'"):
+        service.handle("assign", {"sensor": "st1/0"})
+    with pytest.raises(RequestError, match="no N-pose captured"):
+        service.handle("save", {"path": "x.json"})
+    with pytest.raises(RequestError, match="unknown calibration action 'dance'"):
+        service.handle("dance", {})
+    service.handle("assign", {"sensor": "st1/0", "segment": "chest"})
+    service.on_samples("st1", 0, np.arange(5) * 0.01, np.tile([0.0, 1.0, 0.0], (5, 1)))
+    state = service.handle("reset", {})
+    assert state["sensors"] == {} and state["step"] == "assign"

@@ -6,7 +6,7 @@ import pytest
 
 from gateway.camera import (
     CameraImperfections, PlayerPath, PlayerTracker, SyntheticCourtCamera, camera_event_signal, estimate_lag,
-    imu_event_signal, jump_lift_m, upward_image_displacement_px,
+    imu_event_signal, jump_lag, jump_lift_m, upward_image_displacement_px,
 )
 from gateway.camera.paths import GRAVITY_MPS2
 
@@ -44,13 +44,15 @@ def test_jump_seen_by_imu_and_rendered_camera_gives_the_injected_latency(court_c
     tracker = PlayerTracker(calibration)
     records = [r for r in (tracker.update(f) for f in source) if r is not None]
     t_cam = np.array([r.t_host_s for r in records])
-    cam = camera_event_signal(t_cam, upward_image_displacement_px(calibration, np.array([r.centroid_px for r in records])))
+    centroids = np.array([r.centroid_px for r in records])
+    cam = camera_event_signal(t_cam, upward_image_displacement_px(calibration, centroids))
     # trunk accelerometer at 100 Hz on the true clock: gravity + vertical acceleration, noise
     t_imu = np.arange(0.0, 4.0, 0.01)
     vertical_g = np.interp(t_imu, t, path.vertical_acceleration_mps2()) / GRAVITY_MPS2
     acc = np.column_stack([np.zeros_like(t_imu), 1 + vertical_g, np.zeros_like(t_imu)])
     acc += np.random.default_rng(0).normal(0, 0.02, acc.shape)
     est = estimate_lag(t_imu, imu_event_signal(t_imu, acc), t_cam, cam, max_lag_s=0.3)
+    assert jump_lag(t_imu, acc, t_cam, centroids, calibration, max_lag_s=0.3) == est  # the one-call helper
     print(f"jump lag estimate {est.lag_s * 1000:.1f} ms (true {latency_s * 1000:.0f} ms), r={est.correlation:.2f}")
     assert est.lag_s == pytest.approx(latency_s, abs=0.010)  # under a third of a 33 ms frame
     assert est.correlation > 0.7

@@ -39,3 +39,17 @@ def test_camera_observations_reach_a_client(tmp_path, court_camera, calibration)
     assert thumbs and all(m["frame_index"] % 10 == 0 for m in got if "jpeg" in m.arrays)
     image = cv2.imdecode(np.asarray(thumbs[0]), cv2.IMREAD_COLOR)
     assert image.shape[1] == 320
+
+
+def test_synthetic_factory_streams_tracked_positions():
+    got = []
+    service = CameraService.synthetic(2.0, seed=1, thumbnail_every=0)
+    service.start(lambda obs, jpeg: got.append((obs, jpeg)))
+    deadline = time.monotonic() + 10.0
+    while service.running and time.monotonic() < deadline:
+        time.sleep(0.05)
+    service.stop()
+    tracked = [obs for obs, _ in got if obs["tracking"]]
+    assert len(got) == int(3.0 * 30) + 1 and len(tracked) > 40
+    assert all(jpeg is None for _, jpeg in got)
+    assert all(abs(obs["t_host_s"] - time.monotonic()) < 15 for obs in tracked)  # on the monotonic clock
