@@ -3,7 +3,8 @@
 Contract (docs/gateway.md "Hooks"): ``start(sink)`` / ``stop()``; ``sink(observation: dict, jpeg: bytes | None)``
 with at least ``t_host_s``, ``position_m`` ``[x, y]`` (court frame) and ``heading_rad``. We add ``confidence``,
 ``velocity_mps``, ``raw_position_m``, ``frame_index`` and ``tracking`` (False while warming up / lost; no
-position then).
+position then), and for the console's overlay ``court_to_image`` (3x3, court metres -> *thumbnail* pixels) and
+``bbox_px`` ``[x0, y0, x1, y1]`` (thumbnail pixels) of the player's blob.
 
 Why a thumbnail only every few frames: the console shows the camera picture for orientation; positions are the
 data. JPEG encoding every frame would cost more CPU than tracking on a small board.
@@ -26,16 +27,20 @@ log = logging.getLogger(__name__)
 Sink = Callable[[dict[str, Any], "bytes | None"], None]
 
 
-def observation(frame: Frame, record: TrackRecord | None) -> dict[str, Any]:
-    """The dict sent to the gateway for one frame."""
+def observation(frame: Frame, record: TrackRecord | None, court_to_image: np.ndarray, scale: float) -> dict[str, Any]:
+    """The dict sent to the gateway for one frame; ``scale`` maps frame pixels to thumbnail pixels."""
+    out: dict[str, Any] = {"t_host_s": frame.t_host_s, "frame_index": frame.index, "tracking": record is not None,
+                           "court_to_image": court_to_image.tolist()}
     if record is None:
-        return {"t_host_s": frame.t_host_s, "frame_index": frame.index, "tracking": False}
-    return {
-        "t_host_s": record.t_host_s, "frame_index": frame.index, "tracking": True,
-        "position_m": [record.x_m, record.y_m], "heading_rad": record.heading_rad,
+        return out
+    out.update({
+        "t_host_s": record.t_host_s, "position_m": [record.x_m, record.y_m], "heading_rad": record.heading_rad,
         "confidence": record.confidence, "velocity_mps": [record.vx_mps, record.vy_mps],
         "raw_position_m": [record.raw_x_m, record.raw_y_m],
-    }
+    })
+    if np.isfinite(record.bbox_px[0]):
+        out["bbox_px"] = [v * scale for v in record.bbox_px]
+    return out
 
 
 class CameraService:
@@ -54,6 +59,9 @@ class CameraService:
         self.thumbnail_every = thumbnail_every
         self.thumbnail_width_px = thumbnail_width_px
         self.jpeg_quality = jpeg_quality
+        width = tracker.calibration.image_size[0]
+        self._scale = thumbnail_width_px / width
+        self._court_to_image = np.diag([self._scale, self._scale, 1.0]) @ tracker.calibration.homography
         self.frames = 0
         self.tracked = 0
         self._stop = threading.Event()
@@ -126,6 +134,6 @@ class CameraService:
                 record = self.tracker.update(frame)
                 self.frames += 1
                 self.tracked += record is not None
-                sink(observation(frame, record), self._thumbnail(frame))
+                sink(observation(frame, record, self._court_to_image, self._scale), self._thumbnail(frame))
         except Exception:  # a camera failure must not take the gateway down; it is logged and the thread ends
             log.exception("camera thread failed")

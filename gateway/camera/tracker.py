@@ -53,7 +53,8 @@ class TrackerConfig:
 class TrackRecord:
     """One tracker output. ``x_m``/``y_m``/``heading_rad`` are smoothed (court frame, CONTRACTS heading),
     ``confidence`` 0..1 (0 = coasting on prediction only). ``raw_*`` is the unsmoothed ground point of this frame
-    (NaN when no blob), ``centroid_px`` and ``blob_area_px`` feed the IMU-camera lag check."""
+    (NaN when no blob), ``centroid_px`` and ``blob_area_px`` feed the IMU-camera lag check, ``bbox_px``
+    ``(x0, y0, x1, y1)`` is the blob's box (NaN when no blob) for display."""
 
     t_host_s: float
     x_m: float
@@ -66,6 +67,7 @@ class TrackRecord:
     raw_y_m: float
     centroid_px: tuple[float, float]
     blob_area_px: float
+    bbox_px: tuple[float, float, float, float]
 
     def to_dict(self) -> dict:
         """JSON-ready dict (what the gateway streams on its camera channel)."""
@@ -171,8 +173,14 @@ class PlayerTracker:
             heading = float(np.arctan2(vx, vy))
         else:
             heading = float(facing_net_heading_rad(y))
-        centroid = (float(chosen.centroid_px[0]), float(chosen.centroid_px[1])) if chosen else (float("nan"), float("nan"))
+        nan = float("nan")
+        if chosen is not None:
+            centroid = (float(chosen.centroid_px[0]), float(chosen.centroid_px[1]))
+            (x0, y0), (x1, y1) = chosen.pixels_xy.min(axis=0), chosen.pixels_xy.max(axis=0) + 1
+            bbox = (float(x0), float(y0), float(x1), float(y1))
+        else:
+            centroid, bbox = (nan, nan), (nan, nan, nan, nan)
         return TrackRecord(
             frame.t_host_s, float(x), float(y), heading, self._confidence, float(vx), float(vy),
-            float(raw[0]), float(raw[1]), centroid, chosen.area_px if chosen else float("nan"),
+            float(raw[0]), float(raw[1]), centroid, chosen.area_px if chosen else nan, bbox,
         )

@@ -53,3 +53,28 @@ def test_synthetic_factory_streams_tracked_positions():
     assert len(got) == int(3.0 * 30) + 1 and len(tracked) > 40
     assert all(jpeg is None for _, jpeg in got)
     assert all(abs(obs["t_host_s"] - time.monotonic()) < 15 for obs in tracked)  # on the monotonic clock
+
+
+def test_overlay_geometry_is_in_thumbnail_pixels(court_camera, calibration):
+    """court_to_image and bbox_px must land on the player in the 320 px thumbnail the console draws."""
+    path = scripted_rally_path(1.5, seed=2)
+    service = CameraService(SyntheticCourtCamera(path, camera=court_camera, empty_s=1.0, seed=5),
+                            PlayerTracker(calibration), thumbnail_every=1)
+    got = []
+    service.start(lambda obs, jpeg: got.append((obs, jpeg)))
+    deadline = time.monotonic() + 10.0
+    while service.running and time.monotonic() < deadline:
+        time.sleep(0.05)
+    service.stop()
+    obs, jpeg = next((o, j) for o, j in reversed(got) if o["tracking"])
+    thumb = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+    h = np.asarray(obs["court_to_image"])
+    truth = path.state(-1.0 + obs["frame_index"] / 30.0)
+    feet = h @ [truth.x_m, truth.y_m, 1.0]
+    fx, fy = feet[:2] / feet[2]
+    x0, y0, x1, y1 = obs["bbox_px"]
+    assert x0 - 2 <= fx <= x1 + 2 and y0 - 2 <= fy <= y1 + 2  # the player's feet are inside the box
+    assert 0 < x0 < x1 <= thumb.shape[1] and 0 < y0 < y1 <= thumb.shape[0]
+    corner = h @ [-5.485, -11.885, 1.0]
+    full = court_camera.project(np.array([[-5.485, -11.885, 0.0]]))[0]
+    np.testing.assert_allclose(corner[:2] / corner[2], full * 320 / 800, atol=0.5)
