@@ -252,7 +252,10 @@ class ViterbiLattice:
 
     def best_node(self) -> int:
         """Graph node with the lowest (broken constraints, cost) at the current sample."""
-        return int(self._to_graph[np.lexsort((self._G, self._Gr))[0]])
+        if not self.constrained:
+            return int(self._to_graph[np.argmin(self._G)])
+        fewest = self._Gr == self._Gr.min()
+        return int(self._to_graph[np.argmin(np.where(fewest, self._G, np.inf))])
 
     # ----- path memory --------------------------------------------------------------------------
     def _lookup(self, col: _Column, nodes: np.ndarray) -> np.ndarray:
