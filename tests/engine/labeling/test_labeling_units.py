@@ -8,7 +8,7 @@ from engine.labeling.config import LabelingConfig
 from engine.labeling.kalman import KalmanBank
 from engine.labeling.labeler import OBSERVED, RECOVERED, OnlineLabeler
 from engine.labeling.search import link_table, search_body
-from engine.labeling.structure import DistanceWindow, cluster_rigid_bodies, pair_distances
+from engine.labeling.structure import DistanceWindow, choose_cluster_tau, cluster_rigid_bodies, pair_distances
 
 
 def _rotation(rng):
@@ -149,3 +149,65 @@ def test_training_needs_complete_last_frame_and_bodies_must_partition():
         OnlineLabeler().train(holed, subjects, fps)
     with pytest.raises(ValueError, match="partition"):
         OnlineLabeler().train(pos[:30], subjects, fps, bodies=[np.arange(8)])
+
+
+def test_tau_search_picks_a_threshold_giving_bodies_of_three_to_eight():
+    """Rigid groups whose within-group std is ~5 mm: a fixed 3 mm threshold leaves singletons, the search finds
+    a threshold that restores the groups."""
+    rng = np.random.default_rng(11)
+    n, groups = 12, [range(0, 4), range(4, 8), range(8, 12)]
+    std = np.full((n, n), 0.05)
+    for g in groups:
+        for i in g:
+            for j in g:
+                std[i, j] = 0.004 + 0.002 * rng.random()
+    std = np.minimum(std, std.T)
+    np.fill_diagonal(std, 0.0)
+    assert choose_cluster_tau(std, np.array([0.003])) == 0.003
+    tau = choose_cluster_tau(std, np.geomspace(0.003, 0.03, 12))
+    assert [list(b) for b in cluster_rigid_bodies(std, tau)] == [list(g) for g in groups]
+
+
+def test_greedy_loop_gives_a_contested_point_to_the_body_it_fits():
+    """Two subjects' bodies both gate the same point; it fits body A exactly and body B poorly. A takes it and B
+    reports that marker missing, whichever body comes first in the label order."""
+    rng = np.random.default_rng(12)
+    a = rng.uniform(-0.05, 0.05, (3, 3))
+    b = rng.uniform(-0.05, 0.05, (3, 3)) + np.array([0.12, 0.0, 0.0])
+    for first in ("a", "b"):
+        frames = np.stack([np.vstack([a, b] if first == "a" else [b, a])] * 20)
+        subjects = np.repeat([0, 1], 3)
+        labeler = OnlineLabeler(LabelingConfig(train_frames=20, max_candidates=6, gate_chi2=1e6))
+        labeler.train(frames, subjects, 120.0)
+        a_idx, b_idx = (np.arange(3), np.arange(3, 6)) if first == "a" else (np.arange(3, 6), np.arange(3))
+        # frame: body A complete; body B's marker 0 hidden, but A's marker 0 lies inside B's gate
+        points = np.vstack([a, b[1:]])
+        result = labeler.step(points)
+        assert result.label_point[a_idx[0]] == 0  # A keeps its point
+        assert result.label_point[b_idx[0]] == -1  # B does not steal it
+        assert np.array_equal(result.label_point[b_idx[1:]], [3, 4])
+
+
+def test_label_cli_reports_bad_input_naming_the_file(tmp_path, capsys):
+    from engine.labeling.cli import main
+
+    missing = tmp_path / "nothing.c3d"
+    assert main([str(missing), "-o", str(tmp_path / "out.c3d")]) == 1
+    assert "nothing.c3d" in capsys.readouterr().err
+    garbage = tmp_path / "garbage.c3d"
+    garbage.write_bytes(b"\x00" * 64)
+    assert main([str(garbage), "-o", str(tmp_path / "out.c3d")]) == 1
+    assert "garbage.c3d" in capsys.readouterr().err
+
+
+def test_labelled_c3d_round_trips_with_missing_samples(tmp_path):
+    from engine.labeling.c3d_io import write_c3d
+    from engine.mocap import MarkerData, read_c3d
+
+    pos = np.random.default_rng(13).uniform(-1, 1, (10, 4, 3))
+    pos[3:6, 2] = np.nan
+    write_c3d(tmp_path / "x.c3d", MarkerData(("S:A", "S:B", "S:C", "S:D"), pos, 120.0))
+    back = read_c3d(tmp_path / "x.c3d")
+    assert back.labels == ("S:A", "S:B", "S:C", "S:D") and back.fps == 120.0
+    assert np.array_equal(np.isnan(back.positions_m), np.isnan(pos))
+    assert np.allclose(back.positions_m[~np.isnan(pos)], pos[~np.isnan(pos)], atol=1e-6)
