@@ -98,21 +98,21 @@ class KernelEnergy:
 
     def _blocks(self, problem: FrameProblem) -> list[tuple[str, float, np.ndarray]]:
         c = self.config
-        blocks = [("pose", c.w_prior * c.w_pose, problem.pose_targets)]
+        blocks = [("pose", c.w_prior * c.w_pose, problem.pose_targets / c.angle_unit_rad)]
         if problem.motion_targets is not None:
             blocks.append(("motion", c.w_prior * c.w_motion, problem.motion_targets))
         if problem.smooth_targets is not None:
             blocks.append(("smooth", c.w_prior * c.w_smooth, problem.smooth_targets))
         if problem.control_targets is not None:
             blocks.append(("control", c.w_control, problem.control_targets))
-        return blocks
+        return [b for b in blocks if b[1] > 0.0]   # a zero weight switches a term off
 
     def features(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """Batched f(q) for each term: pose vector itself, all joint positions (cm), sensor-tip positions (cm)."""
         pos, _ = fk_root_frame(self.rig, q)
         pos = pos / self.config.length_unit_m
         flat = pos.reshape(len(q), -1)
-        return {"pose": q, "motion": flat, "smooth": flat, "control": pos[:, self.tips].reshape(len(q), -1)}
+        return {"pose": q / self.config.angle_unit_rad, "motion": flat, "smooth": flat, "control": pos[:, self.tips].reshape(len(q), -1)}
 
     def _residual_fn(self, problem: FrameProblem):
         blocks = self._blocks(problem)
