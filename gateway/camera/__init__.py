@@ -6,7 +6,8 @@ Headless (OpenCV + numpy only). Public API, all importable from here:
   :class:`SyntheticCourtCamera` (+ :class:`GroundTruth`, :class:`CameraImperfections`, :func:`default_court_camera`)
 - court: :data:`COURT_KEYPOINTS_M`, :data:`COURT_LINES_M`, :class:`CourtCalibration` (fit / save / load / map)
 - tracking: :class:`PlayerTracker`, :class:`TrackerConfig`, :class:`TrackRecord`
-- lag check: :func:`jump_lag` (one call), :func:`imu_event_signal`, :func:`camera_event_signal`, :func:`upward_image_displacement_px`,
+- lag check: :func:`jump_lag` (one call), :func:`imu_event_signal`, :func:`camera_event_signal`,
+  :func:`upward_image_displacement_px`,
   :func:`estimate_lag`, :class:`LagEstimate`
 """
 from gateway.camera.court import COURT_KEYPOINTS_M, COURT_LINES_M, keypoints_array

@@ -143,7 +143,8 @@ def wizard_table(quick: bool) -> None:
         truth = {}
         for i, seg in enumerate(specs):
             axis = np.cross([0, 1, 0], rng.normal(size=3))
-            tilt = minimal_rotation([0, 1, 0], np.array([0, 1, 0]) + np.tan(np.radians(rng.uniform(5, 25))) * axis / np.linalg.norm(axis))
+            lean = np.tan(np.radians(rng.uniform(5, 25))) * axis / np.linalg.norm(axis)
+            tilt = minimal_rotation([0, 1, 0], np.array([0, 1, 0]) + lean)
             truth[f"s{i}"] = tilt @ specs[seg].nominal_rotation
             wiz.assign(f"s{i}", seg)
         wiz.confirm()
@@ -163,7 +164,8 @@ def wizard_table(quick: bool) -> None:
     e = np.array(errors)
     print(f"\n5. calibration wizard, {n_subjects} random subjects x 6 sensors (5-25 deg tilt, 0.01 g bias, 0.005 g noise)")
     print(f"   rotation error: mean {e.mean():.2f} deg, p95 {np.percentile(e, 95):.2f} deg, max {e.max():.2f} deg")
-    print(f"   push(): {push_s / pushes * 1e6:.0f} us per 5-sample packet -> {5 * pushes / push_s:,.0f} samples/s on one core")
+    print(f"   push(): {push_s / pushes * 1e6:.0f} us per 5-sample packet -> "
+          f"{5 * pushes / push_s:,.0f} samples/s on one core")
 
 
 def main(argv: list[str] | None = None) -> int:

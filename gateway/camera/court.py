@@ -33,8 +33,9 @@ def _build_lines() -> dict[str, np.ndarray]:
             [[0.0, sy * HALF_LENGTH_M], [0.0, sy * (HALF_LENGTH_M - CENTRE_MARK_LENGTH_M)]]
         )
     for hand, sx in (("left", -1.0), ("right", 1.0)):
-        lines[f"{hand}_doubles_sideline"] = np.array([[sx * HALF_DOUBLES_M, -HALF_LENGTH_M], [sx * HALF_DOUBLES_M, HALF_LENGTH_M]])
-        lines[f"{hand}_singles_sideline"] = np.array([[sx * HALF_SINGLES_M, -HALF_LENGTH_M], [sx * HALF_SINGLES_M, HALF_LENGTH_M]])
+        for kind, half_width in (("doubles", HALF_DOUBLES_M), ("singles", HALF_SINGLES_M)):
+            x = sx * half_width
+            lines[f"{hand}_{kind}_sideline"] = np.array([[x, -HALF_LENGTH_M], [x, HALF_LENGTH_M]])
     lines["centre_service_line"] = np.array([[0.0, -SERVICE_LINE_FROM_NET_M], [0.0, SERVICE_LINE_FROM_NET_M]])
     return lines
 

@@ -109,7 +109,8 @@ class OpenCVCamera(_IterableSource):
         self._cap = cv2.VideoCapture(device, cv2.CAP_V4L2) if isinstance(device, int) else cv2.VideoCapture(device)
         if not self._cap.isOpened():
             raise FrameSourceError(f"camera {device!r}", "cannot open (not connected, busy, or no permission?)")
-        for prop, value in ((cv2.CAP_PROP_FRAME_WIDTH, width), (cv2.CAP_PROP_FRAME_HEIGHT, height), (cv2.CAP_PROP_FPS, fps)):
+        requested = ((cv2.CAP_PROP_FRAME_WIDTH, width), (cv2.CAP_PROP_FRAME_HEIGHT, height), (cv2.CAP_PROP_FPS, fps))
+        for prop, value in requested:
             if value is not None:
                 self._cap.set(prop, value)
         self.nominal_fps = float(self._cap.get(cv2.CAP_PROP_FPS)) or 30.0

@@ -85,7 +85,8 @@ def render_court_background(camera: PinholeCamera, metres_per_px: float = 0.02) 
         a, b = tex_px(line)
         cv2.line(texture, tuple(map(int, a)), tuple(map(int, b)), LINE_BGR, thickness, cv2.LINE_AA, _SUBPIXEL_BITS)
     # texture pixel -> court metres -> image
-    tex_to_court = np.array([[metres_per_px, 0, x0 + metres_per_px / 2], [0, metres_per_px, y0 + metres_per_px / 2], [0, 0, 1]])
+    half = metres_per_px / 2
+    tex_to_court = np.array([[metres_per_px, 0, x0 + half], [0, metres_per_px, y0 + half], [0, 0, 1]])
     warp = camera.ground_homography() @ tex_to_court
     image = cv2.warpPerspective(texture, warp, camera.image_size, flags=cv2.INTER_AREA, borderValue=SURROUND_BGR)
     net_x = HALF_DOUBLES_M + 0.914

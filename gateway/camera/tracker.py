@@ -92,7 +92,9 @@ class PlayerTracker:
         self.calibration = calibration
         self.config = config
         #: The ground-point method in use ("auto" resolved): the parallax-corrected centroid when the pose is known.
-        self.ground_point = config.ground_point if config.ground_point != "auto" else ("centroid" if calibration.has_pose else "foot")
+        self.ground_point = config.ground_point
+        if self.ground_point == "auto":
+            self.ground_point = "centroid" if calibration.has_pose else "foot"
         self._mog = cv2.createBackgroundSubtractorMOG2(config.history, config.var_threshold, detectShadows=True)
         self._kalman = ConstantVelocityKalman(config.accel_std_mps2, config.measurement_std_m)
         width, height = calibration.image_size
@@ -121,12 +123,14 @@ class PlayerTracker:
     def blobs(self, mask: np.ndarray) -> list[Blob]:
         """Connected components above ``min_area_px``, largest first."""
         n, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        order = [i for i in np.argsort(-stats[1:, cv2.CC_STAT_AREA]) + 1 if stats[i, cv2.CC_STAT_AREA] >= self.config.min_area_px]
+        areas = stats[:, cv2.CC_STAT_AREA]
+        order = [i for i in np.argsort(-areas[1:]) + 1 if areas[i] >= self.config.min_area_px]
         out = []
         for i in order:
             x, y, w, h = stats[i, :4]
             ys, xs = np.nonzero(labels[y : y + h, x : x + w] == i)
-            out.append(Blob(centroids[i].astype(float), float(stats[i, cv2.CC_STAT_AREA]), np.column_stack([xs + x, ys + y]).astype(float)))
+            pixels = np.column_stack([xs + x, ys + y]).astype(float)
+            out.append(Blob(centroids[i].astype(float), float(areas[i]), pixels))
         return out
 
     def ground_point_m(self, blob: Blob) -> np.ndarray:
