@@ -32,7 +32,7 @@ from .geometry import wrap_angle
 from .graph import EDGE_INTERP, EDGE_NATURAL, NODE_INTERP, GraphParts
 from .metadata import advance, step_offsets
 from .poses import root_local
-from .pointcloud import distance_matrix, window_features
+from .pointcloud import WindowFeatures, distance_matrix, window_features
 from .transitions import contact_code
 
 _EIGHT = np.ones((3, 3), dtype=bool)
@@ -88,9 +88,15 @@ def find_alignments(clips: list[ClipData], config: GraphConfig, joint_weights: n
     codes = [contact_code(c.contacts) for c in clips]
     min_len = int(np.ceil(config.interp_min_length_s * config.fps))
     out = []
-    for s in range(len(clips)):
+    starts = np.cumsum([0] + [c.n_frames for c in clips])
+    for s in range(len(clips) - 1):
+        # one GEMM against all later clips at once: thousands of tiny per-pair GEMMs spend their time in
+        # BLAS thread start-up instead of arithmetic
+        later = WindowFeatures(*(np.concatenate([getattr(f, k) for f in feats[s + 1:]])
+                                 for k in ("centres", "c", "u", "v", "y")))
+        dist_all = distance_matrix(feats[s], later)
         for p in range(s + 1, len(clips)):
-            dist = distance_matrix(feats[s], feats[p])
+            dist = dist_all[:, starts[p] - starts[s + 1]:starts[p + 1] - starts[s + 1]]
             keep = (dist < config.interp_threshold_m) & (codes[s][:, None] == codes[p][None, :])
             if keep.sum() < min_len:
                 continue
