@@ -33,3 +33,19 @@ class ClosestPointTracker:
         hit = label_point >= 0
         self.last[hit] = points[label_point[hit]]
         return label_point
+
+
+def bootstrap_training_labels(first_m: np.ndarray, clouds: list[np.ndarray]) -> np.ndarray:
+    """Label training frames 2..T from a labelled first frame by one-to-one closest point (spec 001 §2.2 step 1).
+
+    first_m (L,3) labelled positions; clouds: the following unordered frames. Returns (1 + len(clouds), L, 3)
+    with NaN for labels that got no point. Valid only while the subjects are apart and move little per frame,
+    which is what the training window assumes anyway."""
+    tracker = ClosestPointTracker(first_m, one_to_one=True)
+    out = np.full((1 + len(clouds),) + np.shape(first_m), np.nan)
+    out[0] = first_m
+    for t, cloud in enumerate(clouds, start=1):
+        label_point = tracker.step(cloud)
+        hit = label_point >= 0
+        out[t, hit] = np.asarray(cloud)[label_point[hit]]
+    return out

@@ -1,7 +1,8 @@
 """`courtside label in.c3d -o labelled.c3d`: online labeling of every frame after the labelled training frames.
 
-The input's first --train-frames frames must carry correct labels ("Subject:MARKER"; the paper assumes one
-labelled start with the subjects apart). Every later frame is taken as an unordered point cloud — the
+The input's first --train-frames frames must carry correct labels ("Subject:MARKER"), or with --bootstrap
+only the first frame, the rest of the training window being labelled by closest point (the paper's set-up:
+one labelled frame, subjects apart during training). Every later frame is taken as an unordered point cloud — the
 labels in the file are ignored — and labelled online. --degrade SEED first scrambles the frames the way
 optical capture does (shuffle, noise, gaps ≤ 20 frames, ghosts) and then scores the result against the
 file's own labels, next to the closest-point baseline.
@@ -17,7 +18,7 @@ import numpy as np
 from engine.errors import MalformedFileError
 from engine.mocap import MarkerData, read_c3d
 
-from .baseline import ClosestPointTracker
+from .baseline import ClosestPointTracker, bootstrap_training_labels
 from .c3d_io import write_c3d
 from .config import LabelingConfig
 from .labeler import LOST, RECOVERED, OnlineLabeler
@@ -31,13 +32,20 @@ def subjects_of(labels: tuple[str, ...]) -> np.ndarray:
     return np.array([names.index(p) for p in prefixes])
 
 
-def run(data: MarkerData, config: LabelingConfig, stream: Stream) -> tuple[np.ndarray, OnlineLabeler, list]:
-    """Train on the first frames and label the rest of ``stream``. Returns (positions (F,L,3), labeler, results)."""
+def run(
+    data: MarkerData, config: LabelingConfig, stream: Stream, bootstrap: bool = False
+) -> tuple[np.ndarray, OnlineLabeler, list]:
+    """Train on the first frames and label the rest of ``stream``. Returns (positions (F,L,3), labeler, results).
+
+    bootstrap: trust only frame 0's labels and label the other training frames of ``stream`` by closest point."""
     t0 = config.train_frames
+    training = data.positions_m[:t0]
+    if bootstrap:
+        training = bootstrap_training_labels(training[0], stream.clouds[1:t0])
     labeler = OnlineLabeler(config)
-    labeler.train(data.positions_m[:t0], subjects_of(data.labels), data.fps)
+    labeler.train(training, subjects_of(data.labels), data.fps)
     out = np.full_like(data.positions_m, np.nan)
-    out[:t0] = data.positions_m[:t0]
+    out[:t0] = training
     results = []
     for t in range(t0, len(stream.clouds)):
         result = labeler.step(stream.clouds[t])
@@ -54,6 +62,8 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--train-frames", type=int, default=LabelingConfig.train_frames)
     parser.add_argument("--recovery", choices=["offsets", "kabsch"], default=LabelingConfig.recovery)
     parser.add_argument("--degrade", type=int, metavar="SEED", help="scramble the input, then score the labels")
+    parser.add_argument("--bootstrap", action="store_true",
+                        help="trust only the first frame's labels; label the other training frames by closest point")
     args = parser.parse_args(argv)
     try:
         data = read_c3d(args.input)
@@ -67,7 +77,7 @@ def main(argv: list[str]) -> int:
         else:
             stream = degrade(data.positions_m, subjects, DegradeConfig(0.0, 0.0, 1, 0.0, 0.0), np.random.default_rng(0))
         start = time.perf_counter()
-        out, labeler, results = run(data, config, stream)
+        out, labeler, results = run(data, config, stream, args.bootstrap)
         elapsed = time.perf_counter() - start
         write_c3d(args.output, MarkerData(data.labels, out, data.fps, data.name))
     except (MalformedFileError, ValueError) as exc:

@@ -116,7 +116,6 @@ class OnlineLabeler:
         self._template = np.full((len(self.bodies), self._n_max, 3), np.nan)
         for t in range(max(0, n_frames - cfg.window_frames), n_frames):
             self._update_structure(train[t], ~np.isnan(train[t]).any(axis=1))
-        self.last_positions = training_m[-1].copy()
 
     def _set_bodies(self, bodies: list[np.ndarray]) -> None:
         labels = np.concatenate(bodies)
@@ -124,8 +123,6 @@ class OnlineLabeler:
             raise ValueError("rigid bodies must partition the labels: every label in exactly one body")
         self.bodies = bodies
         self._order = labels  # internal index → caller label
-        self._inverse = np.empty_like(labels)
-        self._inverse[labels] = np.arange(len(labels))
         sizes = np.array([len(b) for b in bodies])
         self._starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
         self._sizes = sizes
@@ -135,9 +132,9 @@ class OnlineLabeler:
             self._pad[b, :size] = np.arange(start, start + size)
         self._body_of = np.repeat(np.arange(len(bodies)), sizes)
 
-    def _padded(self, per_label: np.ndarray, fill: float = np.nan) -> np.ndarray:
-        """Internal per-label array (L, ...) → per-body padded (B, n_max, ...)."""
-        ext = np.concatenate([per_label, np.full((1,) + per_label.shape[1:], fill, dtype=per_label.dtype)])
+    def _padded(self, per_label: np.ndarray) -> np.ndarray:
+        """Internal per-label float array (L, ...) → per-body padded (B, n_max, ...), NaN in the padding."""
+        ext = np.concatenate([per_label, np.full((1,) + per_label.shape[1:], np.nan)])
         return ext[self._pad]
 
     def _update_structure(self, pos: np.ndarray, observed: np.ndarray) -> None:
@@ -281,7 +278,6 @@ class OnlineLabeler:
         out_pos[self._order] = pos
         out_status = np.empty_like(status)
         out_status[self._order] = status
-        self.last_positions = out_pos
         return FrameLabels(label_point, point_label, out_pos, out_status, mean_candidates)
 
     def _recover(self, pos: np.ndarray, observed: np.ndarray) -> np.ndarray:

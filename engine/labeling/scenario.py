@@ -29,13 +29,14 @@ class DegradeConfig:
 @dataclass
 class Stream:
     """clouds[t]: (m_t,3) unordered points; truth[t]: (m_t,) true label of each point (−1 = ghost);
-    clean_m: (F,L,3) noise-free truth positions; visible: (F,L) whether each label was in the cloud."""
+    clean_m: (F,L,3) noise-free truth positions; visible: (F,L) whether each label was in the cloud;
+    subjects: (L,) subject id per label."""
 
     clouds: list[np.ndarray]
     truth: list[np.ndarray]
     clean_m: np.ndarray
     visible: np.ndarray
-    subjects: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    subjects: np.ndarray
 
 
 def degrade(positions_m: np.ndarray, subjects: np.ndarray, config: DegradeConfig, rng: np.random.Generator) -> Stream:
