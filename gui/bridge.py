@@ -35,6 +35,29 @@ def gateway_clock_offset_s(client: Any, pings: int = 3) -> float:
     return best[1]
 
 
+class CameraRate:
+    """Camera frame rate (EMA over observation times) and dropped frames (gaps in ``frame_index``), counted on
+    every camera message as it arrives — the GUI only ever sees the latest one."""
+
+    def __init__(self) -> None:
+        self.fps = 0.0
+        self.dropped = 0
+        self._last: tuple[float, int | None] | None = None
+
+    def add(self, t_s: float | None, frame_index: int | None) -> None:
+        if t_s is None:
+            return
+        if self._last is not None:
+            t_prev, i_prev = self._last
+            if t_s > t_prev:
+                frames = (frame_index - i_prev) if frame_index is not None and i_prev is not None else 1
+                rate = frames / (t_s - t_prev)
+                self.fps = rate if self.fps == 0 else 0.9 * self.fps + 0.1 * rate
+            if frame_index is not None and i_prev is not None and frame_index > i_prev + 1:
+                self.dropped += frame_index - i_prev - 1
+        self._last = (t_s, frame_index)
+
+
 class GatewayBridge:
     """Thread-safe landing zone for everything the gateway streams to the console."""
 
@@ -48,6 +71,7 @@ class GatewayBridge:
         self._trail: collections.deque[tuple[float, float, float]] = collections.deque(maxlen=self.TRAIL_LEN)
         self.events: queue.SimpleQueue[dict[str, Any]] = queue.SimpleQueue()
         self.sample_sinks: list[SampleSink] = []
+        self.camera_rate = CameraRate()
         self.samples_received = 0
         self.sensors_seen: dict[SensorKey, float] = {}  # sensor -> nominal rate (Hz)
         self.client = None
@@ -99,6 +123,7 @@ class GatewayBridge:
     def on_camera(self, msg: Any) -> None:
         header = dict(msg.header)
         with self._lock:
+            self.camera_rate.add(header.get("t_host_s"), header.get("frame_index"))
             self._latest["camera"] = header
             if "jpeg" in msg.arrays:
                 self._jpeg = bytes(np.asarray(msg.arrays["jpeg"]).tobytes())
@@ -117,6 +142,7 @@ class GatewayBridge:
         self.traces.events.clear()
         with self._lock:
             self._trail.clear()
+            self.camera_rate = CameraRate()
             self._latest.pop("camera", None)  # a fix from the old time line must not anchor the new one
 
     # -- reads (GUI thread) -------------------------------------------------------------------------------------

@@ -7,8 +7,12 @@ ground-truth skeleton drawn beside the synthesized one, so the operator sees how
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import math
+import select
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -225,8 +229,8 @@ class DemoCamera:
             frame = replace(frame, t_host_s=offset + frame.t_host_s)
             if self._stop.wait(max(0.0, frame.t_host_s - time.monotonic())):
                 return
-            obs = observation(frame, self.tracker.update(frame))
-            obs["court_to_image"] = self.court_to_image.tolist()
+            # thumbnails are the full frame here (scale 1), so the overlay homography is the camera's own
+            obs = observation(frame, self.tracker.update(frame), self.court_to_image, 1.0)
             jpeg = None
             if frame.index % self.thumbnail_every == 0:
                 ok, data = cv2.imencode(".jpg", frame.image, [cv2.IMWRITE_JPEG_QUALITY, 70])
@@ -262,44 +266,45 @@ def demo_hardware(listen: tuple[str, int], record_dir: Path, camera: bool,
         yield gateway.address, t0
 
 
-def _hardware_process(conn, listen, record_dir, camera, duration_s) -> None:
-    """Child-process body: run the demo hardware until the parent says stop (or goes away)."""
+def hardware_main(argv: list[str]) -> int:
+    """``python -m gui.demo LISTEN_HOST LISTEN_PORT RECORD_DIR CAMERA(0|1) DURATION_S|-``: run the demo hardware,
+    print ``{"address": [host, port], "t0": s}`` as one JSON line when ready, stop when stdin closes."""
+    host, port, record_dir, camera, duration = argv
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    with demo_hardware(listen, record_dir, camera, duration_s) as (address, t0):
-        conn.send((address, t0))
-        try:
-            conn.recv()
-        except EOFError:  # the console process died: shut down too
-            pass
+    with demo_hardware((host, int(port)), Path(record_dir), camera == "1",
+                       None if duration == "-" else float(duration)) as (address, t0):
+        print(json.dumps({"address": list(address), "t0": t0}), flush=True)
+        sys.stdin.read()  # until the console closes our stdin (or dies, which closes it too)
+    return 0
 
 
 @contextlib.contextmanager
 def hardware_in_subprocess(listen: tuple[str, int], record_dir: Path, camera: bool,
                            duration_s: float | None) -> Iterator[tuple[tuple[str, int], float]]:
     """The same hardware in a child process, so the console's GUI thread never shares a GIL with the station
-    readers, emulators and camera renderer (on 2 cores this alone roughly doubles the console's frame rate).
-    CLOCK_MONOTONIC is system-wide, so the child's gateway times are directly comparable here."""
-    import multiprocessing
-
-    ctx = multiprocessing.get_context("spawn")
-    parent, child = ctx.Pipe()
-    proc = ctx.Process(target=_hardware_process, args=(child, listen, Path(record_dir).resolve(), camera,
-                                                        duration_s), name="courtside-demo-hardware", daemon=True)
-    proc.start()
+    readers, emulators and camera renderer (on 2 cores this alone roughly triples the console's frame rate).
+    CLOCK_MONOTONIC is system-wide, so the child's gateway times are directly comparable here. A plain
+    subprocess rather than multiprocessing: nothing depends on how the parent's main module was started."""
+    args = [sys.executable, "-m", "gui.demo", listen[0], str(listen[1]), str(Path(record_dir).resolve()),
+            "1" if camera else "0", "-" if duration_s is None else str(duration_s)]
+    proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
-        if not parent.poll(120.0):
-            raise RuntimeError("demo hardware process did not start within 120 s")
-        address, t0 = parent.recv()
-        yield tuple(address), float(t0)
+        ready, _, _ = select.select([proc.stdout], [], [], 120.0)
+        line = proc.stdout.readline() if ready else ""
+        if not line:
+            raise RuntimeError(f"demo hardware process did not start (exit code {proc.poll()})")
+        info = json.loads(line)
+        yield (info["address"][0], int(info["address"][1])), float(info["t0"])
     finally:
         try:
-            parent.send("stop")
-        except (BrokenPipeError, OSError):
+            proc.stdin.close()
+        except OSError:
             pass
-        proc.join(15.0)
-        if proc.is_alive():
+        try:
+            proc.wait(15.0)
+        except subprocess.TimeoutExpired:
             proc.terminate()
-            proc.join(5.0)
+            proc.wait(5.0)
 
 
 @dataclass
@@ -338,3 +343,7 @@ def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
         stack.callback(window.shutdown)
         window.resize(1500, 950)
         yield DemoSession(perf, address, client, window)
+
+
+if __name__ == "__main__":
+    sys.exit(hardware_main(sys.argv[1:]))

@@ -190,7 +190,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.alarms.add_event(str(ev.get("level", "info")), str(ev.get("source", "")), str(ev.get("message", "")))
         self._update_status()
         header, jpeg, trail = self.bridge.camera_frame()
-        self.camera.update_camera(header, jpeg, trail)
+        self.camera.update_camera(header, jpeg, trail, self.bridge.camera_rate)
         if self.worker is not None and header:
             heading = header.get("heading_rad") if self.use_camera_heading else None
             self.worker.set_camera(header.get("position_m"), heading)

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from PySide6 import QtCore, QtGui, QtWidgets
 
+from gui.bridge import CameraRate
 from gui.render.court import COURT_LENGTH_M, DOUBLES_WIDTH_M, court_line_segments
 
 LINE_PEN = QtGui.QColor(240, 240, 240)
@@ -155,9 +156,6 @@ class CameraPane(QtWidgets.QWidget):
         self.info = QtWidgets.QLabel("camera: –")
         self._last_header: dict[str, Any] | None = None
         self._last_jpeg: bytes | None = None
-        self._last_obs: tuple[float, int | None] | None = None
-        self.fps = 0.0
-        self.dropped = 0
         right = QtWidgets.QVBoxLayout()
         right.addWidget(self.minimap, 1)
         right.addWidget(self.info)
@@ -166,7 +164,8 @@ class CameraPane(QtWidgets.QWidget):
         layout.addWidget(self.view, 3)
         layout.addLayout(right, 1)
 
-    def update_camera(self, header: dict[str, Any] | None, jpeg: bytes | None, trail: np.ndarray) -> None:
+    def update_camera(self, header: dict[str, Any] | None, jpeg: bytes | None, trail: np.ndarray,
+                      stats: CameraRate) -> None:
         """trail: (N, 3) [t_s, x_m, y_m] as kept by `gui.bridge.GatewayBridge`. Called every tick; does nothing
         unless a new observation arrived (the bridge stores a new header object per camera message)."""
         if header is self._last_header and jpeg is self._last_jpeg:
@@ -176,21 +175,8 @@ class CameraPane(QtWidgets.QWidget):
         header = header or {}
         self.minimap.set_track(trail[:, 1:3], header.get("position_m"), header.get("heading_rad"))
         if header:
-            self._count_frames(header)
             pos = header.get("position_m") or [float("nan")] * 2
             state = "" if header.get("tracking", True) else "  NOT TRACKING"
             self.info.setText(f"t {header.get('t_host_s', 0):.2f} s  pos ({pos[0]:+.2f}, {pos[1]:+.2f}) m  "
                               f"conf {float(header.get('confidence', float('nan'))):.2f}{state}\n"
-                              f"camera {self.fps:.1f} fps, {self.dropped} dropped")
-
-    def _count_frames(self, header: dict[str, Any]) -> None:
-        """Camera rate from observation times (EMA) and dropped frames from gaps in ``frame_index``."""
-        t, index = header.get("t_host_s"), header.get("frame_index")
-        if self._last_obs is not None and t is not None:
-            t_prev, i_prev = self._last_obs
-            if t > t_prev:
-                rate = (index - i_prev) / (t - t_prev) if index is not None and i_prev is not None else 1 / (t - t_prev)
-                self.fps = rate if self.fps == 0 else 0.9 * self.fps + 0.1 * rate
-            if index is not None and i_prev is not None and index > i_prev + 1:
-                self.dropped += index - i_prev - 1
-        self._last_obs = (t, index)
+                              f"camera {stats.fps:.1f} fps, {stats.dropped} dropped")

@@ -105,7 +105,10 @@ def test_camera_pane_overlays_court_and_player_where_the_homography_says(qtbot):
     header = {"t_host_s": 5.0, "frame_index": 8, "position_m": [2.0, -8.0], "heading_rad": 0.0, "confidence": 0.9,
               "court_to_image": h.tolist()}
     trail = np.array([[4.0, 0.0, -8.0], [4.5, 1.0, -8.0], [5.0, 2.0, -8.0]])
-    pane.update_camera(header, jpeg.tobytes(), trail)
+    from gui.bridge import CameraRate
+
+    rate = CameraRate()
+    pane.update_camera(header, jpeg.tobytes(), trail, rate)
     qtbot.wait(50)
     img = pane.view.grab().toImage().convertToFormat(QtGui.QImage.Format_RGB888)
     px = np.frombuffer(img.constBits(), np.uint8).reshape(img.height(), img.bytesPerLine())[:, :3 * img.width()]
@@ -120,7 +123,8 @@ def test_camera_pane_overlays_court_and_player_where_the_homography_says(qtbot):
     assert ((ring[..., 0] > 200) & (ring[..., 2] < 100)).any()
     np.testing.assert_allclose(pane.minimap.trail_m, trail[:, 1:])
     assert "+2.00, -8.00" in pane.info.text()
-    for k in [i for i in range(9, 30) if i != 15]:  # 12 fps with frame 15 dropped
-        pane.update_camera(dict(header, t_host_s=5.0 + (k - 8) / 12.0, frame_index=k), None, trail)
-    assert pane.dropped == 1 and pane.fps == pytest.approx(12.0, rel=0.05)
-    assert "1 dropped" in pane.info.text()
+    for k in [i for i in range(8, 30) if i != 15]:  # 12 fps with frame 15 dropped
+        rate.add(5.0 + (k - 8) / 12.0, k)
+    pane.update_camera(dict(header, frame_index=29), None, trail, rate)
+    assert rate.dropped == 1 and rate.fps == pytest.approx(12.0, rel=0.05)
+    assert "12.0 fps, 1 dropped" in pane.info.text()
