@@ -23,7 +23,7 @@ from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph, build_from_clips
 from engine.graph.mocap_adapter import clips_from_motions
 from engine.graph.online import FixedLagSynthesizer
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiLattice, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
 from engine.mocap import SensorErrorModel, load_database, sample_clips, standard_placements
 
 
@@ -150,9 +150,10 @@ def main() -> None:
     _, t_on = cpu(online)
     print(f"   fixed-lag online (lag {args.lag:g} s): {obs.n_samples / t_on:7.1f} samples/s "
           f"({t_on / obs.n_samples * 1000:.1f} ms per sample)")
-    lat = ViterbiLattice(big, w)
-    print(f"   per-step arrays: {big.n_edges} edges x {lat._cost.itemsize * 3 + 16} B buffers, "
-          f"graph {sum(a.nbytes for a in (big.meta_acc_g, big.edge_src, big.edge_dst, big.edge_meta)) / 1e6:.0f} MB")
+    a, b = np.ones(big.n_edges), np.ones(big.n_edges)
+    _, t_pass = cpu(lambda: [np.add(a, b, out=a) for _ in range(200)])
+    print(f"   machine reference: one float64 add over {big.n_edges} elements = {t_pass / 200 * 1e3:.2f} ms CPU; "
+          f"a search step (acc+pos+head) costs about {t / obs.n_samples / (t_pass / 200):.0f} such passes")
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ Keeping the builder on plain arrays lets it be tested on synthetic clips with ex
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,7 +33,6 @@ class ClipData:
     local_rotations: np.ndarray | None = None
     root_positions_m: np.ndarray | None = None
     root_joint: int = 0
-    extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         f = self.positions_m.shape[0]
