@@ -136,8 +136,11 @@ class KnowledgeBase:
             -1,
         )
         alpha = np.concatenate([clip.acc_g.reshape(len(clip.acc_g), -1) for clip in clips])
+        # float32 for the per-joint tables: a 500k-frame database stays under 1 GB; values are mm-accurate
+        f32 = np.float32
         return cls(
-            rig=rig, sensors=sensors, fps=fps, q=q, x_m=x, v_mps=v, a_mps2=a, alpha_g=alpha, clip_id=clip_id,
+            rig=rig, sensors=sensors, fps=fps, q=q.astype(f32), x_m=x.astype(f32), v_mps=v.astype(f32),
+            a_mps2=a.astype(f32), alpha_g=alpha, clip_id=clip_id,
             root_vel_heading_mps=root_vel_heading, yaw_rate_rps=yaw_rate, root_height_m=root[:, 1].copy(),
             clip_names=tuple(clip.name for clip in clips),
         )
@@ -146,6 +149,7 @@ class KnowledgeBase:
         """Write the database as one .npz (the kd-tree is rebuilt on load: it is fast and version-proof)."""
         np.savez_compressed(
             path, names=np.array(self.rig.names), parents=self.rig.parents, offsets_m=self.rig.offsets_m,
+            end_site=np.zeros(len(self.rig.parents), bool) if self.rig.end_site is None else self.rig.end_site,
             sensor_bone=self.sensors.bone, sensor_local_rot=self.sensors.local_rot, sensor_tip=self.sensors.tip,
             fps=self.fps, q=self.q, x_m=self.x_m, v_mps=self.v_mps, a_mps2=self.a_mps2, alpha_g=self.alpha_g,
             clip_id=self.clip_id, root_vel_heading_mps=self.root_vel_heading_mps, yaw_rate_rps=self.yaw_rate_rps,
@@ -158,7 +162,7 @@ class KnowledgeBase:
 
         try:
             data = np.load(path, allow_pickle=False)
-            rig = Rig(tuple(str(n) for n in data["names"]), data["parents"], data["offsets_m"])
+            rig = Rig(tuple(str(n) for n in data["names"]), data["parents"], data["offsets_m"], data["end_site"])
             sensors = SensorRig(data["sensor_bone"], data["sensor_local_rot"], data["sensor_tip"])
             fields = {k: data[k] for k in ("q", "x_m", "v_mps", "a_mps2", "alpha_g", "clip_id",
                                            "root_vel_heading_mps", "yaw_rate_rps", "root_height_m")}

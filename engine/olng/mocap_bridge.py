@@ -15,7 +15,11 @@ from engine.olng.pose import Rig
 
 
 def rig_from_skeleton(skeleton: Skeleton) -> Rig:
-    return Rig(tuple(skeleton.names), np.asarray(skeleton.parents), np.asarray(skeleton.offsets_m))
+    return Rig(tuple(skeleton.names), np.asarray(skeleton.parents), np.asarray(skeleton.offsets_m), np.asarray(skeleton.end_site))
+
+
+def skeleton_from_rig(rig: Rig) -> Skeleton:
+    return Skeleton(rig.names, rig.parents, rig.offsets_m, rig.end_site)
 
 
 def _tip_joint(skeleton: Skeleton, placement: SensorPlacement) -> int:
@@ -106,6 +110,3 @@ def build_knowledge_base(motions: list[Motion], config: KnowledgeBaseConfig = Kn
     return KnowledgeBase.from_clips(rig_from_skeleton(skeleton), sensors, arrays, config.fps)
 
 
-def to_motion(skeleton: Skeleton, fps: float, root_pos_m: np.ndarray, local_quats: np.ndarray, name: str = "") -> Motion:
-    """Reconstructed frames as a Motion (for write_bvh / evaluation)."""
-    return Motion(skeleton, fps, root_pos_m, local_quats, name)

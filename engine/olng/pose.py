@@ -27,6 +27,7 @@ class Rig:
     names: tuple[str, ...]
     parents: np.ndarray   # (J,) int
     offsets_m: np.ndarray  # (J, 3)
+    end_site: np.ndarray | None = None  # (J,) bool, leaves without rotation channels (kept for BVH output)
 
     def __post_init__(self) -> None:
         parents = np.asarray(self.parents)

@@ -1,0 +1,231 @@
+"""`courtside reconstruct`: full-body motion from worn sensors by one of three methods, or the common table.
+
+    courtside reconstruct --method olng --input take.npz -o out.bvh --sample
+    courtside reconstruct --method hmm --input take.npz -o out.bvh --sample
+    courtside reconstruct --method motion-graph --input take.npz -o out.bvh --graph graph.npz
+    courtside reconstruct --evaluate --sample [--methods olng,hmm,motion-graph] [--test-clips 3]
+
+The database comes from clip files, `--sample` (CMU subject 16 clips shipped in engine/data) or
+`--mocap-dir DIR --pattern GLOB`; `--save-kb`/`--kb` store and reuse a built OLNG knowledge base.
+Takes are the synthesis-input .npz or a gateway export (read by engine.graph.inputs.load_take).
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from engine.errors import MalformedFileError
+
+SAMPLE_PREFIX = "16_"
+
+
+def _database_paths(args: argparse.Namespace) -> list[Path]:
+    from engine.mocap import sample_clips
+
+    paths = [Path(p) for p in args.clips]
+    if args.sample:
+        paths += [p for name, p in sample_clips().items() if name.startswith(SAMPLE_PREFIX)]
+    if args.mocap_dir:
+        paths += [Path(p) for p in sorted(glob.glob(str(Path(args.mocap_dir) / args.pattern)))]
+    if not paths:
+        raise SystemExit("courtside reconstruct: no clips: give clip files, --sample, or --mocap-dir with --pattern")
+    return paths
+
+
+def _olng_config(args: argparse.Namespace):
+    from engine.olng.config import GraphConfig, OLNGConfig
+
+    return OLNGConfig(graph=GraphConfig(k_neighbours=args.k, i_best=args.i_best, window=args.window))
+
+
+def _load_motions(args: argparse.Namespace):
+    from engine.mocap import load_database
+
+    return load_database(_database_paths(args), fps=args.fps)
+
+
+def _olng_knowledge_base(args: argparse.Namespace):
+    from engine.olng.config import KnowledgeBaseConfig
+    from engine.olng.knowledge_base import KnowledgeBase
+    from engine.olng.mocap_bridge import build_knowledge_base
+
+    if args.kb:
+        return KnowledgeBase.load(args.kb)
+    kb = build_knowledge_base(_load_motions(args), KnowledgeBaseConfig(mirror=args.mirror, reverse=args.reverse))
+    if args.save_kb:
+        kb.save(args.save_kb)
+    return kb
+
+
+def _reconstruct_olng(args: argparse.Namespace) -> dict:
+    from engine.graph.inputs import load_take
+    from engine.mocap import SEED003_SENSORS, Motion, write_bvh
+    from engine.olng.mocap_bridge import skeleton_from_rig
+    from engine.olng.reconstructor import OLNGReconstructor
+
+    kb = _olng_knowledge_base(args)
+    obs = load_take(args.input, list(SEED003_SENSORS), kb.fps)
+    if obs.acc_g is None or tuple(obs.sensor_indices) != tuple(range(len(SEED003_SENSORS))):
+        raise MalformedFileError(args.input, None, f"the OLNG needs all four sensors {list(SEED003_SENSORS)} in that order")
+    rec = OLNGReconstructor(kb, _olng_config(args))
+    t0 = time.perf_counter()
+    poses = [rec.push(a) for a in obs.acc_g]
+    elapsed = time.perf_counter() - t0
+    motion = Motion(skeleton_from_rig(kb.rig), kb.fps, np.stack([p.root_pos_m for p in poses]),
+                    np.stack([p.local_quats for p in poses]), Path(args.input).stem)
+    write_bvh(args.output, motion)
+    return {"frames": len(poses), "seconds": round(elapsed, 3), "fps": round(len(poses) / max(elapsed, 1e-9), 1)}
+
+
+def _reconstruct_hmm(args: argparse.Namespace) -> dict:
+    from engine.graph.inputs import load_take
+    from engine.hmm.evaluation import train_model
+    from engine.hmm.reconstructor import HMMReconstructor
+    from engine.mocap import write_bvh
+
+    model = train_model(_load_motions(args), imu_names=tuple(args.imus))
+    obs = load_take(args.input, list(args.imus), model.fps)
+    if obs.acc_g is None:
+        raise MalformedFileError(args.input, None, "no accelerometer streams")
+    gyro = _take_gyro(args.input, len(obs.acc_g))
+    rec = HMMReconstructor(model)
+    t0 = time.perf_counter()
+    frames = [rec.push(a, g) for a, g in zip(obs.acc_g, gyro)]
+    elapsed = time.perf_counter() - t0
+    write_bvh(args.output, rec.to_motion(frames, Path(args.input).stem))
+    return {"frames": len(frames), "seconds": round(elapsed, 3), "fps": round(len(frames) / max(elapsed, 1e-9), 1)}
+
+
+def _take_gyro(path: str, frames: int) -> np.ndarray:
+    """Optional `gyro_rps` (T, S, 3) in the take (rad/s); the HMM needs it for its 6-D IMU feature."""
+    data = np.load(path, allow_pickle=False)
+    if "gyro_rps" not in data.files:
+        raise MalformedFileError(path, None, "the HMM method needs 'gyro_rps' (T, S, 3) rad/s beside 'acc_g'")
+    gyro = np.asarray(data["gyro_rps"], float)
+    if len(gyro) != frames:
+        from engine.graph.online import resample_stream
+
+        gyro = resample_stream(gyro, float(data["fps"]), frames / (len(gyro) / float(data["fps"])))[:frames]
+    return gyro
+
+
+def _reconstruct_motion_graph(args: argparse.Namespace) -> int:
+    from engine.graph.cli import synthesize_main
+
+    if not args.graph:
+        raise SystemExit("courtside reconstruct --method motion-graph needs --graph (from `courtside build-graph`)")
+    return synthesize_main(["--graph", args.graph, "--input", args.input, "-o", args.output])
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from engine.olng.metrics import format_table, summarise
+
+    motions = _load_motions(args)
+    n = len(motions)
+    tests = sorted(set(np.linspace(0, n - 1, args.test_clips).astype(int))) if args.test_clips else list(range(n))
+    print(f"database: {n} clips; held-out test clips: {', '.join(motions[i].name for i in tests)}; "
+          f"sensor noise: {args.noise}")
+    rows: dict[str, dict[str, float]] = {}
+    methods = args.methods.split(",")
+    error_model = None
+    if args.noise == "seed000":
+        from engine.mocap import SensorErrorModel
+
+        error_model = SensorErrorModel.seed000()
+    if "olng" in methods:
+        from engine.olng.config import EnergyConfig, GraphConfig, KnowledgeBaseConfig, OLNGConfig
+        from engine.olng.evaluation import Variant, leave_one_out, mean_pose_baseline
+
+        base = _olng_config(args)
+        variants = [Variant("olng (4 acc)", base),
+                    Variant("olng mahalanobis prior", OLNGConfig(graph=base.graph, energy=EnergyConfig(kernel="mahalanobis"))),
+                    Variant("olng no time warp", OLNGConfig(graph=GraphConfig(k_neighbours=args.k, i_best=args.i_best,
+                                                                              window=args.window, max_column_step=1, max_warp=1)))]
+        kb_config = KnowledgeBaseConfig(mirror=args.mirror, reverse=args.reverse)
+        scores = leave_one_out(motions, tests, variants, kb_config, error_model, seed=args.seed)
+        rows.update({k: summarise(v) for k, v in scores.items()})
+        rows["database mean pose"] = summarise(mean_pose_baseline(motions, tests, kb_config))
+    if "hmm" in methods:
+        from engine.hmm.evaluation import leave_one_out as hmm_loo
+
+        for imus in (("right_foot",), ("right_foot", "right_wrist")):
+            scores = hmm_loo(motions, tests, imu_names=imus, error_model=error_model, seed=args.seed)
+            rows[f"hmm ({len(imus)} imu)"] = summarise(scores)
+    if "motion-graph" in methods:
+        rows.update(_motion_graph_rows(args, motions, tests))
+    print(format_table(rows))
+    return 0
+
+
+def _motion_graph_rows(args: argparse.Namespace, motions, tests) -> dict[str, dict[str, float]]:
+    """engine.graph's own leave-one-out on the same clips, acc-only with the seed-003 sensors."""
+    from engine.graph.config import GraphConfig as MotionGraphConfig
+    from engine.graph.evaluate import Setting, leave_one_out, summarise
+    from engine.graph.graph import build_from_clips
+    from engine.graph.mocap_adapter import clips_from_motions
+    from engine.graph.viterbi import SearchWeights
+    from engine.mocap import SEED003_SENSORS, resample, standard_placements
+
+    config = MotionGraphConfig(sensor_names=list(SEED003_SENSORS))
+    at_rate = [resample(m, config.fps) for m in motions]
+    clips = clips_from_motions(at_rate, standard_placements(at_rate[0].skeleton, SEED003_SENSORS), config)
+    graph = build_from_clips(clips, config)
+    setting = Setting("acc 4", tuple(range(len(SEED003_SENSORS))), SearchWeights(0.5, 0, 0))
+    scores = leave_one_out(graph, clips, at_rate[0].skeleton, [setting], tests, seed=args.seed)
+    return {"motion graph (4 acc)": summarise(scores[setting.name])}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="courtside reconstruct", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("clips", nargs="*", help="database clips (.bvh or .amc, one skeleton)")
+    p.add_argument("--method", choices=["olng", "hmm", "motion-graph"], default="olng")
+    p.add_argument("--input", help="take .npz")
+    p.add_argument("-o", "--output", help="output .bvh")
+    p.add_argument("--evaluate", action="store_true", help="leave-one-out table instead of reconstructing a take")
+    p.add_argument("--methods", default="olng,hmm", help="--evaluate: comma list of olng, hmm, motion-graph")
+    p.add_argument("--test-clips", type=int, default=3, help="--evaluate: N clips spread over the set (0 = all)")
+    p.add_argument("--noise", choices=["clean", "seed000"], default="clean", help="--evaluate: sensor error model")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--sample", action="store_true", help="use the CMU subject-16 clips shipped in engine/data")
+    p.add_argument("--mocap-dir", help="a mocap folder, e.g. /work/shared/mocap")
+    p.add_argument("--pattern", default="cmu-amc/16/*.amc", help="glob under --mocap-dir")
+    p.add_argument("--fps", type=float, default=30.0, help="rate the clips are loaded at (each method resamples)")
+    p.add_argument("--kb", help="olng: load this knowledge base .npz instead of building one")
+    p.add_argument("--save-kb", help="olng: save the built knowledge base here")
+    p.add_argument("--mirror", action="store_true", help="olng: add mirrored clips (needs a symmetric rest pose)")
+    p.add_argument("--reverse", action="store_true", help="olng: add time-reversed clips")
+    p.add_argument("--k", type=int, default=512, help="olng: neighbours per frame (paper: 4096 for 500k frames)")
+    p.add_argument("--i-best", type=int, default=32, help="olng: hypotheses per frame (paper: 256)")
+    p.add_argument("--window", type=int, default=32, help="olng: OLNG window M (frames)")
+    p.add_argument("--imus", nargs="+", default=["right_foot"], help="hmm: worn IMUs (standard sensor names)")
+    p.add_argument("--graph", help="motion-graph: graph .npz from `courtside build-graph`")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        if args.evaluate:
+            return _evaluate(args)
+        if not args.input or not args.output:
+            print("courtside reconstruct: --input and -o are required (or use --evaluate)", file=sys.stderr)
+            return 2
+        if args.method == "motion-graph":
+            return _reconstruct_motion_graph(args)
+        summary = _reconstruct_olng(args) if args.method == "olng" else _reconstruct_hmm(args)
+    except MalformedFileError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    print(json.dumps({"method": args.method, "output": args.output, **summary}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
