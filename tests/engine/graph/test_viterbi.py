@@ -1,7 +1,6 @@
 """Viterbi search against exact answers: noiseless walks are recovered, noisy ones match exhaustive search."""
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
