@@ -8,10 +8,10 @@ import pytest
 from engine.labeling.cli import main as label_main
 from engine.graph.graph import GraphConfig, MotionGraph
 from engine.mocap import forward_kinematics, joint_roles, read_bvh, read_c3d, standard_placements
-from engine.skeleton_fit.cli import main as fit_main
+from engine.skeleton_fit.cli import main as fit_main, subject_markers
 from engine.skeleton_fit.frames import frame_from_three, to_local
 from engine.skeleton_fit.gdke import JointType, fit_joint
-from engine.skeleton_fit.markerset import MarkerSet, SegmentSpec
+from engine.skeleton_fit.markerset import MarkerSet, SegmentSpec, detect_marker_set
 from engine.skeleton_fit.model import fit_skeleton
 
 
@@ -163,3 +163,18 @@ def test_fit_skeleton_cli_reports_bad_input(tmp_path, capsys):
     bad.write_bytes(b"not a c3d")
     assert fit_main([str(bad), "-o", str(tmp_path / "x.bvh")]) == 1
     assert "bad.c3d" in capsys.readouterr().err
+
+
+def test_real_cmu_skeleton_has_steady_plausible_bones(shared_mocap):
+    """Spec 002 §5.12 sanity check on a CMU 41-marker trial: bone lengths between consecutive joint centres vary
+    by at most ~2 cm over the trial, and thigh, shank and upper arm have human lengths."""
+    data = read_c3d(shared_mocap / "markers" / "cmu_135_02.c3d")
+    markers = subject_markers(data.labels, data.positions_m, None)
+    model = fit_skeleton(markers, detect_marker_set(list(markers)))
+    centres = model.joint_positions(markers)
+    lengths = {j.segment: np.linalg.norm(centres[j.segment] - centres[j.parent], axis=1) for j in model.joints[1:]}
+    assert all(np.nanstd(v) < 0.02 for v in lengths.values())
+    for bone in ("LowerLeg_L", "LowerLeg_R", "Foot_L", "Foot_R"):  # hip→knee and knee→ankle
+        assert 0.35 < np.nanmean(lengths[bone]) < 0.5
+    for bone in ("LowerArm_L", "LowerArm_R"):  # shoulder→elbow
+        assert 0.25 < np.nanmean(lengths[bone]) < 0.4
