@@ -182,10 +182,12 @@ def evaluate_main(argv: list[str]) -> int:
                 Setting(f"acc {len(one)} + pos+head", one, both)]
     n = len(clips)
     tests = list(range(n)) if not args.test_clips else sorted(set(np.linspace(0, n - 1, args.test_clips).astype(int)))
+    print("action % = frames whose synthesised pose comes from a clip with the test clip's label "
+          "(Bandai content: walk, run, punch, kick, ...)")
     print(f"database: {n} clips, {sum(c.n_frames for c in clips)} frames at {full.fps:g} Hz; "
           f"test clips: {len(tests)}; sensors: {', '.join(args.sensors)}")
     header = f"{'graph':12s} {'nodes':>7s} {'edges':>8s}  {'input':22s} {'joint cm (sd)':>14s} " \
-             f"{'position cm (sd)':>17s} {'heading deg (sd)':>17s} {'search s':>8s}"
+             f"{'position cm (sd)':>17s} {'heading deg (sd)':>17s} {'action %':>8s} {'search s':>8s}"
     print(header)
     print("-" * len(header))
     for v in variants:
@@ -199,5 +201,5 @@ def evaluate_main(argv: list[str]) -> int:
             r = summarise(scores[s.name])
             print(f"{v:12s} {graph.n_nodes:7d} {graph.n_edges:8d}  {s.name:22s} "
                   f"{r['joint_cm']:6.1f} ({r['joint_sd']:4.1f}) {r['pos_cm']:8.1f} ({r['pos_sd']:5.1f}) "
-                  f"{r['head_deg']:8.1f} ({r['head_sd']:5.1f}) {per:8.1f}")
+                  f"{r['head_deg']:8.1f} ({r['head_sd']:5.1f}) {r['label_pct']:8.1f} {per:8.1f}")
     return 0

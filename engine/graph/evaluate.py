@@ -43,6 +43,7 @@ class ClipScore:
     joint_cm: np.ndarray  # (T,) mean over error joints per frame
     position_cm: np.ndarray  # (T,)
     heading_deg: np.ndarray  # (T,)
+    label_hit: np.ndarray  # (T,) bool: the synthesised node comes from a clip with the test clip's label
 
 
 def simulate_inputs(clip: ClipData, sensor_indices: tuple[int, ...], error_model: SensorErrorModel,
@@ -72,7 +73,10 @@ def score(graph: MotionGraph, clip: ClipData, error_joints: np.ndarray, obs: Obs
     b = root_local(clip.positions_m[:, error_joints], clip.ground_m, clip.heading_rad)
     return ClipScore(joint_cm=100 * np.linalg.norm(a - b, axis=2).mean(axis=1),
                      position_cm=100 * np.linalg.norm(res.ground_m - clip.ground_m, axis=1),
-                     heading_deg=np.degrees(np.abs(wrap_angle(res.heading_rad - clip.heading_rad))))
+                     heading_deg=np.degrees(np.abs(wrap_angle(res.heading_rad - clip.heading_rad))),
+                     label_hit=(np.array(graph.label_names)[graph.node_label[res.nodes]] == clip.label
+                                if np.any(np.array(graph.label_names)[graph.node_label] == clip.label)
+                                else np.zeros(0, dtype=bool)))  # label absent from the graph: not scored
 
 
 def leave_one_out(graph: MotionGraph, clips: list[ClipData], skeleton, settings: list[Setting],
@@ -99,5 +103,6 @@ def summarise(scores: list[ClipScore]) -> dict[str, float]:
     j = np.concatenate([s.joint_cm for s in scores])
     p = np.concatenate([s.position_cm for s in scores])
     h = np.concatenate([s.heading_deg for s in scores])
+    hit = np.concatenate([s.label_hit for s in scores])
     return {"joint_cm": j.mean(), "joint_sd": j.std(), "pos_cm": p.mean(), "pos_sd": p.std(),
-            "head_deg": h.mean(), "head_sd": h.std(), "frames": len(j)}
+            "head_deg": h.mean(), "head_sd": h.std(), "label_pct": 100 * hit.mean() if len(hit) else np.nan, "frames": len(j)}
