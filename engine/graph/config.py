@@ -25,7 +25,7 @@ class GraphConfig:
     min_jump_frames: int = 8
     msv: bool = False
     interp: bool = False
-    interp_threshold_m: float = 0.10
+    interp_threshold_m: float = 0.05
     interp_min_length_s: float = 0.5
     sensor_names: list[str] = field(default_factory=list)
 
