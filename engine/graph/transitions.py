@@ -38,7 +38,7 @@ def contact_code(contacts: np.ndarray) -> np.ndarray:
 
 
 def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: np.ndarray,
-                     threshold_m: float, min_jump_frames: int) -> Transitions:
+                     threshold_m: float, min_jump_frames: int, block_rows: int = 1024) -> Transitions:
     """All transitions between contact-change frames of `clips` (including within one clip).
 
     A pair is kept when both frames have the same contact state, the distance is below `threshold_m`, and the
@@ -63,21 +63,38 @@ def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: n
     glob_idx = np.concatenate(glob)
     clip_id = np.concatenate(clip_id)
     code = np.concatenate(code)
-    dist = distance_matrix(allf, allf)
-    masked = dist.copy()
-    masked[code[:, None] != code[None, :]] = np.inf
-    same_clip = clip_id[:, None] == clip_id[None, :]
-    masked[same_clip & (np.abs(glob_idx[:, None] - glob_idx[None, :]) < min_jump_frames)] = np.inf
-    keep = masked < threshold_m
-    # local minimum along both axes, comparing only with neighbours of the same clip
-    nb_same = clip_id[1:] == clip_id[:-1]
-    for axis in (0, 1):
-        m = masked if axis == 1 else masked.T
-        prev = np.full_like(m, np.inf)
-        prev[:, 1:] = np.where(nb_same[None, :], m[:, :-1], np.inf)
-        nxt = np.full_like(m, np.inf)
-        nxt[:, :-1] = np.where(nb_same[None, :], m[:, 1:], np.inf)
-        ok = (m <= prev) & (m <= nxt)
-        keep &= ok if axis == 1 else ok.T
-    rows, cols = np.nonzero(keep)
-    return Transitions(src_frame=glob_idx[rows], dst_frame=glob_idx[cols], distance_m=dist[rows, cols])
+    n = len(glob_idx)
+    nb_same = clip_id[1:] == clip_id[:-1]  # candidate k and k+1 belong to the same clip
+    rows_out, cols_out, dist_out = [], [], []
+    for r0 in range(0, n, block_rows):  # row blocks (+1 halo row each side) bound the memory to O(block * n)
+        r1 = min(n, r0 + block_rows)
+        lo, hi = max(0, r0 - 1), min(n, r1 + 1)
+        rows = np.arange(lo, hi)
+        dist = distance_matrix(_rows(allf, lo, hi), allf)
+        masked = dist.copy()
+        masked[code[rows, None] != code[None, :]] = np.inf
+        same_clip = clip_id[rows, None] == clip_id[None, :]
+        masked[same_clip & (np.abs(glob_idx[rows, None] - glob_idx[None, :]) < min_jump_frames)] = np.inf
+        keep = masked < threshold_m
+        # local minimum along both axes, comparing only with neighbours of the same clip
+        left = np.full_like(masked, np.inf)
+        left[:, 1:] = np.where(nb_same[None, :], masked[:, :-1], np.inf)
+        right = np.full_like(masked, np.inf)
+        right[:, :-1] = np.where(nb_same[None, :], masked[:, 1:], np.inf)
+        up = np.full_like(masked, np.inf)
+        up[1:] = np.where(nb_same[rows[:-1], None], masked[:-1], np.inf)
+        down = np.full_like(masked, np.inf)
+        down[:-1] = np.where(nb_same[rows[:-1], None], masked[1:], np.inf)
+        keep &= (masked <= left) & (masked <= right) & (masked <= up) & (masked <= down)
+        keep[: r0 - lo] = False  # halo rows belong to the neighbouring blocks
+        keep[keep.shape[0] - (hi - r1):] = False
+        r, c = np.nonzero(keep)
+        rows_out.append(glob_idx[rows[r]])
+        cols_out.append(glob_idx[c])
+        dist_out.append(dist[r, c])
+    return Transitions(src_frame=np.concatenate(rows_out), dst_frame=np.concatenate(cols_out),
+                       distance_m=np.concatenate(dist_out))
+
+
+def _rows(f: WindowFeatures, lo: int, hi: int) -> WindowFeatures:
+    return WindowFeatures(f.centres[lo:hi], f.c[lo:hi], f.u[lo:hi], f.v[lo:hi], f.y[lo:hi])

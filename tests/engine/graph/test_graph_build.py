@@ -105,3 +105,16 @@ def test_without_clips_removes_everything_derived_and_keeps_the_rest(two_clip_gr
     assert new == old
     assert np.array_equal(h.meta_acc_g[h.edge_meta], g.meta_acc_g[g.edge_meta][
         (g.node_clip[g.edge_src] == 0) & (g.node_clip[g.edge_dst] == 0)])
+
+
+def test_row_blocks_do_not_change_the_transitions(sample_clipdata):
+    """Real CMU clips: the memory-bounded row-block evaluation finds exactly the one-block transitions."""
+    from engine.graph.transitions import find_transitions
+
+    clips, _ = sample_clipdata
+    jw = np.ones(clips[0].positions_m.shape[1])
+    whole = find_transitions(clips, 9, jw, 0.08, 8, block_rows=100_000)
+    blocks = find_transitions(clips, 9, jw, 0.08, 8, block_rows=7)
+    assert len(whole.src_frame) > 20
+    key = lambda t: sorted(zip(t.src_frame.tolist(), t.dst_frame.tolist()))  # noqa: E731
+    assert key(whole) == key(blocks)
