@@ -55,7 +55,9 @@ class CameraImperfections:
 
     sensor_noise_dn: float = 2.5
     flicker: float = 0.01           # per-frame relative gain std
-    drift: float = 0.03             # slow relative gain amplitude (clouds), period 9 s
+    drift: float = 0.03             # slow relative gain amplitude (clouds)
+    drift_period_s: float = 9.0
+    drift_tilt: float = 0.0         # amplitude of a left-right gain gradient (sun moving): a local change
     drop_probability: float = 0.0
     jitter_s: float = 0.0           # host timestamp std
     latency_s: float = 0.0
@@ -179,8 +181,13 @@ class SyntheticCourtCamera(_IterableSource):
                 hull = cv2.convexHull(_subpx(flat[i]))
                 cv2.fillConvexPoly(canvas, hull, caps.colour[i], cv2.LINE_AA, _SUBPIXEL_BITS)
             img = canvas.astype(np.float32)
-        gain = 1.0 + imp.drift * np.sin(2 * np.pi * t_true_s / 9.0) + self._rng.normal(0.0, imp.flicker)
-        img *= gain
+        slow = np.sin(2 * np.pi * t_true_s / imp.drift_period_s)
+        gain = 1.0 + imp.drift * slow + self._rng.normal(0.0, imp.flicker)
+        if imp.drift_tilt:
+            ramp = np.linspace(-1.0, 1.0, img.shape[1], dtype=np.float32)
+            img *= (gain + imp.drift_tilt * slow * ramp)[None, :, None]
+        else:
+            img *= gain
         if imp.sensor_noise_dn:
             img += self._noise_bank[self._rng.integers(len(self._noise_bank))]
         return np.clip(img, 0, 255).astype(np.uint8)

@@ -1,8 +1,12 @@
 """Single-player tracking on the court: background subtraction -> blob -> ground point -> court metres -> Kalman.
 
 Design choices (why):
-- MOG2 background model, learnt during a warm-up on the empty court and then *frozen* (``learningRate=0``): a
-  player standing still would otherwise melt into the background. Shadow pixels (MOG2 label 127) are dropped.
+- MOG2 background model, learnt during a warm-up on the empty court and then *frozen* for detection
+  (``learningRate=0``): a player standing still would otherwise melt into the background. Shadow pixels (MOG2
+  label 127) are dropped. Lighting changes must then not turn the whole court into foreground: each frame's
+  global gain is first matched to the background's (median over sparse court pixels; clouds, flicker), and the
+  model keeps learning *around* the player for slower, local changes: every ``background_update_every`` frames,
+  while the player is tracked, it learns a copy of the frame whose player box is filled from the background.
 - The foreground is restricted to the court plus a run-off margin, cleaned by opening/closing, and the largest
   blob near the Kalman prediction is the player.
 - Ground point, because the homography is valid for ground pixels only and a 1.8 m body seen obliquely smears
@@ -46,6 +50,9 @@ class TrackerConfig:
     measurement_std_m: float = 0.07
     gate_m: float = 3.0
     max_coast_s: float = 1.0
+    background_update_every: int = 5    # frames; 0 = frozen after warm-up
+    background_learning_rate: float = 0.02
+    background_update_margin_px: int = 12
     running_speed_mps: float = RUNNING_SPEED_MPS
 
 
@@ -54,7 +61,8 @@ class TrackRecord:
     """One tracker output. ``x_m``/``y_m``/``heading_rad`` are smoothed (court frame, CONTRACTS heading),
     ``confidence`` 0..1 (0 = coasting on prediction only). ``raw_*`` is the unsmoothed ground point of this frame
     (NaN when no blob), ``centroid_px`` and ``blob_area_px`` feed the IMU-camera lag check, ``bbox_px``
-    ``(x0, y0, x1, y1)`` is the blob's box (NaN when no blob) for display."""
+    ``(x0, y0, x1, y1)`` is the blob's box (NaN when no blob) for display; ``clutter_px`` counts foreground
+    pixels that are not the player (a health metric: it grows when the background model is out of date)."""
 
     t_host_s: float
     x_m: float
@@ -68,6 +76,7 @@ class TrackRecord:
     centroid_px: tuple[float, float]
     blob_area_px: float
     bbox_px: tuple[float, float, float, float]
+    clutter_px: int
 
     def to_dict(self) -> dict:
         """JSON-ready dict (what the gateway streams on its camera channel)."""
@@ -101,21 +110,43 @@ class PlayerTracker:
         self._roi = np.zeros((height, width), np.uint8)
         outline = calibration.court_to_image(court_outline_m(config.court_margin_m))
         cv2.fillConvexPoly(self._roi, np.round(outline).astype(np.int32), 255)
+        self._gain_samples = np.flatnonzero(self._roi.ravel())[::37]  # sparse court pixels for the gain estimate
+        self._background: np.ndarray | None = None
+        self._background_level = 0.0
         self._open = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
         self._close = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
         self._frames_seen = 0
         self._last_t_s: float | None = None
         self._last_fix_t_s: float | None = None
         self._confidence = 0.0
+        self._updates_due = 0
 
     @property
     def warmed_up(self) -> bool:
         return self._frames_seen >= self.config.warmup_frames
 
+    def _compensate_gain(self, image: np.ndarray) -> np.ndarray:
+        """Scale the frame so its court brightness matches the background model's (median ratio over a sparse
+        grid of court pixels: the player covers too few of them to move the median). Global lighting changes
+        (a cloud, flicker) then never reach the background subtractor."""
+        if self._background is None:
+            return image
+        frame_level = float(np.median(image.reshape(-1, 3)[self._gain_samples].sum(axis=1)))
+        ratio = self._background_level / max(frame_level, 1.0)
+        return image if abs(ratio - 1.0) < 0.003 else cv2.convertScaleAbs(image, alpha=ratio)
+
+    def _refresh_background(self) -> None:
+        self._background = self._mog.getBackgroundImage()
+        self._background_level = float(np.median(self._background.reshape(-1, 3)[self._gain_samples].sum(axis=1)))
+
     def foreground(self, image: np.ndarray) -> np.ndarray:
         """Cleaned foreground mask (uint8 0/255) of one frame; updates the background only during warm-up."""
-        rate = -1.0 if not self.warmed_up else 0.0
-        raw = self._mog.apply(image, learningRate=rate)
+        if not self.warmed_up:
+            raw = self._mog.apply(image, learningRate=-1.0)
+        else:
+            if self._background is None:
+                self._refresh_background()
+            raw = self._mog.apply(self._compensate_gain(image), learningRate=0.0)
         mask = np.where(raw == 255, 255, 0).astype(np.uint8) & self._roi
         mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._open)
         return cv2.morphologyEx(mask, cv2.MORPH_CLOSE, self._close)
@@ -144,6 +175,26 @@ class PlayerTracker:
         foot_px = blob.centroid_px + down * np.percentile(along, self.config.foot_percentile)
         return self.calibration.image_to_court(foot_px[None])[0]
 
+    def _learn_around(self, image: np.ndarray, player: Blob) -> None:
+        """Background update that cannot learn the player: his (grown) box is replaced by the background."""
+        cfg = self.config
+        self._updates_due += 1
+        if not cfg.background_update_every or self._updates_due < cfg.background_update_every:
+            return
+        self._updates_due = 0
+        background = self._background
+        if background is None or background.shape != image.shape:
+            return
+        image = self._compensate_gain(image)
+        h, w = image.shape[:2]
+        m = cfg.background_update_margin_px
+        (x0, y0), (x1, y1) = player.pixels_xy.min(axis=0).astype(int), player.pixels_xy.max(axis=0).astype(int)
+        x0, y0, x1, y1 = max(x0 - m, 0), max(y0 - m, 0), min(x1 + m + 1, w), min(y1 + m + 1, h)
+        composite = image.copy()
+        composite[y0:y1, x0:x1] = background[y0:y1, x0:x1]
+        self._mog.apply(composite, learningRate=cfg.background_learning_rate)
+        self._refresh_background()
+
     def update(self, frame: Frame, imu_heading_rad: float | None = None) -> TrackRecord | None:
         """Process one frame; ``imu_heading_rad`` (trunk IMU yaw, CONTRACTS convention) overrides the rule."""
         mask = self.foreground(frame.image)
@@ -162,6 +213,7 @@ class PlayerTracker:
                 chosen, raw = blob, point
                 break
         if chosen is not None:
+            self._learn_around(frame.image, chosen)
             innovation = self._kalman.innovation_distance_m(raw) if self._kalman.initialised else 0.0
             self._kalman.update(raw)
             self._last_fix_t_s = frame.t_host_s
@@ -187,4 +239,5 @@ class PlayerTracker:
         return TrackRecord(
             frame.t_host_s, float(x), float(y), heading, self._confidence, float(vx), float(vy),
             float(raw[0]), float(raw[1]), centroid, chosen.area_px if chosen else nan, bbox,
+            int(cv2.countNonZero(mask)) - int(chosen.area_px if chosen else 0),
         )
