@@ -90,11 +90,20 @@ class CalibrationWizard:
             raise ValueError(f"unknown segment {segment!r}; known: {sorted(self.segments)}")
         for other, seg in list(self.assignment.items()):
             if seg == segment and other != sensor_id:
-                del self.assignment[other]
+                self.unassign(other)
+        if self.assignment.get(sensor_id) != segment:
+            self._invalidate(sensor_id)
         self.assignment[sensor_id] = segment
 
     def unassign(self, sensor_id: str) -> None:
-        self.assignment.pop(sensor_id, None)
+        if self.assignment.pop(sensor_id, None) is not None:
+            self._invalidate(sensor_id)
+
+    def _invalidate(self, sensor_id: str) -> None:
+        """A sensor changed segment: its N-pose result no longer applies, so the N-pose must be redone."""
+        if self.results.pop(sensor_id, None) is not None:
+            self._completed.discard("npose")
+            self._say(f"{sensor_id} re-assigned: the N-pose must be captured again")
 
     def confirm(self) -> bool:
         """The operator's "Next"/"Accept". Returns False (with a message) when the step cannot be left yet."""

@@ -175,3 +175,20 @@ def test_record_load_errors_name_the_file(tmp_path, wizard, subject):
         CalibrationRecord.load(path)
     assert CalibrationRecord.load(path, with_raw=False).raw == {}
 
+
+
+def test_reassigning_a_sensor_invalidates_only_the_npose(wizard, subject):
+    rng = np.random.default_rng(6)
+    t = run_to_npose(wizard, subject, rng)
+    t = feed(wizard, subject, t, t + 4.0, rng)
+    t = feed(wizard, subject, t, t + 1.0, rng, {"st0/1": spike(t + 0.5)})
+    assert wizard.step == "review"
+    wizard.redo("assign")
+    wizard.assign("st0/0", "left_forearm")  # unchanged: nothing lost
+    assert len(wizard.results) == 6 and "npose" in wizard.snapshot()["completed"]
+    wizard.unassign("st0/5")  # the chest sensor is removed
+    assert "st0/5" not in wizard.results and "npose" not in wizard.snapshot()["completed"]
+    assert wizard.confirm() and wizard.step == "npose"  # placement kept, tap kept, N-pose redone
+    feed(wizard, subject, t, t + 4.0, rng)
+    assert wizard.step == "review" and set(wizard.results) == set(subject.segments) - {"st0/5"}
+    assert wizard.tap["sensor_id"] == "st0/1"
