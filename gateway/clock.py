@@ -63,36 +63,31 @@ class TickUnwrapper:
             self.epoch += 1
         self._ref = None
 
-    def unwrap(self, raw_ticks: np.ndarray, arrival_s: float) -> tuple[np.ndarray, bool]:
-        """Unwrap one packet's ticks (arrival = host time the packet arrived). Returns (ticks int64, reset?)."""
-        raw = np.asarray(raw_ticks, dtype=np.int64)
-        if raw.size == 0:
-            return raw, False
+    def unwrap(self, raw_ticks: int, arrival_s: float) -> tuple[int, bool]:
+        """Unwrap one u32 tick value from a packet that arrived at host time ``arrival_s``.
+
+        Returns (unwrapped ticks, reset?). One value per packet is enough: a batch's later samples are
+        ``first + i * period`` in unwrapped ticks, so a wrap inside a batch needs no special case."""
+        raw = int(raw_ticks)
         reset = False
         if self._ref is None:
-            unwrapped = raw.copy()
+            unwrapped = raw
         else:
             elapsed_s = max(arrival_s - self._ref_arrival_s, 0.0)
             predicted = self._ref + int(round(elapsed_s * self.tick_hz))
-            delta0 = (int(raw[0]) - predicted + WRAP_TICKS // 2) % WRAP_TICKS - WRAP_TICKS // 2
+            delta = (raw - predicted + WRAP_TICKS // 2) % WRAP_TICKS - WRAP_TICKS // 2
             tolerance = self.tick_hz * (self.tolerance_s + elapsed_s * self.max_drift_ppm * 1e-6)
-            if abs(delta0) > tolerance:
+            if abs(delta) > tolerance:
                 reset = True
                 self.epoch += 1
-                unwrapped = raw.copy()
+                unwrapped = raw
                 self._ref = None
             else:
-                unwrapped = raw + (predicted + delta0 - int(raw[0]))
-        # Within the packet ticks increase; a wrap inside it shows as a drop of almost 2**32.
-        steps = np.diff(unwrapped)
-        inner = steps < -(WRAP_TICKS // 2)
-        if inner.any():
-            unwrapped[1:] += np.cumsum(inner).astype(np.int64) * WRAP_TICKS
-        newest = int(unwrapped.max())
-        if self._ref is None or newest > self._ref:
-            if self._ref is not None and newest // WRAP_TICKS > self._ref // WRAP_TICKS:
-                self.wraps += newest // WRAP_TICKS - self._ref // WRAP_TICKS
-            self._ref = newest
+                unwrapped = predicted + delta
+        if self._ref is None or unwrapped > self._ref:
+            if self._ref is not None and unwrapped // WRAP_TICKS > self._ref // WRAP_TICKS:
+                self.wraps += unwrapped // WRAP_TICKS - self._ref // WRAP_TICKS
+            self._ref = unwrapped
             self._ref_arrival_s = arrival_s
         return unwrapped, reset
 

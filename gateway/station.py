@@ -270,10 +270,10 @@ class StationReader:
         if isinstance(msg, fp.SampleBatch):
             self._on_batch(msg, arrival_s)
         elif isinstance(msg, fp.ClockSync):
-            ticks, reset = self.unwrapper.unwrap(np.array([msg.station_ticks]), arrival_s)
+            ticks, reset = self.unwrapper.unwrap(msg.station_ticks, arrival_s)
             if reset:
                 self._on_clock_reset("clock sync counter jumped")
-            self.clock.add(ticks[0] / self.hello.tick_rate_hz, arrival_s)
+            self.clock.add(ticks / self.hello.tick_rate_hz, arrival_s)
         elif isinstance(msg, fp.Status):
             self.station_battery_pct = msg.battery_pct
             self.station_buffered_samples = msg.buffered_samples
@@ -324,24 +324,24 @@ class StationReader:
         n = batch.n_samples
         if n == 0:
             return
-        first, reset = self.unwrapper.unwrap(np.array([batch.first_sample_ticks]), arrival_s)
+        first, reset = self.unwrapper.unwrap(batch.first_sample_ticks, arrival_s)
         if reset:
             self._on_clock_reset("sample ticks jumped far from the prediction")
-        tick_hz = float(self.hello.tick_rate_hz)
-        ticks = first[0] + np.arange(n) * batch.sample_period_ticks
-        device_s = ticks / tick_hz
+        offsets = np.arange(n) * batch.sample_period_ticks
+        ticks = first + offsets
+        device_s = ticks / self.hello.tick_rate_hz
         self.clock.add(float(device_s[-1]), arrival_s)  # newest sample: least delivery latency
         stats = self._sensor(batch.sensor_id)
         stats.on_batch(batch.first_sample_counter, n, arrival_s)
         t_host = self.clock.to_host(device_s)
         stats.last_t_host_s = float(t_host[-1])
-        counter = (batch.first_sample_counter + np.arange(n, dtype=np.uint64)) % (1 << 32)
-        raw_ticks = np.round(batch.first_sample_ticks + np.arange(n) * batch.sample_period_ticks) % (1 << 32)
         self.sink.on_samples(SampleBlock(
             station=self.name, sensor=batch.sensor_id, nominal_hz=stats.nominal_hz,
             clock_locked=self.clock.state.locked, epoch=self.unwrapper.epoch,
-            counter=counter.astype(np.uint32), raw_ticks=raw_ticks.astype(np.uint32), ticks=ticks,
-            arrival_s=np.full(n, arrival_s), t_host_s=t_host, acc_g=batch.acc_g().astype(np.float32),
+            counter=np.arange(n, dtype=np.uint32) + np.uint32(batch.first_sample_counter),  # wraps like the wire
+            raw_ticks=(batch.first_sample_ticks + np.round(offsets).astype(np.int64)).astype(np.uint32),
+            ticks=ticks, arrival_s=np.full(n, arrival_s), t_host_s=t_host,
+            acc_g=batch.samples.astype(np.float32) * np.float32(batch.scale_g_per_lsb),
         ))
 
     # -- commands ---------------------------------------------------------------------------------------------

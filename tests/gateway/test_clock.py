@@ -9,37 +9,34 @@ from gateway.clock import WRAP_TICKS, ClockEstimator, TickUnwrapper, lower_envel
 
 def test_unwrap_across_wrap_is_continuous():
     u = TickUnwrapper(tick_hz=1_000_000)
-    ticks, reset = u.unwrap(np.array([WRAP_TICKS - 20_000, WRAP_TICKS - 10_000], np.uint32), arrival_s=0.0)
-    assert not reset
-    ticks, reset = u.unwrap(np.array([WRAP_TICKS - 5_000, 5_000, 15_000], np.int64) % WRAP_TICKS, arrival_s=0.02)
-    assert not reset and u.wraps == 1
-    np.testing.assert_array_equal(ticks, [WRAP_TICKS - 5_000, WRAP_TICKS + 5_000, WRAP_TICKS + 15_000])
-    ticks, reset = u.unwrap(np.array([30_000], np.uint32), arrival_s=0.04)
-    assert ticks[0] == WRAP_TICKS + 30_000 and u.epoch == 0
+    assert u.unwrap(WRAP_TICKS - 20_000, arrival_s=0.0) == (WRAP_TICKS - 20_000, False)
+    assert u.unwrap(WRAP_TICKS - 5_000, arrival_s=0.015) == (WRAP_TICKS - 5_000, False)
+    assert u.unwrap(5_000, arrival_s=0.025) == (WRAP_TICKS + 5_000, False)
+    assert u.wraps == 1
+    assert u.unwrap(30_000, arrival_s=0.05) == (WRAP_TICKS + 30_000, False)
+    assert u.epoch == 0 and u.wraps == 1
 
 
 def test_small_backwards_step_is_reordering_not_reset():
     u = TickUnwrapper(tick_hz=32768)
-    u.unwrap(np.array([100_000]), arrival_s=10.0)
-    ticks, reset = u.unwrap(np.array([99_000]), arrival_s=10.01)  # another sensor's older batch
-    assert not reset and ticks[0] == 99_000
+    u.unwrap(100_000, arrival_s=10.0)
+    assert u.unwrap(99_000, arrival_s=10.01) == (99_000, False)  # another sensor's older batch
 
 
 def test_reset_far_from_wrap_point_starts_new_epoch():
     u = TickUnwrapper(tick_hz=1_000_000)
-    u.unwrap(np.array([2_000_000_000]), arrival_s=100.0)
-    ticks, reset = u.unwrap(np.array([1_000]), arrival_s=101.0)  # rebooted: counter near 0, not near 2**32
-    assert reset and u.epoch == 1 and ticks[0] == 1_000 and u.wraps == 0
+    u.unwrap(2_000_000_000, arrival_s=100.0)
+    assert u.unwrap(1_000, arrival_s=101.0) == (1_000, True)  # rebooted: counter near 0, not near 2**32
+    assert u.epoch == 1 and u.wraps == 0
 
 
 def test_long_gap_is_predicted_from_host_time():
     """After a 50 min gap at 1 MHz the counter wrapped silently; host elapsed time tells it apart from a reset."""
     u = TickUnwrapper(tick_hz=1_000_000)
     start = 4_000_000_000
-    u.unwrap(np.array([start]), arrival_s=0.0)
+    u.unwrap(start, arrival_s=0.0)
     true = start + 3_000 * 1_000_000 + 1234
-    ticks, reset = u.unwrap(np.array([true % WRAP_TICKS]), arrival_s=3_000.0)
-    assert not reset and ticks[0] == true
+    assert u.unwrap(true % WRAP_TICKS, arrival_s=3_000.0) == (true, False)
 
 
 def test_lower_envelope_exact_without_noise():
