@@ -67,7 +67,10 @@ def cluster_rigid_bodies(std: np.ndarray, tau: float, min_body: int = 3, max_bod
             split.append(g)
             continue
         sub_tau = np.max(std[np.ix_(g, g)]) * 0.999  # just below this group's own diameter
-        groups.extend(_complete_linkage_groups(std, g, min(tau, sub_tau)))
+        parts = _complete_linkage_groups(std, g, min(tau, sub_tau))
+        if len(parts) == 1:  # all pairs equally rigid (e.g. exactly 0): any split is as good as another
+            parts = np.array_split(g, -(-len(g) // max_body))
+        groups.extend(parts)
     small = sorted((g for g in split if len(g) < min_body), key=len)
     bodies = [g for g in split if len(g) >= min_body]
     for g in small:

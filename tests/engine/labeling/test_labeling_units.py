@@ -211,3 +211,9 @@ def test_labelled_c3d_round_trips_with_missing_samples(tmp_path):
     assert back.labels == ("S:A", "S:B", "S:C", "S:D") and back.fps == 120.0
     assert np.array_equal(np.isnan(back.positions_m), np.isnan(pos))
     assert np.allclose(back.positions_m[~np.isnan(pos)], pos[~np.isnan(pos)], atol=1e-6)
+
+
+def test_a_perfectly_rigid_large_group_is_split_to_the_maximum_size():
+    bodies = cluster_rigid_bodies(np.zeros((12, 12)), 0.003, min_body=3, max_body=8)
+    assert sorted(len(b) for b in bodies) == [6, 6]
+    assert sorted(np.concatenate(bodies).tolist()) == list(range(12))
