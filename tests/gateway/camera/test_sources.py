@@ -74,3 +74,27 @@ def test_video_file_source_errors_name_the_file(tmp_path):
     junk.write_bytes(b"this is not a video" * 10)
     with pytest.raises(FrameSourceError, match="junk.mp4: OpenCV cannot open"):
         VideoFileSource(junk)
+
+
+def test_opencv_camera_on_a_file_path_and_a_missing_device(tmp_path, court_camera):
+    """The live-camera class is thin; without hardware, drive it with a video file path (same grab/retrieve
+    path) and check its host-clock timestamps, latency correction and the error for a missing device."""
+    import time
+
+    from gateway.camera import OpenCVCamera
+
+    path = tmp_path / "clip.mp4"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 25.0, court_camera.image_size)
+    for frame in SyntheticCourtCamera(_still_path(0.4), camera=court_camera, fps=25.0, empty_s=0.0):
+        writer.write(frame.image)
+    writer.release()
+    before = time.monotonic()
+    with OpenCVCamera(str(path), latency_s=0.5) as cam:
+        frames = list(cam)
+    after = time.monotonic()
+    assert len(frames) == 11 and [f.index for f in frames] == list(range(11))
+    t = np.array([f.t_host_s for f in frames])
+    assert np.all(np.diff(t) >= 0) and before - 0.5 <= t[0] and t[-1] <= after - 0.5
+    assert frames[0].image.shape == (court_camera.image_size[1], court_camera.image_size[0], 3)
+    with pytest.raises(FrameSourceError, match="camera 97: cannot open"):
+        OpenCVCamera(97)
