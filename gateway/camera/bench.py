@@ -39,14 +39,19 @@ def calibrations(camera, noise_px: float = 0.5):
     return with_pose, homography_only
 
 
+LIGHTING = CameraImperfections(drop_probability=0.05, jitter_s=0.002, drift=0.15, drift_tilt=0.25, drift_period_s=16.0)
+
+
 def scenarios(quick: bool):
-    yield "rally seed 4 (scripted)", scripted_rally_path(6.0 if quick else 12.0, seed=4), None
+    """(name, path, body, imperfections) of each benchmark scene."""
+    yield "rally seed 4 (scripted)", scripted_rally_path(6.0 if quick else 12.0, seed=4), None, REALISTIC
     if not quick:
-        yield "rally seed 8 (scripted)", scripted_rally_path(12.0, seed=8), None
+        yield "rally seed 8 (scripted)", scripted_rally_path(12.0, seed=8), None, REALISTIC
+        yield "rally 8 + cloud, light tilt", scripted_rally_path(12.0, seed=8), None, LIGHTING
     clips = ("16_05", "16_45") if quick else ("16_05", "16_21", "16_45", "135_04")
     for clip in clips:
         body = MocapBody(load_clip(sample_clips()[clip], fps=30.0), (1.0, -8.0))
-        yield f"CMU {clip} (mocap)", body.path, body
+        yield f"CMU {clip} (mocap)", body.path, body, REALISTIC
 
 
 def accuracy_table(camera, quick: bool) -> None:
@@ -56,13 +61,14 @@ def accuracy_table(camera, quick: bool) -> None:
         "foot+pose": (with_pose, TrackerConfig(ground_point="foot")),
         "foot, H only": (h_only, TrackerConfig(ground_point="foot")),
     }
-    print("\n1. position error vs ground truth (m), 30 fps, 5 % dropped frames, 2 ms timestamp jitter, clicks +-0.5 px")
+    print("\n1. position error vs ground truth (m), 30 fps, 5 % dropped frames, 2 ms timestamp jitter, clicks +-0.5 px"
+          "\n   (lighting row: +15 % cloud and +-25 % left-right tilt within 4 s)")
     print(f"{'scenario':28s} {'frames':>6s} " + " ".join(f"{m + ' rms/p95':>24s}" for m in methods) + f" {'detected':>9s}")
-    for name, path, body in scenarios(quick):
+    for name, path, body, imperfections in scenarios(quick):
         trackers = {m: PlayerTracker(c, cfg) for m, (c, cfg) in methods.items()}
         errors: dict[str, list[float]] = {m: [] for m in methods}
         on_court = 0
-        for frame in SyntheticCourtCamera(path, camera=camera, body=body, imperfections=REALISTIC, seed=1):
+        for frame in SyntheticCourtCamera(path, camera=camera, body=body, imperfections=imperfections, seed=1):
             on_court += frame.truth.visible
             for m, tracker in trackers.items():
                 rec = tracker.update(frame)
@@ -80,7 +86,7 @@ def height_sensitivity(camera, quick: bool) -> None:
     with_pose, _ = calibrations(camera)
     heights = (0.75, 0.85, 0.9, 0.95, 1.05)
     print("\n2. parallax-corrected centroid: RMS (m) vs assumed centroid height (default 0.9 m)")
-    for name, path, body in list(scenarios(quick))[:: 2 if quick else 1]:
+    for name, path, body, _ in list(scenarios(quick))[:: 2 if quick else 1]:
         trackers = {h: PlayerTracker(with_pose, TrackerConfig(ground_point="centroid", centroid_height_m=h))
                     for h in heights}
         errors: dict[float, list[float]] = {h: [] for h in heights}
