@@ -15,7 +15,7 @@ from PySide6 import QtCore, QtWidgets
 
 from gui.bridge import GatewayBridge, SensorKey, gateway_clock_offset_s
 from gui.control import RequestRunner
-from gui.health import status_alarms
+from gui.health import Alarm, status_alarms
 from gui.playback import Playback
 from gui.synthesis import SynthesisSetup, SynthesisWorker
 from gui.widgets.alarms import AlarmBar
@@ -27,6 +27,7 @@ from gui.ringbuffer import TraceStore
 from gui.widgets.traces import TracePanel
 
 TICK_MS = 33
+RECONNECT_INTERVAL_MS = 1000
 TruthProvider = Callable[[float], "np.ndarray | None"]  # gateway time (s) -> (J,3) m or None
 
 
@@ -156,18 +157,57 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         if truth_parents is not None and synthesis is None:
             self.skeleton.set_skeleton(truth_parents)
 
+        self._clock_offset_s = 0.0
+        self._reconnecting = False
+        self._owns_client = False
+        self._status_alarms: list[Alarm] = []
         if client is not None:
             self.bridge.attach(client)
-            hello = getattr(client, "server_hello", {}) or {}
-            self.connection.setText(f"gateway {hello.get('gateway', '')} {client.host}:{client.port}")
-            self._clock_offset_s = gateway_clock_offset_s(client)
-        else:
-            self._clock_offset_s = 0.0
+            self._connected(client, gateway_clock_offset_s(client))
 
         self.timer = QtCore.QTimer(self)
         self.timer.setTimerType(QtCore.Qt.PreciseTimer)
         self.timer.timeout.connect(self.tick)
         self.timer.start(TICK_MS)
+        self.link_timer = QtCore.QTimer(self)
+        self.link_timer.timeout.connect(self.check_link)
+        self.link_timer.start(RECONNECT_INTERVAL_MS)
+
+    # -- gateway link -----------------------------------------------------------------------------------------
+    def _connected(self, client: Any, clock_offset_s: float) -> None:
+        self.client = client
+        self._clock_offset_s = clock_offset_s
+        hello = getattr(client, "server_hello", {}) or {}
+        self.connection.setText(f"gateway {hello.get('gateway', '')} {client.host}:{client.port}")
+        self.connection.setStyleSheet("")
+
+    def link_alarms(self) -> list[Alarm]:
+        if self.client is None or self.playback is not None or self.client.connected:
+            return []
+        return [Alarm("gateway", "alarm", f"gateway {self.client.host}:{self.client.port} unreachable: reconnecting")]
+
+    def check_link(self) -> None:
+        """Once a second: show a lost gateway connection and try to reconnect (off the GUI thread)."""
+        self.alarms.set_conditions(self._status_alarms + self.link_alarms())
+        if self.client is None or self.playback is not None or self.client.connected or self._reconnecting:
+            return
+        self.connection.setText(f"DISCONNECTED from {self.client.host}:{self.client.port}")
+        self.connection.setStyleSheet("color: #e05050; font-weight: bold;")
+        self._reconnecting = True
+        self.requests.call("reconnect", self._reconnect, self.client.host, self.client.port)
+
+    def _reconnect(self, host: str, port: int) -> tuple[Any, float]:
+        """Worker thread: a fresh client, subscribed through the bridge, and its clock offset."""
+        from gateway.client import GatewayClient
+
+        client = GatewayClient(host, port).connect(timeout_s=1.0)
+        try:
+            self.bridge.detach()
+            self.bridge.attach(client)
+            return client, gateway_clock_offset_s(client)
+        except Exception:
+            client.close()
+            raise
 
     # -- clock ----------------------------------------------------------------------------------------------
     def gateway_now_s(self) -> float:
@@ -219,7 +259,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.recording.status = status
         rec = self.bridge.latest("recording") or {}
         disk = str(Path(rec["path"]).parent) if rec.get("path") and Path(rec["path"]).parent.exists() else "."
-        self.alarms.set_conditions(status_alarms(status, disk, self._was_locked))
+        self._status_alarms = status_alarms(status, disk, self._was_locked)
+        self.alarms.set_conditions(self._status_alarms + self.link_alarms())
 
     def _mark_tap(self, calibration: dict[str, Any] | None) -> None:
         """A sync tap found by the calibration workflow becomes an event marker on the traces."""
@@ -271,6 +312,12 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.requests.call("stop_recording", self.client.stop_recording)
 
     def _request_done(self, tag: str, result: Any, error: str) -> None:
+        if tag == "reconnect":
+            self._reconnecting = False
+            if not error:
+                self._connected(*result)
+                self._owns_client = True  # made by us: closed by `shutdown`
+            return  # failures retry on the next link check; the banner already says so
         if error:
             self.alarms.add_event("warning", tag, error)
             if tag.endswith("recording"):
@@ -343,8 +390,11 @@ class ConsoleWindow(QtWidgets.QMainWindow):
 
     def shutdown(self) -> None:
         self.timer.stop()
+        self.link_timer.stop()
         if self.worker is not None:
             self.worker.stop()
             self.worker.join(timeout=2)
         self.bridge.detach()
         self.requests.shutdown()
+        if self._owns_client and self.client is not None:
+            self.client.close()

@@ -111,3 +111,27 @@ def test_wizard_rejects_a_moving_subject(live_gateway, console, qtbot):
     assert state["step"] == "npose" and not state["quality"]["passed"]
     assert any("rejected" in m for m in state["messages"])
     assert "rejected" in window.wizard.phase.text()
+
+
+def test_console_reconnects_when_the_gateway_comes_back(live_gateway, console, qtbot, tmp_path):
+    from firmware_protocol.emulator import StationConfig
+    from gateway.daemon import Gateway
+    from gateway.emulated import start_emulated_station
+
+    first, _ = live_gateway(StillSource(3), 3)
+    host, port = first.address
+    window = console(first)
+    qtbot.waitUntil(lambda: window.store.latest_time() is not None, timeout=10_000)
+    first.stop()
+    qtbot.waitUntil(lambda: "DISCONNECTED" in window.connection.text(), timeout=5_000)
+    assert "gateway" in window.alarms.active()
+    station = start_emulated_station(StationConfig(station_id=4, n_sensors=2, autostart=True), motion=StillSource(2))
+    second = Gateway([station.path], listen=(host, port), record_dir=tmp_path / "rec2", status_interval_s=0.2)
+    second.start()
+    try:
+        qtbot.waitUntil(lambda: ("st4", 1) in window.store.rings, timeout=15_000)
+        assert "DISCONNECTED" not in window.connection.text()
+        qtbot.waitUntil(lambda: "gateway" not in window.alarms.active(), timeout=3_000)
+    finally:
+        second.stop()
+        station.stop()
