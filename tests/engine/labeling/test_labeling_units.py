@@ -51,7 +51,12 @@ def test_score_table_values():
     moved = pos.copy()
     moved[1, 0] = template[0] + (template[1] - template[0]) * (1 + 0.002 / dist[0, 1])  # one link longer by A
     assert link_table(moved, pid, dist, std)[0, 0, 1, 0] == pytest.approx(np.exp(-0.5))
-    assert np.isfinite(link_table(pos, pid, dist, np.maximum(np.zeros((4, 4)), 0.0005))).all()
+    window = DistanceWindow(1, 4, 5, sigma_min=0.0005)  # a perfectly rigid body has A = 0 ...
+    for _ in range(5):
+        window.push(dist[None])
+    mean, floored = window.stats()
+    assert np.allclose(floored, 0.0005)  # ... which the floor turns into sigma_min, so Eq. 5 stays finite
+    assert np.isfinite(link_table(pos, pid, mean[0], floored[0])).all()
 
 
 def test_exhaustive_search_finds_true_assignment_among_distractors_and_never_reuses_a_point():
