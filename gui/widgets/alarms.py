@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import time
 
-from PySide6 import QtCore, QtWidgets
+from PySide6 import QtWidgets
 
 from gui.health import Alarm
 

@@ -2,7 +2,6 @@
 identify (blink) button per sensor, and the sensor -> body-segment mapping on a simple body diagram."""
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 from PySide6 import QtCore, QtGui, QtWidgets
