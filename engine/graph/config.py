@@ -14,6 +14,7 @@ class GraphConfig:
     joint_weights: per-joint weights of the point cloud (None = equal weights).
     min_jump_frames: a transition inside one clip must jump at least this far (shorter jumps are near-duplicates
         of the natural edge and only slow the search).
+    max_transitions_per_frame: keep only this many closest transitions leaving one frame (0 = no cap).
     msv / interp: add motion speed variations / interpolated motions (seed 000 sections 4.1 / 4.2).
     interp_threshold_m, interp_min_length_s: the similarity threshold t_i and the minimum blended length.
     """
@@ -23,6 +24,7 @@ class GraphConfig:
     transition_threshold_m: float = 0.06
     joint_weights: list[float] | None = None
     min_jump_frames: int = 8
+    max_transitions_per_frame: int = 10
     msv: bool = False
     interp: bool = False
     interp_threshold_m: float = 0.05

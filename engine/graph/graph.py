@@ -244,7 +244,7 @@ def build_from_clips(clips: list[ClipData], config: GraphConfig) -> MotionGraph:
     parts = GraphParts()
     offsets = _original_nodes(parts, clips, label_names)
     tr = find_transitions(clips, config.window_frames, joint_weights, config.transition_threshold_m,
-                          config.min_jump_frames)
+                          config.min_jump_frames, config.max_transitions_per_frame)
     arrival = np.concatenate(parts.node["node_arrival"])
     parts.add_edges(tr.src_frame - 1, tr.dst_frame, EDGE_TRANSITION, arrival[tr.dst_frame])
     if config.msv:

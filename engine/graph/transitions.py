@@ -38,12 +38,15 @@ def contact_code(contacts: np.ndarray) -> np.ndarray:
 
 
 def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: np.ndarray,
-                     threshold_m: float, min_jump_frames: int, block_rows: int = 1024) -> Transitions:
+                     threshold_m: float, min_jump_frames: int, max_per_frame: int = 0,
+                     block_rows: int = 1024) -> Transitions:
     """All transitions between contact-change frames of `clips` (including within one clip).
 
     A pair is kept when both frames have the same contact state, the distance is below `threshold_m`, and the
     distance is a local minimum of the candidate-by-candidate matrix (4-neighbourhood, neighbours taken only
-    within the same clip, as Kovar keeps local minima of the frame-by-frame matrix)."""
+    within the same clip, as Kovar keeps local minima of the frame-by-frame matrix). With `max_per_frame` > 0
+    only that many of the closest transitions leave each frame (repetitive locomotion otherwise links every
+    step to nearly every similar step of every other clip)."""
     offsets = np.concatenate([[0], np.cumsum([c.n_frames for c in clips])])
     feats, glob, clip_id, code = [], [], [], []
     for ci, clip in enumerate(clips):
@@ -89,6 +92,12 @@ def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: n
         keep[: r0 - lo] = False  # halo rows belong to the neighbouring blocks
         keep[keep.shape[0] - (hi - r1):] = False
         r, c = np.nonzero(keep)
+        if max_per_frame > 0 and len(r):
+            order = np.lexsort((dist[r, c], r))  # by row, then distance
+            r, c = r[order], c[order]
+            first = np.searchsorted(r, r)  # index of each row's first kept entry
+            rank = np.arange(len(r)) - first
+            r, c = r[rank < max_per_frame], c[rank < max_per_frame]
         rows_out.append(glob_idx[rows[r]])
         cols_out.append(glob_idx[c])
         dist_out.append(dist[r, c])

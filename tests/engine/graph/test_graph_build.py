@@ -118,3 +118,18 @@ def test_row_blocks_do_not_change_the_transitions(sample_clipdata):
     assert len(whole.src_frame) > 20
     key = lambda t: sorted(zip(t.src_frame.tolist(), t.dst_frame.tolist()))  # noqa: E731
     assert key(whole) == key(blocks)
+
+
+def test_transition_cap_keeps_the_closest_per_frame(sample_clipdata):
+    from engine.graph.transitions import find_transitions
+
+    clips, _ = sample_clipdata
+    jw = np.ones(clips[0].positions_m.shape[1])
+    full = find_transitions(clips, 9, jw, 0.12, 8)
+    capped = find_transitions(clips, 9, jw, 0.12, 8, max_per_frame=2, block_rows=5)
+    counts = np.bincount(full.src_frame)
+    assert counts.max() > 2  # the cap matters on this data
+    assert np.bincount(capped.src_frame).max() <= 2
+    for src in np.unique(full.src_frame):
+        want = np.sort(full.distance_m[full.src_frame == src])[:2]
+        assert np.allclose(np.sort(capped.distance_m[capped.src_frame == src]), want)
