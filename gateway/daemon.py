@@ -167,6 +167,15 @@ class Gateway:
         if on_samples is not None:
             on_samples(block.station, block.sensor, block.t_host_s, block.acc_g)
 
+    def on_clock_point(self, station: str, epoch: int, raw_ticks: int, ticks: int, arrival_s: float,
+                       tick_hz: float) -> None:
+        """Record every clock-sync point (raw evidence for `gateway.recorder.realign_take`)."""
+        if self.recorder.active:
+            self.recorder.put_rows("clock_points", station, -1,
+                                   {"raw_ticks": np.array([raw_ticks], np.uint32), "ticks": np.array([ticks], np.int64),
+                                    "epoch": np.array([epoch], np.uint32), "arrival_s": np.array([arrival_s])},
+                                   header={"tick_hz": tick_hz})
+
     def on_station_event(self, station: str, level: str, message: str, details: dict | None = None) -> None:
         self.publish_event(level, station, message, details)
 

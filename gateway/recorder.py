@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from gateway import codec
+from gateway.clock import realign_offline
 
 log = logging.getLogger(__name__)
 
@@ -85,8 +86,9 @@ class ChunkFile:
 class _Pending:
     """What arrived since the last flush."""
 
-    samples: dict[tuple[str, int], list[dict[str, np.ndarray]]] = field(default_factory=dict)
-    sample_headers: dict[tuple[str, int], dict[str, Any]] = field(default_factory=dict)
+    # (kind, station, sensor) -> row batches of a tabular stream ("samples", "clock_points")
+    rows: dict[tuple[str, str, int], list[dict[str, np.ndarray]]] = field(default_factory=dict)
+    headers: dict[tuple[str, str, int], dict[str, Any]] = field(default_factory=dict)
     others: list[bytes] = field(default_factory=list)
     n_samples: int = 0
 
@@ -138,16 +140,22 @@ class Recorder:
 
     def put_samples(self, station: str, sensor: int, arrays: dict[str, np.ndarray], header: dict[str, Any] | None = None) -> None:
         """Queue one batch of samples (all arrays share the first dimension). Never blocks on disk."""
+        self.put_rows("samples", station, sensor, arrays, header)
+
+    def put_rows(self, kind: str, station: str, sensor: int, arrays: dict[str, np.ndarray],
+                 header: dict[str, Any] | None = None) -> None:
+        """Queue rows of a tabular stream; rows of one (kind, station, sensor) are merged into one chunk per flush."""
         with self._lock:
             if self._file is None:
                 return
-            key = (station, int(sensor))
-            self._pending.samples.setdefault(key, []).append(arrays)
+            key = (kind, station, int(sensor))
+            self._pending.rows.setdefault(key, []).append(arrays)
             if header:
-                self._pending.sample_headers[key] = header
-            n = len(next(iter(arrays.values())))
-            self._pending.n_samples += n
-            self._samples_queued += n
+                self._pending.headers[key] = header
+            if kind == "samples":
+                n = len(next(iter(arrays.values())))
+                self._pending.n_samples += n
+                self._samples_queued += n
 
     def put(self, kind: str, header: dict[str, Any], arrays: dict[str, np.ndarray] | None = None) -> None:
         """Queue any other message (camera, event, clock, station hello...) verbatim."""
@@ -168,10 +176,10 @@ class Recorder:
         if chunk_file is None:
             return
         bodies = list(pending.others)
-        for (station, sensor), batches in pending.samples.items():
+        for (kind, station, sensor), batches in pending.rows.items():
             arrays = {name: np.concatenate([b[name] for b in batches]) for name in batches[0]}
-            header = {**pending.sample_headers.get((station, sensor), {}), "station": station, "sensor": sensor}
-            bodies.append(codec.encode("samples", header, arrays))
+            header = {**pending.headers.get((kind, station, sensor), {}), "station": station, "sensor": sensor}
+            bodies.append(codec.encode(kind, header, arrays))
         if not bodies:
             return
         for body in bodies:
@@ -281,36 +289,70 @@ def read_recording(path: Path | str) -> RecordingContents:
 
 @dataclass
 class Take:
-    """A recording reassembled per stream: ``samples[(station, sensor)][array name]`` concatenated in time order."""
+    """A recording reassembled per stream, arrays concatenated in time order:
+    ``samples[(station, sensor)][name]``, ``clock_points[station][name]`` (every clock-sync point: ``raw_ticks``,
+    ``ticks``, ``epoch``, ``arrival_s``; ``tick_hz`` in ``clock_tick_hz[station]``), other messages in ``others``."""
 
     meta: dict[str, Any]
     samples: dict[tuple[str, int], dict[str, np.ndarray]]
+    clock_points: dict[str, dict[str, np.ndarray]]
+    clock_tick_hz: dict[str, float]
     others: list[codec.Message]
     problem: str | None
 
 
+def _concatenate(msgs: list[codec.Message]) -> dict[str, np.ndarray]:
+    return {name: np.concatenate([m.arrays[name] for m in msgs]) for name in msgs[0].arrays}
+
+
 def load_take(path: Path | str) -> Take:
     contents = read_recording(path)
-    parts: dict[tuple[str, int], list[codec.Message]] = {}
+    samples: dict[tuple[str, int], list[codec.Message]] = {}
+    points: dict[str, list[codec.Message]] = {}
     others = []
     for msg in contents.messages:
         if msg.kind == "samples":
-            parts.setdefault((msg.header["station"], int(msg.header["sensor"])), []).append(msg)
+            samples.setdefault((msg.header["station"], int(msg.header["sensor"])), []).append(msg)
+        elif msg.kind == "clock_points":
+            points.setdefault(msg.header["station"], []).append(msg)
         else:
             others.append(msg)
-    samples = {}
-    for key, msgs in sorted(parts.items()):
-        names = list(msgs[0].arrays)
-        samples[key] = {name: np.concatenate([m.arrays[name] for m in msgs]) for name in names}
-    return Take(contents.meta, samples, others, contents.problem)
+    return Take(
+        contents.meta,
+        {key: _concatenate(msgs) for key, msgs in sorted(samples.items())},
+        {station: _concatenate(msgs) for station, msgs in sorted(points.items())},
+        {station: float(msgs[-1].header["tick_hz"]) for station, msgs in points.items()},
+        others, contents.problem,
+    )
+
+
+def realign_take(take: Take, window_s: float = 60.0) -> dict[tuple[str, int], np.ndarray]:
+    """Offline clock re-fit of every sample from the recorded clock-sync points (`gateway.clock.realign_offline`,
+    centred windows, no warm-up). Samples of a clock epoch with fewer than 10 points keep their online time."""
+    out = {}
+    for (station, sensor), cols in take.samples.items():
+        t = np.array(cols["t_host_s"], dtype=np.float64)
+        points = take.clock_points.get(station)
+        if points is not None:
+            tick_hz = take.clock_tick_hz[station]
+            for epoch in np.unique(cols["epoch"]):
+                mine = points["epoch"] == epoch
+                rows = cols["epoch"] == epoch
+                if mine.sum() >= 10:
+                    t[rows] = realign_offline(points["ticks"][mine] / tick_hz, points["arrival_s"][mine],
+                                              cols["ticks"][rows] / tick_hz, window_s=window_s)
+        out[(station, sensor)] = t
+    return out
 
 
 def export_npz(path: Path | str, out: Path | str) -> Path:
-    """One npz: ``<station>/<sensor>/<array>`` keys for samples, ``meta`` and ``messages`` as JSON strings."""
+    """One npz: ``<station>/<sensor>/<array>`` keys for samples (plus ``t_realigned_s``, the offline clock re-fit),
+    ``meta`` and ``messages`` as JSON strings."""
     take = load_take(path)
+    realigned = realign_take(take)
     arrays: dict[str, Any] = {}
     for (station, sensor), cols in take.samples.items():
-        for name, value in cols.items():
+        for name, value in {**cols, "t_realigned_s": realigned[(station, sensor)]}.items():
             arrays[f"{station}/{sensor}/{name}"] = value
     arrays["meta"] = np.array(json.dumps(take.meta))
     arrays["messages"] = np.array(json.dumps([{"kind": m.kind, **m.header} for m in take.others]))
@@ -320,15 +362,16 @@ def export_npz(path: Path | str, out: Path | str) -> Path:
 
 
 def export_csv(path: Path | str, out_dir: Path | str) -> list[Path]:
-    """One CSV per sensor (``<station>_<sensor>.csv``: one row per sample, vector arrays split into columns)
-    plus ``messages.csv`` (t_host_s, kind, JSON header) for everything else."""
+    """One CSV per sensor (``<station>_<sensor>.csv``: one row per sample, vector arrays split into columns, plus
+    ``t_realigned_s``) and ``messages.csv`` (t_host_s, kind, JSON header) for everything else."""
     take = load_take(path)
+    realigned = realign_take(take)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for (station, sensor), cols in take.samples.items():
         names, columns = [], []
-        for name, value in cols.items():
+        for name, value in {**cols, "t_realigned_s": realigned[(station, sensor)]}.items():
             value = value.reshape(len(value), -1)
             if value.shape[1] == 1:
                 names.append(name)

@@ -56,7 +56,9 @@ class SampleBlock:
 
 
 class StationSink(Protocol):
-    """Where a reader delivers its output (the `Gateway`). Called on the reader thread: must not block."""
+    """Where a reader delivers its output (the `Gateway`). Called on the reader thread: must not block.
+    Optional: ``on_clock_point(station, epoch, raw_ticks, ticks, arrival_s, tick_hz)`` for every CLOCK_SYNC,
+    so the recorder can keep the raw clock evidence for an offline re-fit."""
 
     def on_samples(self, block: SampleBlock) -> None: ...
 
@@ -274,6 +276,10 @@ class StationReader:
             if reset:
                 self._on_clock_reset("clock sync counter jumped")
             self.clock.add(ticks / self.hello.tick_rate_hz, arrival_s)
+            on_clock_point = getattr(self.sink, "on_clock_point", None)
+            if on_clock_point is not None:
+                on_clock_point(self.name, self.unwrapper.epoch, msg.station_ticks, ticks, arrival_s,
+                               self.hello.tick_rate_hz)
         elif isinstance(msg, fp.Status):
             self.station_battery_pct = msg.battery_pct
             self.station_buffered_samples = msg.buffered_samples

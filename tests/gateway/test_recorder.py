@@ -107,9 +107,11 @@ def test_export_npz_and_csv(tmp_path):
     assert a_csv in files
     table = np.loadtxt(a_csv, delimiter=",", skiprows=1)
     header = a_csv.read_text().splitlines()[0].split(",")
-    assert header == ["counter", "t_host_s", "acc_g_x", "acc_g_y", "acc_g_z"]
+    # no clock points recorded here, so the offline re-fit keeps the online times
+    assert header == ["counter", "t_host_s", "acc_g_x", "acc_g_y", "acc_g_z", "t_realigned_s"]
+    np.testing.assert_array_equal(table[:, 5], table[:, 1])
     np.testing.assert_array_equal(table[:, 0], np.arange(50))
-    np.testing.assert_allclose(table[:, 2:], _batch(0, 50)["acc_g"], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(table[:, 2:5], _batch(0, 50)["acc_g"], rtol=0, atol=1e-7)
 
 
 CHILD = textwrap.dedent(
