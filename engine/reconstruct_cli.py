@@ -85,34 +85,36 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
 
 def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     from engine.graph.inputs import load_take
-    from engine.hmm.evaluation import train_model
-    from engine.hmm.reconstructor import HMMReconstructor
-    from engine.mocap import write_bvh
+    from engine.hmm.evaluation import reconstruct, train_model
+    from engine.mocap import Motion, resample, write_bvh
 
-    model = train_model(_load_motions(args), imu_names=tuple(args.imus))
+    motions = _load_motions(args)
+    model = train_model(motions, imu_names=tuple(args.imus))
     obs = load_take(args.input, list(args.imus), model.fps)
-    if obs.acc_g is None:
-        raise MalformedFileError(args.input, None, "no accelerometer streams")
-    gyro = _take_gyro(args.input, len(obs.acc_g))
-    rec = HMMReconstructor(model)
+    if obs.acc_g is None or tuple(obs.sensor_indices) != tuple(range(len(args.imus))):
+        raise MalformedFileError(args.input, None, f"the HMM needs the IMUs {args.imus} in that order")
+    gyro = _take_gyro(args.input, len(obs.acc_g), model.fps)
+    skeleton = motions[0].skeleton
+    start = resample(motions[0], model.fps)
     t0 = time.perf_counter()
-    frames = [rec.push(a, g) for a, g in zip(obs.acc_g, gyro)]
+    root, quats, frames = reconstruct(model, obs.acc_g, gyro, skeleton.n_joints, np.r_[0.0, start.root_positions_m[0, 1], 0.0],
+                                      np.array([1.0, 0.0, 0.0, 0.0]))
     elapsed = time.perf_counter() - t0
-    write_bvh(args.output, rec.to_motion(frames, Path(args.input).stem))
+    write_bvh(args.output, Motion(skeleton, model.fps, root, quats, Path(args.input).stem))
     return {"frames": len(frames), "seconds": round(elapsed, 3), "fps": round(len(frames) / max(elapsed, 1e-9), 1)}
 
 
-def _take_gyro(path: str, frames: int) -> np.ndarray:
-    """Optional `gyro_rps` (T, S, 3) in the take (rad/s); the HMM needs it for its 6-D IMU feature."""
+def _take_gyro(path: str, frames: int, fps: float) -> np.ndarray:
+    """`gyro_rps` (T, S, 3) rad/s from the take (the HMM's IMU feature is acc + gyro), at the model rate."""
+    from engine.graph.online import resample_stream
+
     data = np.load(path, allow_pickle=False)
     if "gyro_rps" not in data.files:
         raise MalformedFileError(path, None, "the HMM method needs 'gyro_rps' (T, S, 3) rad/s beside 'acc_g'")
-    gyro = np.asarray(data["gyro_rps"], float)
-    if len(gyro) != frames:
-        from engine.graph.online import resample_stream
-
-        gyro = resample_stream(gyro, float(data["fps"]), frames / (len(gyro) / float(data["fps"])))[:frames]
-    return gyro
+    gyro = resample_stream(np.asarray(data["gyro_rps"], float), float(data["fps"]), fps)
+    if len(gyro) < frames:
+        raise MalformedFileError(path, None, f"gyro_rps has {len(gyro)} frames at {fps:g} Hz, acc_g {frames}")
+    return gyro[:frames]
 
 
 def _reconstruct_motion_graph(args: argparse.Namespace) -> int:

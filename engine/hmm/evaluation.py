@@ -1,0 +1,86 @@
+"""From engine.mocap clips to a trained HMM, and leave-one-out scoring (spec B5, offline reproduction).
+
+Behaviour labels (walk / run / jump / hop) come from the caller or, by default, from the clip itself: mean
+ground speed above 2.2 m/s is a run, a root height range above 0.25 m at lower speed is a jump, else a walk.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from engine.graph.evaluate import root_local
+from engine.hmm.config import HMMConfig
+from engine.hmm.features import body_features, decode, imu_features
+from engine.hmm.model import HierarchicalHMM, TrainingClip
+from engine.hmm.phases import detect_events, label_phases, segments_from_labels
+from engine.hmm.reconstructor import HMMReconstructor
+from engine.mocap import (Motion, SensorErrorModel, error_joint_indices, forward_kinematics, joint_roles, resample,
+                          root_heading, standard_placements)
+from engine.olng.metrics import ClipErrors, score
+from engine.olng.pose import split_heading
+
+
+def behaviour_of(motion: Motion) -> str:
+    """walk / run / jump from the root trajectory (see module doc)."""
+    root = motion.root_positions_m
+    speed = np.linalg.norm(np.diff(root[:, [0, 2]], axis=0), axis=1).mean() * motion.fps
+    if speed > 2.2:
+        return "run"
+    if np.ptp(root[:, 1]) > 0.25:
+        return "jump"
+    return "walk"
+
+
+def training_clip(motion: Motion, imu_names: tuple[str, ...], behaviour: str, config: HMMConfig) -> TrainingClip:
+    """Segment and featurise one clip (already at the model rate)."""
+    positions, _ = forward_kinematics(motion)
+    roles = joint_roles(motion.skeleton)
+    heading = root_heading(motion, positions)
+    forward = np.stack([np.sin(heading), np.zeros_like(heading), np.cos(heading)], axis=1)
+    joints = {k: roles[k] for k in ("right_ankle", "right_toe", "left_ankle", "left_toe")}
+    events = detect_events(positions, motion.fps, joints, forward, config.contact_height_m,
+                           config.contact_speed_mps, config.contact_min_frames)
+    segments = segments_from_labels(label_phases(events), config.max_segment_frames, config.min_segment_frames)
+    acc, gyro = imu_features(motion, standard_placements(motion.skeleton, imu_names))
+    err = error_joint_indices(motion.skeleton)
+    align = root_local(positions[:, err], positions[:, 0, [0, 2]], heading).reshape(len(positions), -1)
+    return TrainingClip(body_features(motion), np.concatenate([acc, gyro], axis=-1).reshape(len(acc), -1),
+                        align, segments, behaviour)
+
+
+def train_model(motions: list[Motion], imu_names: tuple[str, ...] = ("right_foot",), labels: list[str] | None = None,
+                config: HMMConfig = HMMConfig()) -> HierarchicalHMM:
+    at_rate = [resample(m, config.fps) for m in motions]
+    labels = labels or [behaviour_of(m) for m in at_rate]
+    return HierarchicalHMM.train([training_clip(m, imu_names, lab, config) for m, lab in zip(at_rate, labels)], config)
+
+
+def reconstruct(model: HierarchicalHMM, acc_g: np.ndarray, gyro_rps: np.ndarray, joints: int, root0_m: np.ndarray,
+                root_quat0: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
+    """Stream a take; returns (root positions (T, 3), local quaternions (T, J, 4), per-frame HMMFrame list)."""
+    rec = HMMReconstructor(model)
+    frames = [rec.push(a, g) for a, g in zip(acc_g, gyro_rps)]
+    heading0, _ = split_heading(root_quat0[None])
+    root, quats = decode(np.stack([f.body for f in frames]), joints, root0_m, float(heading0[0]))
+    return root, quats, frames
+
+
+def leave_one_out(motions: list[Motion], test_indices: list[int], imu_names: tuple[str, ...] = ("right_foot",),
+                  error_model: SensorErrorModel | None = None, seed: int = 0, labels: list[str] | None = None,
+                  train_indices: list[int] | None = None, config: HMMConfig = HMMConfig()) -> list[ClipErrors]:
+    """Per test clip: train on the other clips (or `train_indices` minus the test clip), simulate the IMUs on
+    the held-out clip, reconstruct, score. Joint error is with the root translation removed, as in the paper."""
+    out = []
+    pool = list(range(len(motions))) if train_indices is None else train_indices
+    for ti in test_indices:
+        train = [i for i in pool if i != ti]
+        model = train_model([motions[i] for i in train], imu_names, [labels[i] for i in train] if labels else None, config)
+        test = resample(motions[ti], config.fps)
+        acc, gyro = imu_features(test, standard_placements(test.skeleton, imu_names))
+        if error_model is not None:
+            acc = error_model.apply(acc, test.fps, np.random.default_rng([seed, ti]))
+        root, quats, _ = reconstruct(model, acc, gyro, test.skeleton.n_joints, test.root_positions_m[0], test.rotations[0, 0])
+        pred = Motion(test.skeleton, test.fps, root, quats)
+        pw, pr = forward_kinematics(pred)
+        tw, tr = forward_kinematics(test)
+        out.append(score(pw, pr[:, 0], tw, tr[:, 0], test.skeleton))
+    return out

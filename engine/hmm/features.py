@@ -1,0 +1,55 @@
+"""Body features X and IMU features Y per frame (spec B1), and decoding X back to a pose.
+
+X_t = [local joint quaternions (root with its heading removed, w >= 0), root ground displacement since t-1 in
+the heading frame of t-1 with the root height in the vertical slot (m), heading change (rad)]. Joint angular velocities (also in the paper's X) are left
+out: the output only needs poses and root motion, and they would double the regression size.
+Y_t = per IMU [acc (g, sensor frame), gyro (rad/s, sensor frame)].
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from engine.mocap import Motion, SensorPlacement, virtual_accelerometers, virtual_gyroscopes
+from engine.olng.pose import quat_multiply, split_heading, yaw_quat
+
+
+def body_features(motion: Motion) -> np.ndarray:
+    """(F, J*4 + 4) body features of a clip."""
+    heading, tilt = split_heading(motion.rotations[:, 0])
+    heading = np.unwrap(heading)
+    quats = motion.rotations.copy()
+    quats[:, 0] = tilt
+    quats = np.where(quats[..., :1] < 0, -quats, quats)
+    step = np.diff(motion.root_positions_m, axis=0, prepend=motion.root_positions_m[:1])
+    c, s = np.cos(np.r_[heading[0], heading[:-1]]), np.sin(np.r_[heading[0], heading[:-1]])
+    # the vertical slot holds the root HEIGHT, not its change: integrating regressed height steps drifts
+    local = np.stack([c * step[:, 0] - s * step[:, 2], motion.root_positions_m[:, 1], s * step[:, 0] + c * step[:, 2]], axis=1)
+    dheading = np.diff(heading, prepend=heading[0])
+    return np.concatenate([quats.reshape(len(quats), -1), local, dheading[:, None]], axis=1)
+
+
+def imu_features(motion: Motion, placements: list[SensorPlacement]) -> tuple[np.ndarray, np.ndarray]:
+    """(acc_g (F, S, 3), gyro_rps (F, S, 3)) of the worn IMUs."""
+    return virtual_accelerometers(motion, placements), virtual_gyroscopes(motion, placements)
+
+
+def stack_imu(acc_g: np.ndarray, gyro_rps: np.ndarray) -> np.ndarray:
+    """(..., S, 3) x 2 -> (..., 6 S) IMU feature vectors."""
+    return np.concatenate([acc_g, gyro_rps], axis=-1).reshape(acc_g.shape[:-2] + (-1,))
+
+
+def decode(features: np.ndarray, joints: int, root0_m: np.ndarray, heading0_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """Body features (T, J*4 + 4) -> (root positions (T, 3) m, local quaternions (T, J, 4)), integrating the
+    root displacement and heading change from the given start."""
+    quats = features[:, : joints * 4].reshape(len(features), joints, 4)
+    quats = quats / np.linalg.norm(quats, axis=-1, keepdims=True)
+    local, dheading = features[:, joints * 4: joints * 4 + 3], features[:, -1]
+    heading = heading0_rad + np.cumsum(np.r_[0.0, dheading[1:]])
+    prev = np.r_[heading[0], heading[:-1]]
+    c, s = np.cos(prev), np.sin(prev)
+    world_step = np.stack([c * local[:, 0] + s * local[:, 2], np.zeros(len(local)), -s * local[:, 0] + c * local[:, 2]], axis=1)
+    world_step[0] = 0.0
+    root = root0_m + np.cumsum(world_step, axis=0)
+    root[:, 1] = local[:, 1]
+    quats[:, 0] = quat_multiply(yaw_quat(heading), quats[:, 0])
+    return root, quats

@@ -1,0 +1,109 @@
+"""Streaming reconstruction from one (or two) IMUs with the hierarchical HMM (spec B2.4-B2.5).
+
+Per frame: the forward algorithm over the last W frames (uniform start, so wrong hypotheses recover fast)
+gives the phase posterior; in the winning phase the K segment chains that best explain the frames since the
+phase was entered are interpolated (weights = softmax of their forward log-likelihoods), and the output is the
+posterior-weighted Gaussian conditional mean over the phase's frames. Phase switches are hidden by
+inertialisation (the previous velocity carried forward, decaying with a smoothstep over `blend_frames`).
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.hmm.features import stack_imu
+from engine.hmm.forward import chain_forward, forward
+from engine.hmm.model import HierarchicalHMM, conditional_mean
+
+
+@dataclass(frozen=True)
+class HMMFrame:
+    body: np.ndarray     # (dx,) reconstructed body features
+    phase: int           # index into model.phases
+    progress: float      # expected frame within the phase
+    compute_s: float     # wall time of this push
+
+
+class HMMReconstructor:
+    def __init__(self, model: HierarchicalHMM) -> None:
+        self.model = model
+        cfg = model.config
+        self._log_b: deque[np.ndarray] = deque(maxlen=cfg.window)
+        self._imu_z: deque[np.ndarray] = deque(maxlen=cfg.window)
+        self._phase = -1
+        self._since_entry = 0
+        self._history: list[np.ndarray] = []
+        self._blend_offset: np.ndarray | None = None
+        self._blend_step = 0
+        self._uniform = np.full(model.n_states, 1.0 / model.n_states)
+
+    def _emission(self, y_z: np.ndarray) -> np.ndarray:
+        d = self.model.state_imu_z - y_z
+        return -0.5 * np.einsum("sk,sk->s", d, d) / self.model.config.sigma**2
+
+    def posterior(self) -> np.ndarray:
+        """Forward variable over all template states given the last W frames."""
+        alpha, _ = forward(np.stack(self._log_b), self.model.transitions, self._uniform)
+        return alpha
+
+    def push(self, acc_g: np.ndarray, gyro_rps: np.ndarray) -> HMMFrame:
+        """One IMU frame: acc (S, 3) g and gyro (S, 3) rad/s in the model's IMU order."""
+        t0 = time.perf_counter()
+        m, cfg = self.model, self.model.config
+        y = stack_imu(np.asarray(acc_g, float)[None], np.asarray(gyro_rps, float)[None])[0]
+        if y.shape != m.imu_mean.shape:
+            raise ValueError(f"expected {m.imu_mean.shape[0] // 6} IMU(s) of acc + gyro, got {y.shape[0] // 6}")
+        y_z = m.zscore(y)
+        self._log_b.append(self._emission(y_z))
+        self._imu_z.append(y_z)
+        alpha = self.posterior()
+        mass = np.add.reduceat(alpha, m.offsets[:-1])
+        phase = int(np.argmax(mass))
+        switched = phase != self._phase and self._phase >= 0
+        self._since_entry = 1 if phase != self._phase else self._since_entry + 1
+        self._phase = phase
+        pm = m.phases[phase]
+        progress = alpha[m.offsets[phase]: m.offsets[phase + 1]]
+        progress = progress / progress.sum()
+
+        # reactive interpolation: score each segment chain of the phase on the frames since entry
+        recent = np.stack(list(self._imu_z)[-self._since_entry:])                       # (T, dy)
+        seg_z = pm.seg_imu                                                                 # (H, L, dy)
+        diff = seg_z[None] - recent[:, None, None, :]
+        log_b = -0.5 * np.einsum("thlk,thlk->thl", diff, diff) / cfg.sigma**2
+        _, loglik = chain_forward(log_b, cfg.p_self, cfg.p_next, cfg.p_skip)
+        k = min(cfg.k_interpolate, len(loglik))
+        top = np.argsort(loglik)[::-1][:k]
+        weights = np.exp(loglik[top] - loglik[top].max())
+        weights /= weights.sum()
+        mean_body = np.einsum("k,kld->ld", weights, pm.seg_body[top])
+        mean_imu = np.einsum("k,kld->ld", weights, pm.seg_imu[top])
+        per_state = conditional_mean(mean_body, mean_imu, pm.gain, y_z)
+        if cfg.output == "argmax":
+            body = per_state[int(np.argmax(progress))]
+        else:
+            body = progress @ per_state
+        body = self._blend(body, switched)
+        self._history = (self._history + [body])[-2:]
+        return HMMFrame(body=body, phase=phase, progress=float(progress @ np.arange(len(progress))),
+                        compute_s=time.perf_counter() - t0)
+
+    def _blend(self, body: np.ndarray, switched: bool) -> np.ndarray:
+        """Inertialisation: at a phase switch, start from where the previous output was heading and decay the
+        offset to the new estimate with a smoothstep (Levine et al. style velocity blending)."""
+        n = self.model.config.blend_frames
+        if switched and len(self._history) == 2 and n > 0:
+            predicted = 2 * self._history[-1] - self._history[-2]
+            self._blend_offset = predicted - body
+            self._blend_step = 0
+        if self._blend_offset is None:
+            return body
+        self._blend_step += 1
+        s = min(self._blend_step / n, 1.0)
+        out = body + self._blend_offset * (1.0 - (3 * s * s - 2 * s * s * s))
+        if s >= 1.0:
+            self._blend_offset = None
+        return out

@@ -1,0 +1,73 @@
+"""End-to-end on real CMU subject-16 clips shipped in engine/data (spec B5.8 trends, Table 3 / Fig. 10).
+
+Clean simulated IMUs, deterministic, so the orderings below are reproducible; each test trains on the other
+clips and scores the held-out walks 16_16 and 16_32."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.hmm.evaluation import behaviour_of, leave_one_out, train_model
+from engine.hmm.features import imu_features
+from engine.hmm.reconstructor import HMMReconstructor
+from engine.mocap import load_clip, resample, sample_clips, standard_placements
+from engine.olng.metrics import summarise
+
+WALK_TESTS = [3, 5]   # 16_16, 16_32 in name order
+WALKS = [2, 3, 4, 5]  # 16_11, 16_16, 16_21, 16_32
+
+
+@pytest.fixture(scope="module")
+def motions():
+    clips = [load_clip(p) for name, p in sample_clips().items() if name.startswith("16_")]
+    assert [m.name for m in clips][:6] == ["16_01", "16_05", "16_11", "16_16", "16_21", "16_32"]
+    return clips
+
+
+def _joint_cm(scores):
+    return summarise(scores)["joint_cm"]
+
+
+def test_behaviour_labels_of_the_shipped_clips(motions):
+    labels = [behaviour_of(resample(m, 30)) for m in motions]
+    assert labels == ["jump", "jump", "walk", "walk", "walk", "walk", "run", "run", "run"]
+
+
+def test_one_foot_imu_beats_the_mean_pose_and_a_root_imu(motions):
+    foot = leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS)
+    root = leave_one_out(motions, WALK_TESTS, ("lower_back",), train_indices=WALKS)
+    assert _joint_cm(foot) < 4.5
+    assert _joint_cm(foot) < _joint_cm(root)            # Fig. 10: root placement is the worst
+
+
+def test_two_imus_beat_one_and_single_type_model_beats_all_types(motions):
+    one = leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS)
+    two = leave_one_out(motions, WALK_TESTS, ("right_foot", "right_wrist"), train_indices=WALKS)
+    mixed = leave_one_out(motions, WALK_TESTS, ("right_foot",))
+    assert summarise(two)["rms_root_cm"] < summarise(one)["rms_root_cm"]   # Table 3: 2 IMUs < 1 IMU
+    assert _joint_cm(one) < _joint_cm(mixed)                             # Table 3: Total row > per-type rows
+
+
+def test_phase_recognition_on_a_held_out_walk(motions):
+    """Phase accuracy on the walking part (from the first terminal-stance segment on; the clip starts standing,
+    which Table 1 labels as long IC/LR runs): the recognised phase equals the segmentation's label at that
+    frame or up to two frames earlier (the forward pass needs a frame or two of evidence to switch)."""
+    from engine.hmm.config import HMMConfig
+    from engine.hmm.evaluation import training_clip
+
+    model = train_model([motions[i] for i in (2, 3, 4)])
+    test = resample(motions[5], 30)
+    truth = training_clip(test, ("right_foot",), "walk", HMMConfig())
+    labels = np.full(test.n_frames, -1)
+    for seg in truth.segments:
+        labels[seg.start: seg.stop] = seg.phase
+    acc, gyro = imu_features(test, standard_placements(test.skeleton, ("right_foot",)))
+    rec = HMMReconstructor(model)
+    got = np.array([model.phases[rec.push(a, g).phase].phase for a, g in zip(acc, gyro)])
+    walking = np.arange(test.n_frames) >= np.flatnonzero(labels == 3)[0]
+    lagged = [np.r_[np.full(d, -2), labels[: len(labels) - d]] for d in (0, 1, 2)]
+    hit = np.any([got == lab for lab in lagged], axis=0)
+    valid = walking & (labels >= 0)
+    assert hit[valid].mean() > 0.9
+    with pytest.raises(ValueError, match="IMU"):
+        rec.push(np.zeros((2, 3)), np.zeros((2, 3)))
