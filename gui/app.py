@@ -2,16 +2,27 @@
 create the QApplication, run for a fixed duration (CI/Xvfb), and save window grabs."""
 from __future__ import annotations
 
+import logging
+import os
 import sys
 from pathlib import Path
 
 from PySide6 import QtCore, QtWidgets
 
+log = logging.getLogger("courtside.console")
+
 
 def application() -> QtWidgets.QApplication:
-    """The process's QApplication (created once, with a dark-neutral style that reads well in screenshots)."""
+    """The process's QApplication (created once, Fusion style so screenshots look the same everywhere).
+
+    Without any display (no $DISPLAY / $WAYLAND_DISPLAY, no QT_QPA_PLATFORM) Qt would abort at start; we fall
+    back to the offscreen platform instead, so `--duration/--screenshots` runs still work on a bare server."""
     app = QtWidgets.QApplication.instance()
     if app is None:
+        if not any(os.environ.get(v) for v in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM")):
+            log.warning("no display found: running offscreen (nothing is shown; use --screenshots, or ./demo.sh "
+                        "which starts Xvfb)")
+            os.environ["QT_QPA_PLATFORM"] = "offscreen"
         app = QtWidgets.QApplication(sys.argv[:1])
         app.setApplicationName("Courtside")
         app.setStyle("Fusion")

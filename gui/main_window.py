@@ -17,13 +17,13 @@ from gui.bridge import GatewayBridge, SensorKey, gateway_clock_offset_s
 from gui.control import RequestRunner
 from gui.health import Alarm, status_alarms
 from gui.playback import Playback
+from gui.ringbuffer import TraceStore
 from gui.synthesis import SynthesisSetup, SynthesisWorker
 from gui.widgets.alarms import AlarmBar
 from gui.widgets.camera_pane import CameraPane
 from gui.widgets.device_panel import DevicePanel
 from gui.widgets.recording import PlaybackBar, RecordingPanel
 from gui.widgets.skeleton_view import SkeletonView
-from gui.ringbuffer import TraceStore
 from gui.widgets.traces import TracePanel
 
 TICK_MS = 33
@@ -32,7 +32,7 @@ TruthProvider = Callable[[float], "np.ndarray | None"]  # gateway time (s) -> (J
 
 
 class TickStats:
-    """GUI-thread health: ticks/s and tick cost, plus the age of the newest drawn sample."""
+    """GUI-thread health over the last second: ticks/s, mean and max tick cost; per-stage totals for the bench."""
 
     def __init__(self) -> None:
         self.stage_s: dict[str, float] = {}  # cumulative GUI-thread seconds per tick stage (for the bench)
