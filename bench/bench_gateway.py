@@ -11,6 +11,7 @@ Every table carries a baseline measured in the same run so numbers compare acros
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import sys
 import tempfile
@@ -25,6 +26,7 @@ from firmware_protocol.emulator import BaseStation, StationConfig
 from gateway.client import GatewayClient
 from gateway.daemon import Gateway
 from gateway.emulated import demo_config, start_emulated_station
+from gateway.recorder import load_take, realign_take
 from gateway.station import StationReader
 from gateway.virtual_time import run_virtual_station
 
@@ -122,6 +124,7 @@ def bench_latency(duration_s: float = 20.0, n_stations: int = 4) -> None:
                 received.append((now, msg["station"], msg["sensor"], np.array(msg["counter"])))
 
         cpu0, wall0 = _cpu_s(), time.monotonic()
+        gw.handle_request("start_recording", {"take": "latency"})
         gw.start()
         client = GatewayClient(*gw.address).connect()
         client.add_listener("samples", on_samples)
@@ -129,10 +132,13 @@ def bench_latency(duration_s: float = 20.0, n_stations: int = 4) -> None:
         cpu = _cpu_s() - cpu0
         wall = time.monotonic() - wall0
         status = gw.status()
+        recording = gw.handle_request("stop_recording", {})
         client.close()
         gw.stop()
         for s in stations:
             s.stop()
+        take = load_take(recording["files"][0])
+    realigned = realign_take(take)
     latch, sent = [], []
     newest_latch = []
     for index, em in enumerate(stations):
@@ -157,12 +163,27 @@ def bench_latency(duration_s: float = 20.0, n_stations: int = 4) -> None:
     def row(name: str, values: np.ndarray) -> None:
         print(f"{name:<52}{np.percentile(values, 50):>9.2f}{np.percentile(values, 99):>9.2f}{values.max():>9.2f}")
 
-    print(f"{'latency (ms)':<52}{'p50':>9}{'p99':>9}{'max':>9}")
+    print(f"{'latency / error (ms)':<52}{'p50':>9}{'p99':>9}{'max':>9}")
     row("station: latched -> on USB wire (baseline, emulated)", radio)
     row("gateway: on USB wire -> client callback", sent)
     row("end to end: latched -> client callback (every sample)", latch)
     row("end to end: newest sample of each batch", newest)
     rate = samples / duration_s
+    online, offline = [], []
+    for index, em in enumerate(stations):
+        truth = em.station.truth.samples()
+        lookup = {(int(s), int(c)): i for i, (s, c, b) in
+                  enumerate(zip(truth.sensor_id, truth.counter, truth.boot)) if b == 0}
+        for (station, sensor), cols in take.samples.items():
+            if station != f"st{index + 1}":
+                continue
+            rows = np.array([lookup[(sensor, int(c))] for c in cols["counter"]])
+            t_true = em.true_to_host(truth.t_true_s[rows])
+            online.append(np.abs(cols["t_host_s"] - t_true))
+            offline.append(np.abs(realigned[(station, sensor)] - t_true))
+    online, offline = np.concatenate(online) * 1e3, np.concatenate(offline) * 1e3
+    row("clock error, online, whole run incl. warm-up", online)
+    row("clock error, offline re-fit of the recording", offline)
     print(f"sustained {rate:.0f} samples/s to the client; process CPU {100 * cpu / wall:.0f}% of one core "
           f"(emulators + gateway + client in one process)")
     for st in status["stations"]:
@@ -201,6 +222,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--clock-hours", type=float, default=1.0)
     args = parser.parse_args(argv)
     parts = set(args.only.split(","))
+    load1, load5, _ = os.getloadavg()
+    print(f"machine: {os.cpu_count()} cores, load average {load1:.1f} / {load5:.1f} (1 / 5 min) at start; "
+          "real-time latency percentiles depend on it, virtual-time clock numbers do not")
     if "throughput" in parts:
         bench_throughput()
     if "latency" in parts:
