@@ -64,33 +64,53 @@ def console_main(argv: list[str]) -> int:
     from gui.app import application
     from gui.engine_link import load_or_build_graph, synthesis_setup
     from gui.main_window import ConsoleWindow
+    from gui.playback import Playback
 
     application()
-    client = None
-    if args.playback is None:
+    client = playback = None
+    held_out: list[str] = []
+    if args.playback is not None:
+        try:
+            playback = Playback(args.playback)
+        except (OSError, ValueError) as exc:
+            print(f"courtside console: cannot play back {args.playback}: {exc}", file=sys.stderr)
+            return 2
+        stations = _stations_in_take(playback)
+        # a demo take names the clips it replayed: keep them out of the graph, as the live demo does
+        held_out = next((e["truth_clips"] for e in playback.events if "truth_clips" in e), [])
+    else:
         try:
             client = GatewayClient(*args.connect).connect()
         except OSError as exc:
             print(f"courtside console: cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})",
                   file=sys.stderr)
             return 2
-    graph, skeleton, cache = load_or_build_graph()
+        stations = client.list_stations()
+    graph, skeleton, cache = load_or_build_graph(exclude=held_out)
     log.info("motion graph %s (%d nodes)", cache, graph.n_nodes)
     synth = None
-    station = _pick_synth_station(client.list_stations(), args.synth_station) if client else args.synth_station
+    station = _pick_synth_station(stations, args.synth_station)
     if station:
         synth = synthesis_setup(graph, skeleton, [(station, i) for i in range(graph.n_sensors)], args.lag)
     else:
         log.warning("synthesis off: pass --synth-station to say which station's sensors are worn")
     window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton.parents)
     window.resize(1500, 950)
-    if args.playback is not None:
-        window.load_playback(args.playback)
+    if playback is not None:
+        window.load_playback(playback)
     try:
         return _run_window(window, args.duration, args.screenshots)
     finally:
         if client is not None:
             client.close()
+
+
+def _stations_in_take(playback) -> list[dict]:
+    """Station list shaped like the gateway's (``station``, ``sensors``) from a take's sample streams."""
+    sensors: dict[str, list[dict]] = {}
+    for station, sensor in sorted(playback.samples):
+        sensors.setdefault(station, []).append({"sensor": sensor})
+    return [{"station": st, "sensors": s} for st, s in sensors.items()]
 
 
 def _run_window(window, duration_s: float | None, screenshots: Path | None) -> int:

@@ -263,7 +263,44 @@ def demo_hardware(listen: tuple[str, int], record_dir: Path, camera: bool,
                           name="courtside-demo")
         gateway.start()
         stack.callback(gateway.stop)
+        announcer = TruthAnnouncer(gateway, perf.clip_names, t0)
+        announcer.start()
+        stack.callback(announcer.stop)
         yield gateway.address, t0
+
+
+class TruthAnnouncer(threading.Thread):
+    """Stamps every take recorded during the demo with what its ground truth is: when a recording starts, one
+    gateway event carrying ``truth_clips`` and ``truth_t0_s`` (recorded with the take), so playing the take back
+    later — in any console — can draw the true skeleton beside the synthesized one (`truth_from_events`)."""
+
+    def __init__(self, gateway, clip_names: tuple[str, ...], t0_s: float) -> None:
+        super().__init__(name="demo-truth", daemon=True)
+        self.gateway, self.clip_names, self.t0_s = gateway, clip_names, t0_s
+        self._stop_event = threading.Event()
+
+    def run(self) -> None:
+        was_active = False
+        while not self._stop_event.wait(0.1):
+            active = self.gateway.recorder.active
+            if active and not was_active:
+                self.gateway.publish_event("info", "demo", "ground truth for this take: held-out CMU clips "
+                                           + ", ".join(self.clip_names),
+                                           {"truth_clips": list(self.clip_names), "truth_t0_s": self.t0_s})
+            was_active = active
+
+    def stop(self) -> None:
+        self._stop_event.set()
+        self.join(timeout=2)
+
+
+def truth_from_events(events: list[dict]) -> TruthClock | None:
+    """Ground truth of a recorded demo take, from the `TruthAnnouncer` event it carries (None if absent)."""
+    for header in events:
+        if "truth_clips" in header and "truth_t0_s" in header:
+            perf = build_performance(tuple(header["truth_clips"]))
+            return TruthClock(perf, float(header["truth_t0_s"]))
+    return None
 
 
 def hardware_main(argv: list[str]) -> int:

@@ -345,16 +345,26 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         if path:
             self.load_playback(path)
 
-    def load_playback(self, path: str | Path) -> None:
+    def load_playback(self, take: str | Path | Playback) -> None:
         """Switch the views to a recorded take (live data stops being shown until `back_to_live`)."""
-        try:
-            playback = Playback(path)
-        except Exception as exc:  # unreadable file: tell the operator, keep the live view
-            self.alarms.add_event("warning", "playback", str(exc))
-            return
+        if isinstance(take, Playback):
+            playback = take
+        else:
+            try:
+                playback = Playback(take)
+            except (OSError, ValueError) as exc:  # unreadable file: tell the operator, keep the live view
+                self.alarms.add_event("warning", "playback", str(exc))
+                return
+        path = playback.path
         if self.client is not None:
             self.bridge.detach()
         self.playback = playback
+        if self.truth is None:
+            from gui.demo import truth_from_events  # Qt-free; only demo takes carry ground truth
+
+            self.truth = truth_from_events(playback.events)
+            if self.truth is not None and self.skeleton.parents is None:
+                self.skeleton.set_skeleton(self.truth.perf.parents)
         self.playbar.loaded(Path(path).parent.name if Path(path).name == "take.csrec" else Path(path).name,
                             playback.duration_s)
         self._seek(0.0)

@@ -32,6 +32,7 @@ class Playback:
         if not starts:
             raise ValueError(f"{self.path}: recording holds no timed samples or messages")
         self.t_start_s, self.t_end_s = float(min(starts)), float(max(ends))
+        self.events = [dict(m.header) for m in self.others if m.kind == "event"]
         self.cursor_s = self.t_start_s - 1e-9  # so the very first sample is delivered
 
     @property
