@@ -85,8 +85,8 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
 
 def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     from engine.graph.inputs import load_take
-    from engine.hmm.evaluation import reconstruct, train_model
-    from engine.mocap import Motion, resample, write_bvh
+    from engine.hmm.evaluation import reconstruct, to_motion, train_model
+    from engine.mocap import resample, write_bvh
 
     motions = _load_motions(args)
     model = train_model(motions, imu_names=tuple(args.imus))
@@ -100,7 +100,7 @@ def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     root, quats, frames = reconstruct(model, obs.acc_g, gyro, skeleton.n_joints, np.r_[0.0, start.root_positions_m[0, 1], 0.0],
                                       np.array([1.0, 0.0, 0.0, 0.0]))
     elapsed = time.perf_counter() - t0
-    write_bvh(args.output, Motion(skeleton, model.fps, root, quats, Path(args.input).stem))
+    write_bvh(args.output, to_motion(skeleton, model.fps, root, quats, not args.no_ik, Path(args.input).stem))
     return {"frames": len(frames), "seconds": round(elapsed, 3), "fps": round(len(frames) / max(elapsed, 1e-9), 1)}
 
 
@@ -207,6 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--i-best", type=int, default=32, help="olng: hypotheses per frame (paper: 256)")
     p.add_argument("--window", type=int, default=32, help="olng: OLNG window M (frames)")
     p.add_argument("--imus", nargs="+", default=["right_foot"], help="hmm: worn IMUs (standard sensor names)")
+    p.add_argument("--no-ik", action="store_true", help="hmm: skip the foot-skate IK clean-up")
     p.add_argument("--graph", help="motion-graph: graph .npz from `courtside build-graph`")
     return p
 

@@ -64,9 +64,22 @@ def reconstruct(model: HierarchicalHMM, acc_g: np.ndarray, gyro_rps: np.ndarray,
     return root, quats, frames
 
 
+def to_motion(skeleton, fps: float, root_m: np.ndarray, quats: np.ndarray, foot_ik: bool = True, name: str = "") -> Motion:
+    """Reconstructed frames as a Motion; with foot_ik the ankles are pinned during the output's own foot
+    contacts by engine.graph's two-bone IK (the paper's Kim et al. clean-up against foot sliding)."""
+    motion = Motion(skeleton, fps, root_m, quats, name)
+    if not foot_ik:
+        return motion
+    from engine.graph.postprocess import fix_foot_skate
+    from engine.mocap import foot_contacts
+
+    return fix_foot_skate(motion, foot_contacts(motion))
+
+
 def leave_one_out(motions: list[Motion], test_indices: list[int], imu_names: tuple[str, ...] = ("right_foot",),
                   error_model: SensorErrorModel | None = None, seed: int = 0, labels: list[str] | None = None,
-                  train_indices: list[int] | None = None, config: HMMConfig = HMMConfig()) -> list[ClipErrors]:
+                  train_indices: list[int] | None = None, config: HMMConfig = HMMConfig(),
+                  foot_ik: bool = True) -> list[ClipErrors]:
     """Per test clip: train on the other clips (or `train_indices` minus the test clip), simulate the IMUs on
     the held-out clip, reconstruct, score. Joint error is with the root translation removed, as in the paper."""
     out = []
@@ -79,7 +92,7 @@ def leave_one_out(motions: list[Motion], test_indices: list[int], imu_names: tup
         if error_model is not None:
             acc = error_model.apply(acc, test.fps, np.random.default_rng([seed, ti]))
         root, quats, _ = reconstruct(model, acc, gyro, test.skeleton.n_joints, test.root_positions_m[0], test.rotations[0, 0])
-        pred = Motion(test.skeleton, test.fps, root, quats)
+        pred = to_motion(test.skeleton, test.fps, root, quats, foot_ik)
         pw, pr = forward_kinematics(pred)
         tw, tr = forward_kinematics(test)
         out.append(score(pw, pr[:, 0], tw, tr[:, 0], test.skeleton))

@@ -71,3 +71,26 @@ def test_phase_recognition_on_a_held_out_walk(motions):
     assert hit[valid].mean() > 0.9
     with pytest.raises(ValueError, match="IMU"):
         rec.push(np.zeros((2, 3)), np.zeros((2, 3)))
+
+
+def test_foot_ik_reduces_foot_sliding_of_the_output(motions):
+    from engine.hmm.evaluation import reconstruct, to_motion
+    from engine.mocap import foot_contacts, forward_kinematics, joint_roles
+
+    model = train_model([motions[i] for i in (2, 3, 4)])
+    test = resample(motions[5], 30)
+    acc, gyro = imu_features(test, standard_placements(test.skeleton, ("right_foot",)))
+    root, quats, _ = reconstruct(model, acc, gyro, test.skeleton.n_joints, test.root_positions_m[0], test.rotations[0, 0])
+    raw = to_motion(test.skeleton, 30.0, root, quats, foot_ik=False)
+    fixed = to_motion(test.skeleton, 30.0, root, quats, foot_ik=True)
+    contacts = foot_contacts(raw)
+    roles = joint_roles(test.skeleton)
+
+    def slide_mps(motion):
+        pos, _ = forward_kinematics(motion)
+        ankles = pos[:, [roles["left_ankle"], roles["right_ankle"]]][:, :, [0, 2]]
+        speed = np.linalg.norm(np.diff(ankles, axis=0), axis=2) * 30.0
+        return speed[contacts[1:] & contacts[:-1]].mean()
+
+    assert contacts.any()
+    assert slide_mps(fixed) < 0.5 * slide_mps(raw)
