@@ -293,6 +293,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         if self.worker is not None:
             s = self.worker.stats
             parts.append(f"synthesis lag {s.lag_s:.2f} s, {s.frames_per_s:.0f} frames/s, {s.push_ms:.1f} ms/frame"
+                         + (f", {s.frames_invalid} frames without a sensor" if s.frames_invalid else "")
                          + (f" ERROR {s.error}" if s.error else ""))
         if self.playback is not None:
             parts.insert(0, f"PLAYBACK {self.playback.path.name}")

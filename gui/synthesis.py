@@ -42,6 +42,7 @@ class SynthesisStats:
     poses_out: int = 0
     frames_per_s: float = 0.0      # graph frames processed per wall second (recent)
     push_ms: float = 0.0           # mean synthesizer cost per frame (recent)
+    frames_invalid: int = 0        # frames stepped without accelerations (a sensor dropped out)
     error: str = ""
 
 
@@ -139,13 +140,15 @@ class SynthesisWorker(threading.Thread):
                     camera_seen = False
                 elif entry is not None:
                     resampler.add(*entry)
-            times, frames = resampler.frames()
+            times, frames, valid = resampler.frames()
+            self.stats.frames_invalid = resampler.frames_invalid
             if synth is None or not len(times):
                 continue
             pos, heading = camera if camera is not None else (None, None)
             t_cost = time.perf_counter()
-            for t, acc in zip(times, frames):
-                emitted = synth.push(acc, pos, heading)
+            for t, acc, ok in zip(times, frames, valid):
+                # a frame spanning a sensor dropout steps the search on the camera alone (acc None)
+                emitted = synth.push(acc if ok else None, pos, heading)
                 self.stats.frames_in += 1
                 if emitted:
                     newest = emitted[-1]
