@@ -62,7 +62,9 @@ def console_main(argv: list[str]) -> int:
     from gateway.client import GatewayClient
 
     from gui.app import application
-    from gui.engine_link import load_or_build_graph, synthesis_setup
+    from engine.mocap import SEED000_SENSORS
+
+    from gui.engine_link import load_or_build_graph, sensor_joints, synthesis_setup
     from gui.main_window import ConsoleWindow
     from gui.playback import Playback
 
@@ -90,11 +92,14 @@ def console_main(argv: list[str]) -> int:
     log.info("motion graph %s (%d nodes)", cache, graph.n_nodes)
     synth = None
     station = _pick_synth_station(stations, args.synth_station)
+    worn: dict = {}
     if station:
         synth = synthesis_setup(graph, skeleton, [(station, i) for i in range(graph.n_sensors)], args.lag)
+        worn = dict(zip(synth.sensors, SEED000_SENSORS))
     else:
         log.warning("synthesis off: pass --synth-station to say which station's sensors are worn")
-    window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton.parents)
+    window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton.parents, sensor_segments=worn,
+                           sensor_joints=sensor_joints(skeleton, worn) if worn else None)
     window.resize(1500, 950)
     if playback is not None:
         window.load_playback(playback)

@@ -361,7 +361,7 @@ def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
     """Start the demo hardware (by default in a child process) and open the console window on it."""
     from gateway.client import GatewayClient
 
-    from gui.engine_link import load_or_build_graph, synthesis_setup
+    from gui.engine_link import load_or_build_graph, sensor_joints, synthesis_setup
     from gui.main_window import ConsoleWindow
 
     hardware = hardware_in_subprocess if separate_process else demo_hardware
@@ -376,6 +376,7 @@ def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
         log.info("demo gateway on %s:%d (connect more consoles with `courtside console --connect ...`)", *address)
         window = ConsoleWindow(client, synthesis=synthesis_setup(graph, skeleton, synthesis_sensors(), lag_s),
                                truth=TruthClock(perf, t0), sensor_segments=sensor_segments(),
+                               sensor_joints=sensor_joints(skeleton, sensor_segments()),
                                title="Courtside demo — emulated stations replaying held-out CMU mocap")
         stack.callback(window.shutdown)
         window.resize(1500, 950)

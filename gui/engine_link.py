@@ -57,3 +57,10 @@ def synthesis_setup(graph: MotionGraph, skeleton: Skeleton, sensors: list[Sensor
         raise ValueError(f"graph expects {graph.n_sensors} sensors, {len(sensors)} mapped")
     return SynthesisSetup(make_synthesizer=lambda lag: FixedLagSynthesizer(graph, lag), sensors=list(sensors),
                           rate_hz=graph.config.fps, parents=np.asarray(skeleton.parents), lag_s=lag_s)
+
+
+def sensor_joints(skeleton: Skeleton, sensors: dict[SensorKey, str]) -> dict[SensorKey, int]:
+    """Live sensor -> the skeleton joint whose segment carries it, from its standard placement name (the 3-D view
+    paints that segment with the sensor's health)."""
+    placements = standard_placements(skeleton, tuple(sensors.values()))
+    return {key: int(p.joint) for key, p in zip(sensors, placements)}

@@ -15,7 +15,7 @@ from PySide6 import QtCore, QtWidgets
 
 from gui.bridge import GatewayBridge, SensorKey, gateway_clock_offset_s
 from gui.control import RequestRunner
-from gui.health import Alarm, status_alarms
+from gui.health import Alarm, Sync, status_alarms
 from gui.playback import Playback
 from gui.ringbuffer import TraceStore
 from gui.synthesis import SynthesisSetup, SynthesisWorker
@@ -29,6 +29,16 @@ from gui.widgets.traces import TracePanel
 TICK_MS = 33
 RECONNECT_INTERVAL_MS = 1000
 TruthProvider = Callable[[float], "np.ndarray | None"]  # gateway time (s) -> (J,3) m or None
+
+
+HEALTH_RGB = {Sync.AMBER: (0.95, 0.75, 0.1), Sync.RED: (0.9, 0.12, 0.12)}
+
+
+def segment_health_colours(sensor_joints: dict[SensorKey, int], health: dict[SensorKey, Sync]) -> dict[int, tuple]:
+    """Joint -> colour for worn sensors that are amber or red (healthy segments keep the estimate's colour, so
+    the figure only changes colour where the operator should look)."""
+    return {joint: HEALTH_RGB[health[key]] for key, joint in sensor_joints.items()
+            if health.get(key) in HEALTH_RGB}
 
 
 class TickStats:
@@ -65,7 +75,8 @@ class TickStats:
 class ConsoleWindow(QtWidgets.QMainWindow):
     def __init__(self, client: Any | None = None, *, synthesis: SynthesisSetup | None = None,
                  truth: TruthProvider | None = None, truth_parents: np.ndarray | None = None,
-                 sensor_segments: dict[SensorKey, str] | None = None, title: str = "Courtside console") -> None:
+                 sensor_segments: dict[SensorKey, str] | None = None,
+                 sensor_joints: dict[SensorKey, int] | None = None, title: str = "Courtside console") -> None:
         super().__init__()
         self.setWindowTitle(title)
         self.client = client
@@ -74,6 +85,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.requests = RequestRunner(self)
         self.requests.done.connect(self._request_done)
         self.truth = truth
+        self.sensor_joints = sensor_joints or {}
         self.playback: Playback | None = None
         self.playing = False
         self.stats = TickStats()
@@ -256,6 +268,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             return
         self._last_status_t = status.get("t_host_s")
         self.devices.update_status(status)
+        self.skeleton.set_segment_colours(segment_health_colours(self.sensor_joints, self.devices.sensor_health))
         self.recording.status = status
         rec = self.bridge.latest("recording") or {}
         disk = str(Path(rec["path"]).parent) if rec.get("path") and Path(rec["path"]).parent.exists() else "."

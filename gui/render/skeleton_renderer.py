@@ -67,7 +67,7 @@ LINE_RGB = (0.95, 0.95, 0.95)
 NET_RGB = (0.85, 0.85, 0.80)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SkeletonStyle:
     """Colours (linear 0-1 RGB) and sizes (metres) of one drawn skeleton."""
 
@@ -75,21 +75,24 @@ class SkeletonStyle:
     joint_rgb: tuple[float, float, float]
     bone_radius_m: float = 0.035
     joint_radius_m: float = 0.05
+    # joint index -> colour for the bones of that joint's segment (e.g. a worn sensor's health)
+    segment_rgb: dict[int, tuple[float, float, float]] | None = None
 
 
 ESTIMATE_STYLE = SkeletonStyle(bone_rgb=(1.0, 0.55, 0.08), joint_rgb=(1.0, 0.75, 0.2))
 TRUTH_STYLE = SkeletonStyle(bone_rgb=(0.2, 0.85, 0.9), joint_rgb=(0.55, 0.95, 1.0))
 
 
-def bone_segments(positions_m: np.ndarray, parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(J,3) joint positions + parent indices (-1 = root) -> bone start/end points (B,3), (B,3).
+def bone_segments(positions_m: np.ndarray, parents: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(J,3) joint positions + parent indices (-1 = root) -> bone start/end points (B,3), (B,3) and each bone's
+    parent joint (B,) — the joint whose segment the bone is (where a worn sensor's placement is anchored).
 
     Zero-length bones (e.g. a BVH root and hips sharing a point) are dropped."""
     parents = np.asarray(parents)
     child = np.flatnonzero(parents >= 0)
     a, b = positions_m[parents[child]], positions_m[child]
     keep = np.linalg.norm(b - a, axis=1) > 1e-4
-    return a[keep], b[keep]
+    return a[keep], b[keep], parents[child][keep]
 
 
 class SkeletonRenderer:
@@ -150,8 +153,11 @@ class SkeletonRenderer:
         """Per-instance rows [a(3) b(3) r color(3)] for all bones and all joints of all skeletons."""
         bones, joints = [], []
         for pos, parents, style in skeletons:
-            a, b = bone_segments(pos, parents)
-            bones.append(np.c_[a, b, np.full(len(a), style.bone_radius_m), np.tile(style.bone_rgb, (len(a), 1))])
+            a, b, segment = bone_segments(pos, parents)
+            rgb = np.tile(style.bone_rgb, (len(a), 1))
+            for joint, colour in (style.segment_rgb or {}).items():
+                rgb[segment == joint] = colour
+            bones.append(np.c_[a, b, np.full(len(a), style.bone_radius_m), rgb])
             joints.append(np.c_[pos, pos, np.full(len(pos), style.joint_radius_m), np.tile(style.joint_rgb, (len(pos), 1))])
         empty = np.zeros((0, 10))
         return (np.concatenate(bones) if bones else empty).astype("f4"), (np.concatenate(joints) if joints else empty).astype("f4")

@@ -103,6 +103,7 @@ class DevicePanel(QtWidgets.QWidget):
         self.mapping_names: dict[tuple[str, int], str] = {}  # (station, sensor) -> placement name
         self._items: dict[Any, QtWidgets.QTreeWidgetItem] = {}
         self._new_rows = False
+        self.sensor_health: dict[tuple[str, int], Sync] = {}  # last status: per-sensor health light
         layout = QtWidgets.QHBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.tree, 1)
@@ -158,6 +159,7 @@ class DevicePanel(QtWidgets.QWidget):
                 for col, text in cols.items():
                     item.setText(col, text)
                 item.setBackground(11, SYNC_QCOLOR[healthy])
+                self.sensor_health[(sid, idx)] = healthy
                 if seg:
                     body[seg] = (f"{sid}/{idx}", healthy)
         self.body.set_state(body)

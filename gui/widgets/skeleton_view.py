@@ -6,6 +6,7 @@ follow/static camera. The estimate and the ground truth (when the take has one) 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from PySide6 import QtCore, QtGui, QtWidgets
@@ -42,6 +43,7 @@ class SkeletonView(QtWidgets.QWidget):
         self.estimate_m: np.ndarray | None = None
         self.truth_m: np.ndarray | None = None
         self.truth_offset_m = TRUTH_OFFSET_M.copy()
+        self.estimate_style = ESTIMATE_STYLE
         self._image: QtGui.QImage | None = None
         self._pixels: np.ndarray | None = None
         self._dirty = True
@@ -78,6 +80,12 @@ class SkeletonView(QtWidgets.QWidget):
         self.legend.adjustSize()
         self._dirty = True
 
+    def set_segment_colours(self, segment_rgb: dict[int, tuple[float, float, float]]) -> None:
+        """Paint the estimate's segments (joint index -> RGB), e.g. sensors in trouble; {} = normal colours."""
+        if segment_rgb != (self.estimate_style.segment_rgb or {}):
+            self.estimate_style = replace(ESTIMATE_STYLE, segment_rgb=dict(segment_rgb) or None)
+            self._dirty = True
+
     def set_camera_mode(self, mode: CameraMode) -> None:
         self.camera.set_mode(mode)
         self._snapped = False
@@ -96,7 +104,7 @@ class SkeletonView(QtWidgets.QWidget):
         skeletons = []
         if self.parents is not None:
             if self.estimate_m is not None:
-                skeletons.append((self.estimate_m, self.parents, ESTIMATE_STYLE))
+                skeletons.append((self.estimate_m, self.parents, self.estimate_style))
             if self.truth_m is not None:
                 offset = self.truth_offset_m if self.estimate_m is not None else 0.0
                 skeletons.append((self.truth_m + offset, self.parents, TRUTH_STYLE))

@@ -128,3 +128,23 @@ def test_camera_pane_overlays_court_and_player_where_the_homography_says(qtbot):
     pane.update_camera(dict(header, frame_index=29), None, trail, rate)
     assert rate.dropped == 1 and rate.fps == pytest.approx(12.0, rel=0.05)
     assert "12.0 fps, 1 dropped" in pane.info.text()
+
+
+def test_unhealthy_worn_sensors_colour_their_segments():
+    from gui.main_window import HEALTH_RGB, segment_health_colours
+
+    joints = {("st1", 0): 12, ("st1", 1): 20, ("st1", 2): 3}
+    health = {("st1", 0): Sync.GREEN, ("st1", 1): Sync.RED, ("st1", 2): Sync.AMBER}
+    assert segment_health_colours(joints, health) == {20: HEALTH_RGB[Sync.RED], 3: HEALTH_RGB[Sync.AMBER]}
+    assert segment_health_colours(joints, {}) == {}
+
+
+def test_sensor_joints_follow_standard_placements():
+    from engine.mocap import load_clip, sample_clips, standard_placements
+    from gui.engine_link import sensor_joints
+
+    skeleton = load_clip(sample_clips()["16_01"]).skeleton
+    worn = {("st1", 0): "left_forearm", ("st1", 1): "chest"}
+    expected = [p.joint for p in standard_placements(skeleton, ("left_forearm", "chest"))]
+    assert sensor_joints(skeleton, worn) == {("st1", 0): expected[0], ("st1", 1): expected[1]}
+    assert skeleton.names[expected[0]].startswith("l")  # a left-arm joint

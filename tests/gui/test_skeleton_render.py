@@ -38,9 +38,10 @@ def test_projection_matches_hand_computed_pinhole():
 
 def test_bone_segments_drop_zero_length_bones():
     pos = np.array([[0, 0, 0], [0, 0, 0], [0, 1, 0]], float)
-    a, b = bone_segments(pos, np.array([-1, 0, 1]))
+    a, b, segment = bone_segments(pos, np.array([-1, 0, 1]))
     np.testing.assert_allclose(a, [[0, 0, 0]])
     np.testing.assert_allclose(b, [[0, 1, 0]])
+    np.testing.assert_array_equal(segment, [1])
 
 
 @pytest.mark.parametrize("mode", [CameraMode.FOLLOW, CameraMode.STATIC])
@@ -142,3 +143,22 @@ def test_skeleton_view_widget_renders_and_orbits(qtbot):
     assert view.camera.yaw_rad != yaw0
     view.set_camera_mode(CameraMode.STATIC)
     assert view.mode_box.currentText() == "static" and view.refresh()
+
+
+def test_segment_colour_paints_that_segments_bones(renderer):
+    """A sensor-health colour on joint 3 (left thigh: 3 -> 5) turns that bone red and nothing else."""
+    from dataclasses import replace
+
+    cam = OrbitCamera()
+    cam.snap_to(ROOT)
+    style = replace(ESTIMATE_STYLE, segment_rgb={3: (0.9, 0.1, 0.1)})
+    img = renderer.render(cam, [(POSE, PARENTS, style)])
+    w, h = renderer.size
+    px = project_to_pixels(POSE, cam.view_proj(w / h), w, h)
+    r, g, b = (img[..., k].astype(int) for k in range(3))
+    red = (r > 100) & (g < 60) & (b < 60)
+    mid_thigh = np.round((px[3] + px[5]) / 2).astype(int)
+    mid_spine = np.round((px[0] + px[1]) / 2).astype(int)
+    assert red[mid_thigh[1] - 1:mid_thigh[1] + 2, mid_thigh[0] - 1:mid_thigh[0] + 2].any()
+    assert not red[mid_spine[1] - 2:mid_spine[1] + 3, mid_spine[0] - 2:mid_spine[0] + 3].any()
+    assert is_estimate_colour(img)[mid_spine[1] - 1:mid_spine[1] + 2, mid_spine[0] - 1:mid_spine[0] + 2].any()
