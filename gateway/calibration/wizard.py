@@ -93,6 +93,7 @@ class CalibrationWizard:
                 self.unassign(other)
         if self.assignment.get(sensor_id) != segment:
             self._invalidate(sensor_id)
+            self._completed.discard("placement")  # a newly placed sensor has not been checked yet
         self.assignment[sensor_id] = segment
 
     def unassign(self, sensor_id: str) -> None:

@@ -192,3 +192,15 @@ def test_reassigning_a_sensor_invalidates_only_the_npose(wizard, subject):
     feed(wizard, subject, t, t + 4.0, rng)
     assert wizard.step == "review" and set(wizard.results) == set(subject.segments) - {"st0/5"}
     assert wizard.tap["sensor_id"] == "st0/1"
+
+
+def test_moving_a_sensor_reopens_placement_and_npose(wizard, subject):
+    rng = np.random.default_rng(7)
+    t = run_to_npose(wizard, subject, rng)
+    feed(wizard, subject, t, t + 4.0, rng)
+    wizard.redo("assign")
+    wizard.assign("st0/4", "chest")  # lower-back sensor moved to the chest (replacing st0/5)
+    completed = set(wizard.snapshot()["completed"])
+    assert "placement" not in completed and "npose" not in completed
+    assert "st0/5" not in wizard.assignment and wizard.assignment["st0/4"] == "chest"
+    assert wizard.confirm() and wizard.step == "placement"
