@@ -6,7 +6,9 @@ dash and walking backwards stand in for J and H). A held-out walk (right-foot IM
 through HMMReconstructor; per-frame compute time is measured around push() (the paper's "latency" column also
 buffers frames and is not comparable, spec B3). The ratio column is against the 500-frame model of this run.
 
-    .venv/bin/python bench/bench_hmm.py [--shared /work/shared/mocap] [--frames 300]
+Then (--tests-per-type, default 4) the Table 3 analogue: error per motion type on CMU subject 16 + 131.
+
+    .venv/bin/python bench/bench_hmm.py [--shared /work/shared/mocap] [--frames 300] [--tests-per-type 4]
 """
 from __future__ import annotations
 
@@ -46,10 +48,50 @@ def take_frames(pools: dict[str, list[Motion]], kinds: str, total: int) -> tuple
     return motions, labels
 
 
+def per_type_table(shared: Path, tests_per_type: int) -> None:
+    """Table 3 analogue: error per motion type, per-type model (1 and 2 IMUs) vs one all-types model.
+
+    CMU subject 16 (walk / run / jump, labelled from the root trajectory) with leave-one-out over
+    `tests_per_type` clips of each type; hopping from CMU 131_03 (start-hop-stop, its own skeleton), split in
+    two halves that are held out in turn (hop has no all-types entry: different skeleton)."""
+    from engine.hmm.evaluation import behaviour_of, leave_one_out
+    from engine.mocap import resample
+    from engine.olng.metrics import summarise
+
+    motions = load_database(sorted((shared / "cmu-amc" / "16").glob("*.amc")), fps=30.0)
+    labels = [behaviour_of(resample(m, 30.0)) for m in motions]
+    hop = load_database([shared / "cmu-bvh" / "131_03.bvh"], fps=30.0)[0]
+    half = hop.n_frames // 2
+    hops = [hop.slice(0, half), hop.slice(half)]
+    print(f"\nper motion type (joint cm / RMS root-frame cm; clean IMUs, {tests_per_type} held-out clips per type)")
+    print(f"{'type':<8}{'frames':>7}{'1 IMU':>16}{'2 IMUs':>16}{'all types, 1 IMU':>20}")
+    totals = {"one": [], "two": [], "all": []}
+    for kind in ("walk", "run", "jump", "hop"):
+        if kind == "hop":
+            pool, idx, lab = hops, [0, 1], ["hop", "hop"]
+            tests, mixed = idx, None
+        else:
+            pool, lab = motions, labels
+            idx = [i for i, b in enumerate(labels) if b == kind]
+            tests = [idx[int(k)] for k in np.linspace(0, len(idx) - 1, min(tests_per_type, len(idx)))]
+            mixed = leave_one_out(pool, tests, ("right_foot",), labels=lab)
+        one = leave_one_out(pool, tests, ("right_foot",), labels=lab, train_indices=idx)
+        two = leave_one_out(pool, tests, ("right_foot", "right_wrist"), labels=lab, train_indices=idx)
+        fmt = lambda sc: f"{summarise(sc)['joint_cm']:6.2f} / {summarise(sc)['rms_root_cm']:5.2f}"  # noqa: E731
+        frames = summarise(one)["frames"]
+        print(f"{kind:<8}{frames:>7}{fmt(one):>16}{fmt(two):>16}{fmt(mixed) if mixed else '-':>20}")
+        totals["one"] += one
+        totals["two"] += two
+        totals["all"] += mixed or []
+    print(f"{'total':<8}{summarise(totals['one'])['frames']:>7}{fmt(totals['one']):>16}{fmt(totals['two']):>16}"
+          f"{fmt(totals['all']):>20}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--shared", type=Path, default=Path(os.environ.get("COURTSIDE_MOCAP_DIR", "/work/shared/mocap")))
     ap.add_argument("--frames", type=int, default=300, help="frames of the held-out walk to stream")
+    ap.add_argument("--tests-per-type", type=int, default=4, help="held-out clips per motion type (0 = skip table)")
     args = ap.parse_args(argv)
     pools: dict[str, list[Motion]] = {}
     for content in CONTENT.values():
@@ -78,6 +120,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{kinds:<10}{sum(m.n_frames for m in motions):>8}{segments:>10}{model.n_states:>8}{train_s:>9.1f}"
               f"{ms.mean():>10.2f}{np.percentile(ms, 95):>8.2f}{fps:>8.0f}{fps / base:>7.2f}")
     print("target: >= 60 fps at 10,000 frames (paper: 12 fps)")
+    if args.tests_per_type:
+        per_type_table(args.shared, args.tests_per_type)
     return 0
 
 
