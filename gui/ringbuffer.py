@@ -75,8 +75,12 @@ class TraceStore:
     def __init__(self, history_s: float = 30.0, nominal_rate_hz: float = 100.0) -> None:
         self.capacity = int(history_s * nominal_rate_hz * 1.5)  # headroom for rate over nominal
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self.history_s = history_s
         self.rings: dict[Hashable, SampleRing] = {}
-        self.events: list[tuple[float, str]] = []
+        # (sequence number, t_s, label): numbered so a view can tell which markers it already drew; events older
+        # than the history are dropped like samples, so markers never pile up over a long session
+        self.events: list[tuple[int, float, str]] = []
+        self._event_seq = 0
 
     def put(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
         """Enqueue a batch of samples for one sensor (any thread; never blocks)."""
@@ -95,12 +99,16 @@ class TraceStore:
                 break
             n += 1
             if sensor is None:
-                self.events.append((float(t_s), str(payload)))
+                self._event_seq += 1
+                self.events.append((self._event_seq, float(t_s), str(payload)))
                 continue
             ring = self.rings.get(sensor)
             if ring is None:
                 ring = self.rings[sensor] = SampleRing(self.capacity, 3)
             ring.append(t_s, payload)
+        latest = self.latest_time()
+        if latest is not None and self.events and self.events[0][1] < latest - self.history_s:
+            self.events = [e for e in self.events if e[1] >= latest - self.history_s]
         return n
 
     def latest_time(self) -> float | None:

@@ -34,8 +34,7 @@ class TracePanel(QtWidgets.QWidget):
         self.groups: dict[str, list[Hashable]] = {}
         self._plots: dict[Hashable, pg.PlotItem] = {}
         self._curves: dict[Hashable, list[pg.PlotCurveItem]] = {}
-        self._event_lines: list[tuple[pg.PlotItem, pg.InfiniteLine]] = []
-        self._events_drawn = 0
+        self._event_lines: dict[int, list[tuple[pg.PlotItem, pg.InfiniteLine]]] = {}  # event seq -> lines
 
         self.group_box = QtWidgets.QComboBox()
         self.range_box = QtWidgets.QComboBox()
@@ -83,7 +82,6 @@ class TracePanel(QtWidgets.QWidget):
         self._plots.clear()
         self._curves.clear()
         self._event_lines.clear()
-        self._events_drawn = 0
         first = None
         sensors = self.groups.get(name, [])
         for row, sensor in enumerate(sensors):
@@ -156,19 +154,22 @@ class TracePanel(QtWidgets.QWidget):
             next(iter(self._plots.values())).setXRange(t0, t_end, padding=0)
 
     def _draw_events(self) -> None:
-        """Vertical marker lines for events (taps, calibration steps) on every visible plot."""
-        if len(self.store.events) < self._events_drawn:  # history was reset (playback seek)
-            for plot, line in self._event_lines:
+        """Vertical marker lines for events (taps, calibration steps, gateway events) on every visible plot;
+        lines of events the store has dropped (old, or history reset by a seek) are removed."""
+        current = {seq for seq, _, _ in self.store.events}
+        for seq in [q for q in self._event_lines if q not in current]:
+            for plot, line in self._event_lines.pop(seq):
                 plot.removeItem(line)
-            self._event_lines.clear()
-            self._events_drawn = 0
-        for t_s, label in self.store.events[self._events_drawn:]:
+        for seq, t_s, label in self.store.events:
+            if seq in self._event_lines:
+                continue
+            lines = []
             for plot in self._plots.values():
                 line = pg.InfiniteLine(pos=t_s, angle=90, pen=pg.mkPen((250, 200, 60), width=1), label=label,
                                        labelOpts={"position": 0.9, "color": (250, 200, 60)})
                 plot.addItem(line)
-                self._event_lines.append((plot, line))
-        self._events_drawn = len(self.store.events)
+                lines.append((plot, line))
+            self._event_lines[seq] = lines
 
     def curve_data(self, sensor: Hashable, channel: int) -> tuple[np.ndarray, np.ndarray]:
         """What is currently drawn for ``sensor`` channel (0..3 = x, y, z, |a|): for tests and screenshots."""

@@ -46,7 +46,29 @@ def test_traces_receive_data_from_another_thread(qtbot):
         np.testing.assert_allclose(x, np.sin(2 * np.pi * (k + 1) * t), atol=1e-12)
         _, mag = panel.curve_data(s, 3)
         np.testing.assert_allclose(mag, np.sqrt(x ** 2 + 0.25 + 1.0), atol=1e-12)
-    assert len(panel._event_lines) == len(sensors)  # one tap marker per visible plot
+    assert [len(lines) for lines in panel._event_lines.values()] == [len(sensors)]  # one tap line per plot
+
+
+def test_old_event_markers_are_dropped_with_the_history(qtbot):
+    store = TraceStore(history_s=5.0)
+    panel = TracePanel(store)
+    qtbot.addWidget(panel)
+    panel.set_groups({"a": ["s0", "s1"]})
+    feed(store, ["s0", "s1"], 2.0)
+    store.put_event(1.0, "early")
+    store.drain()
+    panel.refresh()
+    assert len(panel._event_lines) == 1 and len(panel._plots["s0"].items) > 4
+    t = np.arange(200, 800) / RATE_HZ   # 6 s later: the early event is older than the 5 s history
+    store.put("s0", t, known_signal(t, 0))
+    store.put_event(7.5, "late")
+    store.drain()
+    panel.refresh()
+    assert [label for _, _, label in store.events] == ["late"]
+    assert len(panel._event_lines) == 1
+    lines = next(iter(panel._event_lines.values()))
+    assert all(line.value() == 7.5 for _, line in lines)
+    assert all(line in plot.items for plot, line in lines)
 
 
 def test_pause_freezes_curves_but_keeps_buffering(qtbot):
