@@ -1,10 +1,11 @@
 """Viterbi search over a motion graph (seed 000 sections 5-5.4), as whole-array numpy operations.
 
 Per input sample every path is extended by one edge: G(n,t) = min over edges e=(m->n) of L(e,t) + G(m,t-1), with
-L = W_A C_A + W_P C_P + W_O C_O (eqs. 4, 6, 7). The minimum over incoming edges is one `np.minimum.reduceat`
-over the dst-sorted edge array. C_A is computed per metadata row with one GEMV (||E||^2 precomputed, the
-square expanded) and gathered per edge. Each path carries its own global ground position and heading
-(eq. 5), so the position and heading costs are per edge; they are evaluated in each source node's local frame
+L = W_A C_A + W_P C_P + W_O C_O (eqs. 4, 6, 7). The minimum over incoming edges is taken block-wise over edges
+grouped by the destination's in-degree (`layout.EdgeLayout`; it replaced `np.minimum.reduceat`, whose
+per-segment overhead dominated). C_A is computed once per metadata row (||E||^2 precomputed, the square
+expanded) and gathered per edge. Each path carries its own global ground position and heading (eq. 5), so the
+position and heading costs are per edge; they are evaluated in each source node's local frame
 (||P + R(O) d - M|| = ||R(-O)(P - M) + d||), which moves the rotation from the E edges to the N nodes.
 
 Human constraints (eq. 8) add a count of broken requirements G_r, compared before G: only incoming edges whose
