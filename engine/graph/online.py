@@ -41,6 +41,7 @@ class FixedLagSynthesizer:
         self.lag = int(round(lag_s * graph.config.fps))
         self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every)
         self.next_emit = 0  # first sample not yet emitted
+        self._last: tuple[complex, float, int] | None = None  # (ground, heading, node) of the last emitted sample
 
     def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None, heading_rad: float | None = None,
              penalty: np.ndarray | None = None) -> list[EmittedPose]:
@@ -59,15 +60,29 @@ class FixedLagSynthesizer:
         self.lattice.prune()
         return self._emit(self.next_emit, self.lattice.t)
 
+    def _start_after_last_emitted(self, node: int, edge: int) -> tuple[complex, float] | None:
+        """Markov (accelerometer-only) search: the global state of the first sample to emit, continuing from the
+        last emitted one -- along the arriving edge if it leaves the last emitted node, else with the node's
+        own natural step (the decoder changed its mind; the pose jumps but the root path stays continuous)."""
+        if self._last is None:
+            return None  # first sample: the lattice's start state
+        ground, heading, prev = self._last
+        g = self.graph
+        row = g.edge_meta[edge] if edge >= 0 and g.edge_src[edge] == prev else g.node_arrival[node]
+        d = complex(*g.meta_dpos_m[row])
+        return ground + d * np.exp(-1j * heading), heading + g.meta_dheading_rad[row]
+
     def _emit(self, first: int, last: int) -> list[EmittedPose]:
         lat = self.lattice
         best = lat.best_node()
         nodes, edges = lat.backtrace(best, lat.t - first)
-        ground, heading = lat.global_states(best, edges)
+        start = None if lat.track_global else self._start_after_last_emitted(int(nodes[0]), int(edges[0]))
+        ground, heading = lat.global_states(best, edges, start)
         k = last - first + 1
         nodes, ground, heading = nodes[:k], ground[:k], heading[:k]
         joints = world_joint_positions(self.graph, nodes, ground, heading)
         self.next_emit = last + 1
+        self._last = (complex(*ground[-1]), float(heading[-1]), int(nodes[-1]))
         lat.drop_before(self.next_emit)
         return [EmittedPose(first + i, int(nodes[i]), joints[i], ground[i], float(heading[i])) for i in range(k)]
 

@@ -8,7 +8,7 @@ from engine.graph.config import GraphConfig
 from engine.graph.graph import EDGE_TRANSITION, build_from_clips
 from engine.graph.online import FixedLagSynthesizer, resample_stream
 from engine.graph.poses import world_joint_positions
-from engine.graph.viterbi import Observations, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
 
 from .synth import gait_clip, observe, rigid_copy, walk_path
 
@@ -26,8 +26,8 @@ def case():
     return g, obs
 
 
-def run_online(g, obs, lag_s, prune_every=32):
-    syn = FixedLagSynthesizer(g, lag_s, prune_every=prune_every)
+def run_online(g, obs, lag_s, prune_every=32, weights=SearchWeights()):
+    syn = FixedLagSynthesizer(g, lag_s, weights, prune_every=prune_every)
     out, emitted_at = [], []
     for t in range(obs.n_samples):
         got = syn.push(obs.acc_g[t], obs.position_m[t], obs.heading_rad[t])
@@ -37,10 +37,11 @@ def run_online(g, obs, lag_s, prune_every=32):
     return out, emitted_at
 
 
-def test_lag_covering_the_sequence_equals_batch(case):
+@pytest.mark.parametrize("weights", [SearchWeights(), SearchWeights(0.5, 0, 0)], ids=["global", "acc-only"])
+def test_lag_covering_the_sequence_equals_batch(case, weights):
     g, obs = case
-    batch = ViterbiSearch(g).run(obs)
-    out, emitted_at = run_online(g, obs, lag_s=obs.n_samples / g.config.fps)
+    batch = ViterbiSearch(g, weights).run(obs)
+    out, emitted_at = run_online(g, obs, lag_s=obs.n_samples / g.config.fps, weights=weights)
     assert emitted_at == []  # nothing decided before flush
     assert [p.t for p in out] == list(range(obs.n_samples))
     assert np.array_equal([p.node for p in out], batch.nodes)
@@ -97,7 +98,6 @@ def test_error_on_held_out_real_clips_decreases_with_lag(sample_graph, sample_cl
     sensor fit; with position/heading terms the objective also trades pose for global position.)"""
     from engine.graph.evaluate import Noise, simulate_inputs
     from engine.graph.poses import root_local
-    from engine.graph.viterbi import SearchWeights
     from engine.mocap import SensorErrorModel, error_joint_indices
 
     clips, _ = sample_clipdata
@@ -119,3 +119,14 @@ def test_error_on_held_out_real_clips_decreases_with_lag(sample_graph, sample_cl
             errors[lag].append(np.linalg.norm(got - truth, axis=2).mean())
     assert np.mean(errors[1.0]) < 0.85 * np.mean(errors[0.0])
     assert np.mean(errors[10.0]) < 0.85 * np.mean(errors[0.0])
+
+
+def test_accelerometer_only_short_lag_keeps_the_root_path_continuous(case):
+    """Markov mode carries no global state: emitted samples continue from the last emitted one, so the root
+    moves by at most one graph step per sample even when the decoder changes its mind."""
+    g, obs = case
+    out, _ = run_online(g, obs, lag_s=0.1, weights=SearchWeights(0.5, 0, 0))
+    ground = np.array([p.ground_m for p in out])
+    largest_step = np.abs(g.meta_dpos_m).max() * np.sqrt(2)
+    assert np.linalg.norm(np.diff(ground, axis=0), axis=1).max() <= largest_step + 1e-12
+    assert np.allclose(ground[0], obs.position_m[0])

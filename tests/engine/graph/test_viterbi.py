@@ -43,9 +43,14 @@ def test_noiseless_walk_with_transitions_is_recovered_exactly(graph):
     nodes, edges = walk_path(graph, 2, 70, rng, prefer_kind=EDGE_TRANSITION)
     assert np.sum(graph.edge_kind[edges[1:]] == EDGE_TRANSITION) >= 3
     acc, ground, heading = observe(graph, nodes, edges, ground0=(1.0, 2.0), heading0=0.3)
-    res = ViterbiSearch(graph, SearchWeights(acc=1.0, position=0, heading=0)).run(Observations(acc))
+    first_only = Observations(acc, np.r_[ground[:1], np.full((len(acc) - 1, 2), np.nan)],
+                              np.r_[heading[:1], np.full(len(acc) - 1, np.nan)])
+    res = ViterbiSearch(graph, SearchWeights(acc=1.0, position=0, heading=0)).run(first_only)
     assert np.array_equal(res.nodes, nodes) and np.array_equal(res.edges[1:], edges[1:])
     assert res.cost < 1e-9
+    # accelerometer-only (Markov) search tracks no global state; the path is integrated from the first sample
+    assert np.allclose(res.ground_m, ground, atol=1e-9)
+    assert np.allclose(wrap_angle(res.heading_rad - heading), 0, atol=1e-9)
     # with all three modalities the same path comes out and the carried global state is the truth
     res = ViterbiSearch(graph).run(Observations(acc, ground, heading))
     assert np.array_equal(res.nodes, nodes)
