@@ -10,11 +10,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.mocap import Motion, SensorErrorModel, forward_kinematics, resample, virtual_accelerometers
+from engine.mocap import (SEED003_SENSORS, Motion, SensorErrorModel, forward_kinematics, resample,
+                          standard_placements, virtual_accelerometers)
 from engine.olng.config import KnowledgeBaseConfig, OLNGConfig
 from engine.olng.metrics import ClipErrors, score
-from engine.olng.mocap_bridge import build_knowledge_base
 from engine.olng.knowledge_base import KnowledgeBase
+from engine.olng.mocap_bridge import build_knowledge_base
 from engine.olng.pose import quat_to_matrix, split_heading
 from engine.olng.reconstructor import OLNGReconstructor
 
@@ -29,21 +30,12 @@ class Variant:
 
 def simulate_readings(motion: Motion, kb: KnowledgeBase, error_model: SensorErrorModel | None,
                       rng: np.random.Generator) -> np.ndarray:
-    """(F, S, 3) readings in g of the knowledge base's sensors worn by the performer of `motion`."""
-    from engine.olng.mocap_bridge import sensor_rig
-
-    _, placements = sensor_rig(motion.skeleton, tuple(kb_sensor_names(kb, motion)))
-    acc = virtual_accelerometers(motion, placements)
-    return error_model.apply(acc, motion.fps, rng) if error_model is not None else acc
-
-
-def kb_sensor_names(kb: KnowledgeBase, motion: Motion) -> list[str]:
-    """The standard sensor names the knowledge base was built with (stored as its sensor count -> seed 003 set)."""
-    from engine.mocap import SEED003_SENSORS
-
+    """(F, 4, 3) readings in g of the seed-003 sensors worn by the performer of `motion` (on its own skeleton),
+    optionally perturbed by a sensor error model."""
     if len(kb.sensors.bone) != len(SEED003_SENSORS):
         raise ValueError("evaluation supports the seed-003 four-sensor knowledge base")
-    return list(SEED003_SENSORS)
+    acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED003_SENSORS))
+    return error_model.apply(acc, motion.fps, rng) if error_model is not None else acc
 
 
 def reconstruct(kb: KnowledgeBase, config: OLNGConfig, acc_g: np.ndarray, root_pos_m: np.ndarray,

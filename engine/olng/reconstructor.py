@@ -117,14 +117,15 @@ class OLNGReconstructor:
         self.timings.optimise_s += t3 - t2
         self.timings.frames += 1
         self.timings.subspace_dims.append(self.energy.last_dims)
-        return self._emit(q, nodes, weights, alpha)
+        self._alpha_prev = alpha.reshape(-1, 3)
+        return self._emit(q, nodes, weights)
 
-    def _emit(self, q: np.ndarray, nodes: np.ndarray, weights: np.ndarray, alpha: np.ndarray) -> ReconstructedPose:
+    def _emit(self, q: np.ndarray, nodes: np.ndarray, weights: np.ndarray) -> ReconstructedPose:
         kb, dt = self.kb, self.kb.dt_s
         pos, _ = fk_root_frame(kb.rig, q[None])
         joints_root = pos[0]
         self._x_hist = (self._x_hist + [joints_root.reshape(-1) * self._scale])[-2:]
-        self._q_prev, self._alpha_prev = q, alpha.reshape(-1, 3)
+        self._q_prev = q
         vel_heading = weights @ kb.root_vel_heading_mps[nodes]
         c, s = np.cos(self._heading), np.sin(self._heading)
         self._root[0] += dt * (c * vel_heading[0] + s * vel_heading[2])

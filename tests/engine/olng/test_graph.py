@@ -1,7 +1,6 @@
 """kNN, OLNG and Eq. 1 weights against brute force and exact synthetic answers (spec A5.3-A5.5)."""
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
