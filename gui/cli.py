@@ -139,7 +139,7 @@ def demo_main(argv: list[str]) -> int:
         print("courtside demo: --screenshots needs --duration (they are taken just before exiting)", file=sys.stderr)
         return 2
     from gui.app import application
-    from gui.demo import demo_session
+    from gui.demo.session import demo_session
 
     application()
     with demo_session(lag_s=args.lag, listen=args.listen, record_dir=args.record_dir, camera=not args.no_camera,

@@ -111,7 +111,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.playbar = PlaybackBar()
         self.playbar.open_requested.connect(self._choose_take)
         self.playbar.play_toggled.connect(self._set_playing)
-        self.playbar.seek_requested.connect(self._seek)
+        self.playbar.seek_requested.connect(self.seek_playback)
         self.playbar.live_button.clicked.connect(self.back_to_live)
         self.lag_spin = QtWidgets.QDoubleSpinBox()
         self.lag_spin.setRange(0.1, 3.0)
@@ -381,7 +381,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                 self.skeleton.set_skeleton(self.truth.perf.parents)
         self.playbar.loaded(Path(path).parent.name if Path(path).name == "take.csrec" else Path(path).name,
                             playback.duration_s)
-        self._seek(0.0)
+        self.seek_playback(0.0)
 
     def _set_playing(self, on: bool) -> None:
         if self.playback is None:
@@ -389,7 +389,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.playing = on
         self._play_wall0, self._play_t0 = time.monotonic(), self.playback.cursor_s
 
-    def _seek(self, t_rel_s: float) -> None:
+    def seek_playback(self, t_rel_s: float) -> None:
+        """Move the playback cursor to ``t_rel_s`` seconds into the take (the scrubber calls this)."""
         if self.playback is None:
             return
         if self.worker is not None:

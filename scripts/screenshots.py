@@ -25,7 +25,7 @@ def main() -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
 
     from gui.app import application, pump, save_grab
-    from gui.demo import demo_session
+    from gui.demo.session import demo_session
     from gui.screens import capture_console
 
     application()
@@ -58,7 +58,7 @@ def main() -> int:
             print(f"screenshots: recording did not finish: {state}", file=sys.stderr)
             return 1
         window.load_playback(state["files"][0])
-        window._seek(window.playback.duration_s * 0.6)
+        window.seek_playback(window.playback.duration_s * 0.6)
         window.playbar.play_button.setChecked(True)
         pump(1.5)
         window.tabs.setCurrentIndex(2)

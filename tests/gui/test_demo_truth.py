@@ -7,7 +7,8 @@ import time
 import numpy as np
 
 from gateway.client import GatewayClient
-from gui.demo import HELD_OUT_CLIPS, demo_hardware
+from gui.demo import HELD_OUT_CLIPS
+from gui.demo.hardware import demo_hardware
 from gui.main_window import ConsoleWindow
 
 
@@ -26,7 +27,7 @@ def test_demo_take_plays_back_with_ground_truth(qtbot, tmp_path):
         window.load_playback(state["files"][0])
         assert window.truth is not None and window.truth.perf.clip_names == HELD_OUT_CLIPS
         assert window.truth.t0 == t0
-        window._seek(2.0)
+        window.seek_playback(2.0)
         window.tick()
         latest = window.store.latest_time()
         assert latest is not None and window.skeleton.truth_m is not None

@@ -60,13 +60,13 @@ def test_record_then_play_back_through_the_same_views(live_gateway, qtbot, tmp_p
         pb = window.playback
         assert pb is not None and pb.duration_s > 2.0
         # scrub 1 s in: the views show the take's first second; data are the recorded readings
-        window._seek(1.0)
+        window.seek_playback(1.0)
         window.tick()
         t, acc = window.store.rings[("st1", 1)].data()
         assert len(t) > 50 and t[0] >= pb.t_start_s - 1e-9 and t[-1] <= pb.t_start_s + 1.0 + 1e-9
         assert np.all((acc[:, 0] >= 1.0 - 0.05) & (acc[:, 0] <= 2.0 + 0.05))  # sensor 1 sawtooth in [1, 2)
         # seek to the middle: history is replaced by the window before the cursor
-        window._seek(pb.duration_s / 2)
+        window.seek_playback(pb.duration_s / 2)
         window.tick()
         t, _ = window.store.rings[("st1", 0)].data()
         assert t[-1] <= pb.cursor_s + 1e-9 and t[-1] > pb.cursor_s - 0.1
