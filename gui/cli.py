@@ -1,9 +1,9 @@
 """`courtside console` and `courtside demo` (entry points declared in pyproject.toml).
 
 console: connect to a running gateway (`--connect host:port`) or open a recorded take (`--playback`).
-demo:    start everything in one process — emulated base stations replaying held-out real mocap as worn
-         accelerometers, a synthetic overhead camera with the real tracker, the gateway — and open the console
-         on it. `--duration` exits after that many seconds (CI / Xvfb); `--screenshots DIR` saves PNGs first."""
+demo:    start everything in one command — emulated base stations replaying held-out real mocap as worn
+         accelerometers, a synthetic overhead camera with the real tracker, the gateway (in a child process) —
+         and open the console on it. `--duration` exits after that many seconds (CI / Xvfb); `--screenshots DIR` saves PNGs first."""
 from __future__ import annotations
 
 import argparse
@@ -56,9 +56,19 @@ def _pick_synth_station(stations: list[dict], wanted: str | None) -> str | None:
     return big[0] if len(big) == 1 else None
 
 
+def _screenshots_need_duration(command: str, args: argparse.Namespace) -> bool:
+    if args.screenshots is not None and args.duration is None:
+        print(f"courtside {command}: --screenshots needs --duration (they are taken just before exiting)",
+              file=sys.stderr)
+        return True
+    return False
+
+
 def console_main(argv: list[str]) -> int:
     args = _console_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    if _screenshots_need_duration("console", args):
+        return 2
     from gateway.client import GatewayClient
 
     from gui.app import application
@@ -135,8 +145,7 @@ def _run_window(window, duration_s: float | None, screenshots: Path | None) -> i
 def demo_main(argv: list[str]) -> int:
     args = _demo_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    if args.screenshots is not None and args.duration is None:
-        print("courtside demo: --screenshots needs --duration (they are taken just before exiting)", file=sys.stderr)
+    if _screenshots_need_duration("demo", args):
         return 2
     from gui.app import application
     from gui.demo.session import demo_session
