@@ -24,7 +24,10 @@ class HMMConfig:
     p_next: float = 1.0 / 3.0
     p_skip: float = 1.0 / 3.0
     # runtime (B2.4-B2.5)
-    window: int = 20                  # forward pass over the last W frames from a uniform start
+    forward_mode: str = "window"      # "window": forward over the last W frames from a uniform start (paper);
+                                      # "recursive": one step per frame, alpha mixed with uniform by epsilon
+    window: int = 20
+    epsilon: float = 1e-6             # recursive mode: floor that lets a wrong hypothesis recover
     k_interpolate: int = 4            # K segment models interpolated
     output: str = "posterior"         # "posterior": alpha-weighted conditional mean (Eq. 13); "argmax": best state
     blend_frames: int = 6             # inertialisation after a phase switch

@@ -39,14 +39,25 @@ class HMMReconstructor:
         self._blend_offset: np.ndarray | None = None
         self._blend_step = 0
         self._uniform = np.full(model.n_states, 1.0 / model.n_states)
+        self._alpha: np.ndarray | None = None
+        if model.config.forward_mode not in {"window", "recursive"}:
+            raise ValueError(f"forward_mode must be 'window' or 'recursive', not {model.config.forward_mode!r}")
 
     def _emission(self, y_z: np.ndarray) -> np.ndarray:
         d = self.model.state_imu_z - y_z
         return -0.5 * np.einsum("sk,sk->s", d, d) / self.model.config.sigma**2
 
     def posterior(self) -> np.ndarray:
-        """Forward variable over all template states given the last W frames."""
-        alpha, _ = forward(np.stack(self._log_b), self.model.transitions, self._uniform)
+        """Forward variable over all template states: from a uniform start over the last W frames (window mode),
+        or one recursive step from the previous frame's alpha floored towards uniform (recursive mode)."""
+        cfg = self.model.config
+        if cfg.forward_mode == "window" or self._alpha is None:
+            frames = np.stack(self._log_b) if cfg.forward_mode == "window" else self._log_b[-1][None]
+            alpha, _ = forward(frames, self.model.transitions, self._uniform)
+        else:
+            prior = self.model.transitions.T @ ((1.0 - cfg.epsilon) * self._alpha + cfg.epsilon * self._uniform)
+            alpha, _ = forward(self._log_b[-1][None], self.model.transitions, prior)
+        self._alpha = alpha
         return alpha
 
     def push(self, acc_g: np.ndarray, gyro_rps: np.ndarray) -> HMMFrame:

@@ -94,3 +94,32 @@ def test_foot_ik_reduces_foot_sliding_of_the_output(motions):
 
     assert contacts.any()
     assert slide_mps(fixed) < 0.5 * slide_mps(raw)
+
+
+def test_recursive_forward_mode_matches_the_window_mode_on_a_walk(motions):
+    from engine.hmm.config import HMMConfig
+
+    window = summarise(leave_one_out(motions, [5], ("right_foot",), train_indices=WALKS))["joint_cm"]
+    recursive = summarise(leave_one_out(motions, [5], ("right_foot",), train_indices=WALKS,
+                                        config=HMMConfig(forward_mode="recursive")))["joint_cm"]
+    assert recursive < 1.3 * window
+
+
+def test_cli_hmm_take_to_bvh_and_evaluate_table(tmp_path, motions, capsys):
+    from engine.mocap import read_bvh
+    from engine.reconstruct_cli import main
+
+    take = resample(motions[5], 60.0)
+    placements = standard_placements(take.skeleton, ("right_foot",))
+    acc, gyro = imu_features(take, placements)
+    path = tmp_path / "take.npz"
+    np.savez(path, acc_g=acc, gyro_rps=gyro, fps=60.0, sensor_names=np.array(["right_foot"]))
+    out = tmp_path / "out.bvh"
+    assert main(["--method", "hmm", "--input", str(path), "-o", str(out), "--sample"]) == 0
+    assert read_bvh(out).n_frames == pytest.approx(take.duration_s * 30, abs=2)
+    np.savez(tmp_path / "nogyro.npz", acc_g=acc, fps=60.0, sensor_names=np.array(["right_foot"]))
+    assert main(["--method", "hmm", "--input", str(tmp_path / "nogyro.npz"), "-o", str(out), "--sample"]) == 1
+    assert "gyro_rps" in capsys.readouterr().err
+    assert main(["--evaluate", "--sample", "--methods", "hmm", "--test-clips", "1"]) == 0
+    table = capsys.readouterr().out
+    assert "hmm (1 imu)" in table and "hmm (2 imu)" in table and "joint cm" in table
