@@ -109,7 +109,7 @@ class ViterbiLattice:
         self.n_sensors = len(sel)
         e = graph.meta_acc_g[:, sel, :].reshape(len(graph.meta_acc_g), -1).astype(np.float32)
         self._meta_acc_t = np.ascontiguousarray(e.T)  # (3S, M): one contiguous row per sensor axis
-        self._meta_acc_sq = np.einsum("ij,ij->i", e.astype(np.float64), e.astype(np.float64))
+        self._meta_acc_sq = np.einsum("ij,ij->i", e.astype(np.float64), e.astype(np.float64)).astype(np.float32)
         self._dots = np.empty(len(e), dtype=np.float32)
         self._axpy = np.empty(len(e), dtype=np.float32)
         self.layout = EdgeLayout(graph.edge_dst, graph.n_nodes)
@@ -126,16 +126,19 @@ class ViterbiLattice:
         dpos = graph.meta_dpos_m[:, 0] + 1j * graph.meta_dpos_m[:, 1]
         self._d = dpos[self._meta]
         self._dh = graph.meta_dheading_rad[self._meta]
+        self._d32 = self._d.astype(np.complex64)  # costs are evaluated in float32 (half the memory traffic)
+        self._dh32 = self._dh.astype(np.float32)
         self._rot_dh = np.exp(-1j * self._dh)
         self._arrival = graph.node_arrival[self._to_graph]
         self._graph_src = graph.edge_src.astype(np.intp)
         self._graph_d = dpos[graph.edge_meta]
         self._graph_dh = graph.meta_dheading_rad[graph.edge_meta]
         n_e = len(order)
-        self._cost = np.empty(n_e)
-        self._buf1 = np.empty(n_e)
-        self._buf2 = np.empty(n_e)
-        self._cbuf = np.empty(n_e, dtype=complex)
+        self._cost = np.empty(n_e, dtype=np.float32)
+        self._buf1 = np.empty(n_e, dtype=np.float32)
+        self._buf2 = np.empty(n_e, dtype=np.float32)
+        self._cbuf = np.empty(n_e, dtype=np.complex64)
+        self.cost_offset = 0.0  # G is kept relative to its minimum (float32 edge costs stay precise)
         self.columns: list[_Column] = []
         self.t = -1  # index of the last sample consumed
         self.first_column_time = 1  # time of columns[0]
@@ -158,7 +161,11 @@ class ViterbiLattice:
         for i in range(1, len(m32)):
             np.multiply(self._meta_acc_t[i], m32[i], out=tmp)
             dots += tmp
-        return (self._meta_acc_sq - 2.0 * dots + m @ m) * (self.weights.acc / self.n_sensors)
+        dots *= np.float32(-2.0)
+        dots += self._meta_acc_sq
+        dots += np.float32(m @ m)
+        dots *= np.float32(self.weights.acc / self.n_sensors)
+        return dots
 
     # ----- stepping -----------------------------------------------------------------------------
     def start(self, acc_g: np.ndarray | None, position_m: np.ndarray | None, heading_rad: float | None,
@@ -166,7 +173,7 @@ class ViterbiLattice:
         """First sample: every node may start a path; its cost is the arrival row's C_A, global state = input."""
         n = self.graph.n_nodes
         rows = self._acc_rows(acc_g)
-        self._G = np.zeros(n) if rows is None else rows[self._arrival]
+        self._G = np.zeros(n) if rows is None else rows[self._arrival].astype(np.float64)
         pos = np.zeros(2) if position_m is None or np.any(np.isnan(position_m)) else np.asarray(position_m, float)
         head = 0.0 if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
         self.start_state = (complex(pos[0], pos[1]), head)
@@ -194,7 +201,7 @@ class ViterbiLattice:
             u = (self._P - (position_m[0] + 1j * position_m[1])) * np.conj(self._rot)  # R(-O)(P - M)
             cb = self._cbuf
             np.take(u, src, out=cb)
-            cb += self._d
+            cb += self._d32
             np.abs(cb, out=b1)
             if self.weights.position != 1:
                 b1 *= self.weights.position
@@ -203,9 +210,9 @@ class ViterbiLattice:
             hd = self._O - heading_rad
             hd -= TWO_PI * np.round(hd / TWO_PI)
             np.take(hd, src, out=b1)
-            b1 += self._dh  # in [-2pi, 2pi]: |wrap(x)| = min(|x|, 2pi - |x|)
+            b1 += self._dh32  # in [-2pi, 2pi]: |wrap(x)| = min(|x|, 2pi - |x|)
             np.abs(b1, out=b1)
-            np.subtract(TWO_PI, b1, out=b2)
+            np.subtract(np.float32(TWO_PI), b1, out=b2)
             np.minimum(b1, b2, out=b1)
             if self.weights.heading != 1:
                 b1 *= self.weights.heading
@@ -230,6 +237,10 @@ class ViterbiLattice:
         G, P, O, rot = self._spare
         G[:k] = seg_min
         G[k:] = np.inf
+        low = G[:k].min()
+        if np.isfinite(low):
+            G[:k] -= low
+            self.cost_offset += float(low)
         if self.track_global:
             np.take(self._rot, wsrc, out=rot[:k])
             np.take(self._P, wsrc, out=P[:k])
@@ -255,7 +266,7 @@ class ViterbiLattice:
 
     # ----- state by graph node ------------------------------------------------------------------
     def cost_of(self, node: int) -> float:
-        return float(self._G[self._to_internal[node]])
+        return float(self._G[self._to_internal[node]]) + self.cost_offset
 
     def broken_of(self, node: int) -> int:
         return int(self._Gr[self._to_internal[node]])
