@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 WRAP_TICKS = 1 << 32
+SPAN_OUTLIER_FLOOR_S = 0.5e-3  # a span minimum this close to the hull line is always trusted
 
 
 @dataclass
@@ -57,11 +58,13 @@ class TickUnwrapper:
         self._ref: int | None = None  # newest unwrapped tick seen
         self._ref_arrival_s = 0.0
 
-    def restart(self) -> None:
+    def restart(self, tick_hz: float | None = None) -> None:
         """Forget the counter (e.g. a new boot id in HELLO): the next packet starts a new epoch."""
         if self._ref is not None:
             self.epoch += 1
         self._ref = None
+        if tick_hz is not None:
+            self.tick_hz = float(tick_hz)
 
     def unwrap(self, raw_ticks: int, arrival_s: float) -> tuple[int, bool]:
         """Unwrap one u32 tick value from a packet that arrived at host time ``arrival_s``.
@@ -167,8 +170,8 @@ def segment_envelope_line(x: np.ndarray, y: np.ndarray, segments: int = 8) -> tu
     1. Rough slope from the lower hull edge spanning mean(x) (`lower_envelope_line`).
     2. In each of ``segments`` equal spans of x, the point lowest *relative to that slope* (detrending matters:
        with 100 ppm skew, y moves 0.75 ms across a 7.5 s span, more than the latency differences we look for).
-    3. Least-squares slope through those per-span minima, then the line is lowered until it touches the lowest
-       point, so it stays below every point.
+    3. Least-squares slope through those per-span minima that lie near the hull line (a span delayed as a whole
+       is dropped), then the line is lowered until it touches the lowest point, so it stays below every point.
     Why not the hull edge alone: when two low points happen to lie close together, that edge's slope is wild
     (measured +-40 ppm, 2 ms at the window's end under 20 ms jitter); per-span minima spread over the whole
     window pin the slope to a few ppm. ``x`` sorted ascending."""
@@ -181,7 +184,13 @@ def segment_envelope_line(x: np.ndarray, y: np.ndarray, segments: int = 8) -> tu
     ends = np.r_[starts[1:], len(x)]
     detrended = y - b0 * x
     lowest = np.array([s + int(np.argmin(detrended[s:e])) for s, e in zip(starts, ends)])
-    b = float(np.polyfit(x[lowest], y[lowest], 1)[0])
+    # A span whose best point is far above the hull line was delayed as a whole (host starved of CPU, USB
+    # stall): it says nothing about the clock, and least squares would follow it. Keep the spans near the hull.
+    height = detrended[lowest] - a0
+    keep = lowest[height <= max(3.0 * float(np.median(height)), SPAN_OUTLIER_FLOOR_S)]
+    if len(keep) < 3:
+        return a0, b0
+    b = float(np.polyfit(x[keep], y[keep], 1)[0])
     a = float(np.min(y - b * x))
     return a, b
 
@@ -240,15 +249,22 @@ def realign_offline(device_s: np.ndarray, arrival_s: np.ndarray, query_device_s:
     lowest = np.array([s + int(np.argmin(detrended[s:e])) for s, e in zip(starts, ends)])
     bx, by = x[lowest], y[lowest]
     centres = np.arange(0.0, x[-1] + window_s / 4, window_s / 4)
-    offsets = np.empty_like(centres)
+    lines = np.full((len(centres), 2), np.nan)  # (a, b) of each centre's window
     for i, c in enumerate(centres):
         lo = min(max(c - window_s / 2, 0.0), max(x[-1] - window_s, 0.0))  # keep full windows at the ends
         sel = (bx >= lo) & (bx <= lo + window_s)
-        if sel.sum() < 2:
-            offsets[i] = by[sel].min() if sel.any() else np.nan
-            continue
-        a, b = segment_envelope_line(bx[sel], by[sel])
-        offsets[i] = a + b * c
-    good = np.isfinite(offsets)
+        if sel.sum() >= 2:
+            lines[i] = segment_envelope_line(bx[sel], by[sel])
+        elif sel.any():
+            lines[i] = (by[sel].min(), 0.0)
+    good = np.isfinite(lines[:, 0])
+    centres, lines = centres[good], lines[good]
+    offsets = lines[:, 0] + lines[:, 1] * centres
     q = np.asarray(query_device_s, np.float64)
-    return q + np.interp(q - origin, centres[good], offsets[good])
+    xq = q - origin
+    offset_q = np.interp(xq, centres, offsets)
+    # outside the fitted centres follow the end windows' lines instead of holding the offset constant
+    before, after = xq < centres[0], xq > centres[-1]
+    offset_q[before] = lines[0, 0] + lines[0, 1] * xq[before]
+    offset_q[after] = lines[-1, 0] + lines[-1, 1] * xq[after]
+    return q + offset_q

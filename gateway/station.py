@@ -114,6 +114,7 @@ class StationReader:
         self._pre_hello: deque[tuple[fp.DecodedFrame, float]] = deque(maxlen=PRE_HELLO_FRAMES)
         self._hello_requested_s = 0.0
         self.unwrapper: TickUnwrapper | None = None
+        self._epoch_at_hello = 0
         self.clock = ClockEstimator(window_s=clock_window_s, lock_after_s=lock_after_s)
         self.sensors: dict[int, SensorStats] = {}
         self.station_battery_pct: int | None = None
@@ -301,15 +302,16 @@ class StationReader:
         return stats
 
     def _on_hello(self, hello: fp.Hello) -> None:
-        rebooted = self.hello is not None and hello.boot_id != self.hello.boot_id
-        if self.unwrapper is None or rebooted or hello.tick_rate_hz != self.hello.tick_rate_hz:
-            if self.unwrapper is not None:
-                self.unwrapper.restart()
-                self._on_clock_reset(f"station rebooted (boot id {hello.boot_id:#x})")
-            else:
-                self.unwrapper = TickUnwrapper(hello.tick_rate_hz)
-            for stats in self.sensors.values():
-                stats.restart_counter()
+        rebooted = self.hello is not None and (hello.boot_id, hello.tick_rate_hz) != (self.hello.boot_id,
+                                                                                   self.hello.tick_rate_hz)
+        if self.unwrapper is None:
+            self.unwrapper = TickUnwrapper(hello.tick_rate_hz)
+        elif rebooted and self.unwrapper.epoch == self._epoch_at_hello:
+            # Frames of the new boot can precede its HELLO (the periodic beacon); if their ticks already started
+            # a new epoch, this HELLO confirms that reboot instead of being a second one.
+            self.unwrapper.restart(hello.tick_rate_hz)
+            self._on_clock_reset(f"station rebooted (boot id {hello.boot_id:#x})")
+        self._epoch_at_hello = self.unwrapper.epoch
         self.hello = hello
         for info in hello.sensors:
             self._sensor(info.sensor_id).nominal_hz = float(info.rate_hz)

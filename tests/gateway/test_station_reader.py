@@ -124,7 +124,8 @@ def test_unplug_goes_lost_and_reconnect_counts(tmp_path):
     reader = StationReader(str(link_path), sink, reconnect_interval_s=0.05).start()
     try:
         answer_hello(master, HELLO)
-        assert wait_for(lambda: reader.status()["link"] == "streaming")
+        os.write(master, fp.encode(fp.ClockSync(3_000_000_000, 0), 2, 1))
+        assert wait_for(lambda: reader.status()["link"] == "streaming" and reader.status()["clock"]["points"] > 0)
         os.close(master)
         os.close(slave)
         assert wait_for(lambda: reader.status()["link"] == "lost")
@@ -134,11 +135,17 @@ def test_unplug_goes_lost_and_reconnect_counts(tmp_path):
         link_path.unlink()
         os.symlink(os.ttyname(slave), link_path)
         t0 = time.monotonic()
-        answer_hello(master, fp.Hello(HELLO.firmware_version, 77, 0x1111, TICK_HZ, HELLO.supported_rates_hz,
-                                      HELLO.supported_ranges_g, HELLO.sensors))
+        # the new boot's periodic beacon overtakes its HELLO: one reboot must still be one clock epoch
+        decoder = fp.StreamDecoder()
+        assert wait_for(lambda: any(f.message.opcode == fp.Opcode.REQUEST_HELLO
+                                    for f in decoder.feed(os.read(master, 4096))))
+        os.write(master, fp.encode(fp.ClockSync(1_000, 0), 2, 1) + fp.encode(
+            fp.Hello(HELLO.firmware_version, 77, 0x1111, TICK_HZ, HELLO.supported_rates_hz,
+                     HELLO.supported_ranges_g, HELLO.sensors), 2, 0))
         assert wait_for(lambda: reader.status()["link"] == "streaming" and reader.status()["boot_id"] == 0x1111)
         assert time.monotonic() - t0 < 2.0
         assert reader.status()["reconnects"] == 1
+        assert reader.unwrapper.epoch == 1 and reader.status()["clock"]["resets"] == 1
     finally:
         reader.stop()
         for fd in (master, slave):
