@@ -173,7 +173,6 @@ class StationReader:
                 self.reconnects += 1
             self._link = link
             self.transport = getattr(link, "transport", self.transport)
-            self._decoder = fp.StreamDecoder()
             self.connected_at_s = time.monotonic()
             self.link_state = "connecting"
         self.sink.on_station_event(self.name, "info", f"link {self.source} open (reconnects: {self.reconnects})")
@@ -195,8 +194,7 @@ class StationReader:
             self._accumulate_decoder_stats()
             self.link_state = "lost" if not self._stop.is_set() else "stopped"
         link.close()
-        if not self._stop.is_set():
-            log.warning("%s: link lost: %s", self.name, reason)
+        if not self._stop.is_set():  # the sink logs events (the gateway does), so no second log line here
             self.sink.on_station_event(self.name, "alarm", f"link lost: {reason}")
 
     def _accumulate_decoder_stats(self) -> None:
