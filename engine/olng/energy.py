@@ -4,10 +4,11 @@ E(q) = w_prior (w_pose E_pose + w_motion E_motion + w_smooth E_smooth) + w_contr
 sum over the I hypotheses of sqrt(|target_i - f(q)|): the square-root kernel keeps a usable gradient far from the
 samples and, unlike a Gaussian/Mahalanobis prior, lets clusters of hypotheses form separate minima.
 
-Solved by Levenberg-Marquardt (or scipy's trust-region-reflective least_squares, solver='trf') on residuals rho_i = sqrt(omega w_i) (|r_i|^2 + eps^2)^(1/8)
-(sum rho^2 = omega sum w_i sqrt|r_i| up to eps). The Jacobian is a forward difference over the subspace, computed
-with ONE batched FK call over (1 + dims) poses; that keeps a frame at a few milliseconds.
-Units inside: angles rad, positions cm (EnergyConfig.length_unit_m), time s.
+Solvers (EnergyConfig.solver): "auto" = majorise-minimise for the square-root kernels (`KernelEnergy._irls`) and
+Levenberg-Marquardt for the Mahalanobis baseline; "trf" = scipy least_squares on residuals
+rho_i = sqrt(omega w_i) (|r_i|^2 + eps^2)^(1/8) (sum rho^2 = omega sum w_i sqrt|r_i| up to eps), as the spec
+suggests. Jacobians are forward differences over the subspace from ONE batched FK call over (1 + dims) poses.
+Units inside: angles in EnergyConfig.angle_unit_rad (degrees), positions in length_unit_m (cm), time s.
 """
 from __future__ import annotations
 
@@ -75,7 +76,7 @@ class FrameProblem:
     """Targets for one output frame. Positions in energy length units (cm), (I, J*3) or (I, S*3); None = term off."""
 
     weights: np.ndarray                 # (I,) Eq. 1 weights
-    pose_targets: np.ndarray            # (I, D) hypothesis poses (rad)
+    pose_targets: np.ndarray            # (I, D) hypothesis pose vectors (rad; scaled to angle_unit_rad inside)
     motion_targets: np.ndarray | None   # (I, J*3) x^t + v dt + a dt^2 / 2
     smooth_targets: np.ndarray | None   # (I, J*3) 2x^t - x^{t-1} + a dt^2
     control_targets: np.ndarray | None  # (I, S*3) predicted sensor-tip positions
