@@ -138,7 +138,7 @@ class ViterbiLattice:
         self._buf1 = np.empty(n_e, dtype=np.float32)
         self._buf2 = np.empty(n_e, dtype=np.float32)
         self._cbuf = np.empty(n_e, dtype=np.complex64)
-        self.cost_offset = 0.0  # G is kept relative to its minimum (float32 edge costs stay precise)
+        self.cost_offset = 0.0  # G is float32 kept relative to its minimum (the offset is summed in float64)
         self.columns: list[_Column] = []
         self.t = -1  # index of the last sample consumed
         self.first_column_time = 1  # time of columns[0]
@@ -173,7 +173,7 @@ class ViterbiLattice:
         """First sample: every node may start a path; its cost is the arrival row's C_A, global state = input."""
         n = self.graph.n_nodes
         rows = self._acc_rows(acc_g)
-        self._G = np.zeros(n) if rows is None else rows[self._arrival].astype(np.float64)
+        self._G = np.zeros(n, dtype=np.float32) if rows is None else rows[self._arrival]
         pos = np.zeros(2) if position_m is None or np.any(np.isnan(position_m)) else np.asarray(position_m, float)
         head = 0.0 if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
         self.start_state = (complex(pos[0], pos[1]), head)
@@ -184,23 +184,29 @@ class ViterbiLattice:
         self._Gr = np.zeros(n) if penalty is None else np.asarray(penalty, float)[self._to_graph]
         if not self.track_global:
             self._P = self._O = self._rot = None
-        self._spare = (np.empty(n),) + ((np.empty(n, dtype=complex), np.empty(n), np.empty(n, dtype=complex))
+        self._spare = (np.empty(n, dtype=np.float32),) + ((np.empty(n, dtype=complex), np.empty(n), np.empty(n, dtype=complex))
                                         if self.track_global else (None, None, None))
         self.constrained = penalty is not None
         self.t = 0
 
     def _edge_costs(self, acc_g, position_m, heading_rad) -> np.ndarray:
-        """L(e, t) + G(src, t-1) for every edge (layout order), in preallocated buffers."""
+        """L(e, t) + G(src, t-1) for every edge (layout order), in preallocated float32 buffers.
+
+        _narrow: gathering float64/complex128 node values into the float32/complex64 buffers intermittently
+        reports "invalid value encountered in cast" although every value is finite (checked: no NaN/inf in
+        the sources when it fires); numpy's SIMD cast picks up a stale floating-point flag. The two narrowing
+        gathers therefore run under errstate(invalid="ignore")."""
         src, cost, b1, b2 = self._src, self._cost, self._buf1, self._buf2
-        np.take(self._G, src, out=cost)
+        np.take(self._G, src, out=cost, mode="clip")
         rows = self._acc_rows(acc_g)
         if rows is not None:
-            np.take(rows, self._meta, out=b1)
+            np.take(rows, self._meta, out=b1, mode="clip")
             cost += b1
         if position_m is not None and not np.any(np.isnan(position_m)) and self.weights.position != 0:
             u = (self._P - (position_m[0] + 1j * position_m[1])) * np.conj(self._rot)  # R(-O)(P - M)
             cb = self._cbuf
-            np.take(u, src, out=cb)
+            with np.errstate(invalid="ignore"):  # see _narrow: the float64 -> float32 cast raises a stale flag
+                np.take(u, src, out=cb, mode="clip")
             cb += self._d32
             np.abs(cb, out=b1)
             if self.weights.position != 1:
@@ -209,7 +215,8 @@ class ViterbiLattice:
         if heading_rad is not None and not np.isnan(heading_rad) and self.weights.heading != 0:
             hd = self._O - heading_rad
             hd -= TWO_PI * np.round(hd / TWO_PI)
-            np.take(hd, src, out=b1)
+            with np.errstate(invalid="ignore"):  # see _narrow
+                np.take(hd, src, out=b1, mode="clip")
             b1 += self._dh32  # in [-2pi, 2pi]: |wrap(x)| = min(|x|, 2pi - |x|)
             np.abs(b1, out=b1)
             np.subtract(np.float32(TWO_PI), b1, out=b2)
@@ -242,10 +249,10 @@ class ViterbiLattice:
             G[:k] -= low
             self.cost_offset += float(low)
         if self.track_global:
-            np.take(self._rot, wsrc, out=rot[:k])
-            np.take(self._P, wsrc, out=P[:k])
+            np.take(self._rot, wsrc, out=rot[:k], mode="clip")
+            np.take(self._P, wsrc, out=P[:k], mode="clip")
             P[:k] += self._d[win] * rot[:k]  # eq. 5: P(n,t) = P(m,t-1) + R(O(m,t-1)) d(v)
-            np.take(self._O, wsrc, out=O[:k])
+            np.take(self._O, wsrc, out=O[:k], mode="clip")
             O[:k] += self._dh[win]
             rot[:k] *= self._rot_dh[win]
             P[k:], O[k:], rot[k:] = self._P[k:], self._O[k:], self._rot[k:]
