@@ -354,14 +354,15 @@ def format_status_lines(status: dict[str, Any]) -> list[str]:
 
 # ---------------------------------------------------------------------------------------------------- CLI
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside gateway", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="courtside gateway", description=__doc__.split("\n")[0],
+                                epilog="Export a recording: courtside gateway export <take dir> [--npz F] [--csv-dir D]")
     p.add_argument("--port", action="append", default=[], metavar="PATH",
                    help="serial port path, or hid:<path> / hid:VVVV:PPPP[:serial] (repeatable)")
     p.add_argument("--url", action="append", default=[], metavar="URL", help="pyserial URL, e.g. emu://... (repeatable)")
     p.add_argument("--discover", action="store_true",
                    help="find stations by USB VID:PID 1209:C0DE (serial + HID), also hot-plugged ones")
     p.add_argument("--emulate", type=int, default=0, metavar="N", help="start N emulated stations over ptys")
-    p.add_argument("--config", type=Path, help="TOML file with the same keys (ports, urls, emulate, listen, record_dir)")
+    p.add_argument("--config", type=Path, help="TOML file with the same keys (ports, urls, emulate, listen, record_dir, discover)")
     p.add_argument("--record-dir", type=Path, default=None, help="where takes are written (default ./recordings)")
     p.add_argument("--record", metavar="TAKE", help="start recording this take at once")
     p.add_argument("--listen", default=None, help=f"host:port for clients (default {DEFAULT_LISTEN})")

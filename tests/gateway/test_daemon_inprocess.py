@@ -106,3 +106,13 @@ def test_cli_export_round_trip(tmp_path, station_pty, capsys):
     assert (tmp_path / "csv" / "st1_0.csv").read_text().count("\n") == 26
     assert main(["export", str(tmp_path / "missing")] + ["--npz", str(tmp_path / "y.npz")]) == 1
     assert "missing" in capsys.readouterr().err
+
+
+def test_cli_config_file_runs_emulated_stations(tmp_path, capsys):
+    cfg = tmp_path / "gw.toml"
+    cfg.write_text(f'emulate = 1\nlisten = "127.0.0.1:0"\nrecord_dir = "{tmp_path / "rec"}"\n')
+    assert main(["--config", str(cfg), "--duration", "2.5", "--record", "cfg-take", "--log-level", "WARNING"]) == 0
+    out = capsys.readouterr().out
+    assert "gateway listening on 127.0.0.1:" in out and "gateway stopped" in out
+    assert any(line.strip().startswith("st1 streaming") for line in out.splitlines())
+    assert load_take(tmp_path / "rec" / "cfg-take").samples
