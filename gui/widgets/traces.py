@@ -37,6 +37,7 @@ class TracePanel(QtWidgets.QWidget):
         self._event_lines: dict[int, list[tuple[pg.PlotItem, pg.InfiniteLine]]] = {}  # event seq -> lines
 
         self.group_box = QtWidgets.QComboBox()
+        self.group_box.setSizeAdjustPolicy(QtWidgets.QComboBox.AdjustToContents)
         self.range_box = QtWidgets.QComboBox()
         for g in RANGE_PRESETS_G:
             self.range_box.addItem(f"±{g:g} g", g)
@@ -86,7 +87,7 @@ class TracePanel(QtWidgets.QWidget):
         sensors = self.groups.get(name, [])
         for row, sensor in enumerate(sensors):
             plot = self.graphics.addPlot(row=row, col=0)
-            plot.setLabel("left", sensor_label(sensor), units="g")
+            plot.setLabel("left", sensor_label(sensor))  # values in g (the range box says so); short labels fit
             if row < len(sensors) - 1:
                 plot.hideAxis("bottom")  # one shared time axis at the bottom saves vertical space
             else:
