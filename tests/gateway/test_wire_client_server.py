@@ -141,3 +141,25 @@ def test_client_errors_when_gateway_absent():
         port = s.getsockname()[1]
     with pytest.raises(OSError):
         GatewayClient("127.0.0.1", port).connect(timeout_s=1)
+
+
+def test_client_that_never_reads_control_traffic_is_disconnected():
+    """Reliable messages are never dropped, so a client whose reliable backlog passes the limit is cut off
+    instead of growing the gateway's memory without bound."""
+    srv = StreamServer(_handler, port=0, reliable_queue_limit=50).start()
+    sock = socket.create_connection(srv.address)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    try:
+        deadline = time.monotonic() + 2
+        while not srv.client_stats():
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        big = {"blob": "x" * 20_000}
+        deadline = time.monotonic() + 10
+        while srv.client_stats():
+            assert time.monotonic() < deadline, srv.client_stats()
+            srv.publish("status", big)
+        assert srv.publish("status", big) == 0  # gone: nothing queued for it any more
+    finally:
+        sock.close()
+        srv.close()
