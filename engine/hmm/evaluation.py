@@ -9,7 +9,7 @@ import numpy as np
 
 from engine.graph.evaluate import root_local
 from engine.hmm.config import HMMConfig
-from engine.hmm.features import body_features, decode, imu_features
+from engine.hmm.features import align_hemispheres, body_features, decode, imu_features
 from engine.hmm.model import HierarchicalHMM, TrainingClip
 from engine.hmm.phases import detect_events, label_phases, segments_from_labels
 from engine.hmm.reconstructor import HMMReconstructor
@@ -51,7 +51,10 @@ def train_model(motions: list[Motion], imu_names: tuple[str, ...] = ("right_foot
                 config: HMMConfig = HMMConfig()) -> HierarchicalHMM:
     at_rate = [resample(m, config.fps) for m in motions]
     labels = labels or [behaviour_of(m) for m in at_rate]
-    return HierarchicalHMM.train([training_clip(m, imu_names, lab, config) for m, lab in zip(at_rate, labels)], config)
+    clips = [training_clip(m, imu_names, lab, config) for m, lab in zip(at_rate, labels)]
+    for clip, body in zip(clips, align_hemispheres([c.body for c in clips])):
+        clip.body = body
+    return HierarchicalHMM.train(clips, config)
 
 
 def reconstruct(model: HierarchicalHMM, acc_g: np.ndarray, gyro_rps: np.ndarray, joints: int, root0_m: np.ndarray,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.mocap import Motion, SensorPlacement, virtual_accelerometers, virtual_gyroscopes
-from engine.olng.pose import quat_multiply, split_heading, yaw_quat
+from engine.olng.pose import quat_multiply, reference_quats, split_heading, yaw_quat
 
 
 def body_features(motion: Motion) -> np.ndarray:
@@ -26,6 +26,23 @@ def body_features(motion: Motion) -> np.ndarray:
     local = np.stack([c * step[:, 0] - s * step[:, 2], motion.root_positions_m[:, 1], s * step[:, 0] + c * step[:, 2]], axis=1)
     dheading = np.diff(heading, prepend=heading[0])
     return np.concatenate([quats.reshape(len(quats), -1), local, dheading[:, None]], axis=1)
+
+
+def align_hemispheres(bodies: list[np.ndarray]) -> list[np.ndarray]:
+    """Flip each joint quaternion of every frame onto the hemisphere of the per-joint mean over all clips.
+
+    WHY: the model averages quaternions linearly (templates, interpolation). The usual w >= 0 convention flips
+    sign frame to frame for joints held near 180 degrees (Bandai's legs at rest), which ruins those averages."""
+    joints = (bodies[0].shape[1] - 4) // 4
+    quats = [b[:, : joints * 4].reshape(len(b), joints, 4) for b in bodies]
+    ref = reference_quats(np.concatenate(quats))
+    out = []
+    for body, q in zip(bodies, quats):
+        sign = np.where(np.einsum("fjk,jk->fj", q, ref) < 0, -1.0, 1.0)
+        aligned = body.copy()
+        aligned[:, : joints * 4] = (q * sign[..., None]).reshape(len(body), -1)
+        out.append(aligned)
+    return out
 
 
 def imu_features(motion: Motion, placements: list[SensorPlacement]) -> tuple[np.ndarray, np.ndarray]:

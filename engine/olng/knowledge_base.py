@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from engine.olng.pose import Rig, fk_root_frame, pose_vectors
+from engine.olng.pose import Rig, fk_root_frame, pose_vectors, reference_quats, tilted
 
 
 @dataclass(frozen=True)
@@ -110,13 +110,16 @@ class KnowledgeBase:
             raise ValueError("knowledge base needs at least one clip")
         dt = 1.0 / fps
         joints = len(rig.parents)
-        q_parts, head_parts, root_parts, ids = [], [], [], []
         for cid, clip in enumerate(clips):
             if clip.local_quats.shape[1:] != (joints, 4):
                 raise ValueError(f"clip {clip.name or cid}: local_quats shape {clip.local_quats.shape} does not match {joints} joints")
             if len(clip.acc_g) != len(clip.local_quats) or len(clip.root_pos_m) != len(clip.local_quats):
                 raise ValueError(f"clip {clip.name or cid}: acc/root/pose frame counts differ")
-            q, heading = pose_vectors(clip.local_quats)
+        ref = reference_quats(np.concatenate([tilted(c.local_quats)[0] for c in clips]))
+        rig = Rig(rig.names, rig.parents, rig.offsets_m, rig.end_site, ref)
+        q_parts, head_parts, root_parts, ids = [], [], [], []
+        for cid, clip in enumerate(clips):
+            q, heading = pose_vectors(clip.local_quats, ref)
             q_parts.append(q)
             head_parts.append(np.unwrap(heading))
             root_parts.append(clip.root_pos_m)
@@ -150,6 +153,7 @@ class KnowledgeBase:
         np.savez_compressed(
             path, names=np.array(self.rig.names), parents=self.rig.parents, offsets_m=self.rig.offsets_m,
             end_site=np.zeros(len(self.rig.parents), bool) if self.rig.end_site is None else self.rig.end_site,
+            ref_quats=self.rig.ref_quats,
             sensor_bone=self.sensors.bone, sensor_local_rot=self.sensors.local_rot, sensor_tip=self.sensors.tip,
             fps=self.fps, q=self.q, x_m=self.x_m, v_mps=self.v_mps, a_mps2=self.a_mps2, alpha_g=self.alpha_g,
             clip_id=self.clip_id, root_vel_heading_mps=self.root_vel_heading_mps, yaw_rate_rps=self.yaw_rate_rps,
@@ -162,7 +166,8 @@ class KnowledgeBase:
 
         try:
             data = np.load(path, allow_pickle=False)
-            rig = Rig(tuple(str(n) for n in data["names"]), data["parents"], data["offsets_m"], data["end_site"])
+            rig = Rig(tuple(str(n) for n in data["names"]), data["parents"], data["offsets_m"], data["end_site"],
+                      data["ref_quats"])
             sensors = SensorRig(data["sensor_bone"], data["sensor_local_rot"], data["sensor_tip"])
             fields = {k: data[k] for k in ("q", "x_m", "v_mps", "a_mps2", "alpha_g", "clip_id",
                                            "root_vel_heading_mps", "yaw_rate_rps", "root_height_m")}

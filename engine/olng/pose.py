@@ -28,6 +28,7 @@ class Rig:
     parents: np.ndarray   # (J,) int
     offsets_m: np.ndarray  # (J, 3)
     end_site: np.ndarray | None = None  # (J,) bool, leaves without rotation channels (kept for BVH output)
+    ref_quats: np.ndarray | None = None  # (J, 4) per-joint reference rotation the pose vectors are relative to
 
     def __post_init__(self) -> None:
         parents = np.asarray(self.parents)
@@ -108,18 +109,46 @@ def split_heading(root_quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return heading, quat_multiply(yaw_inv, root_quat)
 
 
-def pose_vectors(local_quats: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Local joint quaternions (F, J, 4) -> (pose vectors q (F, J*3) with root heading removed, heading (F,))."""
+def reference_quats(tilted_quats: np.ndarray) -> np.ndarray:
+    """Per-joint mean rotation (J, 4) of (F, J, 4) quaternions (signs aligned to the first frame, normalised).
+
+    WHY: some skeletons hold joints near 180 degrees at rest (Bandai's legs); rotation vectors wrap there, so
+    averaging or PCA of raw rotation vectors mixes +pi and -pi. Pose vectors relative to this reference stay
+    small deviations."""
+    sign = np.sign(np.einsum("fjk,jk->fj", tilted_quats, tilted_quats[0]))
+    mean = (tilted_quats * np.where(sign == 0, 1.0, sign)[..., None]).mean(axis=0)
+    norm = np.linalg.norm(mean, axis=-1, keepdims=True)
+    return np.where(norm > 1e-9, mean / np.maximum(norm, 1e-9), np.array([1.0, 0.0, 0.0, 0.0]))
+
+
+def tilted(local_quats: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Local joint quaternions (F, J, 4) -> (the same with the root's heading removed, heading (F,))."""
     heading, tilt = split_heading(local_quats[:, 0])
     quats = local_quats.copy()
     quats[:, 0] = tilt
+    return quats, heading
+
+
+def pose_vectors(local_quats: np.ndarray, ref_quats: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Local joint quaternions (F, J, 4) -> (pose vectors q (F, J*3) with root heading removed, relative to
+    ref_quats when given, heading (F,))."""
+    quats, heading = tilted(local_quats)
+    if ref_quats is not None:
+        quats = quat_multiply(ref_quats * np.array([1.0, -1.0, -1.0, -1.0]), quats)
     frames, joints = quats.shape[:2]
     return quat_to_rotvec(quats).reshape(frames, joints * 3), heading
 
 
-def local_matrices(q: np.ndarray, joints: int) -> np.ndarray:
+def pose_quats(rig: Rig, q: np.ndarray) -> np.ndarray:
+    """Pose vector (J*3,) -> local quaternions (J, 4) (root without heading)."""
+    quats = rotvec_to_quat(q.reshape(-1, 3))
+    return quats if rig.ref_quats is None else quat_multiply(rig.ref_quats, quats)
+
+
+def local_matrices(rig: Rig, q: np.ndarray) -> np.ndarray:
     """Pose vectors (B, J*3) -> local rotation matrices (B, J, 3, 3)."""
-    return rotvec_to_matrix(q.reshape(q.shape[0], joints, 3))
+    local = rotvec_to_matrix(q.reshape(q.shape[0], len(rig.parents), 3))
+    return local if rig.ref_quats is None else quat_to_matrix(rig.ref_quats) @ local
 
 
 @lru_cache(maxsize=32)
@@ -140,7 +169,7 @@ def fk_root_frame(rig: Rig, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     energy calls this ~10^3 times per second."""
     parents = np.asarray(rig.parents)
     joints = len(parents)
-    local = local_matrices(q, joints)
+    local = local_matrices(rig, q)
     batch = q.shape[0]
     rot = np.empty((batch, joints, 3, 3))
     pos = np.empty((batch, joints, 3))

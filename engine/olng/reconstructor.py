@@ -15,7 +15,7 @@ from engine.olng.config import OLNGConfig
 from engine.olng.energy import FrameProblem, KernelEnergy
 from engine.olng.graph import OnlineLazyNeighbourhoodGraph, path_weights
 from engine.olng.knowledge_base import KnowledgeBase
-from engine.olng.pose import UP, fk_root_frame, quat_multiply, rotvec_to_matrix, rotvec_to_quat, yaw_quat
+from engine.olng.pose import UP, fk_root_frame, pose_quats, quat_multiply, quat_to_matrix, yaw_quat
 
 G_MPS2 = 9.80665
 
@@ -71,7 +71,7 @@ class OLNGReconstructor:
         (spec A2.6: root acceleration and fictitious forces ignored on purpose). (S, 3) in m/s^2."""
         _, rot = fk_root_frame(self.kb.rig, q_prev[None])
         sensor_rot = rot[0, self.kb.sensors.bone] @ self.kb.sensors.local_rot      # (S, 3, 3) root <- sensor
-        tilt = rotvec_to_matrix(q_prev[:3])
+        tilt = quat_to_matrix(pose_quats(self.kb.rig, q_prev)[0])
         gravity_root = G_MPS2 * tilt.T @ UP
         return np.einsum("sij,sj->si", sensor_rot, alpha_g * G_MPS2) - gravity_root
 
@@ -132,10 +132,8 @@ class OLNGReconstructor:
         self._root[2] += dt * (-s * vel_heading[0] + c * vel_heading[2])
         self._root[1] = float(weights @ kb.root_height_m[nodes])
         self._heading += dt * float(weights @ kb.yaw_rate_rps[nodes])
-        quats = rotvec_to_quat(q.reshape(-1, 3))
+        quats = pose_quats(kb.rig, q)
         quats[0] = quat_multiply(yaw_quat(np.array(self._heading)), quats[0])
-        root_rot = rotvec_to_matrix(q[:3])
-        yaw = rotvec_to_matrix(np.array([0.0, self._heading, 0.0]))
-        world = self._root + joints_root @ (yaw @ root_rot).T
+        world = self._root + joints_root @ quat_to_matrix(quats[0]).T
         return ReconstructedPose(q=q, local_quats=quats, root_pos_m=self._root.copy(), heading_rad=self._heading,
                                  joints_root_m=joints_root, joints_world_m=world)
