@@ -67,9 +67,65 @@ def main() -> int:
         window.tabs.setCurrentIndex(0)
         pump(0.5)
         shots.append(save_grab(window, args.out / "playback-traces.png"))
+    shots.append(calibration_review(args.out / "calibration-review.png"))
     for path in shots:
         print(path)
     return 0
+
+
+def calibration_review(path: Path) -> Path:
+    """The wizard at its review step: a subject standing still in the N-pose (emulated still sensors, identity
+    mounting) walked through assign -> placement -> N-pose capture -> tap skipped -> review, all via the gateway."""
+    import tempfile
+    import time
+
+    from engine.mocap import SEED000_SENSORS
+    from firmware_protocol.emulator import StationConfig
+    from firmware_protocol.emulator.motion import StillSource
+    from gateway.calibration.service import CalibrationService
+    from gateway.calibration.wizard import SegmentSpec
+    from gateway.client import GatewayClient
+    from gateway.daemon import Gateway
+    from gateway.emulated import start_emulated_station
+    from gui.app import pump, save_grab
+    from gui.main_window import ConsoleWindow
+
+    def wait(predicate, timeout_s: float) -> None:
+        end = time.monotonic() + timeout_s
+        while not predicate():
+            if time.monotonic() > end:
+                raise TimeoutError("calibration wizard did not get there")
+            pump(0.2)
+
+    station = start_emulated_station(StationConfig(station_id=1, n_sensors=6, autostart=True, noise_g=0.003),
+                                     motion=StillSource(6))
+    service = CalibrationService({name: SegmentSpec() for name in SEED000_SENSORS})
+    with tempfile.TemporaryDirectory() as rec:
+        gateway = Gateway([station.path], listen=("127.0.0.1", 0), record_dir=rec, calibration=service,
+                          status_interval_s=0.5)
+        gateway.start()
+        client = GatewayClient(*gateway.address).connect()
+        window = ConsoleWindow(client, sensor_segments={("st1", i): n for i, n in enumerate(SEED000_SENSORS)})
+        try:
+            window.open_calibration()
+            wizard = window.wizard
+            wait(lambda: wizard.state.get("step") == "assign", 10)
+            wizard.assign_from_mapping()
+            wait(lambda: all(x["segment"] for x in wizard.state.get("sensors", {}).values()), 10)
+            wizard.next_button.click()
+            wait(lambda: wizard.state.get("step") == "placement" and all(
+                x["placement_ok"] for x in wizard.state["sensors"].values()), 10)
+            wizard.next_button.click()
+            wait(lambda: wizard.state.get("step") == "tap", 20)
+            wizard.next_button.click()
+            wait(lambda: wizard.state.get("step") == "review", 10)
+            pump(0.5)
+            return save_grab(wizard, path)
+        finally:
+            window.shutdown()
+            client.close()
+            gateway.stop()
+            station.stop()
 
 
 if __name__ == "__main__":
