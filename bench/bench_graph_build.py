@@ -16,7 +16,7 @@ from pathlib import Path
 from engine.graph.cli import clip_label
 from engine.graph.config import GraphConfig
 from engine.graph.graph import build_from_clips
-from engine.graph.mocap_adapter import clips_from_motions
+from engine.graph.mocap_adapter import clips_from_motions, mocap_sensor_model
 from engine.mocap import SEED000_SENSORS, load_database, sample_clips, standard_placements
 
 
@@ -45,7 +45,7 @@ def main() -> None:
         t1 = time.perf_counter()
         clips = clips_from_motions(motions, placements, cfg, [clip_label(x) for x in paths])
         t2 = time.perf_counter()
-        g = build_from_clips(clips, cfg)
+        g = build_from_clips(clips, cfg, mocap_sensor_model(motions[0].skeleton, placements, cfg.fps))
         t3 = time.perf_counter()
         print(f"{v:12s} {t2 - t1:10.1f} {t3 - t2:8.1f} {frames / (t3 - t1):9.0f} {g.n_nodes:8d} {g.n_edges:8d}")
 

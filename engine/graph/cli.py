@@ -16,7 +16,7 @@ from engine.mocap import SEED000_SENSORS, STANDARD_SENSORS, load_database, sampl
 
 from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
-from .mocap_adapter import clips_from_motions
+from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .viterbi import SearchWeights
 
 _BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+")
@@ -59,7 +59,7 @@ def load_clips(args: argparse.Namespace, config: GraphConfig):
     placements = standard_placements(motions[0].skeleton, args.sensors)
     config.sensor_names = list(args.sensors)
     clips = clips_from_motions(motions, placements, config, [clip_label(p) for p in paths])
-    return motions, clips
+    return motions, clips, mocap_sensor_model(motions[0].skeleton, placements, config.fps)
 
 
 def build_graph_main(argv: list[str]) -> int:
@@ -73,12 +73,12 @@ def build_graph_main(argv: list[str]) -> int:
     config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold)
     t0 = time.perf_counter()
     try:
-        motions, clips = load_clips(args, config)
+        motions, clips, sensor_model = load_clips(args, config)
     except MalformedFileError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     t1 = time.perf_counter()
-    graph = build_from_clips(clips, config)
+    graph = build_from_clips(clips, config, sensor_model)
     graph.skeleton = motions[0].skeleton
     t2 = time.perf_counter()
     graph.save(args.output)
@@ -167,7 +167,7 @@ def evaluate_main(argv: list[str]) -> int:
     full = GraphConfig(msv="msv" in args.variants, interp="interp" in args.variants,
                        transition_threshold_m=args.threshold)
     try:
-        motions, clips = load_clips(args, full)
+        motions, clips, sensor_model = load_clips(args, full)
     except MalformedFileError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
@@ -193,7 +193,7 @@ def evaluate_main(argv: list[str]) -> int:
     for v in variants:
         cfg = GraphConfig(msv="msv" in v, interp="interp" in v, transition_threshold_m=args.threshold,
                           sensor_names=list(args.sensors))
-        graph = build_from_clips(clips, cfg)
+        graph = build_from_clips(clips, cfg, sensor_model)
         t0 = time.perf_counter()
         scores = leave_one_out(graph, clips, motions[0].skeleton, settings, tests, seed=args.seed)
         per = (time.perf_counter() - t0) / len(settings)

@@ -9,6 +9,7 @@ interpolated clips). The first sample of a search is scored against the arrival 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -197,12 +198,13 @@ class MotionGraph:
               labels: list[str] | None = None) -> "MotionGraph":
         """Build from engine.mocap Motions (one skeleton) and SensorPlacements; `labels` = one action label per
         clip for human constraints (see engine.graph.mocap_adapter)."""
-        from .mocap_adapter import clips_from_motions
+        from .mocap_adapter import clips_from_motions, mocap_sensor_model
 
         config = config or GraphConfig()
         if not config.sensor_names:
             config.sensor_names = [p.name for p in placements]
-        graph = build_from_clips(clips_from_motions(motions, placements, config, labels), config)
+        graph = build_from_clips(clips_from_motions(motions, placements, config, labels), config,
+                                 mocap_sensor_model(motions[0].skeleton, placements, config.fps))
         graph.skeleton = motions[0].skeleton
         return graph
 
@@ -231,8 +233,15 @@ def _original_nodes(parts: GraphParts, clips: list[ClipData], label_names: list[
     return offsets
 
 
-def build_from_clips(clips: list[ClipData], config: GraphConfig) -> MotionGraph:
-    """Assemble the graph: original frames, natural edges, transitions, then optional MSV / interpolation."""
+SensorModel = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""(root positions (K, 3) m, local rotations (K, J, 4)) of a K-frame motion at the graph rate -> virtual
+accelerations (K, S, 3) g: lets interpolated motions get their own simulated sensor readings."""
+
+
+def build_from_clips(clips: list[ClipData], config: GraphConfig,
+                     sensor_model: SensorModel | None = None) -> MotionGraph:
+    """Assemble the graph: original frames, natural edges, transitions, then optional MSV / interpolation.
+    Without `sensor_model` interpolated motions read the mean of their parents' accelerations."""
     if not clips:
         raise ValueError("cannot build a motion graph from zero clips")
     n_joints = {c.positions_m.shape[1] for c in clips}
@@ -254,7 +263,7 @@ def build_from_clips(clips: list[ClipData], config: GraphConfig) -> MotionGraph:
     if config.interp:
         from .interpolate import add_interpolated_motions
 
-        add_interpolated_motions(parts, clips, offsets, config, joint_weights, label_names)
+        add_interpolated_motions(parts, clips, offsets, config, joint_weights, label_names, sensor_model)
     return assemble(parts, clips, config, label_names)
 
 

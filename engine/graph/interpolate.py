@@ -11,8 +11,8 @@ clips blended with even weights:
   and slerped half-way (local joint rotations, root rotation relative to heading);
 * root path: the per-frame heading and local ground offsets of both stretches are averaged and integrated, so
   the blend moves like both parents (the same eq.-5 offsets the search uses);
-* accelerations: the average of the two parents' readings at the aligned frames (an approximation of
-  re-simulating the sensors on the blend; the error is second order in the pose difference, which t_i bounds).
+* accelerations: the blend's own virtual sensors when the builder has a sensor model (graphs built from
+  engine.mocap Motions), else the average of the two parents' readings at the aligned frames.
 
 Each blend is wired in with entry edges from both parents' predecessor frames and exit edges to both parents'
 successor frames, so a path can switch into and out of it wherever the parents could be.
@@ -152,7 +152,7 @@ def _blend(sc: ClipData, pc: ClipData, a: np.ndarray, b: np.ndarray) -> dict[str
 
 
 def add_interpolated_motions(parts: GraphParts, clips: list[ClipData], offsets: np.ndarray, config: GraphConfig,
-                             joint_weights: np.ndarray, label_names: list[str]) -> int:
+                             joint_weights: np.ndarray, label_names: list[str], sensor_model=None) -> int:
     """Append every blend as a chain of new nodes with entry/exit edges; returns the number of blends."""
     has_rot = "node_rotations" in parts.node
     arrival_all = np.concatenate(parts.node["node_arrival"][: len(clips)])
@@ -161,6 +161,8 @@ def add_interpolated_motions(parts: GraphParts, clips: list[ClipData], offsets: 
         sc, pc = clips[al.s], clips[al.p]
         bl = _blend(sc, pc, al.a, al.b)
         k = len(al.a)
+        if sensor_model is not None and "rotations" in bl and k >= 3:
+            bl["acc"] = sensor_model(bl["root"], bl["rotations"])  # the blend's own virtual sensors
         rows = parts.add_meta(bl["acc"], bl["dh"], bl["dp"])
         arrays = dict(
             node_clip=np.full(k, al.s, np.int32), node_clip2=np.full(k, al.p, np.int32),

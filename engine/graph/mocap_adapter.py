@@ -61,3 +61,10 @@ def clips_from_motions(motions: list[Motion], placements: list[SensorPlacement],
             raise ValueError(f"clip {m.name!r} has a different skeleton from {motions[0].name!r}")
     labels = labels or [""] * len(motions)
     return [clip_from_motion(m, placements, config, lab) for m, lab in zip(motions, labels)]
+
+
+def mocap_sensor_model(skeleton, placements: list[SensorPlacement], fps: float):
+    """A `graph.SensorModel`: the virtual accelerometers of a motion given as (root (K, 3), rotations (K, J, 4))."""
+    def model(root_m: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+        return virtual_accelerometers(Motion(skeleton, fps, root_m, rotations), placements)
+    return model

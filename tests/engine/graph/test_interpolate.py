@@ -101,3 +101,34 @@ def test_groups_whose_latest_cell_lies_left_of_the_start_are_handled():
     als = find_alignments([a, rev], CFG, np.ones(5))
     for al in als:
         assert np.all(np.diff(al.a) > 0) and np.all(np.diff(al.b) > 0)
+
+
+def test_blend_of_a_real_clip_with_its_rigid_copy_reads_the_clip_s_own_sensors(sample_motions):
+    """With a sensor model (engine.mocap virtual sensors) the blended motion gets simulated readings; blending a
+    CMU walk with a turned and shifted copy of itself gives back the walk, so the readings must be the walk's."""
+    from engine.graph.mocap_adapter import clips_from_motions, mocap_sensor_model
+    from engine.mocap import Motion, standard_placements
+    from engine.mocap import quaternions as quat
+
+    walk = max(sample_motions, key=lambda m: m.n_frames)
+    yaw = 0.9
+    q = quat.from_rotvec(np.array([0.0, yaw, 0.0]))
+    root = walk.root_positions_m.copy()
+    root[:, [0, 2]] = np.stack([root[:, 0] * np.cos(yaw) + root[:, 2] * np.sin(yaw),
+                                -root[:, 0] * np.sin(yaw) + root[:, 2] * np.cos(yaw)], axis=1) + [3.0, -1.0]
+    rots = walk.rotations.copy()
+    rots[:, 0] = quat.multiply(q, rots[:, 0])
+    copy = Motion(walk.skeleton, walk.fps, root, rots, "copy")
+    cfg = GraphConfig(interp=True, interp_threshold_m=0.01)
+    placements = standard_placements(walk.skeleton)
+    clips = clips_from_motions([walk, copy], placements, cfg)
+    clips[1].acc_g = clips[1].acc_g + 1.0  # averaging parents would now be off by 0.5 g; simulating is not
+    g = build_from_clips(clips, cfg, mocap_sensor_model(walk.skeleton, placements, cfg.fps))
+    diag = np.flatnonzero((g.node_kind == NODE_INTERP) & (g.node_clip == 0) & (g.node_clip2 == 1))
+    frames = g.node_frame[diag].astype(int)
+    chain = diag[np.flatnonzero(np.diff(frames) == 1)]
+    assert len(chain) > 30
+    inner = chain[2:-2]  # away from the chain ends, where finite differences copy their neighbours
+    got = g.meta_acc_g[g.node_arrival[inner]]
+    want = clips[0].acc_g[g.node_frame[inner].astype(int)]
+    assert np.abs(got - want).max() < 1e-3  # float32 storage
