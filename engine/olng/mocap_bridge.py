@@ -56,12 +56,17 @@ def standard_skeleton(motions: list[Motion]) -> Skeleton:
     lengths = np.mean([np.linalg.norm(m.skeleton.offsets_m, axis=1) for m in motions], axis=0)
     norms = np.linalg.norm(first.offsets_m, axis=1)
     offsets = np.where(norms[:, None] > 0, first.offsets_m / np.maximum(norms, 1e-12)[:, None] * lengths[:, None], 0.0)
+    offsets[0] = first.offsets_m[0]   # the root's offset is not a bone (Bandai stores metres of translation there)
     return Skeleton(first.names, first.parents, offsets, first.end_site)
+
+
+def _bone_length_sum(skeleton: Skeleton) -> float:
+    return float(np.linalg.norm(skeleton.offsets_m[1:], axis=1).sum())
 
 
 def retarget(motion: Motion, skeleton: Skeleton) -> Motion:
     """Same joint rotations on another skeleton of the same topology; root path scaled by the leg-length ratio."""
-    scale = np.linalg.norm(skeleton.offsets_m, axis=1).sum() / max(np.linalg.norm(motion.skeleton.offsets_m, axis=1).sum(), 1e-12)
+    scale = _bone_length_sum(skeleton) / max(_bone_length_sum(motion.skeleton), 1e-12)
     return Motion(skeleton, motion.fps, motion.root_positions_m * scale, motion.rotations, motion.name)
 
 
