@@ -148,7 +148,16 @@ def pose_quats(rig: Rig, q: np.ndarray) -> np.ndarray:
 def local_matrices(rig: Rig, q: np.ndarray) -> np.ndarray:
     """Pose vectors (B, J*3) -> local rotation matrices (B, J, 3, 3)."""
     local = rotvec_to_matrix(q.reshape(q.shape[0], len(rig.parents), 3))
-    return local if rig.ref_quats is None else quat_to_matrix(rig.ref_quats) @ local
+    return local if rig.ref_quats is None else _ref_matrices(rig) @ local
+
+
+def _ref_matrices(rig: Rig) -> np.ndarray:
+    """quat_to_matrix(rig.ref_quats), cached on the rig (FK runs ~1000 times per second)."""
+    cached = rig.__dict__.get("_ref_matrices")
+    if cached is None:
+        cached = quat_to_matrix(rig.ref_quats)
+        object.__setattr__(rig, "_ref_matrices", cached)
+    return cached
 
 
 @lru_cache(maxsize=32)
