@@ -97,6 +97,7 @@ def synthesize_main(argv: list[str]) -> int:
     from .inputs import load_take
     from .online import FixedLagSynthesizer
     from .postprocess import path_to_motion
+    from . import label_constraint
     from .viterbi import ViterbiSearch
 
     p = argparse.ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
@@ -107,6 +108,9 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--lag", type=float, default=None, help="fixed-lag online decoding with this latency (s)")
     p.add_argument("--sensor-map", nargs="*", default=None, metavar="STATION/SENSOR=NAME",
                    help="gateway exports: which recorded sensor is which graph sensor")
+    p.add_argument("--require", nargs="*", default=[], metavar="LABEL@SECONDS",
+                   help="human constraints (eq. 8): be on a clip labelled LABEL around this time of the take")
+    p.add_argument("--require-tolerance", type=int, default=10, help="+- frames around each required time")
     p.add_argument("--no-blend", action="store_true")
     p.add_argument("--no-ik", action="store_true")
     args = p.parse_args(argv)
@@ -121,10 +125,22 @@ def synthesize_main(argv: list[str]) -> int:
         print(f"error: {args.graph}: graph holds no skeleton (rebuild it with build-graph)", file=sys.stderr)
         return 1
     weights = _weights(args.weights)
+    try:
+        constraints = [label_constraint(graph, r.rsplit("@", 1)[0], int(round(float(r.rsplit("@", 1)[1])
+                                                                                * graph.config.fps)),
+                                        args.require_tolerance) for r in args.require]
+    except (KeyError, ValueError, IndexError) as exc:
+        print(f"error: bad --require {args.require}: {exc}", file=sys.stderr)
+        return 2
+    if constraints and args.lag is not None:
+        print("error: --require needs the batch search (no --lag)", file=sys.stderr)
+        return 2
     t0 = time.perf_counter()
+    broken = 0
     if args.lag is None:
-        res = ViterbiSearch(graph, weights).run(obs)
+        res = ViterbiSearch(graph, weights).run(obs, constraints)
         nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
+        broken = res.broken_constraints
     else:
         syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)
         poses = []
@@ -146,7 +162,8 @@ def synthesize_main(argv: list[str]) -> int:
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
-    print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output}))
+    print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
+                      "broken_constraints": broken}))
     return 0
 
 

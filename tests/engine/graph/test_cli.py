@@ -88,3 +88,18 @@ def test_evaluate_prints_the_table(capsys):
     stats = [re.findall(r"(\d+\.\d) \(\s*(\d+\.\d)\)", ln) for ln in lines]
     assert all(len(s) == 3 for s in stats)  # joint, position, heading: mean (sd)
     assert all(0 < float(s[0][0]) < 30 for s in stats)
+
+
+def test_synthesize_honours_a_human_constraint(built, capsys):
+    """Require poses from the run clip 16_35 around 1 s into a walking take: the search complies (eq. 8), and
+    an unknown label is a usage error."""
+    import json
+
+    tmp, _ = built
+    args = ["--graph", str(tmp / "g.npz"), "--input", str(tmp / "take.npz"), "-o", str(tmp / "c.bvh")]
+    g = MotionGraph.load(tmp / "g.npz")
+    assert "16_35" in g.label_names
+    assert synthesize_main(args + ["--require", "16_35@1.0", "--require-tolerance", "3"]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["broken_constraints"] == 0
+    assert synthesize_main(args + ["--require", "no-such-label@1.0"]) == 2
