@@ -8,13 +8,15 @@ Two file layouts are accepted (both .npz):
   `heading_rad` (T,) rad, NaN where missing.
 * the gateway's export (`courtside gateway` recording -> `export_npz`): per sensor `<station>/<sensor>/acc_g`
   (N, 3) and `<station>/<sensor>/t_host_s` (N,). Sensors are put on a common time grid; they map to graph
-  sensors in sorted (station, sensor) order unless a mapping is given.
+  sensors in sorted (station, sensor) order unless a mapping is given. Recorded camera messages (in the
+  `messages` JSON: `t_host_s`, `position_m` court [x, y], `heading_rad`) become the position/heading track.
 
 If a position track is given without heading, the seed-000 heuristic fills it in: the direction of motion when
 the speed exceeds 2 m/s, otherwise facing the net (court y = world z = 0).
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -91,8 +93,39 @@ def _from_gateway_export(path: Path, data, graph_sensors: list[str], fps_graph: 
         raise MalformedFileError(path, None, "the sensors' recordings do not overlap in time")
     grid = np.arange(t0, t1, 1.0 / rate)
     acc = np.stack([np.stack([np.interp(grid, t, a[:, k]) for k in range(3)], axis=1) for t, a in streams], axis=1)
-    return Observations(resample_stream(acc, rate, fps_graph), None, None,
-                        tuple(graph_sensors.index(mapping[k]) for k in keys))
+    acc_r = resample_stream(acc, rate, fps_graph)
+    t_out = t0 + np.arange(len(acc_r)) / fps_graph
+    pos, head = _camera_track(path, data, t_out)
+    if pos is not None and head is not None and np.all(np.isnan(head)):
+        head = heading_heuristic(np.nan_to_num(pos), fps_graph)
+    return Observations(acc_r, pos, head, tuple(graph_sensors.index(mapping[k]) for k in keys))
+
+
+def _camera_track(path: Path, data, t_out: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Court position (court (x, y) = world (x, z), m) and heading from the export's recorded camera messages,
+    interpolated to the sample times; NaN outside the tracked span. (None, None) if there are none."""
+    if "messages" not in data.files:
+        return None, None
+    try:
+        messages = json.loads(str(data["messages"]))
+    except json.JSONDecodeError as exc:
+        raise MalformedFileError(path, None, f"'messages' is not JSON ({exc})") from exc
+    cams = [m for m in messages if m.get("kind") == "camera" and m.get("position_m") is not None]
+    if len(cams) < 2:
+        return None, None
+    t = np.array([float(m["t_host_s"]) for m in cams])
+    order = np.argsort(t)
+    t = t[order]
+    xy = np.array([m["position_m"][:2] for m in cams], float)[order]
+    heading = np.array([np.nan if m.get("heading_rad") is None else float(m["heading_rad"]) for m in cams])[order]
+    inside = (t_out >= t[0]) & (t_out <= t[-1])
+    pos = np.full((len(t_out), 2), np.nan)
+    pos[inside] = np.stack([np.interp(t_out[inside], t, xy[:, k]) for k in range(2)], axis=1)
+    head = np.full(len(t_out), np.nan)
+    known = ~np.isnan(heading)
+    if known.sum() >= 2:
+        head[inside] = np.interp(t_out[inside], t[known], np.unwrap(heading[known]))
+    return pos, head
 
 
 def load_take(path: str | Path, graph_sensors: list[str], fps_graph: float,

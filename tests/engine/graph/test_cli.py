@@ -103,3 +103,21 @@ def test_synthesize_honours_a_human_constraint(built, capsys):
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["broken_constraints"] == 0
     assert synthesize_main(args + ["--require", "no-such-label@1.0"]) == 2
+
+
+def test_gateway_export_camera_track(tmp_path):
+    """Camera messages recorded by the gateway become the position/heading inputs, on the samples' clock."""
+    import json
+
+    t = np.arange(0, 4, 0.01)
+    cams = [{"kind": "camera", "t_host_s": float(tc), "position_m": [1.0 + 0.5 * tc, -3.0], "heading_rad": 0.25}
+            for tc in np.arange(0.5, 3.5, 1 / 25)]
+    cams.insert(3, {"kind": "camera", "t_host_s": 0.6, "position_m": None, "tracking": False})
+    np.savez(tmp_path / "export.npz", **{"base/1/t_host_s": t, "base/1/acc_g": np.zeros((len(t), 3)),
+                                          "messages": np.array(json.dumps(cams + [{"kind": "event"}]))})
+    obs = load_take(tmp_path / "export.npz", ["chest"], 30.0)
+    ts = np.arange(obs.n_samples) / 30.0
+    inside = (ts >= 0.5) & (ts <= cams[-1]["t_host_s"])
+    assert np.allclose(obs.position_m[inside, 0], 1.0 + 0.5 * ts[inside])
+    assert np.allclose(obs.heading_rad[inside], 0.25)
+    assert np.all(np.isnan(obs.position_m[~inside]))
