@@ -32,7 +32,7 @@ class HMMReconstructor:
         self.model = model
         cfg = model.config
         self._log_b: deque[np.ndarray] = deque(maxlen=cfg.window)
-        self._imu_z: deque[np.ndarray] = deque(maxlen=cfg.window)
+        self._imu_z: deque[np.ndarray | None] = deque(maxlen=cfg.window)   # None = dropped frame
         self._phase = -1
         self._since_entry = 0
         self._history: list[np.ndarray] = []
@@ -40,6 +40,7 @@ class HMMReconstructor:
         self._blend_step = 0
         self._uniform = np.full(model.n_states, 1.0 / model.n_states)
         self._alpha: np.ndarray | None = None
+        self.dropped_frames = 0   # frames whose IMU sample was missing (NaN)
         if model.config.forward_mode not in {"window", "recursive"}:
             raise ValueError(f"forward_mode must be 'window' or 'recursive', not {model.config.forward_mode!r}")
 
@@ -67,9 +68,12 @@ class HMMReconstructor:
         y = stack_imu(np.asarray(acc_g, float)[None], np.asarray(gyro_rps, float)[None])[0]
         if y.shape != m.imu_mean.shape:
             raise ValueError(f"expected {m.imu_mean.shape[0] // 6} IMU(s) of acc + gyro, got {y.shape[0] // 6}")
+        dropped = not np.all(np.isfinite(y))
         y_z = m.zscore(y)
-        self._log_b.append(self._emission(y_z))
-        self._imu_z.append(y_z)
+        # sensor drop-out (paper §6): no evidence, so the chains keep moving on their transitions alone
+        self._log_b.append(np.zeros(m.n_states) if dropped else self._emission(y_z))
+        self._imu_z.append(None if dropped else y_z)
+        self.dropped_frames += dropped
         alpha = self.posterior()
         mass = np.add.reduceat(alpha, m.offsets[:-1])
         phase = int(np.argmax(mass))
@@ -81,10 +85,12 @@ class HMMReconstructor:
         progress = progress / progress.sum()
 
         # reactive interpolation: score each segment chain of the phase on the frames since entry
-        recent = np.stack(list(self._imu_z)[-self._since_entry:])                       # (T, dy)
-        seg_z = pm.seg_imu                                                                 # (H, L, dy)
-        diff = seg_z[None] - recent[:, None, None, :]
-        log_b = -0.5 * np.einsum("thlk,thlk->thl", diff, diff) / cfg.sigma**2
+        recent = list(self._imu_z)[-self._since_entry:]
+        log_b = np.zeros((len(recent),) + pm.seg_imu.shape[:2])                            # (T, H, L)
+        seen = [i for i, r in enumerate(recent) if r is not None]
+        if seen:
+            diff = pm.seg_imu[None] - np.stack([recent[i] for i in seen])[:, None, None, :]
+            log_b[seen] = -0.5 * np.einsum("thlk,thlk->thl", diff, diff) / cfg.sigma**2
         _, loglik = chain_forward(log_b, cfg.p_self, cfg.p_next, cfg.p_skip)
         k = min(cfg.k_interpolate, len(loglik))
         top = np.argsort(loglik)[::-1][:k]
@@ -92,7 +98,7 @@ class HMMReconstructor:
         weights /= weights.sum()
         mean_body = np.einsum("k,kld->ld", weights, pm.seg_body[top])
         mean_imu = np.einsum("k,kld->ld", weights, pm.seg_imu[top])
-        per_state = conditional_mean(mean_body, mean_imu, pm.gain, y_z)
+        per_state = mean_body if dropped else conditional_mean(mean_body, mean_imu, pm.gain, y_z)
         if cfg.output == "argmax":
             body = per_state[int(np.argmax(progress))]
         else:

@@ -58,6 +58,7 @@ class OLNGReconstructor:
         self._x_hist: list[np.ndarray] = []   # last two outputs' root-frame positions (energy units)
         self._q_prev: np.ndarray | None = None
         self._alpha_prev: np.ndarray | None = None
+        self.dropped_readings = 0   # non-finite input axes replaced by the previous reading
         self._root = np.zeros(3)
         self._heading = 0.0
 
@@ -102,6 +103,12 @@ class OLNGReconstructor:
         alpha = np.asarray(acc_g, dtype=float).reshape(-1)
         if alpha.shape != (self.kb.alpha_g.shape[1],):
             raise ValueError(f"expected {self.kb.alpha_g.shape[1] // 3} sensors x 3 axes, got shape {np.shape(acc_g)}")
+        if not np.all(np.isfinite(alpha)):
+            # a dropped sample (NaN from the gateway): hold the last complete reading rather than stop the stream
+            if self._alpha_prev is None:
+                raise ValueError("the first reading must be complete (got NaN/inf)")
+            alpha = np.where(np.isfinite(alpha), alpha, self._alpha_prev.reshape(-1))
+            self.dropped_readings += 1
         t0 = time.perf_counter()
         idx, dist = self.kb.neighbours(alpha, self._k)
         t1 = time.perf_counter()

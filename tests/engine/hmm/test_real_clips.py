@@ -123,3 +123,18 @@ def test_cli_hmm_take_to_bvh_and_evaluate_table(tmp_path, motions, capsys):
     assert main(["--evaluate", "--sample", "--methods", "hmm", "--test-clips", "1"]) == 0
     table = capsys.readouterr().out
     assert "hmm (1 imu)" in table and "hmm (2 imu)" in table and "joint cm" in table
+
+
+def test_sensor_dropout_keeps_the_chain_moving(motions):
+    """Paper §6: during a drop-out the model keeps advancing through the phases on its transitions alone, and
+    the output stays finite."""
+    model = train_model([motions[i] for i in (2, 3, 4)])
+    test = resample(motions[5], 30)
+    acc, gyro = imu_features(test, standard_placements(test.skeleton, ("right_foot",)))
+    acc[60:70], gyro[60:70] = np.nan, np.nan
+    rec = HMMReconstructor(model)
+    frames = [rec.push(a, g) for a, g in zip(acc, gyro)]
+    assert rec.dropped_frames == 10
+    assert all(np.all(np.isfinite(f.body)) for f in frames)
+    phases = [f.phase for f in frames[58:72]]
+    assert len(set(phases)) > 1          # not frozen in one state during the gap

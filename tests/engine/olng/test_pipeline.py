@@ -77,3 +77,16 @@ def test_knowledge_base_round_trips_through_npz(knowledge_base, tmp_path):
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(Exception, match="bad.npz"):
         KnowledgeBase.load(tmp_path / "bad.npz")
+
+
+def test_dropped_samples_hold_the_last_reading(knowledge_base):
+    clip = make_clip("walk", 1.0, 3)
+    acc = clip.acc_g.copy()
+    acc[20:23, 1] = np.nan                      # the right-wrist sensor drops three frames
+    rec = OLNGReconstructor(knowledge_base, OLNGConfig(graph=GRAPH))
+    out = np.array([rec.push(a).joints_root_m for a in acc])
+    assert np.all(np.isfinite(out)) and rec.dropped_readings == 3
+    truth = root_frame_positions(clip)
+    assert np.sqrt(((out[20:26] - truth[20:26]) ** 2).sum(-1).mean(-1)).mean() < 0.1   # m: stays on track
+    with pytest.raises(ValueError, match="first reading"):
+        OLNGReconstructor(knowledge_base, OLNGConfig(graph=GRAPH)).push(np.full((4, 3), np.nan))
