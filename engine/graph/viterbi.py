@@ -174,8 +174,10 @@ class ViterbiLattice:
         n = self.graph.n_nodes
         rows = self._acc_rows(acc_g)
         self._G = np.zeros(n, dtype=np.float32) if rows is None else rows[self._arrival]
-        pos = np.zeros(2) if position_m is None or np.any(np.isnan(position_m)) else np.asarray(position_m, float)
-        head = 0.0 if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
+        self._pos_known = not (position_m is None or np.any(np.isnan(position_m)))
+        self._head_known = not (heading_rad is None or np.isnan(heading_rad))
+        pos = np.asarray(position_m, float) if self._pos_known else np.zeros(2)
+        head = float(heading_rad) if self._head_known else 0.0
         self.start_state = (complex(pos[0], pos[1]), head)
         if self.track_global:
             self._P = np.full(n, pos[0] + 1j * pos[1])
@@ -226,13 +228,21 @@ class ViterbiLattice:
             cost += b1
         return cost
 
+    def _late_start(self, position_m, heading_rad) -> tuple[bool, bool]:
+        """Is this sample the first camera fix of a take that started without one? (position, heading)"""
+        first_pos = (not self._pos_known and position_m is not None and not np.any(np.isnan(position_m)))
+        first_head = (not self._head_known and heading_rad is not None and not np.isnan(heading_rad))
+        return first_pos, first_head
+
     def step(self, acc_g: np.ndarray | None, position_m: np.ndarray | None, heading_rad: float | None,
              penalty: np.ndarray | None = None) -> None:
         """Advance every path by one edge for the next sample (O(E) array work)."""
         if self.t < 0:
             self.start(acc_g, position_m, heading_rad, penalty)
             return
-        cost = self._edge_costs(acc_g, None if position_m is None else np.asarray(position_m, float), heading_rad)
+        first_pos, first_head = self._late_start(position_m, heading_rad) if self.track_global else (False, False)
+        cost = self._edge_costs(acc_g, None if position_m is None or first_pos else np.asarray(position_m, float),
+                                None if first_head else heading_rad)
         self.constrained |= penalty is not None
         if self.constrained:  # eq. 8: only edges from sources with the fewest broken constraints compete
             gr_e = self._Gr[self._src]
@@ -265,6 +275,13 @@ class ViterbiLattice:
             self._Gr = Gr
         self._spare = (self._G, self._P, self._O, self._rot)
         self._G, self._P, self._O, self._rot = G, P, O, rot  # (P, O, rot untouched if not tracked)
+        if first_pos:  # a take that started without a camera fix: the first fix initialises every path (eq. 5)
+            self._P[:] = complex(position_m[0], position_m[1])
+            self._pos_known = True
+        if first_head:
+            self._O[:] = heading_rad
+            self._rot[:] = np.exp(-1j * heading_rad)
+            self._head_known = True
         self.columns.append(_Column(None, self._edge_id[win]))
         self.t += 1
         self._since_prune += 1

@@ -109,3 +109,18 @@ def test_survivor_pruning_keeps_the_answer_and_compresses(graph):
         assert np.array_equal(res.nodes, ref.nodes) and res.cost == ref.cost
         assert res.compression_ratio > 5.0
     assert res.lattice_entries * res.compression_ratio == pytest.approx(graph.n_nodes * (len(acc) - 1))
+
+
+def test_a_take_without_an_initial_camera_fix_starts_at_the_first_fix(graph):
+    rng = np.random.default_rng(5)
+    nodes, edges = walk_path(graph, 2, 60, rng, prefer_kind=EDGE_TRANSITION)
+    acc, ground, heading = observe(graph, nodes, edges, ground0=(7.0, -4.0), heading0=2.0)
+    late = 6
+    pos = ground.copy()
+    head = heading.copy()
+    pos[:late] = np.nan
+    head[:late] = np.nan
+    res = ViterbiSearch(graph, SearchWeights(acc=1.0)).run(Observations(acc, pos, head))
+    assert np.array_equal(res.nodes, nodes)
+    # from the first fix on, the carried track is the truth (before it, paths had nothing to be placed by)
+    assert np.allclose(res.ground_m[late:], ground[late:], atol=1e-9)
