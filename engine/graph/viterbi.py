@@ -183,11 +183,12 @@ class ViterbiLattice:
             self._P = np.full(n, pos[0] + 1j * pos[1])
             self._O = np.full(n, head)  # not wrapped: it only ever enters costs through wrap-safe terms
             self._rot = np.full(n, np.exp(-1j * head))
-        self._Gr = np.zeros(n) if penalty is None else np.asarray(penalty, float)[self._to_graph]
-        if not self.track_global:
+            spare_state = (np.empty(n, dtype=complex), np.empty(n), np.empty(n, dtype=complex))
+        else:
             self._P = self._O = self._rot = None
-        self._spare = (np.empty(n, dtype=np.float32),) + ((np.empty(n, dtype=complex), np.empty(n), np.empty(n, dtype=complex))
-                                        if self.track_global else (None, None, None))
+            spare_state = (None, None, None)
+        self._spare = (np.empty(n, dtype=np.float32),) + spare_state
+        self._Gr = np.zeros(n) if penalty is None else np.asarray(penalty, float)[self._to_graph]
         self.constrained = penalty is not None
         self.t = 0
 
