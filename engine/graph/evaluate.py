@@ -105,4 +105,5 @@ def summarise(scores: list[ClipScore]) -> dict[str, float]:
     h = np.concatenate([s.heading_deg for s in scores])
     hit = np.concatenate([s.label_hit for s in scores])
     return {"joint_cm": j.mean(), "joint_sd": j.std(), "pos_cm": p.mean(), "pos_sd": p.std(),
-            "head_deg": h.mean(), "head_sd": h.std(), "label_pct": 100 * hit.mean() if len(hit) else np.nan, "frames": len(j)}
+            "head_deg": h.mean(), "head_sd": h.std(), "label_pct": 100 * hit.mean() if len(hit) else np.nan,
+            "frames": len(j)}

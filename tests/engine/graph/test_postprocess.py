@@ -52,7 +52,8 @@ def test_foot_ik_pins_reachable_contacts_and_keeps_bones(synthesis):
     contacts = g.node_contacts[res.nodes]
     for col, side in enumerate(("left", "right")):
         hip, knee, ankle = (roles[f"{side}_{p}"] for p in ("hip", "knee", "ankle"))
-        reach = np.linalg.norm(pos[:, knee] - pos[:, hip], axis=1) + np.linalg.norm(pos[:, ankle] - pos[:, knee], axis=1)
+        reach = (np.linalg.norm(pos[:, knee] - pos[:, hip], axis=1)
+                 + np.linalg.norm(pos[:, ankle] - pos[:, knee], axis=1))
         for a, b in _contact_runs(contacts[:, col]):
             k = np.arange(a, b - 3)  # before the easing-out frames
             target = pos_free[a, ankle]
