@@ -189,8 +189,34 @@ class MotionGraph:
             if header.get("skeleton_names"):
                 skeleton = Skeleton(tuple(header["skeleton_names"]), data["skeleton_parents"],
                                     data["skeleton_offsets_m"], data["skeleton_end_site"])
-        return cls(config=GraphConfig(**header["config"]), clip_names=header["clip_names"],
-                   label_names=header["label_names"], skeleton=skeleton, **arrays)
+        graph = cls(config=GraphConfig(**header["config"]), clip_names=header["clip_names"],
+                    label_names=header["label_names"], skeleton=skeleton, **arrays)
+        problem = graph.inconsistency()
+        if problem:
+            raise MalformedFileError(path, None, problem)
+        return graph
+
+    def inconsistency(self) -> str | None:
+        """What is wrong with the arrays (None if they fit together): a damaged file must not crash a search."""
+        n, e, m = self.n_nodes, self.n_edges, len(self.meta_dheading_rad)
+        node_arrays = [self.node_clip2, self.node_frame, self.node_kind, self.node_label, self.node_heading_rad,
+                       self.node_arrival, self.node_positions_m, self.node_ground_m, self.node_contacts]
+        if any(len(a) != n for a in node_arrays):
+            return "node arrays have different lengths"
+        if any(len(a) != e for a in (self.edge_dst, self.edge_kind, self.edge_meta)):
+            return "edge arrays have different lengths"
+        if len(self.meta_acc_g) != m or len(self.meta_dpos_m) != m:
+            return "metadata arrays have different lengths"
+        ends = (self.edge_src, self.edge_dst)
+        if e and (min(a.min() for a in ends) < 0 or max(a.max() for a in ends) >= n):
+            return "edge endpoints outside the node range"
+        if (e and (self.edge_meta.min() < 0 or self.edge_meta.max() >= m)) or (
+                n and (self.node_arrival.min() < 0 or self.node_arrival.max() >= m)):
+            return "metadata row ids outside the metadata table"
+        key = self.edge_dst.astype(np.int64) * n + self.edge_src
+        if np.any(np.diff(key) <= 0):
+            return "edges are not sorted by (dst, src) or not unique"
+        return None
 
     # ----- construction ----------------------------------------------------------------------------
     @classmethod

@@ -133,3 +133,16 @@ def test_transition_cap_keeps_the_closest_per_frame(sample_clipdata):
     for src in np.unique(full.src_frame):
         want = np.sort(full.distance_m[full.src_frame == src])[:2]
         assert np.allclose(np.sort(capped.distance_m[capped.src_frame == src]), want)
+
+
+def test_load_rejects_inconsistent_arrays(tmp_path, two_clip_graph):
+    _, g = two_clip_graph
+    path = tmp_path / "g.npz"
+    g.save(path)
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["edge_dst"] = arrays["edge_dst"].copy()
+    arrays["edge_dst"][5] = g.n_nodes + 3
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(MalformedFileError, match="bad.npz.*outside the node range"):
+        MotionGraph.load(tmp_path / "bad.npz")
