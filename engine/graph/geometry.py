@@ -30,7 +30,3 @@ def rotate_points_y(points: np.ndarray, heading_rad: float) -> np.ndarray:
     out[..., [0, 2]] = rotate_ground(points[..., [0, 2]], heading_rad)
     return out
 
-
-def heading_from_forward(forward: np.ndarray) -> np.ndarray:
-    """Heading (rad) of forward vectors (..., 3) projected on the ground plane."""
-    return np.arctan2(forward[..., 0], forward[..., 2])
