@@ -3,9 +3,8 @@ unplug/replug, running 2x faster than real time (60 s emulated in ~30 s).
 
 Scored against the emulator's ground truth: the recording holds exactly the samples the stations delivered, every
 sample's gateway time is within 1 ms (p99) of the truth after the 30 s warm-up, and the replugged station streams
-again within 2 s. The take ends with STOP_STREAMING rather than an unplug: an unplug's ground truth depends on
-how far the kernel's pty flip buffer got, which is racy on an overloaded machine (for the mid-run unplug, samples
-of the last 0.5 s before it are therefore allowed to be missing; nothing else may be missing or extra)."""
+again within 2 s. The take ends by pulling every cable, so both the mid-run unplug and the final ones check that
+the emulator's "delivered" is exactly what reached the gateway: nothing may be missing or extra."""
 from __future__ import annotations
 
 import time
@@ -61,9 +60,9 @@ def test_four_stations_exact_recording_clock_and_reconnect(tmp_path):
         reconnect_s = time.monotonic() - replugged_at
 
         _sleep_until(stations[0], SPAN_S)
-        # end of take: stop streaming (stations flush their partial batches), wait until every reader is quiet
-        for reader in gw.readers:
-            assert gw.handle_request("station_command", {"station": reader.name, "command": "stop"})["acked"]
+        # end of take: pull every cable mid-stream, then wait until the gateway has processed what it read
+        for s in stations:
+            s.unplug()
         quiet_since, last_count = time.monotonic(), gw.samples_in
         while time.monotonic() - quiet_since < 0.5:
             time.sleep(0.05)
@@ -89,6 +88,7 @@ def test_four_stations_exact_recording_clock_and_reconnect(tmp_path):
         truth = em.station.truth.samples()
         delivered = truth.fate == Fate.DELIVERED
         assert (truth.fate == Fate.RADIO_DROPPED).any()  # loss really was injected
+        assert (truth.fate == Fate.LOST_UNPLUGGED).any()  # the cable was pulled mid-stream
         want = {(int(b), int(s), int(c)) for b, s, c in
                 zip(truth.boot[delivered], truth.sensor_id[delivered], truth.counter[delivered])}
         truth_index = {key: i for i, key in enumerate(zip(truth.boot.tolist(), truth.sensor_id.tolist(),
@@ -108,13 +108,7 @@ def test_four_stations_exact_recording_clock_and_reconnect(tmp_path):
                 offline_errors.append(abs(t_off - t_true_host))
                 got_age.append(truth.t_true_s[i] - boot_start[epoch])
         assert len(got_keys) == len(set(got_keys)), f"{name}: duplicated samples in the recording"
-        missing, extra = want - set(got_keys), sorted(set(got_keys) - want)
-        if index == 0:
-            # Mid-run unplug: the emulator counts a frame as delivered once the host's tty queue looks empty,
-            # but on an overloaded machine the kernel's pty flip buffer can still hold the last frames when the
-            # master closes (they are then lost in the kernel, not in the gateway). Only those may be missing.
-            missing -= {k for k in missing if k[0] == 0 and truth.t_true_s[truth_index[k]] > UNPLUG_AT_S - 0.5}
-        missing = sorted(missing)
+        missing, extra = sorted(want - set(got_keys)), sorted(set(got_keys) - want)
         assert not missing and not extra, (f"{name}: recording differs from delivered: missing {len(missing)} "
                                            f"(first {missing[:3]}, last {missing[-3:]}), extra {len(extra)} "
                                            f"(first {extra[:3]}); boot starts {boot_start}")
