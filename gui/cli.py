@@ -30,6 +30,9 @@ def _console_parser() -> argparse.ArgumentParser:
                    help="station whose sensors 0-5 are worn as the graph's sensors (default: the only station "
                         "with >= 6 sensors, if there is exactly one)")
     p.add_argument("--lag", type=float, default=0.5, help="synthesis fixed lag, seconds (default 0.5)")
+    p.add_argument("--calibration", type=Path, default=None, metavar="RECORD",
+                   help="sensor-calibration record (.calibration.json from the calibration workflow): the motion "
+                        "graph's virtual sensors use its measured sensor-to-segment rotations")
     p.add_argument("--duration", type=float, default=None, help="close after this many seconds")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs before closing")
     return p
@@ -78,6 +81,18 @@ def console_main(argv: list[str]) -> int:
     from gui.main_window import ConsoleWindow
     from gui.playback import Playback
 
+    from engine.mocap import MalformedFileError, load_sensor_calibration
+
+    calibration = None
+    if args.calibration is not None:
+        try:
+            calibration = load_sensor_calibration(args.calibration)
+        except MalformedFileError as exc:
+            print(f"courtside console: {exc}", file=sys.stderr)
+            return 2
+        if calibration.failed:
+            log.warning("calibration %s: sensors on %s did not pass the wizard's checks (used anyway)",
+                        args.calibration, ", ".join(calibration.failed))
     application()
     client = playback = None
     held_out: list[str] = []
@@ -98,7 +113,13 @@ def console_main(argv: list[str]) -> int:
                   file=sys.stderr)
             return 2
         stations = client.list_stations()
-    graph, skeleton, cache = load_or_build_graph(exclude=held_out)
+    try:
+        graph, skeleton, cache = load_or_build_graph(exclude=held_out, calibration=calibration)
+    except ValueError as exc:  # a record made for another skeleton's joint frames
+        print(f"courtside console: {exc}", file=sys.stderr)
+        if client is not None:
+            client.close()
+        return 2
     log.info("motion graph %s (%d nodes)", cache, graph.n_nodes)
     synth = None
     station = _pick_synth_station(stations, args.synth_station)

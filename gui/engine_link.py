@@ -2,7 +2,12 @@
 
 The console builds its graph at start from `engine.mocap.sample_clips()` (minus any held-out clips the demo
 replays, so the demo never synthesises a motion it has seen); the result is cached as .npz keyed by the clip
-files, sensor names and graph config, so a second start only loads it."""
+files, sensor names and graph config, so a second start only loads it.
+
+With a sensor-calibration record (``courtside console --calibration take01.calibration.json``, written by the
+gateway's calibration workflow), the graph's virtual sensors use the measured sensor-to-segment rotations
+(`engine.mocap.placements_from_calibration`) instead of the nominal mounting; the cache key then includes the
+rotations, so each calibration gets its own cached graph and the uncalibrated one is kept."""
 from __future__ import annotations
 
 import hashlib
@@ -15,7 +20,8 @@ import numpy as np
 from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph
 from engine.graph.online import FixedLagSynthesizer
-from engine.mocap import SEED000_SENSORS, Skeleton, default_cache_dir, load_clip, sample_clips, standard_placements
+from engine.mocap import (SEED000_SENSORS, SensorCalibrationData, Skeleton, default_cache_dir, load_clip,
+                          placements_from_calibration, sample_clips, standard_placements)
 
 from gui.synthesis import SensorKey, SynthesisSetup
 
@@ -23,27 +29,35 @@ GRAPH_FPS = 30.0
 
 
 def graph_cache_path(clip_paths: Sequence[Path], sensor_names: Sequence[str], config: GraphConfig,
-                     cache_dir: Path | None = None) -> Path:
-    """Cache file name from the clip files' identity (path, size, mtime), sensors and config."""
+                     cache_dir: Path | None = None, calibration: SensorCalibrationData | None = None) -> Path:
+    """Cache file name from the clip files' identity (path, size, mtime), sensors, config and the calibrated
+    rotations (if any)."""
     parts = [json.dumps(list(sensor_names)), config.to_json()]
+    if calibration is not None:
+        parts.append(calibration.fingerprint())
     parts += [f"{p.resolve()}|{p.stat().st_size}|{p.stat().st_mtime_ns}" for p in sorted(clip_paths)]
     digest = hashlib.sha1("\n".join(parts).encode()).hexdigest()[:16]
     return (cache_dir or default_cache_dir().parent / "graphs") / f"graph-{digest}.npz"
 
 
 def load_or_build_graph(exclude: Sequence[str] = (), sensor_names: Sequence[str] = SEED000_SENSORS,
-                        cache_dir: Path | None = None) -> tuple[MotionGraph, Skeleton, Path]:
-    """Graph over the shipped CMU subject-16 clips (one skeleton topology), minus ``exclude`` clip names."""
+                        cache_dir: Path | None = None, calibration: SensorCalibrationData | None = None
+                        ) -> tuple[MotionGraph, Skeleton, Path]:
+    """Graph over the shipped CMU subject-16 clips (one skeleton topology), minus ``exclude`` clip names; with
+    ``calibration`` (`engine.mocap.load_sensor_calibration`) its virtual sensors are mounted as measured."""
     clips = {name: path for name, path in sample_clips().items() if name.startswith("16_") and name not in exclude}
     if not clips:
         raise ValueError("no shipped clips left to build a motion graph from")
     config = GraphConfig(fps=GRAPH_FPS, sensor_names=list(sensor_names))
     motions = [load_clip(path, fps=GRAPH_FPS) for path in clips.values()]
     skeleton = motions[0].skeleton
-    cache = graph_cache_path(list(clips.values()), sensor_names, config, cache_dir)
+    placements = standard_placements(skeleton, tuple(sensor_names))
+    if calibration is not None:
+        placements = placements_from_calibration(placements, calibration)  # ValueError: other joint frames
+    cache = graph_cache_path(list(clips.values()), sensor_names, config, cache_dir, calibration)
     if cache.is_file():
         return MotionGraph.load(cache), skeleton, cache
-    graph = MotionGraph.build(motions, standard_placements(skeleton, tuple(sensor_names)), config)
+    graph = MotionGraph.build(motions, placements, config)
     cache.parent.mkdir(parents=True, exist_ok=True)
     tmp = cache.with_suffix(".tmp")
     graph.save(tmp)

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
-from engine.mocap import SEED000_SENSORS, STANDARD_SENSORS, load_database, sample_clips, standard_placements, write_bvh
+from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load_sensor_calibration,
+                          placements_from_calibration, sample_clips, standard_placements, write_bvh)
 
 from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
@@ -57,6 +58,14 @@ def load_clips(args: argparse.Namespace, config: GraphConfig):
     paths = database_paths(args)
     motions = load_database(paths, fps=config.fps)
     placements = standard_placements(motions[0].skeleton, args.sensors)
+    if getattr(args, "calibration", None):
+        # measured sensor-to-segment rotations instead of the nominal mounting (ValueError: other joint frames)
+        calibration = load_sensor_calibration(args.calibration)
+        placements = placements_from_calibration(placements, calibration)
+        args.calibrated_sensors = sorted(set(calibration.rotations) & set(args.sensors))
+        if calibration.failed:
+            print(f"warning: {args.calibration}: sensors on {', '.join(calibration.failed)} did not pass the "
+                  "calibration checks (their rotations are used anyway)", file=sys.stderr)
     config.sensor_names = list(args.sensors)
     clips = clips_from_motions(motions, placements, config, [clip_label(p) for p in paths])
     return motions, clips, mocap_sensor_model(motions[0].skeleton, placements, config.fps)
@@ -69,12 +78,15 @@ def build_graph_main(argv: list[str]) -> int:
     p.add_argument("-o", "--output", required=True, help="graph .npz (a .json summary is written beside it)")
     p.add_argument("--msv", action="store_true", help="add motion speed variations")
     p.add_argument("--interp", action="store_true", help="add interpolated motions")
+    p.add_argument("--calibration", metavar="RECORD",
+                   help="sensor-calibration record (.calibration.json from the gateway's calibration workflow): "
+                        "virtual sensors use its measured sensor-to-segment rotations")
     args = p.parse_args(argv)
     config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold)
     t0 = time.perf_counter()
     try:
         motions, clips, sensor_model = load_clips(args, config)
-    except MalformedFileError as exc:
+    except (MalformedFileError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     t1 = time.perf_counter()
@@ -84,6 +96,8 @@ def build_graph_main(argv: list[str]) -> int:
     graph.save(args.output)
     summary = {**graph.summary(), "config": json.loads(config.to_json()), "load_s": round(t1 - t0, 2),
                "build_s": round(t2 - t1, 2), "frames": int(sum(c.n_frames for c in clips))}
+    if args.calibration:
+        summary["calibration"] = {"record": str(args.calibration), "sensors": args.calibrated_sensors}
     Path(args.output).with_suffix(".json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(summary))
     return 0

@@ -36,12 +36,15 @@ SEED000_NOISE_G = 0.709  # solved by engine.mocap.bench.calibrate_seed000_noise;
 
 @dataclass(frozen=True, eq=False)
 class SensorPlacement:
-    """One worn sensor: on `joint`'s segment at `offset_m` (joint frame), axes `rotation` (sensor -> joint)."""
+    """One worn sensor: on `joint`'s segment at `offset_m` (joint frame), axes `rotation` (sensor -> joint),
+    and an optional constant accelerometer offset `bias_g` (3,) g added to its virtual readings (a calibrated
+    real sensor's bias; None = no bias). `engine.mocap.calibrated` fills rotation/bias from a calibration."""
 
     name: str
     joint: int
     offset_m: np.ndarray
     rotation: np.ndarray
+    bias_g: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         rot = np.asarray(self.rotation, float)
@@ -49,6 +52,8 @@ class SensorPlacement:
             raise ValueError(f"sensor {self.name!r}: rotation must be a proper 3x3 rotation matrix")
         object.__setattr__(self, "offset_m", np.asarray(self.offset_m, float).reshape(3))
         object.__setattr__(self, "rotation", rot)
+        if self.bias_g is not None:
+            object.__setattr__(self, "bias_g", np.asarray(self.bias_g, float).reshape(3))
 
 
 # name -> (segment role, distal role, fraction of the bone, frame kind)
@@ -125,7 +130,8 @@ def _sensor_world(motion: Motion, placements: list[SensorPlacement],
 
 def virtual_accelerometers(motion: Motion, placements: list[SensorPlacement], clip_g: float | None = None,
                            fk: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """(F, S, 3) specific force in g in each sensor's frame; optionally saturate at +-clip_g.
+    """(F, S, 3) specific force in g in each sensor's frame (plus each placement's `bias_g`, if set);
+    optionally saturate at +-clip_g.
 
     The first and last frames have no central difference; they repeat their neighbour's *reading*."""
     p, r = _sensor_world(motion, placements, fk)
@@ -135,6 +141,8 @@ def virtual_accelerometers(motion: Motion, placements: list[SensorPlacement], cl
     specific = (p[2:] - 2 * p[1:-1] + p[:-2]) * motion.fps**2 - G_WORLD
     acc[1:-1] = np.einsum("fsji,fsj->fsi", r[1:-1], specific) / GRAVITY_MPS2
     acc[0], acc[-1] = acc[1], acc[-2]
+    if any(p.bias_g is not None for p in placements):
+        acc += np.stack([np.zeros(3) if p.bias_g is None else p.bias_g for p in placements])
     return np.clip(acc, -clip_g, clip_g) if clip_g is not None else acc
 
 

@@ -55,9 +55,17 @@ class WizardConfig:
     eval_interval_s: float = 0.05
 
 
-def segment_specs_from_placements(placements: list[Any]) -> dict[str, SegmentSpec]:
-    """Specs from ``engine.mocap.standard_placements(...)`` (name -> nominal rotation, world up)."""
-    return {p.name: SegmentSpec(np.asarray(p.rotation, float)) for p in placements}
+def segment_specs_from_placements(placements: list[Any], pose_rotations: np.ndarray | None = None
+                                  ) -> dict[str, SegmentSpec]:
+    """Specs from ``engine.mocap.standard_placements(...)`` (name -> nominal rotation). ``expected_up`` is world
+    up, i.e. the calibration pose is the skeleton's zero pose, unless ``pose_rotations`` (J, 3, 3), the joints'
+    global rotations in the pose the subject really holds (e.g. ``forward_kinematics`` of an N-pose frame),
+    is given: then each segment's up is world up seen in that joint's frame, ``G_j^T (0, 1, 0)``."""
+    specs = {}
+    for p in placements:
+        up = UP.copy() if pose_rotations is None else np.asarray(pose_rotations, float)[p.joint].T @ UP
+        specs[p.name] = SegmentSpec(np.asarray(p.rotation, float), up)
+    return specs
 
 
 class CalibrationWizard:

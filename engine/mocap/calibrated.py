@@ -1,0 +1,145 @@
+"""Calibrated sensor placements: the standard placements with each worn sensor's *measured* mounting.
+
+The gateway's calibration wizard (gateway/calibration, docs/camera-calibration.md) measures, per worn sensor,
+the rotation from sensor axes to the segment's joint frame by gravity alignment in a still pose. That is exactly
+``SensorPlacement.rotation``; this module swaps it in, so the virtual sensors (and a motion graph built from
+them) read what the real, imperfectly strapped sensors read.
+
+The engine must not depend on the gateway, so the record is read here from its JSON (``schema:
+courtside.sensor_calibration``, ``schema_version: 1``, written by ``gateway.calibration.CalibrationRecord.save``):
+only the per-sensor ``segment`` (= standard placement name), ``rotation`` (3x3), ``gravity_sensor_g``,
+``norm_error_g``, ``correction_deg`` and ``passed`` are used.
+
+Frames: the record's rotations are in the joint frames of the skeleton whose standard placements gave the
+wizard its nominal mountings (``CalibrationService.standard``: the shipped CMU skeleton, which the console and
+``courtside build-graph --sample`` also use). :func:`placements_from_calibration` checks this: the angle
+between the measured and the graph's nominal rotation must equal the correction the wizard reported.
+"""
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from engine.errors import MalformedFileError
+from engine.mocap.sensors import SensorPlacement
+
+SCHEMA = "courtside.sensor_calibration"
+SCHEMA_VERSION = 1
+
+
+def _is_rotation(r: np.ndarray) -> bool:
+    return r.shape == (3, 3) and bool(np.allclose(r @ r.T, np.eye(3), atol=1e-6)) and np.linalg.det(r) > 0
+
+
+def _angle_deg(r: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0))))
+
+
+def calibrated_placements(placements: list[SensorPlacement], rotations: Mapping[str, np.ndarray],
+                          bias_g: Mapping[str, np.ndarray] | None = None) -> list[SensorPlacement]:
+    """Copies of ``placements`` whose ``rotation`` (sensor -> joint frame) is replaced by ``rotations[name]``
+    and, when given, whose ``bias_g`` (3,) is ``bias_g[name]``. Placements not named keep their nominal values;
+    a name that is not among the placements is an error (it would otherwise be silently ignored)."""
+    names = {p.name for p in placements}
+    unknown = sorted((set(rotations) | set(bias_g or {})) - names)
+    if unknown:
+        raise ValueError(f"calibration for unknown sensor placement(s) {unknown}; placements: {sorted(names)}")
+    out = []
+    for p in placements:
+        changes = {}
+        if p.name in rotations:
+            changes["rotation"] = np.asarray(rotations[p.name], float)
+        if bias_g and p.name in bias_g:
+            changes["bias_g"] = np.asarray(bias_g[p.name], float)
+        out.append(replace(p, **changes) if changes else p)
+    return out
+
+
+@dataclass
+class SensorCalibrationData:
+    """What the engine uses of a sensor-calibration record, keyed by placement (segment) name.
+
+    ``rotations``: sensor -> segment (3, 3). ``bias_along_gravity_g``: ``norm_error_g`` times the measured
+    gravity direction (sensor frame) -- the only bias component one still pose observes (it also absorbs scale
+    error), so it is offered, not applied by default. ``sensor_ids``: the live sensor on each segment.
+    ``correction_deg``: angle between the measured and the nominal mounting, as the wizard computed it.
+    ``failed``: segments whose sensor did not pass the wizard's checks."""
+
+    path: Path
+    rotations: dict[str, np.ndarray] = field(default_factory=dict)
+    bias_along_gravity_g: dict[str, np.ndarray] = field(default_factory=dict)
+    sensor_ids: dict[str, str] = field(default_factory=dict)
+    correction_deg: dict[str, float] = field(default_factory=dict)
+    failed: list[str] = field(default_factory=list)
+
+    def fingerprint(self) -> str:
+        """Stable text of the rotations (and nothing else), for cache keys."""
+        return json.dumps({k: np.round(v, 6).tolist() for k, v in sorted(self.rotations.items())})
+
+
+def load_sensor_calibration(path: str | Path) -> SensorCalibrationData:
+    """Read a ``courtside.sensor_calibration`` JSON record (gateway's ``CalibrationRecord.save``) without the
+    gateway. Bad files raise MalformedFileError naming the file and the problem."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except OSError as exc:
+        raise MalformedFileError(path, None, f"cannot read: {exc.strerror}") from exc
+    except json.JSONDecodeError as exc:
+        raise MalformedFileError(path, exc.lineno, f"not JSON ({exc.msg})") from exc
+    if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
+        raise MalformedFileError(path, None, f"not a sensor calibration record (schema must be {SCHEMA!r})")
+    if doc.get("schema_version") != SCHEMA_VERSION:
+        raise MalformedFileError(path, None, f"unsupported schema_version {doc.get('schema_version')!r}")
+    sensors = doc.get("sensors")
+    if not isinstance(sensors, dict) or not sensors:
+        raise MalformedFileError(path, None, "no sensors in the record")
+    out = SensorCalibrationData(path)
+    for sid, entry in sensors.items():
+        try:
+            segment = str(entry["segment"])
+            rotation = np.asarray(entry["rotation"], float)
+            gravity = np.asarray(entry["gravity_sensor_g"], float).reshape(3)
+            norm_error = float(entry["norm_error_g"])
+            correction = float(entry["correction_deg"])
+            passed = bool(entry["passed"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise MalformedFileError(path, None, f"sensor {sid!r}: bad entry ({exc!r})") from None
+        if not _is_rotation(rotation):
+            raise MalformedFileError(path, None, f"sensor {sid!r}: rotation is not a proper 3x3 rotation")
+        if segment in out.rotations:
+            raise MalformedFileError(path, None, f"two sensors on segment {segment!r}: "
+                                                 f"{out.sensor_ids[segment]!r} and {sid!r}")
+        out.rotations[segment] = rotation
+        out.bias_along_gravity_g[segment] = norm_error * gravity / max(np.linalg.norm(gravity), 1e-12)
+        out.sensor_ids[segment] = str(sid)
+        out.correction_deg[segment] = correction
+        if not passed:
+            out.failed.append(segment)
+    return out
+
+
+def placements_from_calibration(placements: list[SensorPlacement], calibration: SensorCalibrationData,
+                                with_bias: bool = False, frame_tolerance_deg: float = 5.0) -> list[SensorPlacement]:
+    """``calibrated_placements`` from a loaded record, for the placements the record covers (others stay
+    nominal; record segments not among ``placements`` are ignored -- the graph simply does not use them).
+
+    Refuses (ValueError) a record made against other joint frames: for every sensor, the angle between the
+    measured rotation and *these* placements' nominal rotation must match the wizard's ``correction_deg``
+    within ``frame_tolerance_deg``."""
+    nominal = {p.name: p.rotation for p in placements}
+    used = [s for s in calibration.rotations if s in nominal]
+    for seg in used:
+        angle = _angle_deg(calibration.rotations[seg] @ nominal[seg].T)
+        if abs(angle - calibration.correction_deg[seg]) > frame_tolerance_deg:
+            raise ValueError(
+                f"{calibration.path}: sensor on {seg!r} is {angle:.0f} deg from this skeleton's nominal mounting "
+                f"but the wizard corrected {calibration.correction_deg[seg]:.0f} deg: the record was made for "
+                "another skeleton's joint frames")
+    rotations = {s: calibration.rotations[s] for s in used}
+    bias = {s: calibration.bias_along_gravity_g[s] for s in used} if with_bias else None
+    return calibrated_placements(placements, rotations, bias)

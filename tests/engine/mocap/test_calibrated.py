@@ -1,0 +1,72 @@
+"""Calibrated placements and the engine-side reader of sensor-calibration records (no gateway import)."""
+import json
+
+import numpy as np
+import pytest
+
+from engine.mocap import (MalformedFileError, SensorPlacement, calibrated_placements, load_sensor_calibration,
+                          placements_from_calibration, virtual_accelerometers)
+from engine.mocap import quaternions as quat
+from tests.engine.mocap.helpers import axis_angle, chain_skeleton, constant_motion
+
+
+def _placements():
+    return [SensorPlacement("a", 1, np.array([0.1, 0, 0]), np.eye(3)),
+            SensorPlacement("b", 2, np.zeros(3), np.eye(3))]
+
+
+def _record(path, sensors, schema="courtside.sensor_calibration", version=1):
+    doc = {"schema": schema, "schema_version": version, "sensors": {
+        sid: {"segment": seg, "rotation": np.asarray(rot).tolist(), "gravity_sensor_g": [0.0, 1.02, 0.0],
+              "norm_error_g": 0.02, "correction_deg": corr, "passed": passed}
+        for sid, (seg, rot, corr, passed) in sensors.items()}}
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_calibrated_placements_replace_rotation_and_bias_of_named_sensors_only():
+    turn = quat.to_matrix(axis_angle("X", 0.4))
+    out = calibrated_placements(_placements(), {"a": turn}, bias_g={"a": [0.0, 0.1, 0.0]})
+    np.testing.assert_allclose(out[0].rotation, turn)
+    assert np.array_equal(out[1].rotation, np.eye(3)) and out[1].bias_g is None
+    motion = constant_motion(chain_skeleton(), 4, 100.0)
+    acc = virtual_accelerometers(motion, out)
+    np.testing.assert_allclose(acc[:, 0], np.tile(turn.T @ [0, 1, 0] + [0, 0.1, 0], (4, 1)), atol=1e-12)
+    np.testing.assert_allclose(acc[:, 1], np.tile([0, 1, 0], (4, 1)), atol=1e-12)
+    with pytest.raises(ValueError, match="unknown sensor placement"):
+        calibrated_placements(_placements(), {"elbow": np.eye(3)})
+    with pytest.raises(ValueError, match="proper 3x3 rotation"):
+        calibrated_placements(_placements(), {"a": np.diag([1.0, 1.0, -1.0])})
+
+
+def test_record_reader_and_frame_check(tmp_path):
+    turn = quat.to_matrix(axis_angle("Z", np.radians(20)))
+    path = _record(tmp_path / "r.json", {"st0/1": ("a", turn, 20.0, True), "st0/2": ("c", np.eye(3), 0.0, False)})
+    cal = load_sensor_calibration(path)
+    assert cal.sensor_ids == {"a": "st0/1", "c": "st0/2"} and cal.failed == ["c"]
+    np.testing.assert_allclose(cal.bias_along_gravity_g["a"], [0.0, 0.02, 0.0])
+    out = placements_from_calibration(_placements(), cal, with_bias=True)  # "c" is not worn here: ignored
+    np.testing.assert_allclose(out[0].rotation, turn)
+    np.testing.assert_allclose(out[0].bias_g, [0.0, 0.02, 0.0])
+    assert out[1].bias_g is None
+    # the record says 20 deg of correction, but against these frames the rotation is 160 deg away
+    flipped = _record(tmp_path / "f.json", {"st0/1": ("a", np.diag([-1.0, -1.0, 1.0]) @ turn, 20.0, True)})
+    with pytest.raises(ValueError, match="another skeleton's joint frames"):
+        placements_from_calibration(_placements(), load_sensor_calibration(flipped))
+
+
+@pytest.mark.parametrize("write, problem", [
+    (lambda p: p.write_text("{not json"), "not JSON"),
+    (lambda p: _record(p, {"s": ("a", np.eye(3), 0.0, True)}, schema="courtside.court_calibration"), "schema"),
+    (lambda p: _record(p, {"s": ("a", np.eye(3), 0.0, True)}, version=2), "schema_version"),
+    (lambda p: _record(p, {"s": ("a", np.eye(3) * 2, 0.0, True)}), "not a proper 3x3 rotation"),
+    (lambda p: _record(p, {"s": ("a", np.eye(3), 0.0, True), "t": ("a", np.eye(3), 0.0, True)}), "two sensors"),
+    (lambda p: p.write_text(json.dumps({"schema": "courtside.sensor_calibration", "schema_version": 1,
+                                        "sensors": {"s": {"segment": "a"}}})), "bad entry"),
+])
+def test_bad_records_name_the_file_and_problem(tmp_path, write, problem):
+    path = tmp_path / "bad.calibration.json"
+    write(path)
+    with pytest.raises(MalformedFileError, match=problem) as info:
+        load_sensor_calibration(path)
+    assert "bad.calibration.json" in str(info.value)
