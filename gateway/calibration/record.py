@@ -14,6 +14,7 @@ import numpy as np
 
 from engine.mocap import quaternions
 from gateway.calibration.errors import CalibrationRecordError
+from gateway.versioned_json import read_versioned_json
 
 SCHEMA = "courtside.sensor_calibration"
 SCHEMA_VERSION = 1
@@ -93,16 +94,7 @@ class CalibrationRecord:
     def load(cls, path: str | Path, with_raw: bool = True) -> "CalibrationRecord":
         """Read a record (and its raw samples); CalibrationRecordError names the file and the problem."""
         path = Path(path)
-        try:
-            doc = json.loads(path.read_text())
-        except OSError as exc:
-            raise CalibrationRecordError(path, f"cannot read: {exc.strerror}") from exc
-        except json.JSONDecodeError as exc:
-            raise CalibrationRecordError(path, f"not JSON (line {exc.lineno}: {exc.msg})") from exc
-        if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
-            raise CalibrationRecordError(path, f"not a sensor calibration record (schema must be {SCHEMA!r})")
-        if doc.get("schema_version") != SCHEMA_VERSION:
-            raise CalibrationRecordError(path, f"unsupported schema_version {doc.get('schema_version')!r}")
+        doc = read_versioned_json(path, SCHEMA, SCHEMA_VERSION, "a sensor calibration record", CalibrationRecordError)
         try:
             sensors = {sid: SensorCalibration.from_dict(s) for sid, s in doc["sensors"].items()}
         except (KeyError, TypeError, ValueError) as exc:

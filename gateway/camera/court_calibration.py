@@ -21,6 +21,7 @@ import numpy as np
 
 from gateway.camera.court import keypoints_array
 from gateway.camera.errors import CourtCalibrationFileError
+from gateway.versioned_json import read_versioned_json
 
 SCHEMA = "courtside.court_calibration"
 SCHEMA_VERSION = 1
@@ -192,16 +193,7 @@ class CourtCalibration:
     def load(cls, path: str | Path) -> "CourtCalibration":
         """Read a saved calibration; CourtCalibrationFileError names the file and what is wrong."""
         path = Path(path)
-        try:
-            data = json.loads(path.read_text())
-        except OSError as exc:
-            raise CourtCalibrationFileError(path, f"cannot read: {exc.strerror}") from exc
-        except json.JSONDecodeError as exc:
-            raise CourtCalibrationFileError(path, f"not JSON (line {exc.lineno}: {exc.msg})") from exc
-        if not isinstance(data, dict) or data.get("schema") != SCHEMA:
-            raise CourtCalibrationFileError(path, f"not a court calibration (schema must be {SCHEMA!r})")
-        if data.get("schema_version") != SCHEMA_VERSION:
-            raise CourtCalibrationFileError(path, f"unsupported schema_version {data.get('schema_version')!r}")
+        data = read_versioned_json(path, SCHEMA, SCHEMA_VERSION, "a court calibration", CourtCalibrationFileError)
 
         def matrix(key: str, shape: tuple[int, ...], optional: bool = False) -> np.ndarray | None:
             value = data.get(key)

@@ -1,0 +1,32 @@
+"""Reading the gateway's versioned JSON documents (court calibration, sensor-calibration records).
+
+Why one helper: every saved document carries `schema` + `schema_version`, and a bad file must be rejected with an
+error that names the file and the exact problem (unreadable, not JSON, wrong kind, unsupported version). Each
+document type passes its own error class so callers can still catch the specific failure.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Callable
+
+FileErrorFactory = Callable[[Path, str], Exception]
+
+
+def read_versioned_json(path: str | Path, schema: str, version: int, what: str, error: FileErrorFactory) -> dict[str, Any]:
+    """The document at `path` as a dict, after checking it is JSON of `schema` at `version`.
+
+    `what` names the kind of document for the message ("a court calibration"); `error(path, problem)` builds the
+    exception raised for any problem."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except OSError as exc:
+        raise error(path, f"cannot read: {exc.strerror}") from exc
+    except json.JSONDecodeError as exc:
+        raise error(path, f"not JSON (line {exc.lineno}: {exc.msg})") from exc
+    if not isinstance(doc, dict) or doc.get("schema") != schema:
+        raise error(path, f"not {what} (schema must be {schema!r})")
+    if doc.get("schema_version") != version:
+        raise error(path, f"unsupported schema_version {doc.get('schema_version')!r}")
+    return doc
