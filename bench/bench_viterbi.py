@@ -9,6 +9,8 @@
    if it has fewer edges, disjoint copies of it (with perturbed acceleration metadata, so no two copies tie)
    are stacked until it does -- the table says how many. Times: batch with accelerometers only and with
    accelerometers + position + heading; fixed-lag online samples/s; survivor-memory compression and MB.
+Every search runs twice in this process: the default numba kernels and the previous numpy implementation
+(`kernel="numpy"`, kept as the bit-exact reference), and the table says whether their answers are identical.
 Times are CPU seconds of this process (time.process_time), so other jobs on the machine inflate them less.
 """
 from __future__ import annotations
@@ -117,14 +119,17 @@ def main() -> None:
 
     short = Observations(obs.acc_g[: args.ref_samples], obs.position_m[: args.ref_samples],
                          obs.heading_rad[: args.ref_samples])
+    _, t_jit = cpu(lambda: ViterbiSearch(small, w).run(short))  # first call: load/compile the numba kernels
     ref_cost, t_ref = cpu(lambda: reference_loop(small, short, w))
+    res_np, t_np = cpu(lambda: ViterbiSearch(small, w, kernel="numpy").run(short))
     res, t_vec = cpu(lambda: ViterbiSearch(small, w).run(short))
     work = small.n_edges * (short.n_samples - 1)
     print(f"1. small graph: {small.n_nodes} nodes, {small.n_edges} edges, {short.n_samples} samples "
-          f"(acc + position + heading)")
+          f"(acc + position + heading); numba kernels loaded/compiled in {t_jit:.2f} s CPU (not counted)")
     print(f"   per-edge Python loop : {work / t_ref:12.3e} edges*samples/s   (best cost {ref_cost:.4f})")
-    print(f"   vectorised (numpy)   : {work / t_vec:12.3e} edges*samples/s   (best cost {res.cost:.4f})")
-    print(f"   speed-up             : {t_ref / t_vec:12.1f} x")
+    print(f"   numpy (previous)     : {work / t_np:12.3e} edges*samples/s   (best cost {res_np.cost:.4f})")
+    print(f"   numba (default)      : {work / t_vec:12.3e} edges*samples/s   (best cost {res.cost:.4f})")
+    print(f"   speed-up vs loop     : numpy {t_ref / t_np:8.1f} x   numba {t_ref / t_vec:8.1f} x")
 
     base = MotionGraph.load(args.graph) if args.graph else small
     copies = max(1, -(-args.min_edges // base.n_edges))
@@ -136,24 +141,35 @@ def main() -> None:
         raise SystemExit("the --graph must have the six seed-000 sensors")
     acc_only = Observations(obs.acc_g, np.r_[obs.position_m[:1], np.full((obs.n_samples - 1, 2), np.nan)],
                             np.r_[obs.heading_rad[:1], np.full(obs.n_samples - 1, np.nan)])
+    t = None
     for name, o, weights in (("acc only", acc_only, SearchWeights(0.5, 0, 0)), ("acc+pos+head", obs, w)):
-        r, t = cpu(lambda: ViterbiSearch(big, weights).run(o))
-        print(f"   batch {name:13s}: {t:7.2f} s CPU  {big.n_edges * (o.n_samples - 1) / t:10.3e} edges*samples/s  "
-              f"compression {r.compression_ratio:7.1f}:1  lattice {r.lattice_entries * 4 / 1e6:7.2f} MB "
-              f"(uncompressed {big.n_nodes * (o.n_samples - 1) * 4 / 1e6:.0f} MB)")
-    syn = FixedLagSynthesizer(big, args.lag, w)
+        runs = {}
+        for kernel in ("numpy", "numba"):
+            runs[kernel] = cpu(lambda: ViterbiSearch(big, weights, kernel=kernel).run(o))
+        for kernel, (r, tk) in runs.items():
+            print(f"   batch {name:13s} {kernel:5s}: {tk:7.2f} s CPU  {big.n_edges * (o.n_samples - 1) / tk:10.3e} "
+                  f"edges*samples/s  compression {r.compression_ratio:7.1f}:1  lattice "
+                  f"{r.lattice_entries * 4 / 1e6:7.2f} MB (uncompressed {big.n_nodes * (o.n_samples - 1) * 4 / 1e6:.0f} MB)")
+        (ra, ta), (rb, tb) = runs["numpy"], runs["numba"]
+        identical = (np.array_equal(ra.nodes, rb.nodes) and np.array_equal(ra.edges, rb.edges) and ra.cost == rb.cost
+                     and np.array_equal(ra.ground_m, rb.ground_m))
+        print(f"   batch {name:13s} numba vs numpy: {ta / tb:5.2f} x faster; path, cost and track "
+              f"{'bit-identical' if identical else 'DIFFER'}")
+        t = tb
+    for kernel in ("numpy", "numba"):
+        syn = FixedLagSynthesizer(big, args.lag, w, kernel=kernel)
 
-    def online():
-        for t in range(obs.n_samples):
-            syn.push(obs.acc_g[t], obs.position_m[t], obs.heading_rad[t])
-        syn.flush()
-    _, t_on = cpu(online)
-    print(f"   fixed-lag online (lag {args.lag:g} s): {obs.n_samples / t_on:7.1f} samples/s "
-          f"({t_on / obs.n_samples * 1000:.1f} ms per sample)")
+        def online():
+            for i in range(obs.n_samples):
+                syn.push(obs.acc_g[i], obs.position_m[i], obs.heading_rad[i])
+            syn.flush()
+        _, t_on = cpu(online)
+        print(f"   fixed-lag online (lag {args.lag:g} s) {kernel:5s}: {obs.n_samples / t_on:7.1f} samples/s "
+              f"({t_on / obs.n_samples * 1000:.1f} ms per sample)")
     a, b = np.ones(big.n_edges), np.ones(big.n_edges)
     _, t_pass = cpu(lambda: [np.add(a, b, out=a) for _ in range(200)])
     print(f"   machine reference: one float64 add over {big.n_edges} elements = {t_pass / 200 * 1e3:.2f} ms CPU; "
-          f"a search step (acc+pos+head) costs about {t / obs.n_samples / (t_pass / 200):.0f} such passes")
+          f"a numba search step (acc+pos+head) costs about {t / obs.n_samples / (t_pass / 200):.0f} such passes")
 
 
 if __name__ == "__main__":

@@ -34,12 +34,13 @@ class FixedLagSynthesizer:
     """Push one synchronised sample at the graph rate, get back the poses decided `lag_s` seconds ago."""
 
     def __init__(self, graph: MotionGraph, lag_s: float, weights: SearchWeights = SearchWeights(),
-                 sensor_indices: tuple[int, ...] | None = None, prune_every: int = 32) -> None:
+                 sensor_indices: tuple[int, ...] | None = None, prune_every: int = 32,
+                 kernel: str = "numba") -> None:
         if lag_s < 0:
             raise ValueError("lag must be non-negative")
         self.graph = graph
         self.lag = int(round(lag_s * graph.config.fps))
-        self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every)
+        self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel)
         self.next_emit = 0  # first sample not yet emitted
         self._last: tuple[complex, float, int] | None = None  # (ground, heading, node) of the last emitted sample
 

@@ -20,9 +20,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
 from .geometry import TWO_PI, wrap_angle
 from .graph import MotionGraph
 from .layout import EdgeLayout
+
+
+KERNELS = ("numba", "numpy")
+ACC_BATCH = 16  # batch search computes C_A rows for this many samples per pass over the metadata
 
 
 @dataclass(frozen=True)
@@ -98,20 +103,24 @@ class ViterbiLattice:
     position cost is one complex gather + add + abs. Back-pointer columns hold graph edge ids."""
 
     def __init__(self, graph: MotionGraph, weights: SearchWeights = SearchWeights(),
-                 sensor_indices: tuple[int, ...] | None = None, prune_every: int = 32) -> None:
+                 sensor_indices: tuple[int, ...] | None = None, prune_every: int = 32,
+                 kernel: str = "numba") -> None:
+        if kernel not in KERNELS:
+            raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
         self.graph = graph
         self.weights = weights
         self.prune_every = prune_every
+        self.kernel = kernel  # "numba": compiled fused step (kernels.py); "numpy": the reference, bit-identical
         # Without position/heading costs the search is Markov and needs no per-path global state: positions
         # along the chosen path are integrated afterwards (saves ~7 gathers of N per sample).
         self.track_global = weights.position != 0 or weights.heading != 0
         sel = list(range(graph.n_sensors)) if sensor_indices is None else list(sensor_indices)
         self.n_sensors = len(sel)
         e = graph.meta_acc_g[:, sel, :].reshape(len(graph.meta_acc_g), -1).astype(np.float32)
-        self._meta_acc_t = np.ascontiguousarray(e.T)  # (3S, M): one contiguous row per sensor axis
         self._meta_acc_sq = np.einsum("ij,ij->i", e.astype(np.float64), e.astype(np.float64)).astype(np.float32)
         self._dots = np.empty(len(e), dtype=np.float32)
-        self._axpy = np.empty(len(e), dtype=np.float32)
+        self._meta_acc_t = np.ascontiguousarray(e.T)  # (3S, M): one contiguous row per sensor axis
+        self._axpy = np.empty(len(e), dtype=np.float32) if kernel == "numpy" else None
         self.layout = EdgeLayout(graph.edge_dst, graph.n_nodes)
         n = graph.n_nodes
         self.n_seg = len(self.layout.nodes)
@@ -134,10 +143,25 @@ class ViterbiLattice:
         self._graph_d = dpos[graph.edge_meta]
         self._graph_dh = graph.meta_dheading_rad[graph.edge_meta]
         n_e = len(order)
-        self._cost = np.empty(n_e, dtype=np.float32)
-        self._buf1 = np.empty(n_e, dtype=np.float32)
-        self._buf2 = np.empty(n_e, dtype=np.float32)
-        self._cbuf = np.empty(n_e, dtype=np.complex64)
+        if kernel == "numpy":
+            self._cost = np.empty(n_e, dtype=np.float32)
+            self._buf1 = np.empty(n_e, dtype=np.float32)
+            self._buf2 = np.empty(n_e, dtype=np.float32)
+            self._cbuf = np.empty(n_e, dtype=np.complex64)
+        else:
+            bl = self.layout.blocks
+            self._blocks = tuple(np.array(v, dtype=np.int64) for v in (
+                [b.offset for b in bl], [b.degree for b in bl], [b.count for b in bl], [b.nodes.start for b in bl]))
+            self._src32 = self._src.astype(np.int32)
+            self._meta32 = self._meta.astype(np.int32)
+            self._cost = np.empty(n_e, dtype=np.float32)
+            self._win = np.empty(self.n_seg, dtype=np.int64)
+            self._u32 = np.empty(n, dtype=np.complex64)
+            self._hd32 = np.empty(n, dtype=np.float32)
+            self._grmin = np.empty(self.n_seg)
+            self._zero_rows = np.zeros(len(e), dtype=np.float32)  # no acc term: adds exactly +0
+            self._no_f64 = np.empty(0)
+            self._no_state = (np.empty(0, dtype=complex), np.empty(0), np.empty(0, dtype=complex))
         self.cost_offset = 0.0  # G is float32 kept relative to its minimum (the offset is summed in float64)
         self.columns: list[_Column] = []
         self.t = -1  # index of the last sample consumed
@@ -153,9 +177,11 @@ class ViterbiLattice:
         if acc_g is None or self.n_sensors == 0 or self.weights.acc == 0:
             return None
         m = np.asarray(acc_g, dtype=np.float64).reshape(-1)
-        if m.size != self._meta_acc_t.shape[0]:
+        if m.size != 3 * self.n_sensors:
             raise ValueError(f"expected {self.n_sensors} sensors x 3 axes, got shape {np.shape(acc_g)}")
         m32 = m.astype(np.float32)
+        if self.kernel == "numba":
+            return self.acc_rows_batch(m[None])[0]
         dots, tmp = self._dots, self._axpy
         np.multiply(self._meta_acc_t[0], m32[0], out=dots)
         for i in range(1, len(m32)):
@@ -166,6 +192,18 @@ class ViterbiLattice:
         dots += np.float32(m @ m)
         dots *= np.float32(self.weights.acc / self.n_sensors)
         return dots
+
+    def acc_rows_batch(self, acc_g: np.ndarray) -> np.ndarray:
+        """`_acc_rows` of B samples (B, S', 3) at once -> (B, M) float32, bit-identical per row (compiled: the
+        metadata is read once per batch instead of once per sample). Batch search feeds these to `step`."""
+        m = np.asarray(acc_g, dtype=np.float64).reshape(len(acc_g), -1)
+        if m.shape[1] != 3 * self.n_sensors:
+            raise ValueError(f"expected {self.n_sensors} sensors x 3 axes, got shape {np.shape(acc_g)}")
+        out = np.empty((len(m), self._meta_acc_t.shape[1]), dtype=np.float32)
+        mm = np.array([np.float32(v @ v) for v in m], dtype=np.float32)
+        scale = np.full(len(m), self.weights.acc / self.n_sensors, dtype=np.float32)
+        kernels.acc_rows(self._meta_acc_t, self._meta_acc_sq, m.astype(np.float32), mm, scale, out)
+        return out
 
     # ----- stepping -----------------------------------------------------------------------------
     def start(self, acc_g: np.ndarray | None, position_m: np.ndarray | None, heading_rad: float | None,
@@ -236,40 +274,34 @@ class ViterbiLattice:
         return first_pos, first_head
 
     def step(self, acc_g: np.ndarray | None, position_m: np.ndarray | None, heading_rad: float | None,
-             penalty: np.ndarray | None = None) -> None:
-        """Advance every path by one edge for the next sample (O(E) array work)."""
+             penalty: np.ndarray | None = None, rows: np.ndarray | None = None) -> None:
+        """Advance every path by one edge for the next sample (O(E) array work). `rows`: this sample's
+        `acc_rows_batch` row, if the caller computed it in a batch (compiled kernel only)."""
+        if rows is not None and self.kernel != "numba":
+            raise ValueError("precomputed acc rows need the numba kernel")
         if self.t < 0:
             self.start(acc_g, position_m, heading_rad, penalty)
             return
         first_pos, first_head = self._late_start(position_m, heading_rad) if self.track_global else (False, False)
-        cost = self._edge_costs(acc_g, None if position_m is None or first_pos else np.asarray(position_m, float),
-                                None if first_head else heading_rad)
+        pos = None if position_m is None or first_pos else np.asarray(position_m, float)
+        head = None if first_head else heading_rad
         self.constrained |= penalty is not None
-        if self.constrained:  # eq. 8: only edges from sources with the fewest broken constraints compete
-            gr_e = self._Gr[self._src]
-            cost[gr_e > self.layout.broadcast(self.layout.block_min(gr_e))] = np.inf
-        seg_min, win = self.layout.argmin(cost)
-        wsrc = self._src[win]
         k = self.n_seg
         # write the new state into the spare buffers (double buffering: no per-step allocation of N arrays)
         G, P, O, rot = self._spare
-        G[:k] = seg_min
+        Gr = np.full(self.graph.n_nodes, np.inf) if self.constrained else None
+        if self.kernel == "numba":
+            col = self._step_compiled(acc_g, pos, head, G, P, O, rot, Gr, rows)
+        else:
+            col = self._step_numpy(acc_g, pos, head, G, P, O, rot, Gr)
         G[k:] = np.inf
         low = G[:k].min()
         if np.isfinite(low):
             G[:k] -= low
             self.cost_offset += float(low)
         if self.track_global:
-            np.take(self._rot, wsrc, out=rot[:k], mode="clip")
-            np.take(self._P, wsrc, out=P[:k], mode="clip")
-            P[:k] += self._d[win] * rot[:k]  # eq. 5: P(n,t) = P(m,t-1) + R(O(m,t-1)) d(v)
-            np.take(self._O, wsrc, out=O[:k], mode="clip")
-            O[:k] += self._dh[win]
-            rot[:k] *= self._rot_dh[win]
             P[k:], O[k:], rot[k:] = self._P[k:], self._O[k:], self._rot[k:]
         if self.constrained:
-            Gr = np.full(self.graph.n_nodes, np.inf)
-            Gr[:k] = self._Gr[wsrc]
             if penalty is not None:
                 Gr += np.asarray(penalty, float)[self._to_graph]
             Gr[~np.isfinite(G)] = np.inf
@@ -283,11 +315,63 @@ class ViterbiLattice:
             self._O[:] = heading_rad
             self._rot[:] = np.exp(-1j * heading_rad)
             self._head_known = True
-        self.columns.append(_Column(None, self._edge_id[win]))
+        self.columns.append(_Column(None, col))
         self.t += 1
         self._since_prune += 1
         if self.prune_every and self._since_prune >= self.prune_every:
             self.prune()
+
+    def _step_numpy(self, acc_g, pos, head, G, P, O, rot, Gr) -> np.ndarray:
+        """Reference step in whole-array numpy: writes the new G[:k] (not normalised), P/O/rot[:k] (if tracked)
+        and Gr[:k] (if constrained); returns the back-pointer column (graph edge ids, int32)."""
+        cost = self._edge_costs(acc_g, pos, head)
+        if self.constrained:  # eq. 8: only edges from sources with the fewest broken constraints compete
+            gr_e = self._Gr[self._src]
+            cost[gr_e > self.layout.broadcast(self.layout.block_min(gr_e))] = np.inf
+        seg_min, win = self.layout.argmin(cost)
+        wsrc = self._src[win]
+        k = self.n_seg
+        G[:k] = seg_min
+        if self.track_global:
+            np.take(self._rot, wsrc, out=rot[:k], mode="clip")
+            np.take(self._P, wsrc, out=P[:k], mode="clip")
+            P[:k] += self._d[win] * rot[:k]  # eq. 5: P(n,t) = P(m,t-1) + R(O(m,t-1)) d(v)
+            np.take(self._O, wsrc, out=O[:k], mode="clip")
+            O[:k] += self._dh[win]
+            rot[:k] *= self._rot_dh[win]
+        if self.constrained:
+            Gr[:k] = self._Gr[wsrc]
+        return self._edge_id[win]
+
+    def _step_compiled(self, acc_g, pos, head, G, P, O, rot, Gr, rows=None) -> np.ndarray:
+        """The same step as `_step_numpy` in compiled passes (kernels.py): node terms, edge costs, constraint
+        mask, per-node argmin + winners' state update. Bit-identical to the reference."""
+        w = self.weights
+        if rows is None:
+            rows = self._acc_rows(acc_g)
+        if rows is None:
+            rows = self._zero_rows
+        use_pos = pos is not None and not np.any(np.isnan(pos)) and w.position != 0
+        use_head = head is not None and not np.isnan(head) and w.heading != 0
+        cost, track = self._cost, self.track_global
+        if use_pos or use_head:
+            kernels.node_terms(self._P, self._rot, complex(pos[0], pos[1]) if use_pos else 0j, self._O,
+                               float(head) if use_head else 0.0, use_pos, use_head, self._u32, self._hd32)
+            kernels.edge_costs_global(self._src32, self._meta32, self._d32, self._dh32, self._G, rows, self._u32,
+                                      self._hd32, np.float32(w.position if use_pos else 0.0),
+                                      np.float32(w.heading if use_head else 0.0), cost)
+        else:
+            kernels.edge_costs_acc(self._src32, self._meta32, self._G, rows, cost)
+        if self.constrained:
+            kernels.mask_constraints(*self._blocks, self._src32, self._Gr, self._grmin, cost)
+        col = np.empty(self.n_seg, dtype=np.int32)
+        no = self._no_state
+        kernels.argmin_update(*self._blocks, cost, self._src32, self._edge_id, self._d, self._dh, self._rot_dh,
+                              self._P if track else no[0], self._O if track else no[1],
+                              self._rot if track else no[2], track, self._Gr, self.constrained, G,
+                              P if track else no[0], O if track else no[1], rot if track else no[2],
+                              self._no_f64 if Gr is None else Gr, self._win, col)
+        return col
 
     # ----- state by graph node ------------------------------------------------------------------
     def cost_of(self, node: int) -> float:
@@ -404,16 +488,22 @@ def _sample(obs: Observations, t: int) -> tuple[np.ndarray | None, np.ndarray | 
 class ViterbiSearch:
     """Batch search: the best path for a whole input sequence."""
 
-    def __init__(self, graph: MotionGraph, weights: SearchWeights = SearchWeights(), prune_every: int = 32) -> None:
+    def __init__(self, graph: MotionGraph, weights: SearchWeights = SearchWeights(), prune_every: int = 32,
+                 kernel: str = "numba") -> None:
         self.graph = graph
         self.weights = weights
         self.prune_every = prune_every
+        self.kernel = kernel
 
     def run(self, obs: Observations, constraints: list[Constraint] | None = None) -> SearchResult:
-        lattice = ViterbiLattice(self.graph, self.weights, obs.sensor_indices, self.prune_every)
+        lattice = ViterbiLattice(self.graph, self.weights, obs.sensor_indices, self.prune_every, self.kernel)
         penalties = constraint_penalties(constraints or [], self.graph.n_nodes, obs.n_samples)
+        batch = lattice.kernel == "numba" and obs.acc_g is not None and lattice.n_sensors and self.weights.acc != 0
+        rows = None
         for t in range(obs.n_samples):
-            lattice.step(*_sample(obs, t), penalties.get(t))
+            if batch and t % ACC_BATCH == 0:  # C_A rows of the next samples in one pass over the metadata
+                rows = lattice.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
+            lattice.step(*_sample(obs, t), penalties.get(t), rows[t % ACC_BATCH] if batch and t else None)
         return finish(lattice)
 
 
