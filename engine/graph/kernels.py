@@ -2,8 +2,10 @@
 
 One search step in numpy is ~20 whole-array passes, most of them gathers through the edge index arrays (per
 step on a 483k-edge graph: C_A rows 2 ms, edge costs 7 ms, min/argmin 2 ms, per-node state update 4 ms). Here
-the edge costs, the per-node min/argmin and the state update of the winners are one loop over the edges (in
-`EdgeLayout` order) plus one loop over the nodes, with no temporaries.
+a step is four compiled passes without temporaries: per-node position/heading terms, branch-free edge costs
+(vectorised), the per-node min/argmin (selects, no branches) fused with the winners' state update; batch search
+computes the C_A rows of 16 samples per pass over the (3S, M) metadata. Measured per step (483k edges, acc +
+position + heading): argmin + update ~4 ms, edge costs ~2.5 ms, C_A rows ~0.6 ms batched (2 ms alone).
 
 The arithmetic is the numpy reference's, operation for operation and in the same precision, so the two give
 bit-identical costs, states and paths (tests/engine/graph/test_kernels.py checks it): float32 edge costs added
