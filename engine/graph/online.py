@@ -15,7 +15,7 @@ from scipy import signal
 
 from .graph import MotionGraph
 from .poses import world_joint_positions
-from .viterbi import SearchWeights, ViterbiLattice
+from .viterbi import DEFAULT_KERNEL, SearchWeights, ViterbiLattice
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ class FixedLagSynthesizer:
 
     def __init__(self, graph: MotionGraph, lag_s: float, weights: SearchWeights = SearchWeights(),
                  sensor_indices: tuple[int, ...] | None = None, prune_every: int = 32,
-                 kernel: str = "numba") -> None:
+                 kernel: str = DEFAULT_KERNEL) -> None:
         if lag_s < 0:
             raise ValueError("lag must be non-negative")
         self.graph = graph
