@@ -6,7 +6,8 @@ Public API: :class:`CalibrationWizard` (``assign``, ``confirm``, ``redo``, ``pus
 :class:`SegmentSpec`, :class:`WizardConfig`, :func:`segment_specs_from_placements`, :class:`CalibrationRecord`,
 :class:`SensorCalibration`, :class:`CalibrationRecordError`, and the building blocks
 :func:`sensor_to_segment_rotation`, :func:`rotation_from_directions`, :func:`fit_offset_g`, :func:`detect_tap`,
-:func:`stillness`.
+:func:`stillness`. The calibration pose of the standard set-up (reference N-pose) is built by
+:mod:`gateway.calibration.pose`.
 """
 from gateway.calibration.alignment import (
     fit_offset_g, minimal_rotation, norm_error_g, rotation_angle_deg, rotation_from_directions,

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from gateway.calibration.pose import pose_rotations
 from gateway.calibration.wizard import CalibrationWizard, SegmentSpec, WizardConfig, segment_specs_from_placements
 from gateway.server import RequestError
 
@@ -33,22 +34,27 @@ from gateway.server import RequestError
 class CalibrationService:
     """Thread-safe wrapper of a wizard for the gateway."""
 
-    def __init__(self, segments: dict[str, SegmentSpec], config: WizardConfig = WizardConfig()) -> None:
+    def __init__(self, segments: dict[str, SegmentSpec], config: WizardConfig = WizardConfig(),
+                 pose: str | None = None) -> None:
         self._segments = segments
         self._config = config
+        self._pose = pose
         self._lock = threading.Lock()
-        self.wizard = CalibrationWizard(segments, config)
+        self.wizard = CalibrationWizard(segments, config, pose)
 
     @classmethod
-    def standard(cls, sensor_names: tuple[str, ...] | None = None, config: WizardConfig = WizardConfig()
-                 ) -> "CalibrationService":
+    def standard(cls, sensor_names: tuple[str, ...] | None = None, config: WizardConfig = WizardConfig(),
+                 pose: str = "npose") -> "CalibrationService":
         """Segments = the engine's standard sensor placements (default: the six seed-000 sensors) on the
-        shipped CMU skeleton, i.e. exactly the mounting the engine's virtual sensors assume."""
+        shipped CMU skeleton, i.e. exactly the mounting the engine's virtual sensors assume, calibrated in
+        ``pose``: ``"npose"`` (default: the reference N-pose of ``gateway.calibration.pose.reference_npose``,
+        arms straight down, palms in, legs straight) or ``"tpose"`` (the skeleton's zero pose: arms out)."""
         from engine.mocap import SEED000_SENSORS, load_clip, sample_clips, standard_placements
 
         skeleton = load_clip(sample_clips()["16_01"]).skeleton
         placements = standard_placements(skeleton, sensor_names or SEED000_SENSORS)
-        return cls(segment_specs_from_placements(placements), config)
+        specs = segment_specs_from_placements(placements, pose_rotations=pose_rotations(skeleton, pose))
+        return cls(specs, config, pose)
 
     def on_samples(self, station: str, sensor: int | str, t_host_s: np.ndarray, acc_g: np.ndarray) -> None:
         with self._lock:
@@ -87,7 +93,7 @@ class CalibrationService:
                 npz = record.save(path)
                 return {"json": str(path), "npz": str(npz), "quality": wiz.quality()}
             elif action == "reset":
-                self.wizard = CalibrationWizard(self._segments, self._config)
+                self.wizard = CalibrationWizard(self._segments, self._config, self._pose)
             else:
                 raise ValueError(f"unknown calibration action {action!r}; known: state, assign, unassign, "
                                  "confirm, redo, save, reset")

@@ -22,6 +22,7 @@ from gateway.calibration.alignment import (
     UP, norm_error_g, rotation_angle_deg, sensor_to_segment_rotation, tilt_deg,
 )
 from gateway.calibration.buffer import SampleBuffer
+from gateway.calibration.pose import POSE_INSTRUCTIONS
 from gateway.calibration.record import CalibrationRecord, SensorCalibration
 from gateway.calibration.signals import TapEvent, detect_tap, stillness
 
@@ -32,8 +33,9 @@ SNAPSHOT_VERSION = 1
 @dataclass(frozen=True)
 class SegmentSpec:
     """Where a sensor goes: ``nominal_rotation`` (3, 3) sensor -> segment as mounted by the book, and
-    ``expected_up`` (3,), the segment's up direction in the N-pose in segment coordinates (engine skeletons'
-    zero pose is world-aligned, so world up ``(0, 1, 0)`` unless the N-pose differs from the zero pose)."""
+    ``expected_up`` (3,), world up in segment coordinates in the calibration pose the subject holds. The default
+    ``(0, 1, 0)`` means that the segment frame is world-aligned in that pose. That holds in an engine skeleton's
+    zero pose, which is a T-pose for CMU; the standard set-up's N-pose uses ``gateway.calibration.pose``."""
 
     nominal_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     expected_up: np.ndarray = field(default_factory=lambda: UP.copy())
@@ -58,9 +60,10 @@ class WizardConfig:
 def segment_specs_from_placements(placements: list[Any], pose_rotations: np.ndarray | None = None
                                   ) -> dict[str, SegmentSpec]:
     """Specs from ``engine.mocap.standard_placements(...)`` (name -> nominal rotation). ``expected_up`` is world
-    up, i.e. the calibration pose is the skeleton's zero pose, unless ``pose_rotations`` (J, 3, 3), the joints'
-    global rotations in the pose the subject really holds (e.g. ``forward_kinematics`` of an N-pose frame),
-    is given: then each segment's up is world up seen in that joint's frame, ``G_j^T (0, 1, 0)``."""
+    up, i.e. the calibration pose is the skeleton's zero pose (a T-pose for the shipped CMU skeleton), unless
+    ``pose_rotations`` (J, 3, 3), the joints' global rotations in the pose the subject really holds (e.g.
+    ``gateway.calibration.pose.reference_npose(skeleton)[1]``, what ``CalibrationService.standard`` uses), is
+    given: then each segment's up is world up seen in that joint's frame, ``G_j^T (0, 1, 0)``."""
     specs = {}
     for p in placements:
         up = UP.copy() if pose_rotations is None else np.asarray(pose_rotations, float)[p.joint].T @ UP
@@ -69,13 +72,21 @@ def segment_specs_from_placements(placements: list[Any], pose_rotations: np.ndar
 
 
 class CalibrationWizard:
-    """See the module docstring. Sensor ids are strings (e.g. ``"station0/3"``)."""
+    """See the module docstring. Sensor ids are strings (e.g. ``"station0/3"``).
 
-    def __init__(self, segments: dict[str, SegmentSpec], config: WizardConfig = WizardConfig()) -> None:
+    ``pose`` names the static pose the segments' ``expected_up`` was computed for (``"npose"`` or ``"tpose"``,
+    see gateway.calibration.pose); it is shown in the snapshot with instructions for the subject and named in
+    placement refusals. ``None``: the caller's own specs, pose not stated."""
+
+    def __init__(self, segments: dict[str, SegmentSpec], config: WizardConfig = WizardConfig(),
+                 pose: str | None = None) -> None:
         if not segments:
             raise ValueError("the wizard needs at least one segment to calibrate")
+        if pose is not None and pose not in POSE_INSTRUCTIONS:
+            raise ValueError(f"unknown calibration pose {pose!r}; known: {', '.join(POSE_INSTRUCTIONS)}")
         self.segments = dict(segments)
         self.config = config
+        self.pose = pose
         self.step = "assign"
         self.assignment: dict[str, str] = {}
         self.results: dict[str, SensorCalibration] = {}
@@ -121,7 +132,8 @@ class CalibrationWizard:
                 return self._refuse("assign at least one sensor to a segment")
             return self._leave("assign")
         if self.step == "placement":
-            problems = [f"{sid}: {r}" for sid, info in self._placement().items() for r in info["reasons"]]
+            problems = [f"{sid} ({self.assignment[sid]}): {r}" for sid, info in self._placement().items()
+                        for r in info["reasons"]]
             if problems:
                 return self._refuse("placement check failed: " + "; ".join(problems))
             return self._leave("placement")
@@ -278,6 +290,9 @@ class CalibrationWizard:
     def _say(self, message: str) -> None:
         self._messages = (self._messages + [message])[-20:]
 
+    def _pose_label(self) -> str:
+        return {"npose": "N-pose (arms down)", "tpose": "T-pose (arms out)"}[self.pose]
+
     def _placement(self) -> dict[str, dict[str, Any]]:
         """Live tilt per assigned sensor from its last ``live_window_s`` of samples."""
         out = {}
@@ -294,8 +309,10 @@ class CalibrationWizard:
                 if tilt > 120:
                     reasons.append(f"tilted {tilt:.0f} deg: upside down?")
                 elif tilt > self.config.placement_max_tilt_deg:
+                    hint = (f"; check the strap, and that the subject holds the {self._pose_label()}"
+                            if self.pose else "")
                     reasons.append(f"tilted {tilt:.0f} deg from the expected mounting "
-                                   f"(limit {self.config.placement_max_tilt_deg:g})")
+                                   f"(limit {self.config.placement_max_tilt_deg:g}){hint}")
             out[sid] = {"tilt_deg": tilt, "reasons": reasons}
         return out
 
@@ -340,6 +357,8 @@ class CalibrationWizard:
             "snapshot_version": SNAPSHOT_VERSION,
             "step": self.step,
             "steps": list(STEPS),
+            "pose": self.pose,
+            "pose_instructions": POSE_INSTRUCTIONS.get(self.pose or ""),
             "completed": [s for s in STEPS if s in self._completed],
             "phase": phase,
             "countdown_s": countdown,

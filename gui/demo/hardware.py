@@ -118,6 +118,7 @@ class DemoCamera:
 def demo_hardware(listen: tuple[str, int], record_dir: Path, camera: bool,
                   duration_s: float | None) -> Iterator[tuple[tuple[str, int], float]]:
     """Stations + camera + gateway in THIS process; yields (gateway address, performance start time)."""
+    from gateway.calibration.pose import pose_rotations
     from gateway.calibration.service import CalibrationService
     from gateway.calibration.wizard import segment_specs_from_placements
     from gateway.daemon import Gateway
@@ -129,9 +130,11 @@ def demo_hardware(listen: tuple[str, int], record_dir: Path, camera: bool,
             stack.callback(st.stop)
         t0 = stations[0].wall0_s
         cam = DemoCamera(perf, t0, (duration_s or 3600.0) + 5.0) if camera else None
-        specs = segment_specs_from_placements(placements_for_demo(perf))
+        # the wizard expects the standard reference N-pose (arms down), as CalibrationService.standard() does
+        specs = segment_specs_from_placements(placements_for_demo(perf),
+                                              pose_rotations=pose_rotations(perf.skeleton, "npose"))
         gateway = Gateway([st.path for st in stations], listen=listen, record_dir=record_dir, camera=cam,
-                          calibration=CalibrationService(specs), status_interval_s=0.5, lock_after_s=5.0,
+                          calibration=CalibrationService(specs, pose="npose"), status_interval_s=0.5, lock_after_s=5.0,
                           name="courtside-demo")
         gateway.start()
         stack.callback(gateway.stop)

@@ -172,7 +172,9 @@ class CalibrationWizard(QtWidgets.QDialog):
             else:
                 parts.append(f"<span style='color:#888'>{title}</span>")
         self.steps_bar.setText(" → ".join(parts))
-        self.help.setText(STEP_HELP.get(step, ""))
+        # the gateway states the pose its segment specs expect (N-pose by default, T-pose as an option)
+        pose_help = state.get("pose_instructions") if step == "npose" else None
+        self.help.setText(pose_help or STEP_HELP.get(step, ""))
         phase = state.get("phase", "")
         rejections = state.get("rejections", 0)
         self.phase.setText(f"phase: {phase.replace('_', ' ')}" + (f"   (rejected {rejections}×)" if rejections else ""))

@@ -1,8 +1,12 @@
 """An emulated subject in the N-pose: the engine's standard sensor placements on a shipped CMU skeleton, each
-sensor mounted with a known tilt error, read through the firmware emulator's StillSource plus noise and bias."""
+sensor mounted with a known tilt error, read through the firmware emulator's StillSource plus noise and bias.
+
+The subject stands in the standard set-up's reference N-pose (gateway.calibration.pose.reference_npose: arms
+straight down, legs straight), so its forearm and shin segments are really rotated away from the skeleton's
+zero pose (a T-pose) and the specs are ``CalibrationService.standard()``'s."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
@@ -10,6 +14,7 @@ import pytest
 from engine.mocap import SEED000_SENSORS, load_clip, quaternions, sample_clips, standard_placements
 from firmware_protocol.emulator.motion import StillSource
 from gateway.calibration import CalibrationWizard, minimal_rotation, segment_specs_from_placements
+from gateway.calibration.pose import reference_npose
 
 RATE_HZ = 100.0
 NOISE_G = 0.005
@@ -25,40 +30,61 @@ def tilt_rotation(rng: np.random.Generator, up: np.ndarray, max_deg: float) -> n
 
 @dataclass
 class Subject:
-    """Sensor ids -> segment names, true sensor->segment rotations, and biases (g)."""
+    """Sensor ids -> segment names, true sensor->segment rotations, biases (g), and each sensor's segment
+    orientation in the pose the subject holds (world <- segment, default identity = the zero pose)."""
 
     segments: dict
     true_rotation: dict
     bias_g: dict
+    world_from_segment: dict = field(default_factory=dict)
 
-    def samples(self, sensor_id: str, t_s: np.ndarray, rng: np.random.Generator,
-                world_from_segment: np.ndarray = np.eye(3)) -> np.ndarray:
-        """Still readings (N, 3) g of one sensor with its segment at ``world_from_segment``."""
-        world_from_sensor = world_from_segment @ self.true_rotation[sensor_id]
+    def world_from_sensor(self, sensor_id: str) -> np.ndarray:
+        return self.world_from_segment.get(sensor_id, np.eye(3)) @ self.true_rotation[sensor_id]
+
+    def gravity_reading(self, sensor_id: str) -> np.ndarray:
+        """The noiseless, unbiased still reading (3,) g: world up in sensor axes."""
+        return self.world_from_sensor(sensor_id).T @ np.array([0.0, 1.0, 0.0])
+
+    def samples(self, sensor_id: str, t_s: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Still readings (N, 3) g of one sensor in the held pose."""
+        world_from_sensor = self.world_from_sensor(sensor_id)
         source = StillSource(1, quaternions.from_matrix(world_from_sensor)[None])
         clean = source.acceleration_g(t_s)[:, 0]
         return clean + self.bias_g[sensor_id] + rng.normal(0.0, NOISE_G, clean.shape)
 
 
 @pytest.fixture(scope="session")
-def specs():
-    skeleton = load_clip(sample_clips()["16_01"]).skeleton
-    return segment_specs_from_placements(standard_placements(skeleton, SEED000_SENSORS))
+def skeleton():
+    return load_clip(sample_clips()["16_01"]).skeleton
+
+
+@pytest.fixture(scope="session")
+def npose_world(skeleton) -> dict:
+    """Segment name -> world <- segment rotation (3, 3) in the reference N-pose, for the seed-000 sensors."""
+    glob = reference_npose(skeleton)[1]
+    return {p.name: glob[p.joint] for p in standard_placements(skeleton, SEED000_SENSORS)}
+
+
+@pytest.fixture(scope="session")
+def specs(skeleton):
+    """What ``CalibrationService.standard()`` uses (the reference N-pose)."""
+    glob = reference_npose(skeleton)[1]
+    return segment_specs_from_placements(standard_placements(skeleton, SEED000_SENSORS), pose_rotations=glob)
 
 
 @pytest.fixture
-def subject(specs) -> Subject:
+def subject(specs, npose_world) -> Subject:
     rng = np.random.default_rng(11)
     segments = {f"st0/{i}": name for i, name in enumerate(specs)}
     true_rotation = {sid: tilt_rotation(rng, specs[seg].expected_up, 20.0) @ specs[seg].nominal_rotation
                      for sid, seg in segments.items()}
     bias = {sid: rng.normal(0.0, 0.01, 3) for sid in segments}
-    return Subject(segments, true_rotation, bias)
+    return Subject(segments, true_rotation, bias, {sid: npose_world[seg] for sid, seg in segments.items()})
 
 
 @pytest.fixture
 def wizard(specs, subject) -> CalibrationWizard:
-    wiz = CalibrationWizard(specs)
+    wiz = CalibrationWizard(specs, pose="npose")
     for sid, seg in subject.segments.items():
         wiz.assign(sid, seg)
     return wiz

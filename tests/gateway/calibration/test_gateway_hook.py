@@ -28,11 +28,11 @@ def wait_for(predicate, timeout_s: float = 15.0) -> bool:
 
 def test_calibration_through_the_gateway(tmp_path, specs, subject):
     ids = list(subject.segments)  # "st0/i" in the fixture; the gateway names them "st1/i"
-    world_from_sensor = np.stack([subject.true_rotation[sid] for sid in ids])  # N-pose: segments world-aligned
+    world_from_sensor = np.stack([subject.world_from_sensor(sid) for sid in ids])  # standing in the N-pose
     motion = StillSource(len(ids), quaternions.from_matrix(world_from_sensor))
     station = start_emulated_station(StationConfig(station_id=1, n_sensors=len(ids), autostart=True, noise_g=0.004),
                                      motion=motion)
-    service = CalibrationService(specs)
+    service = CalibrationService(specs, pose="npose")
     try:
         with Gateway([station.path], listen=("127.0.0.1", 0), record_dir=tmp_path, status_interval_s=0.1,
                      calibration=service) as gw, GatewayClient(*gw.address).connect() as client:
