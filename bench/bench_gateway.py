@@ -2,11 +2,16 @@
 
     .venv/bin/python bench/bench_gateway.py                 # all three (about 6 minutes)
     .venv/bin/python bench/bench_gateway.py --only throughput,latency --latency-s 20 --clock-hours 0.25
+    .venv/bin/python bench/bench_gateway.py --acceptance-minutes 10   # issue 4's acceptance run only (3x: ~3.5 min)
 
 Every table carries a baseline measured in the same run so numbers compare across machines:
 * throughput: the bare protocol decoder (`StreamDecoder.feed`) on the same bytes;
 * latency: the emulated station's own share (sample latched -> frame on the USB wire: radio batching + jitter);
 * clock: naive timestamping (each sample stamped with its batch's host arrival time) on the same run.
+
+The acceptance run (`--acceptance-minutes M`) is tests/gateway/test_acceptance_emulated.py's `run_acceptance`
+at full length: 4 stations x 6 x 100 Hz over ptys + the synthetic camera, loss/corruption, an unplug/replug every
+~2 min; it prints delivered vs recorded counts, clock error after warm-up, reconnect times, and exits 1 on FAIL.
 """
 from __future__ import annotations
 
@@ -215,12 +220,34 @@ def bench_clock(hours: float = 1.0) -> None:
             print(f"  !! reader produced {run.received} samples, station delivered {run.delivered}")
 
 
+def bench_acceptance(minutes: float, speed: float, unplugs: int | None, seed: int = 42) -> bool:
+    from tests.gateway.test_acceptance_emulated import run_acceptance
+
+    span = minutes * 60.0
+    n_unplugs = unplugs if unplugs is not None else max(1, round((span - 12.0) / 120.0))  # about every 2 min
+    print(f"\n== acceptance: 4 stations x 6 sensors x 100 Hz over ptys + synthetic camera, {span:.0f} s emulated at "
+          f"{speed:g}x, 1% radio loss + bursts, wire corruption, {n_unplugs} unplug/replugs, every cable pulled at "
+          "the end ==")
+    with tempfile.TemporaryDirectory() as tmp:
+        run = run_acceptance(Path(tmp), span_s=span, speed=speed, n_unplugs=n_unplugs, seed=seed)
+    print(run.summary())
+    return not run.failures()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--only", default="throughput,latency,clock")
+    parser.add_argument("--only", default=None, help="comma list of throughput,latency,clock,acceptance "
+                        "(default: the first three, or acceptance alone when --acceptance-minutes is given)")
     parser.add_argument("--latency-s", type=float, default=20.0)
     parser.add_argument("--clock-hours", type=float, default=1.0)
+    parser.add_argument("--acceptance-minutes", type=float, default=None)
+    parser.add_argument("--acceptance-speed", type=float, default=3.0,
+                        help="emulated time / wall time (4x passed once at p99 0.96 ms: too close to the 1 ms target)")
+    parser.add_argument("--acceptance-unplugs", type=int, default=None, help="default: one per ~2 min")
+    parser.add_argument("--acceptance-seed", type=int, default=42)
     args = parser.parse_args(argv)
+    if args.only is None:
+        args.only = "acceptance" if args.acceptance_minutes else "throughput,latency,clock"
     parts = set(args.only.split(","))
     load1, load5, _ = os.getloadavg()
     print(f"machine: {os.cpu_count()} cores, load average {load1:.1f} / {load5:.1f} (1 / 5 min) at start; "
@@ -231,6 +258,13 @@ def main(argv: list[str] | None = None) -> int:
         bench_latency(args.latency_s)
     if "clock" in parts:
         bench_clock(args.clock_hours)
+    if "acceptance" in parts:
+        t0 = time.monotonic()
+        passed = bench_acceptance(args.acceptance_minutes or 10.0, args.acceptance_speed, args.acceptance_unplugs,
+                                  args.acceptance_seed)
+        print(f"acceptance wall time incl. scoring: {time.monotonic() - t0:.0f} s")
+        if not passed:
+            return 1
     return 0
 
 
