@@ -20,7 +20,7 @@ class Sync(str, Enum):
 # at 100 Hz; beyond 20 ms, two samples could be swapped in time, so the mapping is not trusted.
 SYNC_GREEN_RESIDUAL_S = 0.005
 SYNC_AMBER_RESIDUAL_S = 0.020
-LOW_BATTERY_V = 3.5
+LOW_BATTERY_PCT = 20  # per-sensor battery %, as the stations report it in STATUS (gateway key battery_pct)
 SENSOR_SILENT_S = 1.0
 LOW_DISK_BYTES = 1 << 30
 
@@ -70,9 +70,9 @@ def status_alarms(status: dict[str, Any], disk_path: str | None = None, was_lock
                                 f"station {sid}: clock residual {1e3 * float(clock.get('residual_s') or 0):.1f} ms"))
         for sensor in st.get("sensors", []):
             name = f"{sid}/{sensor.get('sensor')}"
-            battery = sensor.get("battery_v")
-            if battery is not None and float(battery) < LOW_BATTERY_V:
-                alarms.append(Alarm(f"battery:{name}", "warning", f"sensor {name}: low battery {float(battery):.2f} V"))
+            battery = sensor.get("battery_pct")
+            if battery is not None and float(battery) < LOW_BATTERY_PCT:
+                alarms.append(Alarm(f"battery:{name}", "warning", f"sensor {name}: low battery {float(battery):.0f} %"))
             last = sensor.get("last_t_host_s")
             if now is not None and link == "streaming" and (last is None or float(now) - float(last) > SENSOR_SILENT_S):
                 alarms.append(Alarm(f"lost:{name}", "alarm", f"sensor {name}: no data"))

@@ -10,7 +10,7 @@ from gui.health import Sync, sync_status
 
 SYNC_QCOLOR = {Sync.GREEN: QtGui.QColor(40, 170, 70), Sync.AMBER: QtGui.QColor(220, 160, 30),
                Sync.RED: QtGui.QColor(200, 50, 50)}
-COLUMNS = ("device", "link", "battery V", "RSSI dBm", "rate / nominal Hz", "loss %", "lost", "CRC err",
+COLUMNS = ("device", "link", "battery %", "RSSI dBm", "rate / nominal Hz", "loss %", "lost", "CRC err",
            "offset ms", "skew ppm", "residual ms", "sync", "segment", "")
 
 # Body diagram: segment -> polyline in a 100 x 200 box (x right, y down), front view.
@@ -151,7 +151,7 @@ class DevicePanel(QtWidgets.QWidget):
                 seg = self.mapping.get((sid, idx), "")
                 placement = self.mapping_names.get((sid, idx), "")
                 healthy = sync if float(sensor.get("loss_pct") or 0) < 5 else Sync.RED
-                cols = {1: str(st.get("link", "?")), 2: _fmt(sensor.get("battery_v"), ".2f"),
+                cols = {1: str(st.get("link", "?")), 2: _fmt(sensor.get("battery_pct"), ".0f"),
                         3: _fmt(sensor.get("rssi_dbm"), ".0f"),
                         4: f"{_fmt(sensor.get('rate_hz'), '.1f')} / {_fmt(sensor.get('nominal_hz'), '.0f')}",
                         5: _fmt(sensor.get("loss_pct"), ".2f"), 6: str(sensor.get("lost", 0)), 11: healthy.value,

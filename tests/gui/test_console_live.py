@@ -47,6 +47,8 @@ def test_traces_devices_and_identify_on_live_gateway(live_gateway, console, qtbo
     qtbot.waitUntil(lambda: window.devices.row_texts(("sensor", "st1", 2))[1] == "streaming", timeout=10_000)
     row = window.devices.row_texts(("sensor", "st1", 0))
     assert row[12] == "left_forearm" and row[4].endswith("/ 100")
+    qtbot.waitUntil(lambda: window.devices.row_texts(("sensor", "st1", 0))[2] != "–", timeout=10_000)
+    assert 90 <= float(window.devices.row_texts(("sensor", "st1", 0))[2]) <= 100  # STATUS battery % of a fresh station
     # identify goes to the emulated station and comes back ACKed, off the GUI thread
     results = []
     window.requests.done.connect(lambda tag, result, error: results.append((tag, result, error)))

@@ -10,11 +10,11 @@ from gui.widgets.camera_pane import CourtMinimap, apply_homography
 from gui.widgets.device_panel import DevicePanel, segment_for
 
 
-def station(name="st1", link="streaming", residual=0.002, locked=True, battery=3.9, last=10.0, loss=0.0):
+def station(name="st1", link="streaming", residual=0.002, locked=True, battery=95, last=10.0, loss=0.0):
     return {"station": name, "link": link, "crc_errors": 0,
             "clock": {"offset_s": 1.0, "skew_ppm": 10.0, "residual_s": residual, "locked": locked},
             "sensors": [{"sensor": 0, "nominal_hz": 100, "rate_hz": 100.0, "loss_pct": loss, "lost": 0,
-                         "battery_v": battery, "rssi_dbm": -50, "last_t_host_s": last}]}
+                         "battery_pct": battery, "rssi_dbm": -50, "last_t_host_s": last}]}
 
 
 def test_sync_traffic_light():
@@ -30,7 +30,7 @@ def test_alarms_sensor_lost_sync_lost_battery_disk(tmp_path):
     ok = {"t_host_s": 10.2, "stations": [station()]}
     assert status_alarms(ok, str(tmp_path), was_locked) == []
     assert was_locked == {"st1"}
-    bad = {"t_host_s": 12.0, "stations": [station(locked=False, battery=3.3, last=10.0)]}
+    bad = {"t_host_s": 12.0, "stations": [station(locked=False, battery=12, last=10.0)]}
     keys = {a.key for a in status_alarms(bad, None, was_locked)}
     assert keys == {"sync:st1", "battery:st1/0", "lost:st1/0"}
     # a station still warming up (never locked) is not "sync lost"
@@ -65,7 +65,7 @@ def test_device_panel_rows_and_renamed_station(qtbot):
     panel.update_status({"t_host_s": 2.0, "stations": [station()]})
     assert ("station", "/dev/pts/3") not in panel._items and panel.tree.topLevelItemCount() == 1
     row = panel.row_texts(("sensor", "st1", 0))
-    assert row[1] == "streaming" and row[2] == "3.90" and row[11] == "green" and row[12] == "left_wrist"
+    assert row[1] == "streaming" and row[2] == "95" and row[11] == "green" and row[12] == "left_wrist"
     assert panel.body.segment_state["left_forearm"][1] is Sync.GREEN
 
 
