@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from engine.mocap import ground
+
 TWO_PI = 2.0 * np.pi
 
 
-def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray:
-    """Wrap radians into [-pi, pi) so heading differences never count a full turn as an error."""
-    return np.mod(np.asarray(angle_rad) + np.pi, TWO_PI) - np.pi
+# One definition for the whole engine: heading differences never count a full turn as an error.
+wrap_angle = ground.wrap_angle
 
 
 def rotate_ground(vec_xz: np.ndarray, heading_rad: np.ndarray | float) -> np.ndarray:

@@ -24,14 +24,6 @@ from .graph import EDGE_INTERP, EDGE_TRANSITION, MotionGraph, NODE_ORIGINAL
 UP = np.array([0.0, 1.0, 0.0])
 
 
-def quat_log(q: np.ndarray) -> np.ndarray:
-    """Rotation vectors (..., 3) of unit quaternions (..., 4), taking the short way round."""
-    q = np.where(q[..., :1] < 0, -q, q)
-    v = q[..., 1:]
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(n, q[..., :1])
-    return np.where(n > 1e-12, v / np.where(n > 1e-12, n, 1.0) * angle, 2.0 * v)
-
 
 def place_path(graph: MotionGraph, nodes: np.ndarray, ground_m: np.ndarray,
                heading_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -84,7 +76,7 @@ def blend_transitions(graph: MotionGraph, nodes: np.ndarray, edges: np.ndarray, 
         yaw_prev = heading_rad[t - 1] - graph.node_heading_rad[prev]
         old = graph.node_rotations[cont].astype(float).copy()
         old[0] = quat.multiply(quat.from_rotvec(yaw_prev * UP), old[0])
-        jump = quat_log(quat.multiply(quat.conjugate(old), rots[t]))  # (J, 3): old -> new, joint frame
+        jump = quat.to_rotvec(quat.multiply(quat.conjugate(old), rots[t]))  # (J, 3): old -> new, joint frame
         w = _fade(n, t, 0.5 * window_s * fps)
         active = np.flatnonzero(w != 0)
         rots[active] = quat.multiply(rots[active], quat.from_rotvec(w[active, None, None] * jump[None]))

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.mocap import Motion, SensorPlacement, virtual_accelerometers, virtual_gyroscopes
-from engine.olng.pose import quat_multiply, reference_quats, split_heading, yaw_quat
+from engine.mocap import Motion, SensorPlacement, quaternions, virtual_accelerometers, virtual_gyroscopes
+from engine.olng.pose import reference_quats, split_heading, yaw_quat
 
 
 def body_features(motion: Motion) -> np.ndarray:
@@ -68,5 +68,5 @@ def decode(features: np.ndarray, joints: int, root0_m: np.ndarray, heading0_rad:
     world_step[0] = 0.0
     root = root0_m + np.cumsum(world_step, axis=0)
     root[:, 1] = local[:, 1]
-    quats[:, 0] = quat_multiply(yaw_quat(heading), quats[:, 0])
+    quats[:, 0] = quaternions.multiply(yaw_quat(heading), quats[:, 0])
     return root, quats

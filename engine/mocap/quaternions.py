@@ -136,6 +136,19 @@ def log_matrix(m: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(m.reshape(-1, 3, 3)).as_rotvec().reshape(m.shape[:-2] + (3,))
 
 
+def to_rotvec(q: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions -> (..., 3) rotation vectors (radians), taking the short way round (w >= 0).
+
+    Closed form rather than scipy: it runs per frame inside the OLNG energy and the graph's transition blending,
+    where scipy's object overhead dominates for small batches."""
+    q = np.asarray(q, float)
+    q = np.where(q[..., :1] < 0, -q, q)
+    sin_half = np.linalg.norm(q[..., 1:], axis=-1)
+    angle = 2.0 * np.arctan2(sin_half, q[..., 0])
+    scale = np.where(sin_half > 1e-12, angle / np.maximum(sin_half, 1e-12), 2.0)
+    return q[..., 1:] * scale[..., None]
+
+
 def from_rotvec(v: np.ndarray) -> np.ndarray:
     """Quaternions from rotation vectors (axis * angle, radians)."""
     v = np.asarray(v, float)

@@ -16,6 +16,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from engine.mocap import quaternions
+
 UP = np.array([0.0, 1.0, 0.0])
 
 
@@ -49,28 +51,6 @@ def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
     )
 
 
-def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of (..., 4) quaternions (w, x, y, z)."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        -1,
-    )
-
-
-def quat_to_rotvec(quat: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions -> (..., 3) rotation vectors (radians), shortest arc (w >= 0)."""
-    q = np.where(quat[..., :1] < 0, -quat, quat)
-    sin_half = np.linalg.norm(q[..., 1:], axis=-1)
-    angle = 2.0 * np.arctan2(sin_half, q[..., 0])
-    scale = np.where(sin_half > 1e-12, angle / np.maximum(sin_half, 1e-12), 2.0)
-    return q[..., 1:] * scale[..., None]
 
 
 def rotvec_to_quat(rotvec: np.ndarray) -> np.ndarray:
@@ -106,7 +86,7 @@ def split_heading(root_quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     rest pose lies along X), and it is continuous wherever the root is not upside down."""
     heading = 2.0 * np.arctan2(root_quat[..., 2], root_quat[..., 0])
     yaw_inv = yaw_quat(heading) * np.array([1.0, -1.0, -1.0, -1.0])
-    return heading, quat_multiply(yaw_inv, root_quat)
+    return heading, quaternions.multiply(yaw_inv, root_quat)
 
 
 def reference_quats(tilted_quats: np.ndarray) -> np.ndarray:
@@ -134,15 +114,15 @@ def pose_vectors(local_quats: np.ndarray, ref_quats: np.ndarray | None = None) -
     ref_quats when given, heading (F,))."""
     quats, heading = tilted(local_quats)
     if ref_quats is not None:
-        quats = quat_multiply(ref_quats * np.array([1.0, -1.0, -1.0, -1.0]), quats)
+        quats = quaternions.multiply(ref_quats * np.array([1.0, -1.0, -1.0, -1.0]), quats)
     frames, joints = quats.shape[:2]
-    return quat_to_rotvec(quats).reshape(frames, joints * 3), heading
+    return quaternions.to_rotvec(quats).reshape(frames, joints * 3), heading
 
 
 def pose_quats(rig: Rig, q: np.ndarray) -> np.ndarray:
     """Pose vector (J*3,) -> local quaternions (J, 4) (root without heading)."""
     quats = rotvec_to_quat(q.reshape(-1, 3))
-    return quats if rig.ref_quats is None else quat_multiply(rig.ref_quats, quats)
+    return quats if rig.ref_quats is None else quaternions.multiply(rig.ref_quats, quats)
 
 
 def local_matrices(rig: Rig, q: np.ndarray) -> np.ndarray:

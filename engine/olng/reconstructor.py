@@ -11,11 +11,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from engine.mocap import quaternions
+
 from engine.olng.config import OLNGConfig
 from engine.olng.energy import FrameProblem, KernelEnergy
 from engine.olng.graph import OnlineLazyNeighbourhoodGraph, path_weights
 from engine.olng.knowledge_base import KnowledgeBase
-from engine.olng.pose import UP, fk_root_frame, pose_quats, quat_multiply, quat_to_matrix, yaw_quat
+from engine.olng.pose import UP, fk_root_frame, pose_quats, quat_to_matrix, yaw_quat
 
 G_MPS2 = 9.80665
 
@@ -140,7 +142,7 @@ class OLNGReconstructor:
         self._root[1] = float(weights @ kb.root_height_m[nodes])
         self._heading += dt * float(weights @ kb.yaw_rate_rps[nodes])
         quats = pose_quats(kb.rig, q)
-        quats[0] = quat_multiply(yaw_quat(np.array(self._heading)), quats[0])
+        quats[0] = quaternions.multiply(yaw_quat(np.array(self._heading)), quats[0])
         world = self._root + joints_root @ quat_to_matrix(quats[0]).T
         return ReconstructedPose(q=q, local_quats=quats, root_pos_m=self._root.copy(), heading_rad=self._heading,
                                  joints_root_m=joints_root, joints_world_m=world)
