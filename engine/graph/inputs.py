@@ -22,24 +22,22 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
 
 from .online import resample_stream
 from .viterbi import Observations
 
-HEURISTIC_SPEED_MPS = 2.0
+HEURISTIC_SPEED_MPS = SEED_HEADING_SPEED_MPS
 
 
 def heading_heuristic(position_m: np.ndarray, fps: float, speed_threshold_mps: float = HEURISTIC_SPEED_MPS,
                       smooth_s: float = 0.2) -> np.ndarray:
-    """Heading (rad) from a ground track (T, 2): motion direction above the speed threshold, else facing the
-    net -- heading 0 (+Z) on the near side (z < 0), pi on the far side."""
+    """Heading (rad) from a ground track (T, 2) by `engine.mocap.seed_heading_rule`, on velocities from the
+    track smoothed over `smooth_s` seconds (camera positions are noisy; a raw gradient would flicker)."""
     from scipy.ndimage import uniform_filter1d
 
     pos = uniform_filter1d(np.asarray(position_m, float), max(1, int(round(smooth_s * fps))), axis=0)
-    vel = np.gradient(pos, axis=0) * fps
-    speed = np.linalg.norm(vel, axis=1)
-    facing_net = np.where(pos[:, 1] < 0, 0.0, np.pi)
-    return np.where(speed > speed_threshold_mps, np.arctan2(vel[:, 0], vel[:, 1]), facing_net)
+    return seed_heading_rule(pos, np.gradient(pos, axis=0) * fps, speed_threshold_mps)
 
 
 def _interp_track(values: np.ndarray, fps_in: float, n_out: int, fps_out: float, angle: bool = False) -> np.ndarray:

@@ -11,7 +11,8 @@ from engine.mocap.c3d import MarkerData, read_c3d
 from engine.mocap.calibrated import (SensorCalibrationData, calibrated_placements,
                                      load_sensor_calibration, placements_from_calibration)
 from engine.mocap.clips import DATA_DIR, default_cache_dir, load_clip, load_database, sample_clips
-from engine.mocap.ground import (ContactThresholds, foot_contacts, ground_positions, heading_from_positions,
+from engine.mocap.ground import (SEED_HEADING_SPEED_MPS, ContactThresholds, foot_contacts, ground_positions,
+                                 heading_from_positions, seed_heading_rule,
                                  root_heading, wrap_angle)
 from engine.mocap.rest_pose import rebase_to_tpose, tpose_bases, tpose_skeleton
 from engine.mocap.roles import ERROR_ROLES, ROLES, error_joint_indices, joint_roles, left_right_pairs
@@ -26,7 +27,7 @@ __all__ = [
     "MalformedFileError", "MarkerData", "Motion", "ROLES", "SEED000_SENSORS", "SEED003_SENSORS",
     "SEED004_SENSORS", "STANDARD_SENSORS", "SensorCalibrationData", "SensorErrorModel", "SensorPlacement",
     "Skeleton", "calibrated_placements", "load_sensor_calibration", "placements_from_calibration",
-    "default_cache_dir", "error_joint_indices", "foot_contacts", "forward_kinematics", "ground_positions",
+    "SEED_HEADING_SPEED_MPS", "default_cache_dir", "error_joint_indices", "foot_contacts", "forward_kinematics", "ground_positions", "seed_heading_rule",
     "heading_from_positions", "joint_roles", "left_right_pairs", "load_clip", "load_database",
     "mean_squared_error_g2", "mirror", "read_amc", "read_asf", "read_bvh", "read_c3d", "rebase_to_tpose", "resample",
     "root_heading", "sample_clips", "standard_placements", "tpose_bases", "tpose_skeleton",

@@ -71,7 +71,3 @@ def court_outline_m(margin_m: float = 0.0) -> np.ndarray:
     hx, hy = HALF_DOUBLES_M + margin_m, HALF_LENGTH_M + margin_m
     return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]], dtype=float)
 
-
-def facing_net_heading_rad(y_m: np.ndarray | float) -> np.ndarray:
-    """Heading (CONTRACTS convention, 0 = facing court +y) of a player facing the net from court ``y``."""
-    return np.where(np.asarray(y_m) <= 0.0, 0.0, np.pi)

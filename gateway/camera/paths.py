@@ -12,11 +12,12 @@ from functools import cached_property
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from gateway.camera.court import HALF_DOUBLES_M, HALF_LENGTH_M, facing_net_heading_rad
+from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
+from gateway.camera.court import HALF_DOUBLES_M, HALF_LENGTH_M
 
 GRAVITY_MPS2 = 9.80665
 #: Above this ground speed a player faces where they run; below it they face the net (seed rule).
-RUNNING_SPEED_MPS = 2.0
+RUNNING_SPEED_MPS = SEED_HEADING_SPEED_MPS
 
 
 @dataclass(frozen=True)
@@ -90,9 +91,7 @@ class PlayerPath:
 
 def rule_heading(t_s: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
     """Direction of motion above :data:`RUNNING_SPEED_MPS`, else facing the net (heading = atan2(vx, vy))."""
-    vel = np.gradient(xy_m, t_s, axis=0)
-    moving = np.linalg.norm(vel, axis=1) > RUNNING_SPEED_MPS
-    return np.where(moving, np.arctan2(vel[:, 0], vel[:, 1]), facing_net_heading_rad(xy_m[:, 1]))
+    return seed_heading_rule(xy_m, np.gradient(xy_m, t_s, axis=0), RUNNING_SPEED_MPS)
 
 
 def jump_lift_m(t_s: np.ndarray, jumps: tuple[tuple[float, float], ...], contact_s: float = 0.04) -> np.ndarray:

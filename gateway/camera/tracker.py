@@ -27,7 +27,8 @@ from dataclasses import asdict, dataclass
 import cv2
 import numpy as np
 
-from gateway.camera.court import court_outline_m, facing_net_heading_rad
+from engine.mocap import seed_heading_rule
+from gateway.camera.court import court_outline_m
 from gateway.camera.court_calibration import CourtCalibration
 from gateway.camera.kalman import ConstantVelocityKalman
 from gateway.camera.paths import RUNNING_SPEED_MPS
@@ -225,10 +226,8 @@ class PlayerTracker:
         x, y, vx, vy = self._kalman.state
         if imu_heading_rad is not None:
             heading = float(imu_heading_rad)
-        elif np.hypot(vx, vy) > cfg.running_speed_mps:
-            heading = float(np.arctan2(vx, vy))
         else:
-            heading = float(facing_net_heading_rad(y))
+            heading = float(seed_heading_rule((x, y), (vx, vy), cfg.running_speed_mps))
         nan = float("nan")
         if chosen is not None:
             centroid = (float(chosen.centroid_px[0]), float(chosen.centroid_px[1]))
