@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from engine.mocap.wahba import best_rotation
+
 from .config import LabelingConfig
 from .kalman import KalmanBank
 from .search import search_body
@@ -48,9 +50,7 @@ class FrameLabels:
 def _kabsch(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotation R and translation t minimising |R src + t − dst| (rows are points)."""
     cs, cd = src.mean(0), dst.mean(0)
-    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    rot = best_rotation(src - cs, dst - cd)
     return rot, cd - rot @ cs
 
 

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from engine.mocap.wahba import best_rotation
+
 UP = np.array([0.0, 1.0, 0.0])
 
 
@@ -53,9 +55,7 @@ def rotation_from_directions(sensor_dirs: np.ndarray, segment_dirs: np.ndarray) 
     a, b = _unit(np.asarray(sensor_dirs, float)), _unit(np.asarray(segment_dirs, float))
     if len(a) < 2 or np.linalg.matrix_rank(a, tol=1e-3) < 2:
         raise ValueError("need at least two non-parallel direction pairs to fix all three rotation angles")
-    u, _, vt = np.linalg.svd(b.T @ a)
-    d = np.sign(np.linalg.det(u @ vt))
-    return u @ np.diag([1.0, 1.0, d]) @ vt
+    return best_rotation(a, b)
 
 
 def rotation_angle_deg(r: np.ndarray) -> float:
