@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from engine.mocap.wahba import best_rotation
+from engine.mocap.rotations import best_rotation
 
 from .config import LabelingConfig
 from .kalman import KalmanBank

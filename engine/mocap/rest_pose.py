@@ -16,6 +16,7 @@ import numpy as np
 
 from engine.mocap import quaternions as quat
 from engine.mocap.roles import joint_roles
+from engine.mocap.rotations import minimal_rotation
 from engine.mocap.skeleton import Motion, Skeleton
 
 _UP, _DOWN, _FWD = np.array([0.0, 1, 0]), np.array([0.0, -1, 0]), np.array([0.0, 0, 1])
@@ -77,15 +78,7 @@ def _fit_rotation(desired: np.ndarray, actual: np.ndarray, weights: np.ndarray) 
     h = (actual * weights[:, None]).T @ desired
     u, sv, vt = np.linalg.svd(h)
     if sv[1] < 1e-6 * sv[0]:
-        d, a = _unit(weights @ desired), _unit(weights @ actual)
-        axis = np.cross(d, a)
-        s, c = np.linalg.norm(axis), float(d @ a)
-        if s < 1e-12:
-            if c > 0:
-                return np.eye(3)
-            perp = np.cross(d, [1.0, 0, 0]) if abs(d[0]) < 0.9 else np.cross(d, [0, 1.0, 0])
-            return quat.to_matrix(quat.from_rotvec(_unit(perp) * np.pi))
-        return quat.to_matrix(quat.from_rotvec(axis / s * np.arctan2(s, c)))
+        return minimal_rotation(weights @ desired, weights @ actual)
     d = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))])
     return u @ d @ vt
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.mocap.wahba import best_rotation
+from engine.mocap.rotations import best_rotation, minimal_rotation
 
 UP = np.array([0.0, 1.0, 0.0])
 
@@ -23,22 +23,6 @@ UP = np.array([0.0, 1.0, 0.0])
 def _unit(v: np.ndarray) -> np.ndarray:
     v = np.asarray(v, float)
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def minimal_rotation(from_dir: np.ndarray, to_dir: np.ndarray) -> np.ndarray:
-    """Smallest rotation (3, 3) taking unit direction ``from_dir`` onto ``to_dir`` (Rodrigues)."""
-    a, b = _unit(from_dir), _unit(to_dir)
-    axis = np.cross(a, b)
-    s, c = np.linalg.norm(axis), float(a @ b)
-    if s < 1e-12:
-        if c > 0:
-            return np.eye(3)
-        perp = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
-        perp = _unit(perp)
-        return 2.0 * np.outer(perp, perp) - np.eye(3)  # 180 degrees about a perpendicular axis
-    k = axis / s
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + s * kx + (1 - c) * kx @ kx
 
 
 def sensor_to_segment_rotation(gravity_sensor: np.ndarray, nominal_rotation: np.ndarray,
