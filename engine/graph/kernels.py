@@ -1,44 +1,33 @@
-"""Compiled (numba) per-sample kernels of the Viterbi search; `viterbi.ViterbiLattice` calls them.
+"""Compiled (numba) passes of one Viterbi search step; `viterbi.ViterbiLattice` calls them.
 
-One search step in numpy is ~20 whole-array passes, most of them gathers through the edge index arrays (per
-step on a 483k-edge graph: C_A rows 2 ms, edge costs 7 ms, min/argmin 2 ms, per-node state update 4 ms). Here
-a step is four compiled passes without temporaries: per-node position/heading terms, branch-free edge costs
-(vectorised), the per-node min/argmin (selects, no branches) fused with the winners' state update; batch search
-computes the C_A rows of 16 samples per pass over the (3S, M) metadata. Measured per step (483k edges, acc +
-position + heading): argmin + update ~4 ms, edge costs ~2.5 ms, C_A rows ~0.6 ms batched (2 ms alone).
+Per step, in this order (the numpy reference in `viterbi.py` computes the same numbers with whole-array ops):
 
-The arithmetic is the numpy reference's, operation for operation and in the same precision, so the two give
-bit-identical costs, states and paths (tests/engine/graph/test_kernels.py checks it): float32 edge costs added
-in the same order, float64 heading wrap, complex products as numpy's SIMD loops compute them
-(re = fma(ar, br, -(ai bi)), im = fma(ar, bi, ai br)) and |z| of a complex64 as numpy does
-(large sqrt(fma(r, r, 1)), r = small/large). numba never contracts a*b + c into an fma on its own (no fastmath),
-so every other expression rounds like numpy's separate ufuncs; error_model="numpy": x / 0 gives inf/nan (then
-selected away), as in numpy, instead of raising.
+1. `node_terms`: per node, cos/sin of the path's heading (`trig32`) and the source-side parts of the position
+   and heading costs, u = R(-O)(P - M) and wrap(O - M_h) -- contiguous, vectorised;
+2. `gather_rows`: each edge's W_A C_A (a gather from the per-metadata-row costs of `acc_rows`);
+3. `runs_cost`: the edges of the long diagonal runs (`edge_runs.EdgeRuns`): cost and best-so-far per
+   destination over contiguous slices -- SIMD without gathers, which is where the speed comes from;
+4. `scattered_cost`: the remaining edges, per destination, in search order;
+5. `runs_state` / `scattered_state` (only with global state): the winners' new ground position and heading
+   (eq. 5), as contiguous masked stores over the runs, and per node for the scattered winners.
+
+Measured per step on the 483k-edge Bandai graph (acc + position + heading): see bench/bench_viterbi.py.
+Separate passes, not one fused loop: a loop touching ~20 arrays defeats LLVM's vectoriser (it would need
+too many run-time alias checks), and measured 2-4x slower.
+
+Everything is float32 and written operation for operation as the reference computes it (numba does not contract
+a*b + c into an fma without fastmath; error_model="numpy" gives inf/nan instead of raising), so the compiled and
+numpy searches give bit-identical costs, states and paths (tests/engine/graph/test_kernels.py).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from numba.extending import intrinsic
 
-TWO_PI = 2.0 * np.pi
+from .trig32 import cos_sin
 
-
-@intrinsic
-def _fma(typingctx, a, b, c):
-    """a * b + c with one rounding (LLVM llvm.fma), operands of one float type."""
-    def codegen(context, builder, sig, args):
-        return builder.fma(*args)
-    return a(a, a, a), codegen
-
-
-@njit(inline="always")
-def _cmul(a, b):
-    """Complex product rounded as numpy's SIMD complex multiply."""
-    ar, ai, br, bi = a.real, a.imag, b.real, b.imag
-    return complex(_fma(ar, br, -(ai * bi)), _fma(ar, bi, ai * br))
-
-
+PI32 = np.float32(np.pi)
+TWO_PI32 = np.float32(2.0 * np.pi)
 ROW_CHUNK = 1024  # metadata rows per cache-resident chunk in acc_rows
 
 
@@ -71,105 +60,165 @@ def acc_rows(meta_acc_t, meta_acc_sq, m32, mm32, scale32, out):
                 o[j] = ((acc[j] * np.float32(-2.0) + sq[j]) + mm) * sc
 
 
+@njit(inline="always")
+def _wrap(h):
+    """An angle in [-3pi, 3pi) into [-pi, pi] (one 2pi step each way is all the callers need)."""
+    h = h - TWO_PI32 if h > PI32 else h
+    return h + TWO_PI32 if h < -PI32 else h
+
+
+_cos_sin = njit(inline="always")(cos_sin)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def node_terms(P, rot, mpos, O, mhead, use_pos, use_head, u32, hd32):
-    """Per node: u = complex64(R(-O)(P - M)) (the position term in the source's frame) and
-    hd = float32(wrap(O - M_h)); zeros for a term not in use (so the edge loop adds exactly 0 for it)."""
-    for i in range(len(u32)):
-        if use_pos:
-            a = P[i] - mpos
-            u32[i] = np.complex64(_cmul(a, complex(rot[i].real, -rot[i].imag)))
+def node_terms(Px, Pz, O, mx, mz, mh, C, Sn, ux, uz, th):
+    """Per node: (C, Sn) = (cos O, sin O); (ux, uz) = R(-O)(P - M), the path's offset from the camera fix in
+    its own heading frame; th = wrap(O - M_h). M = (mx, mz) m, M_h in [-pi, pi] rad, all float32."""
+    for i in range(len(Px)):
+        c, s = _cos_sin(O[i])
+        C[i] = c
+        Sn[i] = s
+        ax = Px[i] - mx
+        az = Pz[i] - mz
+        ux[i] = ax * c - az * s
+        uz[i] = ax * s + az * c
+        th[i] = _wrap(O[i] - mh)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def gather_rows(meta, rows, out):
+    """out[e] = rows[meta[e]]: each edge's accelerometer cost from its metadata row's."""
+    for e in range(len(meta)):
+        out[e] = rows[meta[e]]
+
+
+@njit(inline="always")
+def _edge_cost(g, ra, ux, uz, th, dx, dz, dh, wp, wh):
+    """G(src) + W_A C_A + W_P |u + d| + W_O |wrap(th + dh)| in float32, in the reference's order."""
+    x = ux + dx
+    y = uz + dz
+    c = (g + ra) + np.sqrt(x * x + y * y) * wp
+    h = abs(th + dh)
+    h = min(h, TWO_PI32 - h)
+    return c + h * wh
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def runs_cost(run_src0, run_dst0, run_edge0, run_len, ra, G, ux, uz, th, dx, dz, dh, wp, wh, use_terms,
+              best, win):
+    """Fold the run edges into the per-destination best cost / winning search index (strict <: ties keep the
+    earlier edge). Without position/heading terms the cost is G(src) + W_A C_A alone."""
+    for r in range(len(run_len)):
+        s0, d0, e0, n = run_src0[r], run_dst0[r], run_edge0[r], run_len[r]
+        b_ = best[d0:d0 + n]  # slices, so the loops below vectorise
+        w_ = win[d0:d0 + n]
+        g_ = G[s0:s0 + n]
+        ra_ = ra[e0:e0 + n]
+        if use_terms:
+            ux_, uz_, th_ = ux[s0:s0 + n], uz[s0:s0 + n], th[s0:s0 + n]
+            dx_, dz_, dh_ = dx[e0:e0 + n], dz[e0:e0 + n], dh[e0:e0 + n]
+            for i in range(n):
+                c = _edge_cost(g_[i], ra_[i], ux_[i], uz_[i], th_[i], dx_[i], dz_[i], dh_[i], wp, wh)
+                lt = c < b_[i]
+                b_[i] = c if lt else b_[i]
+                w_[i] = np.int32(e0 + i) if lt else w_[i]
         else:
-            u32[i] = 0
-        if use_head:
-            h = O[i] - mhead
-            h = h - TWO_PI * np.rint(h / TWO_PI)
-            hd32[i] = np.float32(h)
-        else:
-            hd32[i] = 0
+            for i in range(n):
+                c = g_[i] + ra_[i]
+                lt = c < b_[i]
+                b_[i] = c if lt else b_[i]
+                w_[i] = np.int32(e0 + i) if lt else w_[i]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def edge_costs_acc(src, meta, G, rows, cost):
-    """Accelerometer-only edge costs: G[src] + rows[meta]."""
-    for e in range(len(src)):
-        cost[e] = G[src[e]] + rows[meta[e]]
+def scattered_cost(sc_nodes, sc_indptr, src, ra, G, ux, uz, th, dx, dz, dh, wp, wh, use_terms, best, win):
+    """Fold the scattered edges (after the runs, in search order) into best / win, one destination at a time
+    (the running minimum stays in a register: 1.7x faster than a read-modify-write of best per edge)."""
+    for j in range(len(sc_nodes)):
+        n = sc_nodes[j]
+        b = best[n]
+        w = win[n]
+        for e in range(sc_indptr[j], sc_indptr[j + 1]):
+            s = src[e]
+            if use_terms:
+                c = _edge_cost(G[s], ra[e], ux[s], uz[s], th[s], dx[e], dz[e], dh[e], wp, wh)
+            else:
+                c = G[s] + ra[e]
+            lt = c < b
+            b = c if lt else b
+            w = np.int32(e) if lt else w
+        best[n] = b
+        win[n] = w
+
+
+@njit(inline="always")
+def _advance(px, pz, o, c, s, dx, dz, dh):
+    """Eq. 5 for one edge: P + R(O) d and O + dh (wrapped); c, s = cos O, sin O."""
+    return px + (dx * c + dz * s), pz + (dz * c - dx * s), _wrap(o + dh)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def edge_costs_global(src, meta, d32, dh32, G, rows, u32, hd32, wp32, wh32, cost):
-    """Edge costs with position and heading: G[s] + rows[meta] + W_P |u[s] + d| + W_O min(|h|, 2pi - |h|),
-    h = hd[s] + dh. Branch-free so it vectorises; a weight of 0 with a zero node term adds exactly +0 (the
-    reference skips the term: same bits), a weight of 1 multiplies exactly (the reference skips the multiply)."""
-    two_pi32 = np.float32(TWO_PI)
-    one = np.float32(1.0)
-    for e in range(len(src)):
-        s = src[e]
-        c = G[s] + rows[meta[e]]
-        z = u32[s]
-        dz = d32[e]
-        x = abs(z.real + dz.real)
-        y = abs(z.imag + dz.imag)
-        large = max(x, y)
-        small = min(x, y)
-        r = small / large
-        r = np.float32(0.0) if large == 0 else r
-        c = c + (np.sqrt(_fma(r, r, one)) * large) * wp32
-        h = abs(hd32[s] + dh32[e])
-        h = min(h, two_pi32 - h)
-        cost[e] = c + h * wh32
+def runs_state(run_src0, run_dst0, run_edge0, run_len, win, Px, Pz, O, C, Sn, dx, dz, dh, nPx, nPz, nO):
+    """New global state of every destination whose winner is a run edge (a masked store per run edge)."""
+    for r in range(len(run_len)):
+        s0, d0, e0, n = run_src0[r], run_dst0[r], run_edge0[r], run_len[r]
+        w_ = win[d0:d0 + n]
+        px_, pz_, o_, c_, s_ = Px[s0:s0 + n], Pz[s0:s0 + n], O[s0:s0 + n], C[s0:s0 + n], Sn[s0:s0 + n]
+        dx_, dz_, dh_ = dx[e0:e0 + n], dz[e0:e0 + n], dh[e0:e0 + n]
+        npx, npz, no = nPx[d0:d0 + n], nPz[d0:d0 + n], nO[d0:d0 + n]
+        for i in range(n):
+            mine = w_[i] == e0 + i
+            a, b, o = _advance(px_[i], pz_[i], o_[i], c_[i], s_[i], dx_[i], dz_[i], dh_[i])
+            npx[i] = a if mine else npx[i]
+            npz[i] = b if mine else npz[i]
+            no[i] = o if mine else no[i]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def mask_constraints(b_off, b_deg, b_cnt, b_node0, src, Gr, grmin, cost):
-    """Eq. 8: only edges whose source has the fewest broken constraints among a node's sources compete."""
-    for b in range(len(b_off)):
-        off, deg, cnt, n0 = b_off[b], b_deg[b], b_cnt[b], b_node0[b]
-        for j in range(cnt):
-            grmin[n0 + j] = Gr[src[off + j]]
-        for k in range(1, deg):
-            base = off + k * cnt
-            for j in range(cnt):
-                g = Gr[src[base + j]]
-                if g < grmin[n0 + j]:
-                    grmin[n0 + j] = g
-        for k in range(deg):
-            base = off + k * cnt
-            for j in range(cnt):
-                if Gr[src[base + j]] > grmin[n0 + j]:
-                    cost[base + j] = np.inf
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def argmin_update(b_off, b_deg, b_cnt, b_node0, cost, src, edge_id, d, dh, rot_dh, P, O, rot, track,
-                  Gr, constrained, G_new, P_new, O_new, rot_new, Gr_new, win, col):
-    """Per node (layout order) the cheapest incoming edge, ties to the lowest slot (= the reference's strict-<
-    row scan and first-index argmin); then the winners' new state: G_new, eq. 5 for P/O/rot (if track), the
-    source's Gr (if constrained), col = graph edge ids."""
-    for b in range(len(b_off)):
-        off, deg, cnt, n0 = b_off[b], b_deg[b], b_cnt[b], b_node0[b]
-        for j in range(cnt):
-            G_new[n0 + j] = cost[off + j]
-            win[n0 + j] = off + j
-        gb = G_new[n0:n0 + cnt]  # slices + selects (no branches): the compare loop vectorises
-        wb = win[n0:n0 + cnt]
-        for k in range(1, deg):
-            base = off + k * cnt
-            cb = cost[base:base + cnt]
-            for j in range(cnt):
-                c = cb[j]
-                cur = gb[j]
-                lt = c < cur
-                gb[j] = c if lt else cur
-                wb[j] = base + j if lt else wb[j]
-    for n in range(len(col)):
+def scattered_state(sc_nodes, first_scattered, src, win, Px, Pz, O, C, Sn, dx, dz, dh, nPx, nPz, nO):
+    """New global state of the destinations whose winner is a scattered edge."""
+    for j in range(len(sc_nodes)):
+        n = sc_nodes[j]
         e = win[n]
-        s = src[e]
-        col[n] = edge_id[e]
-        if constrained:
-            Gr_new[n] = Gr[s]
-        if track:
-            r = rot[s]
-            P_new[n] = P[s] + _cmul(d[e], r)
-            O_new[n] = O[s] + dh[e]
-            rot_new[n] = _cmul(r, rot_dh[e])
+        if e >= first_scattered:
+            s = src[e]
+            nPx[n], nPz[n], nO[n] = _advance(Px[s], Pz[s], O[s], C[s], Sn[s], dx[e], dz[e], dh[e])
+
+
+@njit(cache=True, nogil=True)
+def survivor_column(col_nodes, col_edges, full, alive, src, mark):
+    """One column of survivor-path pruning: the arriving edge (search index) of each node in `alive` (sorted)
+    -- col_edges[alive] for a full column, else a merge with the column's sorted `col_nodes` (alive is a subset)
+    -- and the distinct sources of those edges, ascending (the alive set one column earlier). `mark` is an
+    all-False (N,) scratch array, left all-False."""
+    k = len(alive)
+    kept = np.empty(k, dtype=np.int32)
+    if full:
+        for i in range(k):
+            kept[i] = col_edges[alive[i]]
+    else:
+        j = 0
+        for i in range(k):
+            while col_nodes[j] < alive[i]:
+                j += 1
+            kept[i] = col_edges[j]
+    found = np.empty(k, dtype=np.int64)
+    m = 0
+    for i in range(k):
+        s = src[kept[i]]
+        if not mark[s]:
+            mark[s] = True
+            found[m] = s
+            m += 1
+    if m * 32 > len(mark):  # many: one scan of the marks gives them sorted
+        out = np.empty(m, dtype=np.int64)
+        j = 0
+        for s in range(len(mark)):
+            if mark[s]:
+                out[j] = s
+                j += 1
+                mark[s] = False
+        return kept, out
+    for i in range(m):
+        mark[found[i]] = False
+    return kept, np.sort(found[:m])

@@ -1,17 +1,21 @@
-"""Viterbi search over a motion graph (seed 000 sections 5-5.4), as whole-array numpy operations.
+"""Viterbi search over a motion graph (seed 000 sections 5-5.4), one O(E) pass of array work per sample.
 
 Per input sample every path is extended by one edge: G(n,t) = min over edges e=(m->n) of L(e,t) + G(m,t-1), with
-L = W_A C_A + W_P C_P + W_O C_O (eqs. 4, 6, 7). The minimum over incoming edges is taken block-wise over edges
-grouped by the destination's in-degree (`layout.EdgeLayout`; it replaced `np.minimum.reduceat`, whose
-per-segment overhead dominated). C_A is computed once per metadata row (||E||^2 precomputed, the square
-expanded) and gathered per edge. Each path carries its own global ground position and heading (eq. 5), so the
-position and heading costs are per edge; they are evaluated in each source node's local frame
+L = W_A C_A + W_P C_P + W_O C_O (eqs. 4, 6, 7). C_A is computed once per metadata row (||E||^2 precomputed, the
+square expanded) and gathered per edge. Each path carries its own global ground position and heading (eq. 5), so
+the position and heading costs are per edge; they are evaluated in each source node's frame
 (||P + R(O) d - M|| = ||R(-O)(P - M) + d||), which moves the rotation from the E edges to the N nodes.
+
+The edges are visited in `edge_runs.EdgeRuns` order: long diagonal runs (clip frame -> next frame and the like,
+whose sources and destinations are contiguous node ranges) and then the scattered rest, a node's incoming edges in
+increasing search index with ties to the earliest. Costs and per-path state are float32 (G kept relative to its
+minimum, the offset summed in float64; headings wrapped to [-pi, pi] at every step, their cos/sin recomputed from
+them by `trig32` rather than stored), which halves the memory traffic that bounds the step.
 
 Human constraints (eq. 8) add a count of broken requirements G_r, compared before G: only incoming edges whose
 source has the fewest broken constraints compete.
 
-Back-pointers are int32 edge indices, one column per sample; survivor-path memory reduction (Abbasfar & Yao)
+Back-pointers are int32 search indices, one column per sample; survivor-path memory reduction (Abbasfar & Yao)
 periodically back-traces from every live node and keeps, per column, only the entries some survivor uses.
 """
 from __future__ import annotations
@@ -24,14 +28,22 @@ try:  # numba is in the `engine` extra: the headless gateway install does not ca
     from . import kernels
 except ImportError:  # pragma: no cover - exercised only on an install without the extra
     kernels = None
-from .geometry import TWO_PI, wrap_angle
+from .edge_runs import EdgeRuns
+from .geometry import wrap_angle
 from .graph import MotionGraph
-from .layout import EdgeLayout
-
+from .trig32 import cos_sin
 
 KERNELS = ("numba", "numpy")
-DEFAULT_KERNEL = "numba" if kernels is not None else "numpy"  # identical results; numba is 1.5-2.3x faster
+DEFAULT_KERNEL = "numba" if kernels is not None else "numpy"  # identical results; numba is several times faster
 ACC_BATCH = 16  # batch search computes C_A rows for this many samples per pass over the metadata
+PI32 = np.float32(np.pi)
+TWO_PI32 = np.float32(2.0 * np.pi)
+
+
+def _wrap32(h: np.ndarray) -> np.ndarray:
+    """float32 angles in [-3pi, 3pi) into [-pi, pi] by one 2pi step (as kernels._wrap)."""
+    h = np.where(h > PI32, h - TWO_PI32, h)
+    return np.where(h < -PI32, h + TWO_PI32, h)
 
 
 @dataclass(frozen=True)
@@ -88,8 +100,8 @@ class SearchResult:
 
 @dataclass
 class _Column:
-    """Back-pointers of one sample: `edges[i]` reached `nodes[i]`; nodes None = aligned with the graph's
-    segment nodes (a full column not yet pruned)."""
+    """Back-pointers of one sample: `edges[i]` (a search index, see `EdgeRuns`) reached `nodes[i]`; nodes None
+    = one entry per graph node (a full column not yet pruned)."""
 
     nodes: np.ndarray | None
     edges: np.ndarray  # int32
@@ -99,12 +111,8 @@ class ViterbiLattice:
     """The running search state; `ViterbiSearch` (batch) and `FixedLagSynthesizer` (online) both drive it,
     so the two give identical paths when the lag covers the whole sequence.
 
-    Internals, all for speed on large graphs: per-edge arrays are in `EdgeLayout` order (grouped by the
-    destination's in-degree) so the minimum over incoming edges is a few whole-array comparisons; nodes are
-    renumbered so the nodes with incoming edges come first in layout order (updates are slices, not
-    scatters); ground positions are complex numbers x + iz and each path's heading is also kept as
-    e^{-iO}, so moving an offset into the world is one complex multiply (R(h) v = v e^{-ih}) and the
-    position cost is one complex gather + add + abs. Back-pointer columns hold graph edge ids."""
+    Per-node arrays are indexed by graph node id; per-edge arrays by search index (`EdgeRuns` order). Each path's
+    global state is three float32 arrays: ground position (Px, Pz) m and heading O rad in [-pi, pi]."""
 
     def __init__(self, graph: MotionGraph, weights: SearchWeights = SearchWeights(),
                  sensor_indices: tuple[int, ...] | None = None, prune_every: int = 32,
@@ -116,58 +124,35 @@ class ViterbiLattice:
         self.graph = graph
         self.weights = weights
         self.prune_every = prune_every
-        self.kernel = kernel  # "numba": compiled fused step (kernels.py); "numpy": the reference, bit-identical
+        self.kernel = kernel  # "numba": compiled passes (kernels.py); "numpy": the reference, bit-identical
         # Without position/heading costs the search is Markov and needs no per-path global state: positions
-        # along the chosen path are integrated afterwards (saves ~7 gathers of N per sample).
+        # along the chosen path are integrated afterwards.
         self.track_global = weights.position != 0 or weights.heading != 0
         sel = list(range(graph.n_sensors)) if sensor_indices is None else list(sensor_indices)
         self.n_sensors = len(sel)
-        e = graph.meta_acc_g[:, sel, :].reshape(len(graph.meta_acc_g), -1).astype(np.float32)
-        self._meta_acc_sq = np.einsum("ij,ij->i", e.astype(np.float64), e.astype(np.float64)).astype(np.float32)
-        self._dots = np.empty(len(e), dtype=np.float32)
-        self._meta_acc_t = np.ascontiguousarray(e.T)  # (3S, M): one contiguous row per sensor axis
-        self._axpy = np.empty(len(e), dtype=np.float32) if kernel == "numpy" else None
-        self.layout = EdgeLayout(graph.edge_dst, graph.n_nodes)
-        n = graph.n_nodes
-        self.n_seg = len(self.layout.nodes)
-        rest = np.setdiff1d(np.arange(n), self.layout.nodes)
-        self._to_graph = np.r_[self.layout.nodes, rest].astype(np.intp)  # internal id -> graph node
-        self._to_internal = np.empty(n, dtype=np.intp)
-        self._to_internal[self._to_graph] = np.arange(n)
-        order = self.layout.order
-        self._edge_id = order.astype(np.int32)
-        self._src = self._to_internal[graph.edge_src[order]]
-        self._meta = graph.edge_meta[order].astype(np.intp)
-        dpos = graph.meta_dpos_m[:, 0] + 1j * graph.meta_dpos_m[:, 1]
-        self._d = dpos[self._meta]
-        self._dh = graph.meta_dheading_rad[self._meta]
-        self._d32 = self._d.astype(np.complex64)  # costs are evaluated in float32 (half the memory traffic)
-        self._dh32 = self._dh.astype(np.float32)
-        self._rot_dh = np.exp(-1j * self._dh)
-        self._arrival = graph.node_arrival[self._to_graph]
+        m = len(graph.meta_acc_g)
+        # (3S, M) float32: one contiguous row per sensor axis (a single copy: this runs once per search)
+        self._meta_acc_t = np.ascontiguousarray(
+            np.asarray(graph.meta_acc_g, dtype=np.float32)[:, sel, :].transpose(1, 2, 0)).reshape(-1, m)
+        self._meta_acc_sq = np.einsum("ij,ij->j", self._meta_acc_t, self._meta_acc_t,
+                                      dtype=np.float64).astype(np.float32)
+        self._dots = np.empty(m, dtype=np.float32)
+        self._axpy = np.empty(m, dtype=np.float32)
+        self.runs = EdgeRuns(graph.edge_src, graph.edge_dst, graph.n_nodes)
+        r = self.runs
+        self._src, self._dst = r.src.astype(np.intp), r.dst.astype(np.intp)
+        self._src32 = r.src.astype(np.int32)
+        self._meta = graph.edge_meta[r.edge_id].astype(np.intp)
+        self._meta32 = self._meta.astype(np.int32)
+        self._dx, self._dz = (graph.meta_dpos_m[self._meta, i].astype(np.float32) for i in (0, 1))
+        self._dh = graph.meta_dheading_rad[self._meta].astype(np.float32)
+        self._ra = np.empty(len(self._src), dtype=np.float32)  # per-edge W_A C_A of the current sample
+        self._cost = np.empty(len(self._src), dtype=np.float32) if kernel == "numpy" else None
         self._graph_src = graph.edge_src.astype(np.intp)
+        dpos = graph.meta_dpos_m[:, 0] + 1j * graph.meta_dpos_m[:, 1]
         self._graph_d = dpos[graph.edge_meta]
         self._graph_dh = graph.meta_dheading_rad[graph.edge_meta]
-        n_e = len(order)
-        if kernel == "numpy":
-            self._cost = np.empty(n_e, dtype=np.float32)
-            self._buf1 = np.empty(n_e, dtype=np.float32)
-            self._buf2 = np.empty(n_e, dtype=np.float32)
-            self._cbuf = np.empty(n_e, dtype=np.complex64)
-        else:
-            bl = self.layout.blocks
-            self._blocks = tuple(np.array(v, dtype=np.int64) for v in (
-                [b.offset for b in bl], [b.degree for b in bl], [b.count for b in bl], [b.nodes.start for b in bl]))
-            self._src32 = self._src.astype(np.int32)
-            self._meta32 = self._meta.astype(np.int32)
-            self._cost = np.empty(n_e, dtype=np.float32)
-            self._win = np.empty(self.n_seg, dtype=np.int64)
-            self._u32 = np.empty(n, dtype=np.complex64)
-            self._hd32 = np.empty(n, dtype=np.float32)
-            self._grmin = np.empty(self.n_seg)
-            self._zero_rows = np.zeros(len(e), dtype=np.float32)  # no acc term: adds exactly +0
-            self._no_f64 = np.empty(0)
-            self._no_state = (np.empty(0, dtype=complex), np.empty(0), np.empty(0, dtype=complex))
+        self._none32 = np.empty(0, dtype=np.float32)
         self.cost_offset = 0.0  # G is float32 kept relative to its minimum (the offset is summed in float64)
         self.columns: list[_Column] = []
         self.t = -1  # index of the last sample consumed
@@ -185,9 +170,9 @@ class ViterbiLattice:
         m = np.asarray(acc_g, dtype=np.float64).reshape(-1)
         if m.size != 3 * self.n_sensors:
             raise ValueError(f"expected {self.n_sensors} sensors x 3 axes, got shape {np.shape(acc_g)}")
-        m32 = m.astype(np.float32)
         if self.kernel == "numba":
             return self.acc_rows_batch(m[None])[0]
+        m32 = m.astype(np.float32)
         dots, tmp = self._dots, self._axpy
         np.multiply(self._meta_acc_t[0], m32[0], out=dots)
         for i in range(1, len(m32)):
@@ -211,67 +196,52 @@ class ViterbiLattice:
         kernels.acc_rows(self._meta_acc_t, self._meta_acc_sq, m.astype(np.float32), mm, scale, out)
         return out
 
+    def _edge_rows(self, rows: np.ndarray | None) -> np.ndarray:
+        """Each edge's W_A C_A (search order) from the per-metadata-row costs; zeros without an acc term."""
+        ra = self._ra
+        if rows is None:
+            ra.fill(0.0)
+        elif self.kernel == "numba":
+            kernels.gather_rows(self._meta32, rows, ra)
+        else:
+            np.take(rows, self._meta, out=ra)
+        return ra
+
+    def _mask_constraints(self, ra: np.ndarray) -> None:
+        """Eq. 8: an edge whose source has more broken constraints than another source of the same node never
+        competes (its cost becomes +inf). Shared by both kernels; constraints are rare and short."""
+        gr_src = self._Gr[self._src]
+        fewest = np.full(self.graph.n_nodes, np.inf)
+        for idx, d in self.runs.layers:
+            fewest[d] = np.minimum(fewest[d], gr_src[idx])
+        ra[gr_src > fewest[self._dst]] = np.inf
+
     # ----- stepping -----------------------------------------------------------------------------
+    def _global_state(self, position_m: complex, heading_rad: float) -> tuple[np.ndarray, ...]:
+        """Every node's (Px, Pz, O) set to one ground position and heading (eq. 5's initial state)."""
+        values = (position_m.real, position_m.imag, float(wrap_angle(heading_rad)))
+        return tuple(np.full(self.graph.n_nodes, v, dtype=np.float32) for v in values)
+
     def start(self, acc_g: np.ndarray | None, position_m: np.ndarray | None, heading_rad: float | None,
               penalty: np.ndarray | None = None) -> None:
         """First sample: every node may start a path; its cost is the arrival row's C_A, global state = input."""
         n = self.graph.n_nodes
         rows = self._acc_rows(acc_g)
-        self._G = np.zeros(n, dtype=np.float32) if rows is None else rows[self._arrival]
+        self._G = np.zeros(n, dtype=np.float32) if rows is None else rows[self.graph.node_arrival]
+        self._spare_G = np.empty(n, dtype=np.float32)
+        self._win = np.empty(n, dtype=np.int32)
         self._pos_known = not (position_m is None or np.any(np.isnan(position_m)))
         self._head_known = not (heading_rad is None or np.isnan(heading_rad))
         pos = np.asarray(position_m, float) if self._pos_known else np.zeros(2)
         head = float(heading_rad) if self._head_known else 0.0
         self.start_state = (complex(pos[0], pos[1]), head)
         if self.track_global:
-            self._P = np.full(n, pos[0] + 1j * pos[1])
-            self._O = np.full(n, head)  # not wrapped: it only ever enters costs through wrap-safe terms
-            self._rot = np.full(n, np.exp(-1j * head))
-            spare_state = (np.empty(n, dtype=complex), np.empty(n), np.empty(n, dtype=complex))
-        else:
-            self._P = self._O = self._rot = None
-            spare_state = (None, None, None)
-        self._spare = (np.empty(n, dtype=np.float32),) + spare_state
-        self._Gr = np.zeros(n) if penalty is None else np.asarray(penalty, float)[self._to_graph]
+            self._state = self._global_state(*self.start_state)
+            self._spare_state = tuple(a.copy() for a in self._state)
+            self._terms = tuple(np.empty(n, dtype=np.float32) for _ in range(5))  # C, Sn, ux, uz, th
+        self._Gr = np.zeros(n) if penalty is None else np.asarray(penalty, float)
         self.constrained = penalty is not None
         self.t = 0
-
-    def _edge_costs(self, acc_g, position_m, heading_rad) -> np.ndarray:
-        """L(e, t) + G(src, t-1) for every edge (layout order), in preallocated float32 buffers.
-
-        _narrow: gathering float64/complex128 node values into the float32/complex64 buffers intermittently
-        reports "invalid value encountered in cast" although every value is finite (checked: no NaN/inf in
-        the sources when it fires); numpy's SIMD cast picks up a stale floating-point flag. The two narrowing
-        gathers therefore run under errstate(invalid="ignore")."""
-        src, cost, b1, b2 = self._src, self._cost, self._buf1, self._buf2
-        np.take(self._G, src, out=cost, mode="clip")
-        rows = self._acc_rows(acc_g)
-        if rows is not None:
-            np.take(rows, self._meta, out=b1, mode="clip")
-            cost += b1
-        if position_m is not None and not np.any(np.isnan(position_m)) and self.weights.position != 0:
-            u = (self._P - (position_m[0] + 1j * position_m[1])) * np.conj(self._rot)  # R(-O)(P - M)
-            cb = self._cbuf
-            with np.errstate(invalid="ignore"):  # see _narrow: the float64 -> float32 cast raises a stale flag
-                np.take(u, src, out=cb, mode="clip")
-            cb += self._d32
-            np.abs(cb, out=b1)
-            if self.weights.position != 1:
-                b1 *= self.weights.position
-            cost += b1
-        if heading_rad is not None and not np.isnan(heading_rad) and self.weights.heading != 0:
-            hd = self._O - heading_rad
-            hd -= TWO_PI * np.round(hd / TWO_PI)
-            with np.errstate(invalid="ignore"):  # see _narrow
-                np.take(hd, src, out=b1, mode="clip")
-            b1 += self._dh32  # in [-2pi, 2pi]: |wrap(x)| = min(|x|, 2pi - |x|)
-            np.abs(b1, out=b1)
-            np.subtract(np.float32(TWO_PI), b1, out=b2)
-            np.minimum(b1, b2, out=b1)
-            if self.weights.heading != 1:
-                b1 *= self.weights.heading
-            cost += b1
-        return cost
 
     def _late_start(self, position_m, heading_rad) -> tuple[bool, bool]:
         """Is this sample the first camera fix of a take that started without one? (position, heading)"""
@@ -289,134 +259,169 @@ class ViterbiLattice:
             self.start(acc_g, position_m, heading_rad, penalty)
             return
         first_pos, first_head = self._late_start(position_m, heading_rad) if self.track_global else (False, False)
-        pos = None if position_m is None or first_pos else np.asarray(position_m, float)
-        head = None if first_head else heading_rad
+        w = self.weights
+        use_pos = (self.track_global and not first_pos and position_m is not None
+                   and not np.any(np.isnan(position_m)) and w.position != 0)
+        use_head = (self.track_global and not first_head and heading_rad is not None
+                    and not np.isnan(heading_rad) and w.heading != 0)
         self.constrained |= penalty is not None
-        k = self.n_seg
-        # write the new state into the spare buffers (double buffering: no per-step allocation of N arrays)
-        G, P, O, rot = self._spare
-        Gr = np.full(self.graph.n_nodes, np.inf) if self.constrained else None
-        if self.kernel == "numba":
-            col = self._step_compiled(acc_g, pos, head, G, P, O, rot, Gr, rows)
-        else:
-            col = self._step_numpy(acc_g, pos, head, G, P, O, rot, Gr)
-        G[k:] = np.inf
-        low = G[:k].min()
-        if np.isfinite(low):
-            G[:k] -= low
-            self.cost_offset += float(low)
-        if self.track_global:
-            P[k:], O[k:], rot[k:] = self._P[k:], self._O[k:], self._rot[k:]
+        ra = self._edge_rows(self._acc_rows(acc_g) if rows is None else rows)
         if self.constrained:
+            self._mask_constraints(ra)
+        if self.track_global:  # cos/sin of every path's heading, and the cost terms if this sample has a fix
+            mpos = np.asarray(position_m, float) if use_pos else np.zeros(2)
+            self._node_terms(mpos, float(wrap_angle(heading_rad)) if use_head else 0.0)
+        terms = self._terms[2:] if use_pos or use_head else None
+        wp = np.float32(w.position if use_pos else 0.0)
+        wh = np.float32(w.heading if use_head else 0.0)
+        best, win = self._spare_G, self._win
+        best.fill(np.inf)
+        win.fill(-1)
+        if self.kernel == "numba":
+            self._fold_compiled(ra, terms, wp, wh, best, win)
+        else:
+            self._fold_numpy(ra, terms, wp, wh, best, win)
+        if self.track_global:
+            (self._advance_compiled if self.kernel == "numba" else self._advance_numpy)(win, self._spare_state)
+            self._state, self._spare_state = self._spare_state, self._state
+        low = best.min()
+        if np.isfinite(low):
+            best -= low
+            self.cost_offset += float(low)
+        if self.constrained:
+            Gr = np.where(win >= 0, self._Gr[self._src[win]], np.inf)
             if penalty is not None:
-                Gr += np.asarray(penalty, float)[self._to_graph]
-            Gr[~np.isfinite(G)] = np.inf
+                Gr += np.asarray(penalty, float)
+            Gr[~np.isfinite(best)] = np.inf
             self._Gr = Gr
-        self._spare = (self._G, self._P, self._O, self._rot)
-        self._G, self._P, self._O, self._rot = G, P, O, rot  # (P, O, rot untouched if not tracked)
-        if first_pos:  # a take that started without a camera fix: the first fix initialises every path (eq. 5)
-            self._P[:] = complex(position_m[0], position_m[1])
-            self._pos_known = True
-        if first_head:
-            self._O[:] = heading_rad
-            self._rot[:] = np.exp(-1j * heading_rad)
-            self._head_known = True
-        self.columns.append(_Column(None, col))
+        self._spare_G, self._G = self._G, best
+        if first_pos or first_head:  # a take that started without a camera fix: the first fix sets every path
+            self._set_first_fix(position_m if first_pos else None, heading_rad if first_head else None)
+        self.columns.append(_Column(None, win.copy()))
         self.t += 1
         self._since_prune += 1
         if self.prune_every and self._since_prune >= self.prune_every:
             self.prune()
 
-    def _step_numpy(self, acc_g, pos, head, G, P, O, rot, Gr) -> np.ndarray:
-        """Reference step in whole-array numpy: writes the new G[:k] (not normalised), P/O/rot[:k] (if tracked)
-        and Gr[:k] (if constrained); returns the back-pointer column (graph edge ids, int32)."""
-        cost = self._edge_costs(acc_g, pos, head)
-        if self.constrained:  # eq. 8: only edges from sources with the fewest broken constraints compete
-            gr_e = self._Gr[self._src]
-            cost[gr_e > self.layout.broadcast(self.layout.block_min(gr_e))] = np.inf
-        seg_min, win = self.layout.argmin(cost)
-        wsrc = self._src[win]
-        k = self.n_seg
-        G[:k] = seg_min
-        if self.track_global:
-            np.take(self._rot, wsrc, out=rot[:k], mode="clip")
-            np.take(self._P, wsrc, out=P[:k], mode="clip")
-            P[:k] += self._d[win] * rot[:k]  # eq. 5: P(n,t) = P(m,t-1) + R(O(m,t-1)) d(v)
-            np.take(self._O, wsrc, out=O[:k], mode="clip")
-            O[:k] += self._dh[win]
-            rot[:k] *= self._rot_dh[win]
-        if self.constrained:
-            Gr[:k] = self._Gr[wsrc]
-        return self._edge_id[win]
+    def _set_first_fix(self, position_m: np.ndarray | None, heading_rad: float | None) -> None:
+        """Eq. 5's initial state from the first camera fix, for whichever of position / heading it brings."""
+        Px, Pz, O = self._state
+        if position_m is not None:
+            Px[:], Pz[:] = position_m[0], position_m[1]
+            self._pos_known = True
+        if heading_rad is not None:
+            O[:] = self._global_state(0j, heading_rad)[2]
+            self._head_known = True
 
-    def _step_compiled(self, acc_g, pos, head, G, P, O, rot, Gr, rows=None) -> np.ndarray:
-        """The same step as `_step_numpy` in compiled passes (kernels.py): node terms, edge costs, constraint
-        mask, per-node argmin + winners' state update. Bit-identical to the reference."""
-        w = self.weights
-        if rows is None:
-            rows = self._acc_rows(acc_g)
-        if rows is None:
-            rows = self._zero_rows
-        use_pos = pos is not None and not np.any(np.isnan(pos)) and w.position != 0
-        use_head = head is not None and not np.isnan(head) and w.heading != 0
-        cost, track = self._cost, self.track_global
-        if use_pos or use_head:
-            kernels.node_terms(self._P, self._rot, complex(pos[0], pos[1]) if use_pos else 0j, self._O,
-                               float(head) if use_head else 0.0, use_pos, use_head, self._u32, self._hd32)
-            kernels.edge_costs_global(self._src32, self._meta32, self._d32, self._dh32, self._G, rows, self._u32,
-                                      self._hd32, np.float32(w.position if use_pos else 0.0),
-                                      np.float32(w.heading if use_head else 0.0), cost)
+    def _node_terms(self, mpos: np.ndarray, mhead: float) -> None:
+        """Into `_terms`, per node: C, Sn = cos O, sin O; (ux, uz) = R(-O)(P - M); th = wrap(O - M_h); float32
+        (see kernels.node_terms)."""
+        Px, Pz, O = self._state
+        mx, mz, mh = np.float32(mpos[0]), np.float32(mpos[1]), np.float32(mhead)
+        C, Sn, ux, uz, th = self._terms
+        if self.kernel == "numba":
+            kernels.node_terms(Px, Pz, O, mx, mz, mh, C, Sn, ux, uz, th)
         else:
-            kernels.edge_costs_acc(self._src32, self._meta32, self._G, rows, cost)
-        if self.constrained:
-            kernels.mask_constraints(*self._blocks, self._src32, self._Gr, self._grmin, cost)
-        col = np.empty(self.n_seg, dtype=np.int32)
-        no = self._no_state
-        kernels.argmin_update(*self._blocks, cost, self._src32, self._edge_id, self._d, self._dh, self._rot_dh,
-                              self._P if track else no[0], self._O if track else no[1],
-                              self._rot if track else no[2], track, self._Gr, self.constrained, G,
-                              P if track else no[0], O if track else no[1], rot if track else no[2],
-                              self._no_f64 if Gr is None else Gr, self._win, col)
-        return col
+            C[:], Sn[:] = cos_sin(O)
+            ax, az = Px - mx, Pz - mz
+            np.subtract(ax * C, az * Sn, out=ux)
+            np.add(ax * Sn, az * C, out=uz)
+            th[:] = _wrap32(O - mh)
+
+    def _fold_compiled(self, ra, terms, wp, wh, best, win) -> None:
+        """Best cost and winning search index per node: runs (SIMD), then the scattered edges."""
+        r = self.runs
+        ux, uz, th = terms if terms is not None else (self._none32,) * 3
+        use = terms is not None
+        kernels.runs_cost(r.run_src0, r.run_dst0, r.run_edge0, r.run_len, ra, self._G, ux, uz, th, self._dx,
+                          self._dz, self._dh, wp, wh, use, best, win)
+        kernels.scattered_cost(r.sc_nodes, r.sc_indptr, self._src32, ra, self._G, ux, uz, th, self._dx, self._dz,
+                               self._dh, wp, wh, use, best, win)
+
+    def _fold_numpy(self, ra, terms, wp, wh, best, win) -> None:
+        """Reference fold: every edge's cost in whole-array float32 ops (the order of kernels._edge_cost), then
+        one comparison per rank layer, so ties go to the lowest search index as in the compiled passes."""
+        src, cost = self._src, self._cost
+        np.take(self._G, src, out=cost)
+        cost += ra
+        if terms is not None:
+            ux, uz, th = terms
+            x = ux[src] + self._dx
+            y = uz[src] + self._dz
+            cost += np.sqrt(x * x + y * y) * wp
+            h = np.abs(th[src] + self._dh)
+            cost += np.minimum(h, TWO_PI32 - h) * wh
+        for idx, d in self.runs.layers:
+            c = cost[idx]
+            lt = c < best[d]
+            best[d] = np.where(lt, c, best[d])
+            win[d] = np.where(lt, idx, win[d])
+
+    def _advance_compiled(self, win, new_state) -> None:
+        """Eq. 5 for every node's winning edge into `new_state` (nodes nothing reached keep stale values)."""
+        r = self.runs
+        now = (*self._state, *self._terms[:2])  # Px, Pz, O, C, Sn
+        edge = (self._dx, self._dz, self._dh)
+        kernels.runs_state(r.run_src0, r.run_dst0, r.run_edge0, r.run_len, win, *now, *edge, *new_state)
+        kernels.scattered_state(r.sc_nodes, r.n_run_edges, self._src32, win, *now, *edge, *new_state)
+
+    def _advance_numpy(self, win, new_state) -> None:
+        """Reference of `_advance_compiled` (the order of kernels._advance)."""
+        nodes = np.flatnonzero(win >= 0)
+        e = win[nodes]
+        s = self._src[e]
+        Px, Pz, O, C, Sn = (a[s] for a in (*self._state, *self._terms[:2]))
+        dx, dz, dh = (a[e] for a in (self._dx, self._dz, self._dh))
+        nPx, nPz, nO = new_state
+        nPx[nodes] = Px + (dx * C + dz * Sn)
+        nPz[nodes] = Pz + (dz * C - dx * Sn)
+        nO[nodes] = _wrap32(O + dh)
 
     # ----- state by graph node ------------------------------------------------------------------
     def cost_of(self, node: int) -> float:
-        return float(self._G[self._to_internal[node]]) + self.cost_offset
+        return float(self._G[node]) + self.cost_offset
 
     def broken_of(self, node: int) -> int:
-        return int(self._Gr[self._to_internal[node]])
+        return int(self._Gr[node])
 
     def best_node(self) -> int:
         """Graph node with the lowest (broken constraints, cost) at the current sample."""
         if not self.constrained:
-            return int(self._to_graph[np.argmin(self._G)])
+            return int(np.argmin(self._G))
         fewest = self._Gr == self._Gr.min()
-        return int(self._to_graph[np.argmin(np.where(fewest, self._G, np.inf))])
+        return int(np.argmin(np.where(fewest, self._G, np.inf)))
 
     # ----- path memory --------------------------------------------------------------------------
     def _lookup(self, col: _Column, nodes: np.ndarray) -> np.ndarray:
-        """Arriving graph edge of each graph node in `nodes` from one column."""
-        idx = self._to_internal[nodes] if col.nodes is None else np.searchsorted(col.nodes, nodes)
+        """Arriving edge (search index) of each graph node in `nodes` from one column."""
+        idx = nodes if col.nodes is None else np.searchsorted(col.nodes, nodes)
         return col.edges[idx].astype(np.intp)
 
+    def _arriving_edge(self, col: _Column, node: int) -> int:
+        """Graph edge id that reached `node` in one column."""
+        return int(self.runs.edge_id[self._lookup(col, np.array([node]))[0]])
+
     def prune(self) -> None:
-        """Survivor-path memory reduction: keep only lattice entries on some live node's back-trace.
-        Node sets are kept sorted via a mark array (O(N) per column; np.unique's hashing was 20x slower)."""
+        """Survivor-path memory reduction: keep only lattice entries on some live node's back-trace, walking back
+        from the newest column until a column was already pruned against the same node set."""
         self._since_prune = 0
-        alive = self._sorted_set(self._to_graph[np.isfinite(self._G)])
+        alive = np.flatnonzero(np.isfinite(self._G))
+        mark = np.zeros(self.graph.n_nodes, dtype=bool)
         for k in range(len(self.columns) - 1, -1, -1):
             col = self.columns[k]
             if col.nodes is not None and len(col.nodes) == len(alive) and np.array_equal(col.nodes, alive):
                 break  # earlier columns were already pruned against this very set
-            edges = self._lookup(col, alive)
-            self.columns[k] = _Column(alive, edges.astype(np.int32))
-            alive = self._sorted_set(self._graph_src[edges])
-
-    def _sorted_set(self, nodes: np.ndarray) -> np.ndarray:
-        """Distinct graph node ids of `nodes`, ascending."""
-        mark = np.zeros(self.graph.n_nodes, dtype=bool)
-        mark[nodes] = True
-        return np.flatnonzero(mark)
+            if self.kernel == "numba":
+                full = col.nodes is None
+                edges, sources = kernels.survivor_column(alive if full else col.nodes, col.edges, full, alive,
+                                                         self._src, mark)
+            else:
+                edges = self._lookup(col, alive).astype(np.int32)
+                mark[self._src[edges]] = True
+                sources = np.flatnonzero(mark)  # sorted and distinct (np.unique's hashing was 20x slower)
+                mark[sources] = False
+            self.columns[k] = _Column(alive, edges)
+            alive = sources
 
     def lattice_entries(self) -> int:
         return int(sum(len(c.edges) for c in self.columns))
@@ -435,12 +440,12 @@ class ViterbiLattice:
         nodes[-1] = node
         for i in range(n_steps):
             col = self.columns[len(self.columns) - 1 - i]
-            e = int(self._lookup(col, np.array([nodes[n_steps - i]]))[0])
+            e = self._arriving_edge(col, int(nodes[n_steps - i]))
             edges[n_steps - i] = e
             nodes[n_steps - i - 1] = self._graph_src[e]
         if n_steps < len(self.columns):
             col = self.columns[len(self.columns) - 1 - n_steps]
-            edges[0] = int(self._lookup(col, np.array([nodes[0]]))[0])
+            edges[0] = self._arriving_edge(col, int(nodes[0]))
         return nodes, edges
 
     def global_states(self, node: int, edges: np.ndarray,
@@ -455,10 +460,10 @@ class ViterbiLattice:
         e = np.asarray(edges[1:], dtype=np.intp)
         dh = self._graph_dh[e]
         if self.track_global:
-            i = self._to_internal[node]
-            heading = self._O[i] - np.r_[np.cumsum(dh[::-1])[::-1], 0.0]  # minus the dh of later edges
+            Px, Pz, O = (float(a[node]) for a in self._state)
+            heading = O - np.r_[np.cumsum(dh[::-1])[::-1], 0.0]  # minus the dh of later edges
             steps = self._graph_d[e] * np.exp(-1j * heading[:-1])
-            ground = self._P[i] - np.r_[np.cumsum(steps[::-1])[::-1], 0.0]
+            ground = complex(Px, Pz) - np.r_[np.cumsum(steps[::-1])[::-1], 0.0]
         else:
             p0, o0 = self.start_state if start is None else start
             heading = o0 + np.r_[0.0, np.cumsum(dh)]

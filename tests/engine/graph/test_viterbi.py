@@ -52,10 +52,11 @@ def test_noiseless_walk_with_transitions_is_recovered_exactly(graph):
     assert np.allclose(res.ground_m, ground, atol=1e-9)
     assert np.allclose(wrap_angle(res.heading_rad - heading), 0, atol=1e-9)
     # with all three modalities the same path comes out and the carried global state is the truth
+    # (the search carries it in float32: 20 um / 20 urad is float32 resolution over a few metres and steps)
     res = ViterbiSearch(graph).run(Observations(acc, ground, heading))
     assert np.array_equal(res.nodes, nodes)
-    assert np.allclose(res.ground_m, ground, atol=1e-9)
-    assert np.allclose(wrap_angle(res.heading_rad - heading), 0, atol=1e-9)
+    assert np.allclose(res.ground_m, ground, atol=2e-5)
+    assert np.allclose(wrap_angle(res.heading_rad - heading), 0, atol=2e-5)
 
 
 def test_accelerometer_only_search_is_optimal_against_exhaustive_search(graph):
@@ -122,5 +123,6 @@ def test_a_take_without_an_initial_camera_fix_starts_at_the_first_fix(graph):
     head[:late] = np.nan
     res = ViterbiSearch(graph, SearchWeights(acc=1.0)).run(Observations(acc, pos, head))
     assert np.array_equal(res.nodes, nodes)
-    # from the first fix on, the carried track is the truth (before it, paths had nothing to be placed by)
-    assert np.allclose(res.ground_m[late:], ground[late:], atol=1e-9)
+    # from the first fix on, the carried track is the truth (before it, paths had nothing to be placed by);
+    # float32 state: to 20 um
+    assert np.allclose(res.ground_m[late:], ground[late:], atol=2e-5)
