@@ -4,11 +4,12 @@ Per step, in this order (the numpy reference in `viterbi.py` computes the same n
 
 1. `node_terms`: per node, cos/sin of the path's heading (`trig32`) and the source-side parts of the position
    and heading costs, u = R(-O)(P - M) and wrap(O - M_h) -- contiguous, vectorised;
-2. `gather_rows`: each edge's W_A C_A (a gather from the per-metadata-row costs of `acc_rows`);
-3. `runs_cost`: the edges of the long diagonal runs (`edge_runs.EdgeRuns`): cost and best-so-far per
-   destination over contiguous slices -- SIMD without gathers, which is where the speed comes from;
-4. `scattered_cost`: the remaining edges, per destination, in search order;
-5. `runs_state` / `scattered_state` (only with global state): the winners' new ground position and heading
+2. `runs_cost`: the edges of the long diagonal runs (`edge_runs.EdgeRuns`): cost and best-so-far per
+   destination over contiguous slices (a run's metadata rows are consecutive too, so even its accelerometer
+   costs are a slice of `acc_rows`' output) -- SIMD without gathers, which is where the speed comes from;
+3. `scattered_cost`: the remaining edges: their costs in one pass with gathers, then the minimum per
+   destination in search order;
+4. `runs_state` / `scattered_state` (only with global state): the winners' new ground position and heading
    (eq. 5), as contiguous masked stores over the runs, and per node for the scattered winners.
 
 Measured per step on the 483k-edge Bandai graph (acc + position + heading): see bench/bench_viterbi.py.
@@ -85,13 +86,6 @@ def node_terms(Px, Pz, O, mx, mz, mh, C, Sn, ux, uz, th):
         th[i] = _wrap(O[i] - mh)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def gather_rows(meta, rows, out):
-    """out[e] = rows[meta[e]]: each edge's accelerometer cost from its metadata row's."""
-    for e in range(len(meta)):
-        out[e] = rows[meta[e]]
-
-
 @njit(inline="always")
 def _edge_cost(g, ra, ux, uz, th, dx, dz, dh, wp, wh):
     """G(src) + W_A C_A + W_P |u + d| + W_O |wrap(th + dh)| in float32, in the reference's order."""
@@ -104,16 +98,17 @@ def _edge_cost(g, ra, ux, uz, th, dx, dz, dh, wp, wh):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def runs_cost(run_src0, run_dst0, run_edge0, run_len, ra, G, ux, uz, th, dx, dz, dh, wp, wh, use_terms,
-              best, win):
+def runs_cost(run_src0, run_dst0, run_edge0, run_row0, run_len, rows, G, ux, uz, th, dx, dz, dh, wp, wh,
+              use_terms, best, win):
     """Fold the run edges into the per-destination best cost / winning search index (strict <: ties keep the
-    earlier edge). Without position/heading terms the cost is G(src) + W_A C_A alone."""
+    earlier edge). A run's accelerometer costs are rows[row0:row0 + n]. Without position/heading terms the cost
+    is G(src) + W_A C_A alone."""
     for r in range(len(run_len)):
         s0, d0, e0, n = run_src0[r], run_dst0[r], run_edge0[r], run_len[r]
         b_ = best[d0:d0 + n]  # slices, so the loops below vectorise
         w_ = win[d0:d0 + n]
         g_ = G[s0:s0 + n]
-        ra_ = ra[e0:e0 + n]
+        ra_ = rows[run_row0[r]:run_row0[r] + n]
         if use_terms:
             ux_, uz_, th_ = ux[s0:s0 + n], uz[s0:s0 + n], th[s0:s0 + n]
             dx_, dz_, dh_ = dx[e0:e0 + n], dz[e0:e0 + n], dh[e0:e0 + n]
@@ -131,19 +126,28 @@ def runs_cost(run_src0, run_dst0, run_edge0, run_len, ra, G, ux, uz, th, dx, dz,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def scattered_cost(sc_nodes, sc_indptr, src, ra, G, ux, uz, th, dx, dz, dh, wp, wh, use_terms, best, win):
-    """Fold the scattered edges (after the runs, in search order) into best / win, one destination at a time
-    (the running minimum stays in a register: 1.7x faster than a read-modify-write of best per edge)."""
+def scattered_cost(sc_nodes, sc_indptr, src, row, rows, G, ux, uz, th, dx, dz, dh, wp, wh, use_terms, best, win,
+                   cost):
+    """Fold the scattered edges (after the runs, in search order) into best / win: every edge's cost in one
+    vectorised pass (gathers; edge e's accelerometer cost is rows[row[e]]), then the minimum per destination."""
+    first = sc_indptr[0]
+    m = len(src) - first
+    s_ = src[first:]
+    r_ = row[first:]
+    if use_terms:
+        dx_, dz_, dh_ = dx[first:], dz[first:], dh[first:]
+        for i in range(m):
+            s = s_[i]
+            cost[i] = _edge_cost(G[s], rows[r_[i]], ux[s], uz[s], th[s], dx_[i], dz_[i], dh_[i], wp, wh)
+    else:
+        for i in range(m):
+            cost[i] = G[s_[i]] + rows[r_[i]]
     for j in range(len(sc_nodes)):
         n = sc_nodes[j]
         b = best[n]
         w = win[n]
         for e in range(sc_indptr[j], sc_indptr[j + 1]):
-            s = src[e]
-            if use_terms:
-                c = _edge_cost(G[s], ra[e], ux[s], uz[s], th[s], dx[e], dz[e], dh[e], wp, wh)
-            else:
-                c = G[s] + ra[e]
+            c = cost[e - first]
             lt = c < b
             b = c if lt else b
             w = np.int32(e) if lt else w

@@ -15,7 +15,7 @@ from scipy import signal
 
 from .graph import MotionGraph
 from .poses import world_joint_positions
-from .viterbi import DEFAULT_KERNEL, SearchWeights, ViterbiLattice
+from .viterbi import DEFAULT_KERNEL, PRUNE_EVERY, SearchWeights, ViterbiLattice
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,7 @@ class FixedLagSynthesizer:
     """Push one synchronised sample at the graph rate, get back the poses decided `lag_s` seconds ago."""
 
     def __init__(self, graph: MotionGraph, lag_s: float, weights: SearchWeights = SearchWeights(),
-                 sensor_indices: tuple[int, ...] | None = None, prune_every: int = 32,
+                 sensor_indices: tuple[int, ...] | None = None, prune_every: int = PRUNE_EVERY,
                  kernel: str = DEFAULT_KERNEL) -> None:
         if lag_s < 0:
             raise ValueError("lag must be non-negative")
