@@ -9,7 +9,7 @@
    if it has fewer edges, disjoint copies of it (with perturbed acceleration metadata, so no two copies tie)
    are stacked until it does -- the table says how many. Times: batch with accelerometers only and with
    accelerometers + position + heading; fixed-lag online samples/s; survivor-memory compression and MB.
-Every search runs twice in this process: the default numba kernels and the previous numpy implementation
+Every search runs twice in this process: the default numba kernels and the whole-array numpy implementation
 (`kernel="numpy"`, kept as the bit-exact reference), and the table says whether their answers are identical.
 Times are CPU seconds of this process (time.process_time), so other jobs on the machine inflate them less.
 """
@@ -127,7 +127,7 @@ def main() -> None:
     print(f"1. small graph: {small.n_nodes} nodes, {small.n_edges} edges, {short.n_samples} samples "
           f"(acc + position + heading); numba kernels loaded/compiled in {t_jit:.2f} s CPU (not counted)")
     print(f"   per-edge Python loop : {work / t_ref:12.3e} edges*samples/s   (best cost {ref_cost:.4f})")
-    print(f"   numpy (previous)     : {work / t_np:12.3e} edges*samples/s   (best cost {res_np.cost:.4f})")
+    print(f"   numpy (reference)    : {work / t_np:12.3e} edges*samples/s   (best cost {res_np.cost:.4f})")
     print(f"   numba (default)      : {work / t_vec:12.3e} edges*samples/s   (best cost {res.cost:.4f})")
     print(f"   speed-up vs loop     : numpy {t_ref / t_np:8.1f} x   numba {t_ref / t_vec:8.1f} x")
 
