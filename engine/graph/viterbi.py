@@ -37,6 +37,7 @@ KERNELS = ("numba", "numpy")
 DEFAULT_KERNEL = "numba" if kernels is not None else "numpy"  # identical results; numba is several times faster
 PRUNE_EVERY = 64  # samples between survivor prunes: the newest columns cost most to prune (their survivor sets
 # are large); measured 0.73 vs 0.38 ms per sample for 32 vs 64 on the 483k-edge graph; memory 64 x 4 B per node
+PRUNE_HORIZON = 512  # samples (17 s at 30 Hz): columns pruned at this age or older are not pruned again
 ACC_BATCH = 16  # batch search computes C_A rows for this many samples per pass over the metadata
 PI32 = np.float32(np.pi)
 TWO_PI32 = np.float32(2.0 * np.pi)
@@ -107,6 +108,7 @@ class _Column:
 
     nodes: np.ndarray | None
     edges: np.ndarray  # int32
+    pruned_age: int = -1  # the column's age (samples) when it was last pruned
 
 
 class ViterbiLattice:
@@ -409,17 +411,17 @@ class ViterbiLattice:
 
     def prune(self) -> None:
         """Survivor-path memory reduction: keep only lattice entries on some live node's back-trace, walking back
-        from the newest column to the first one pruned before that holds at most max(|alive|, N / 64) entries.
-        (Walking on until a column matched the alive set exactly made pruning quadratic in the take length --
-        4,943 column passes for 720 samples -- while older columns already hold only a few stale entries.)"""
+        from the newest column to the first one pruned before against the same set, or pruned when it was
+        already PRUNE_HORIZON samples old (its survivors had settled into a few lineages then; walking on to an
+        exact match made pruning quadratic in the take length: 4,943 column passes for 720 samples)."""
         self._since_prune = 0
         alive = np.flatnonzero(np.isfinite(self._G))
         mark = np.zeros(self.graph.n_nodes, dtype=bool)
-        small = self.graph.n_nodes // 64
         for k in range(len(self.columns) - 1, -1, -1):
             col = self.columns[k]
-            if col.nodes is not None and len(col.nodes) <= max(len(alive), small):
-                break  # (alive is a subset of col.nodes: equal, or the column is small already)
+            age = self.t - (self.first_column_time + k)
+            if col.nodes is not None and (len(col.nodes) == len(alive) or col.pruned_age >= PRUNE_HORIZON):
+                break  # (alive is a subset of col.nodes: equal) or pruned when its survivors had settled
             if self.kernel == "numba":
                 full = col.nodes is None
                 edges, sources = kernels.survivor_column(alive if full else col.nodes, col.edges, full, alive,
@@ -429,7 +431,7 @@ class ViterbiLattice:
                 mark[self._src[edges]] = True
                 sources = np.flatnonzero(mark)  # sorted and distinct (np.unique's hashing was 20x slower)
                 mark[sources] = False
-            self.columns[k] = _Column(alive, edges)
+            self.columns[k] = _Column(alive, edges, age)
             alive = sources
 
     def lattice_entries(self) -> int:
