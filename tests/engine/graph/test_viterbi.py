@@ -126,3 +126,23 @@ def test_a_take_without_an_initial_camera_fix_starts_at_the_first_fix(graph):
     # from the first fix on, the carried track is the truth (before it, paths had nothing to be placed by);
     # float32 state: to 20 um
     assert np.allclose(res.ground_m[late:], ground[late:], atol=2e-5)
+
+
+def test_survivor_pruning_work_stays_linear_in_the_take_length(graph, monkeypatch):
+    """Each column is re-pruned only until it was pruned at PRUNE_HORIZON samples old, so a long take costs
+    O(T) column passes (walking back to an exact match every time was O(T^2 / prune_every))."""
+    from engine.graph import viterbi
+
+    monkeypatch.setattr(viterbi, "PRUNE_HORIZON", 32)
+    rng = np.random.default_rng(11)
+    acc = rng.normal(0, 1, (600, graph.n_sensors, 3))
+    obs = Observations(acc)
+    passes = []
+    lookup = viterbi.ViterbiLattice._lookup
+    monkeypatch.setattr(viterbi.ViterbiLattice, "_lookup", lambda self, col, nodes: passes.append(1) or
+                        lookup(self, col, nodes))
+    res = ViterbiSearch(graph, SearchWeights(0.5, 0, 0), prune_every=4, kernel="numpy").run(obs)
+    pruning = len(passes) - len(acc)  # minus the final back-trace's one lookup per sample
+    assert pruning <= len(acc) * (32 // 4 + 2)  # the quadratic walk took ~600^2 / 8 = 45,000 here
+    ref = ViterbiSearch(graph, SearchWeights(0.5, 0, 0), prune_every=0, kernel="numpy").run(obs)
+    assert np.array_equal(res.nodes, ref.nodes) and res.cost == ref.cost
