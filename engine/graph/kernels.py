@@ -4,17 +4,18 @@ Per step, in this order (the numpy reference in `viterbi.py` computes the same n
 
 1. `node_terms`: per node, cos/sin of the path's heading (`trig32`) and the source-side parts of the position
    and heading costs, u = R(-O)(P - M) and wrap(O - M_h) -- contiguous, vectorised;
-2. `runs_cost`: the edges of the long diagonal runs (`edge_runs.EdgeRuns`): cost and best-so-far per
-   destination over contiguous slices (a run's metadata rows are consecutive too, so even its accelerometer
-   costs are a slice of `acc_rows`' output) -- SIMD without gathers, which is where the speed comes from;
+2. `runs_fold`: the edges of the long diagonal runs (`edge_runs.EdgeRuns`): cost, best-so-far per destination
+   and (with global state) the best edge's new ground position and heading (eq. 5), over contiguous slices (a
+   run's metadata rows are consecutive too, so even its accelerometer costs are a slice of `acc_rows`' output)
+   -- SIMD without gathers, which is where the speed comes from;
 3. `scattered_cost`: the remaining edges: their costs in one pass with gathers, then the minimum per
    destination in search order;
-4. `runs_state` / `scattered_state` (only with global state): the winners' new ground position and heading
-   (eq. 5), as contiguous masked stores over the runs, and per node for the scattered winners.
+4. `scattered_state` (only with global state): the new state of destinations a scattered edge won.
 
 Measured per step on the 483k-edge Bandai graph (acc + position + heading): see bench/bench_viterbi.py.
-Separate passes, not one fused loop: a loop touching ~20 arrays defeats LLVM's vectoriser (it would need
-too many run-time alias checks), and measured 2-4x slower.
+The state is float32 (Px, Pz, O) with cos/sin of O recomputed per step: with the earlier five-array state
+(cos/sin carried by rotation) the fused run loop touched ~20 arrays, which defeated LLVM's vectoriser (too many
+run-time alias checks) and measured 2-4x slower than separate passes.
 
 Everything is float32 and written operation for operation as the reference computes it (numba does not contract
 a*b + c into an fma without fastmath; error_model="numpy" gives inf/nan instead of raising), so the compiled and
@@ -112,31 +113,35 @@ def _edge_cost(g, ra, ux, uz, th, dx, dz, dh, wp, wh):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def runs_cost(run_src0, run_dst0, run_edge0, run_row0, run_len, rows, G, ux, uz, th, dx, dz, dh, wp, wh,
-              use_terms, best, win):
+def runs_fold(run_src0, run_dst0, run_edge0, run_row0, run_len, rows, G, ux, uz, th, Px, Pz, O, C, Sn, dx, dz, dh,
+              wp, wh, use_terms, track, best, win, nPx, nPz, nO):
     """Fold the run edges into the per-destination best cost / winning search index (strict <: ties keep the
-    earlier edge). A run's accelerometer costs are rows[row0:row0 + n]. Without position/heading terms the cost
-    is G(src) + W_A C_A alone."""
+    earlier edge) and, if `track`, into the new global state (eq. 5 of the best run edge so far; a scattered
+    winner overwrites it later). A run's accelerometer costs are rows[row0:row0 + n]. Without position/heading
+    terms the cost is G(src) + W_A C_A alone. (The branches are loop-invariant: LLVM unswitches them.)"""
     for r in range(len(run_len)):
         s0, d0, e0, n = run_src0[r], run_dst0[r], run_edge0[r], run_len[r]
-        b_ = best[d0:d0 + n]  # slices, so the loops below vectorise
+        b_ = best[d0:d0 + n]  # slices, so the loop below vectorises
         w_ = win[d0:d0 + n]
         g_ = G[s0:s0 + n]
         ra_ = rows[run_row0[r]:run_row0[r] + n]
-        if use_terms:
-            ux_, uz_, th_ = ux[s0:s0 + n], uz[s0:s0 + n], th[s0:s0 + n]
-            dx_, dz_, dh_ = dx[e0:e0 + n], dz[e0:e0 + n], dh[e0:e0 + n]
-            for i in range(n):
+        ux_, uz_, th_ = ux[s0:s0 + n], uz[s0:s0 + n], th[s0:s0 + n]
+        px_, pz_, o_, c_, sn_ = Px[s0:s0 + n], Pz[s0:s0 + n], O[s0:s0 + n], C[s0:s0 + n], Sn[s0:s0 + n]
+        dx_, dz_, dh_ = dx[e0:e0 + n], dz[e0:e0 + n], dh[e0:e0 + n]
+        npx, npz, no = nPx[d0:d0 + n], nPz[d0:d0 + n], nO[d0:d0 + n]
+        for i in range(n):
+            if use_terms:
                 c = _edge_cost(g_[i], ra_[i], ux_[i], uz_[i], th_[i], dx_[i], dz_[i], dh_[i], wp, wh)
-                lt = c < b_[i]
-                b_[i] = c if lt else b_[i]
-                w_[i] = np.int32(e0 + i) if lt else w_[i]
-        else:
-            for i in range(n):
+            else:
                 c = g_[i] + ra_[i]
-                lt = c < b_[i]
-                b_[i] = c if lt else b_[i]
-                w_[i] = np.int32(e0 + i) if lt else w_[i]
+            lt = c < b_[i]
+            b_[i] = c if lt else b_[i]
+            w_[i] = np.int32(e0 + i) if lt else w_[i]
+            if track:
+                a, b, o = _advance(px_[i], pz_[i], o_[i], c_[i], sn_[i], dx_[i], dz_[i], dh_[i])
+                npx[i] = a if lt else npx[i]
+                npz[i] = b if lt else npz[i]
+                no[i] = o if lt else no[i]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -173,23 +178,6 @@ def scattered_cost(sc_nodes, sc_indptr, src, row, rows, G, ux, uz, th, dx, dz, d
 def _advance(px, pz, o, c, s, dx, dz, dh):
     """Eq. 5 for one edge: P + R(O) d and O + dh (wrapped); c, s = cos O, sin O."""
     return px + (dx * c + dz * s), pz + (dz * c - dx * s), _wrap(o + dh)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def runs_state(run_src0, run_dst0, run_edge0, run_len, win, Px, Pz, O, C, Sn, dx, dz, dh, nPx, nPz, nO):
-    """New global state of every destination whose winner is a run edge (a masked store per run edge)."""
-    for r in range(len(run_len)):
-        s0, d0, e0, n = run_src0[r], run_dst0[r], run_edge0[r], run_len[r]
-        w_ = win[d0:d0 + n]
-        px_, pz_, o_, c_, s_ = Px[s0:s0 + n], Pz[s0:s0 + n], O[s0:s0 + n], C[s0:s0 + n], Sn[s0:s0 + n]
-        dx_, dz_, dh_ = dx[e0:e0 + n], dz[e0:e0 + n], dh[e0:e0 + n]
-        npx, npz, no = nPx[d0:d0 + n], nPz[d0:d0 + n], nO[d0:d0 + n]
-        for i in range(n):
-            mine = w_[i] == e0 + i
-            a, b, o = _advance(px_[i], pz_[i], o_[i], c_[i], s_[i], dx_[i], dz_[i], dh_[i])
-            npx[i] = a if mine else npx[i]
-            npz[i] = b if mine else npz[i]
-            no[i] = o if mine else no[i]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -285,7 +285,8 @@ class ViterbiLattice:
         else:
             self._fold_numpy(ra, terms, wp, wh, best, win)
         if self.track_global:
-            (self._advance_compiled if self.kernel == "numba" else self._advance_numpy)(win, self._spare_state)
+            if self.kernel == "numpy":
+                self._advance_numpy(win, self._spare_state)
             self._state, self._spare_state = self._spare_state, self._state
         low = best.min()
         if np.isfinite(low):
@@ -332,19 +333,25 @@ class ViterbiLattice:
             th[:] = _wrap32(O - mh)
 
     def _fold_compiled(self, rows, ra, terms, wp, wh, best, win) -> None:
-        """Best cost and winning search index per node: runs (SIMD), then the scattered edges. The accelerometer
-        costs come by metadata row from `rows`, or by search index from `ra` if constraints have masked it."""
+        """Best cost and winning search index per node -- runs (SIMD), then the scattered edges -- and, with global
+        state, the winners' new position/heading. The accelerometer costs come by metadata row from `rows`, or by
+        search index from `ra` if constraints have masked it."""
         r = self.runs
-        ux, uz, th = terms if terms is not None else (self._none32,) * 3
+        ux, uz, th = self._terms[2:] if self.track_global else (self._none32,) * 3
         use = terms is not None
         if ra is None:
             table, run_row0, row = rows, r.run_meta0, self._meta32
         else:
             table, run_row0, row = ra, r.run_edge0, self._search_index32
-        kernels.runs_cost(r.run_src0, r.run_dst0, r.run_edge0, run_row0, r.run_len, table, self._G, ux, uz, th,
-                          self._dx, self._dz, self._dh, wp, wh, use, best, win)
-        kernels.scattered_cost(r.sc_nodes, r.sc_indptr, self._src32, row, table, self._G, ux, uz, th, self._dx,
-                               self._dz, self._dh, wp, wh, use, best, win, self._sc_cost)
+        now = (*self._state, *self._terms[:2]) if self.track_global else (self._none32,) * 5  # Px, Pz, O, C, Sn
+        new = self._spare_state if self.track_global else (self._none32,) * 3
+        edge = (self._dx, self._dz, self._dh)
+        kernels.runs_fold(r.run_src0, r.run_dst0, r.run_edge0, run_row0, r.run_len, table, self._G, ux, uz, th, *now,
+                          *edge, wp, wh, use, self.track_global, best, win, *new)
+        kernels.scattered_cost(r.sc_nodes, r.sc_indptr, self._src32, row, table, self._G, ux, uz, th, *edge, wp, wh,
+                               use, best, win, self._sc_cost)
+        if self.track_global:
+            kernels.scattered_state(r.sc_nodes, r.n_run_edges, self._src32, win, *now, *edge, *new)
 
     def _fold_numpy(self, ra, terms, wp, wh, best, win) -> None:
         """Reference fold: every edge's cost in whole-array float32 ops (the order of kernels._edge_cost), then
@@ -365,16 +372,9 @@ class ViterbiLattice:
             best[d] = np.where(lt, c, best[d])
             win[d] = np.where(lt, idx, win[d])
 
-    def _advance_compiled(self, win, new_state) -> None:
-        """Eq. 5 for every node's winning edge into `new_state` (nodes nothing reached keep stale values)."""
-        r = self.runs
-        now = (*self._state, *self._terms[:2])  # Px, Pz, O, C, Sn
-        edge = (self._dx, self._dz, self._dh)
-        kernels.runs_state(r.run_src0, r.run_dst0, r.run_edge0, r.run_len, win, *now, *edge, *new_state)
-        kernels.scattered_state(r.sc_nodes, r.n_run_edges, self._src32, win, *now, *edge, *new_state)
-
     def _advance_numpy(self, win, new_state) -> None:
-        """Reference of `_advance_compiled` (the order of kernels._advance)."""
+        """Eq. 5 for every node's winning edge into `new_state` (nodes nothing reached keep stale values), in the
+        order of kernels._advance."""
         nodes = np.flatnonzero(win >= 0)
         e = win[nodes]
         s = self._src[e]
