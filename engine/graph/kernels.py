@@ -8,9 +8,8 @@ Per step, in this order (the numpy reference in `viterbi.py` computes the same n
    and (with global state) the best edge's new ground position and heading (eq. 5), over contiguous slices (a
    run's metadata rows are consecutive too, so even its accelerometer costs are a slice of `acc_rows`' output)
    -- SIMD without gathers, which is where the speed comes from;
-3. `scattered_cost`: the remaining edges: their costs in one pass with gathers, then the minimum per
-   destination in search order;
-4. `scattered_state` (only with global state): the new state of destinations a scattered edge won.
+3. `scattered_fold`: the remaining edges: their costs in one pass with gathers, then the minimum per
+   destination in search order, and the new state of destinations a scattered edge won.
 
 Measured per step on the 483k-edge Bandai graph (acc + position + heading): see bench/bench_viterbi.py.
 The state is float32 (Px, Pz, O) with cos/sin of O recomputed per step: with the earlier five-array state
@@ -98,6 +97,12 @@ def _edge_cost(g, ra, ux, uz, th, dx, dz, dh, wp, wh):
     return c + h * wh
 
 
+@njit(inline="always")
+def _advance(px, pz, o, c, s, dx, dz, dh):
+    """Eq. 5 for one edge: P + R(O) d and O + dh (wrapped); c, s = cos O, sin O."""
+    return px + (dx * c + dz * s), pz + (dz * c - dx * s), _wrap(o + dh)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def runs_fold(run_src0, run_dst0, run_edge0, run_row0, run_len, rows, G, ux, uz, th, Px, Pz, O, C, Sn, dx, dz, dh,
               wp, wh, use_terms, track, best, win, nPx, nPz, nO):
@@ -131,10 +136,11 @@ def runs_fold(run_src0, run_dst0, run_edge0, run_row0, run_len, rows, G, ux, uz,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def scattered_cost(sc_nodes, sc_indptr, src, row, rows, G, ux, uz, th, dx, dz, dh, wp, wh, use_terms, best, win,
-                   cost):
+def scattered_fold(sc_nodes, sc_indptr, src, row, rows, G, ux, uz, th, Px, Pz, O, C, Sn, dx, dz, dh, wp, wh,
+                   use_terms, track, best, win, nPx, nPz, nO, cost):
     """Fold the scattered edges (after the runs, in search order) into best / win: every edge's cost in one
-    vectorised pass (gathers; edge e's accelerometer cost is rows[row[e]]), then the minimum per destination."""
+    vectorised pass (gathers; edge e's accelerometer cost is rows[row[e]]), then the minimum per destination,
+    and (if `track`) the new global state where a scattered edge won."""
     first = sc_indptr[0]
     m = len(src) - first
     s_ = src[first:]
@@ -158,23 +164,9 @@ def scattered_cost(sc_nodes, sc_indptr, src, row, rows, G, ux, uz, th, dx, dz, d
             w = np.int32(e) if lt else w
         best[n] = b
         win[n] = w
-
-
-@njit(inline="always")
-def _advance(px, pz, o, c, s, dx, dz, dh):
-    """Eq. 5 for one edge: P + R(O) d and O + dh (wrapped); c, s = cos O, sin O."""
-    return px + (dx * c + dz * s), pz + (dz * c - dx * s), _wrap(o + dh)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def scattered_state(sc_nodes, first_scattered, src, win, Px, Pz, O, C, Sn, dx, dz, dh, nPx, nPz, nO):
-    """New global state of the destinations whose winner is a scattered edge."""
-    for j in range(len(sc_nodes)):
-        n = sc_nodes[j]
-        e = win[n]
-        if e >= first_scattered:
-            s = src[e]
-            nPx[n], nPz[n], nO[n] = _advance(Px[s], Pz[s], O[s], C[s], Sn[s], dx[e], dz[e], dh[e])
+        if track and w >= first:
+            s = src[w]
+            nPx[n], nPz[n], nO[n] = _advance(Px[s], Pz[s], O[s], C[s], Sn[s], dx[w], dz[w], dh[w])
 
 
 @njit(cache=True, nogil=True)

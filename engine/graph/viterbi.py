@@ -348,10 +348,8 @@ class ViterbiLattice:
         edge = (self._dx, self._dz, self._dh)
         kernels.runs_fold(r.run_src0, r.run_dst0, r.run_edge0, run_row0, r.run_len, table, self._G, ux, uz, th, *now,
                           *edge, wp, wh, use, self.track_global, best, win, *new)
-        kernels.scattered_cost(r.sc_nodes, r.sc_indptr, self._src32, row, table, self._G, ux, uz, th, *edge, wp, wh,
-                               use, best, win, self._sc_cost)
-        if self.track_global:
-            kernels.scattered_state(r.sc_nodes, r.n_run_edges, self._src32, win, *now, *edge, *new)
+        kernels.scattered_fold(r.sc_nodes, r.sc_indptr, self._src32, row, table, self._G, ux, uz, th, *now, *edge,
+                               wp, wh, use, self.track_global, best, win, *new, self._sc_cost)
 
     def _fold_numpy(self, ra, terms, wp, wh, best, win) -> None:
         """Reference fold: every edge's cost in whole-array float32 ops (the order of kernels._edge_cost), then
