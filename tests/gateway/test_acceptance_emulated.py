@@ -189,7 +189,8 @@ def run_acceptance(tmp_path: Path, span_s: float = 60.0, speed: float = 2.0, n_u
         client.add_listener("camera", on_camera)
 
         for index, t_unplug in run.unplugs:
-            em, reader = stations[index], gw.reader(f"st{index + 1}")
+            # by source path: the reader is named st<id> only once the station's first frame has arrived
+            em, reader = stations[index], gw.reader(str(stations[index].path))
             _sleep_until(ref, t_unplug)
             epoch_before = reader.unwrapper.epoch if reader is not None and reader.unwrapper else -1
             em.unplug()
