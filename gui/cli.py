@@ -28,11 +28,12 @@ def _console_parser() -> argparse.ArgumentParser:
     p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
     p.add_argument("--synth-station", default=None, metavar="ST",
                    help="station whose sensors 0-5 are worn as the graph's sensors (default: the only station "
-                        "with >= 6 sensors, if there is exactly one)")
+                        "with >= 6 sensors, if there is exactly one); a --calibration record's assignment wins")
     p.add_argument("--lag", type=float, default=0.5, help="synthesis fixed lag, seconds (default 0.5)")
     p.add_argument("--calibration", type=Path, default=None, metavar="RECORD",
                    help="sensor-calibration record (.calibration.json from the calibration workflow): the motion "
-                        "graph's virtual sensors use its measured sensor-to-segment rotations")
+                        "graph's virtual sensors use its measured sensor-to-segment rotations, and synthesis reads "
+                        "each segment from the live sensor the record assigned to it")
     p.add_argument("--duration", type=float, default=None, help="close after this many seconds")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs before closing")
     return p
@@ -77,7 +78,7 @@ def console_main(argv: list[str]) -> int:
     from gui.app import application
     from engine.mocap import SEED000_SENSORS
 
-    from gui.engine_link import load_or_build_graph, sensor_joints, synthesis_setup
+    from gui.engine_link import load_or_build_graph, sensor_joints, synthesis_setup, worn_sensors
     from gui.main_window import ConsoleWindow
     from gui.playback import Playback
 
@@ -122,13 +123,22 @@ def console_main(argv: list[str]) -> int:
         return 2
     log.info("motion graph %s (%d nodes)", cache, graph.n_nodes)
     synth = None
-    station = _pick_synth_station(stations, args.synth_station)
+    segments = list(graph.config.sensor_names or SEED000_SENSORS)
+    try:
+        keys, notes = worn_sensors(segments, _pick_synth_station(stations, args.synth_station), calibration)
+    except ValueError as exc:
+        print(f"courtside console: {exc}", file=sys.stderr)
+        if client is not None:
+            client.close()
+        return 2
+    for note in notes:
+        log.warning("synthesis: %s", note)
     worn: dict = {}
-    if station:
-        synth = synthesis_setup(graph, skeleton, [(station, i) for i in range(graph.n_sensors)], args.lag)
-        worn = dict(zip(synth.sensors, SEED000_SENSORS))
+    if keys is not None:
+        synth = synthesis_setup(graph, skeleton, keys, args.lag)
+        worn = dict(zip(synth.sensors, segments))
     else:
-        log.warning("synthesis off: pass --synth-station to say which station's sensors are worn")
+        log.warning("synthesis off: pass --synth-station (or a calibration record) to say which sensors are worn")
     window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton.parents, sensor_segments=worn,
                            sensor_joints=sensor_joints(skeleton, worn) if worn else None)
     window.resize(1500, 950)

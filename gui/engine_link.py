@@ -73,6 +73,35 @@ def synthesis_setup(graph: MotionGraph, skeleton: Skeleton, sensors: list[Sensor
                           rate_hz=graph.config.fps, parents=np.asarray(skeleton.parents), lag_s=lag_s)
 
 
+def worn_sensors(segments: Sequence[str], station: str | None,
+                 calibration: SensorCalibrationData | None = None) -> tuple[list[SensorKey] | None, list[str]]:
+    """Which live sensor each graph sensor is: ``segments[i]`` (the graph's placement names) -> (station, index).
+
+    A calibration record says it per segment (the wizard's assignment, sensor ids ``"<station>/<index>"``), so
+    sensors may even sit on different stations; segments it does not cover fall back to sensor i of
+    ``station``. Returns (keys, notes): keys None if some segment has no sensor; notes say what was assumed.
+    A sensor id that is not ``station/index`` raises ValueError naming the record."""
+    keys: list[SensorKey] = []
+    notes: list[str] = []
+    for i, segment in enumerate(segments):
+        sid = calibration.sensor_ids.get(segment) if calibration is not None else None
+        if sid is not None:
+            st, _, index = sid.rpartition("/")
+            if not st or not index.isdigit():
+                raise ValueError(f"{calibration.path}: sensor id {sid!r} on {segment!r} is not '<station>/<index>'")
+            keys.append((st, int(index)))
+        elif station is not None:
+            keys.append((station, i))
+            if calibration is not None:
+                notes.append(f"{segment}: not in the calibration record, assumed {station}/{i}")
+        else:
+            notes.append(f"{segment}: no sensor (not in the calibration record and no --synth-station)")
+            return None, notes
+    if len(set(keys)) < len(keys):
+        raise ValueError(f"one live sensor mapped to two segments: {keys}")
+    return keys, notes
+
+
 def sensor_joints(skeleton: Skeleton, sensors: dict[SensorKey, str]) -> dict[SensorKey, int]:
     """Live sensor -> the skeleton joint whose segment carries it, from its standard placement name (the 3-D view
     paints that segment with the sensor's health)."""

@@ -48,3 +48,39 @@ def test_console_plays_back_a_take_and_rejects_a_bad_one(live_gateway, qapp, tmp
     assert console_main(["--playback", str(bogus)]) == 2
     err = capsys.readouterr().err
     assert "cannot play back" in err and "bogus.csrec" in err
+
+
+def test_console_reads_each_segment_from_the_sensor_the_calibration_record_assigned(live_gateway, qapp, tmp_path,
+                                                                                     monkeypatch, capsys):
+    import json
+
+    import numpy as np
+
+    import gui.engine_link
+    from engine.mocap import SEED000_SENSORS, load_clip, sample_clips, standard_placements
+
+    monkeypatch.setenv("COURTSIDE_CACHE_DIR", str(tmp_path / "cache"))
+    skeleton = load_clip(next(p for n, p in sample_clips().items() if n.startswith("16_"))).skeleton  # the console's
+    nominal = {p.name: p.rotation for p in standard_placements(skeleton, tuple(SEED000_SENSORS))}
+
+    def record(ids):
+        doc = {"schema": "courtside.sensor_calibration", "schema_version": 1, "sensors": {
+            sid: {"segment": seg, "rotation": np.asarray(nominal[seg]).tolist(), "gravity_sensor_g": [0, 1, 0],
+                  "norm_error_g": 0.0, "correction_deg": 0.0, "passed": True} for seg, sid in ids.items()}}
+        path = tmp_path / "take.calibration.json"
+        path.write_text(json.dumps(doc))
+        return str(path)
+
+    worn = []
+    setup = gui.engine_link.synthesis_setup
+    monkeypatch.setattr(gui.engine_link, "synthesis_setup", lambda g, s, sensors, lag: worn.append(sensors) or
+                        setup(g, s, sensors, lag))
+    gateway, _ = live_gateway(StillSource(6), 6)
+    host, port = gateway.address
+    reversed_ids = {seg: f"st1/{5 - i}" for i, seg in enumerate(SEED000_SENSORS)}  # worn in the opposite order
+    assert console_main(["--connect", f"{host}:{port}", "--duration", "1", "--calibration",
+                         record(reversed_ids)]) == 0
+    assert worn == [[("st1", 5 - i) for i in range(6)]]
+    bad = dict(reversed_ids, chest="chest-sensor")
+    assert console_main(["--connect", f"{host}:{port}", "--calibration", record(bad)]) == 2
+    assert "sensor id 'chest-sensor' on 'chest'" in capsys.readouterr().err
