@@ -23,7 +23,7 @@ from gateway.camera.errors import CameraError
 from gateway.camera.paths import scripted_rally_path
 from gateway.camera.sources import VideoFileSource
 from gateway.camera.synthetic import SyntheticCourtCamera, default_court_camera
-from gateway.camera.tracker import PlayerTracker
+from gateway.camera.tracker import PlayerTracker, TrackerConfig
 
 TRUTH_FIELDS = ("frame_index", "t_true_s", "x_m", "y_m", "heading_rad", "lift_m", "visible")
 
@@ -49,7 +49,10 @@ def synth(args: argparse.Namespace) -> int:
     with open(args.truth, "w", newline="") as fh:
         out = csv.writer(fh)
         out.writerow(TRUTH_FIELDS)
-        for frame in SyntheticCourtCamera(path, camera=camera, fps=args.fps, body=body, seed=args.seed):
+        opponents = [scripted_rally_path(path.duration_s, seed=args.seed + 1, side="far",
+                                         start_s=float(path.t_s[0]))] if args.opponent else []
+        for frame in SyntheticCourtCamera(path, camera=camera, fps=args.fps, body=body, seed=args.seed,
+                                          opponents=opponents):
             writer.write(frame.image)
             tr = frame.truth
             out.writerow([frame.index, f"{tr.t_true_s:.6f}", f"{tr.x_m:.4f}", f"{tr.y_m:.4f}",
@@ -75,7 +78,7 @@ def calibrate(args: argparse.Namespace) -> int:
 
 def track(args: argparse.Namespace) -> int:
     calib = CourtCalibration.load(args.calibration)
-    tracker = PlayerTracker(calib)
+    tracker = PlayerTracker(calib, TrackerConfig(player_side=args.side))
     out = open(args.out, "w") if args.out else sys.stdout
     rows = []
     try:
@@ -112,6 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--width", type=int, default=800)
     p.add_argument("--height", type=int, default=450)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--opponent", action="store_true", help="an opponent rallies on the far half (a distractor)")
     p.set_defaults(run=synth)
     p = sub.add_parser("calibrate", help="fit a court calibration from clicked keypoints")
     p.add_argument("--clicks", required=True, help='JSON {"near_baseline_left_doubles": [u, v], ...}')
@@ -125,6 +129,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--calibration", type=Path, required=True)
     p.add_argument("--out", type=Path, help="JSON-lines output (default stdout)")
     p.add_argument("--truth", type=Path, help="ground-truth CSV from `synth`: print the position RMS")
+    p.add_argument("--side", choices=("near", "far"), help="half the instrumented player starts on (acquire "
+                   "there, then follow him; default: the largest moving blob anywhere)")
     p.set_defaults(run=track)
     args = parser.parse_args(argv)
     try:

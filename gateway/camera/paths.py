@@ -116,10 +116,13 @@ def _minimum_jerk(p0: np.ndarray, p1: np.ndarray, n: int) -> np.ndarray:
 
 def scripted_rally_path(
     duration_s: float = 12.0, *, seed: int = 0, rate_hz: float = 200.0,
-    jumps: tuple[tuple[float, float], ...] = (), start_s: float = 0.0,
+    jumps: tuple[tuple[float, float], ...] = (), start_s: float = 0.0, side: str = "near",
 ) -> PlayerPath:
-    """A near-side rally: minimum-jerk moves between random spots (baseline, wings, net approaches) at 1-4.5 m/s
-    mean speed with short pauses, plus optional ``jumps`` ``(t_s, apex_height_m)`` as ballistic flights."""
+    """A rally on one half: minimum-jerk moves between random spots (baseline, wings, net approaches) at 1-4.5 m/s
+    mean speed with short pauses, plus optional ``jumps`` ``(t_s, apex_height_m)`` as ballistic flights.
+    ``side="far"``: the same kind of rally on the far half (point-mirrored through the court centre)."""
+    if side not in ("near", "far"):
+        raise ValueError(f"side must be 'near' or 'far', got {side!r}")
     rng = np.random.default_rng(seed)
     lo = np.array([-HALF_DOUBLES_M - 0.5, -HALF_LENGTH_M - 1.5])
     hi = np.array([HALF_DOUBLES_M + 0.5, -2.0])
@@ -143,6 +146,8 @@ def scripted_rally_path(
     t = start_s + np.arange(len(xy)) / rate_hz
     lift = jump_lift_m(t, jumps)
     heading = _smooth_heading(t, rule_heading(t, xy), max_rate_rad_s=8.0)
+    if side == "far":
+        xy, heading = -xy, heading + np.pi  # the heading rule is point-symmetric too: faces the net from there
     return PlayerPath(t, xy, heading, lift)
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from typing import Callable
+from collections.abc import Callable, Sequence
 
 from gateway.camera.body import Capsules, body_capsules, capsule_surface_points, STRIDE_M
 from gateway.camera.court import COURT_LINES_M, HALF_DOUBLES_M, HALF_LENGTH_M, LINE_WIDTH_M
@@ -110,12 +110,14 @@ class SyntheticCourtCamera(_IterableSource):
     Frame ``k`` is exposed at ``t0_s + k / fps`` (true time); its ``t_host_s`` adds latency and jitter.
     ``body(t_s, state, gait_phase_rad) -> Capsules`` draws the player: the parametric runner by default, or a
     :class:`gateway.camera.mocap_body.MocapBody` (whose ``.path`` is then the matching ``path``).
+    ``opponents``: more players (parametric runners) drawn on the same court -- distractors the tracker must not
+    follow; the ground truth stays the player's.
     """
 
     def __init__(
         self, path: PlayerPath, *, camera: PinholeCamera | None = None, fps: float = 30.0, empty_s: float = 1.0,
         imperfections: CameraImperfections = CameraImperfections(), seed: int = 0,
-        body: Callable[[float, PlayerState, float], Capsules] | None = None,
+        body: Callable[[float, PlayerState, float], Capsules] | None = None, opponents: Sequence[PlayerPath] = (),
     ) -> None:
         self.camera = camera or default_court_camera()
         self.path = path
@@ -135,7 +137,8 @@ class SyntheticCourtCamera(_IterableSource):
         self._t0_s = float(path.t_s[0]) - empty_s
         self._n_frames = int(np.floor((path.duration_s + empty_s) * fps)) + 1
         self._k = 0
-        self._gait_phase = 0.0
+        self.opponents = list(opponents)
+        self._gait_phase = np.zeros(1 + len(self.opponents))  # the player's, then each opponent's
         self._last_t_s = self._t0_s
         self.dropped = 0
 
@@ -146,24 +149,31 @@ class SyntheticCourtCamera(_IterableSource):
             self._k += 1
             t_true = self._t0_s + k / self.nominal_fps
             state = self.path.state(t_true)
-            self._gait_phase += 2 * np.pi * state.speed_mps * (t_true - self._last_t_s) / STRIDE_M
+            others = [p.state(t_true) for p in self.opponents]
+            speeds = np.array([st.speed_mps for st in [state, *others]])
+            self._gait_phase += 2 * np.pi * speeds * (t_true - self._last_t_s) / STRIDE_M
             self._last_t_s = t_true
             if self._rng.random() < imp.drop_probability:
                 self.dropped += 1
                 continue
             visible = t_true >= self.path.t_s[0]
-            image = self._render(state if visible else None, t_true)
+            bodies = [self._body(t_true, state, self._gait_phase[0])] if visible else []
+            bodies += [body_capsules(st, phase) for st, phase, p in zip(others, self._gait_phase[1:], self.opponents)
+                       if t_true >= p.t_s[0]]
+            image = self._render(bodies, t_true)
             t_host = t_true + imp.latency_s + (self._rng.normal(0.0, imp.jitter_s) if imp.jitter_s else 0.0)
             truth = GroundTruth(t_true, state.x_m, state.y_m, state.heading_rad, state.lift_m, visible)
             return Frame(k, t_host, image, truth)
         return None
 
-    def _render(self, state: PlayerState | None, t_true_s: float) -> np.ndarray:
+    def _render(self, bodies: list[Capsules], t_true_s: float) -> np.ndarray:
         imp = self.imperfections
         img = self._background.copy()
-        if state is not None:
-            caps = self._body(t_true_s, state, self._gait_phase)
-            pts = capsule_surface_points(caps)  # (C, P, 3)
+        if bodies:
+            pts = np.concatenate([capsule_surface_points(caps) for caps in bodies])  # (C, P, 3), every body
+            start = np.concatenate([caps.start_m for caps in bodies])
+            end = np.concatenate([caps.end_m for caps in bodies])
+            colour = [c for caps in bodies for c in caps.colour]
             sun = np.asarray(imp.sun_direction, float)
             ground = pts - (pts[..., 2:3] / sun[2]) * sun  # along the sun ray onto z = 0
             shadow = np.zeros(img.shape[:2], np.uint8)
@@ -175,11 +185,11 @@ class SyntheticCourtCamera(_IterableSource):
                 darkness = (1.0 - imp.shadow_gain) * (shadow[y : y + h, x : x + w].astype(np.float32) / 255.0)
                 img[y : y + h, x : x + w] *= (1.0 - darkness)[..., None]
             canvas = img.astype(np.uint8)
-            depth = np.linalg.norm(caps.start_m + caps.end_m - 2 * self.camera.position_m, axis=1)
+            depth = np.linalg.norm(start + end - 2 * self.camera.position_m, axis=1)
             flat = self.camera.project(pts.reshape(-1, 3)).reshape(pts.shape[0], pts.shape[1], 2)
             for i in np.argsort(-depth):  # far capsules first
                 hull = cv2.convexHull(_subpx(flat[i]))
-                cv2.fillConvexPoly(canvas, hull, caps.colour[i], cv2.LINE_AA, _SUBPIXEL_BITS)
+                cv2.fillConvexPoly(canvas, hull, colour[i], cv2.LINE_AA, _SUBPIXEL_BITS)
             img = canvas.astype(np.float32)
         slow = np.sin(2 * np.pi * t_true_s / imp.drift_period_s)
         gain = 1.0 + imp.drift * slow + self._rng.normal(0.0, imp.flicker)

@@ -8,7 +8,10 @@ Design choices (why):
   model keeps learning *around* the player for slower, local changes: every ``background_update_every`` frames,
   while the player is tracked, it learns a copy of the frame whose player box is filled from the background.
 - The foreground is restricted to the court plus a run-off margin, cleaned by opening/closing, and the largest
-  blob near the Kalman prediction is the player.
+  blob near the Kalman prediction is the player. The opponent is in view too: ``player_side`` ("near" = y < 0,
+  "far" = y > 0) says on which half to *acquire* the instrumented player (at the start, and again after he was
+  lost for longer than ``max_coast_s``); once acquired the gate follows him anywhere, across the net at
+  changeovers included. Without it the largest blob anywhere is acquired -- the opponent as likely as not.
 - Ground point, because the homography is valid for ground pixels only and a 1.8 m body seen obliquely smears
   over metres of ground:
   * ``"foot"``: the blob's extreme along the image direction of "down" at the blob (from the camera pose when
@@ -55,6 +58,7 @@ class TrackerConfig:
     background_learning_rate: float = 0.02
     background_update_margin_px: int = 12
     running_speed_mps: float = RUNNING_SPEED_MPS
+    player_side: str | None = None      # "near" (y < 0) or "far" (y > 0): where to acquire; None = anywhere
 
 
 @dataclass(frozen=True)
@@ -97,6 +101,8 @@ class PlayerTracker:
     def __init__(self, calibration: CourtCalibration, config: TrackerConfig = TrackerConfig()) -> None:
         if config.ground_point not in ("foot", "centroid", "auto"):
             raise ValueError(f"ground_point must be 'foot', 'centroid' or 'auto', got {config.ground_point!r}")
+        if config.player_side not in (None, "near", "far"):
+            raise ValueError(f"player_side must be 'near', 'far' or None, got {config.player_side!r}")
         if config.ground_point == "centroid" and not calibration.has_pose:
             raise ValueError("ground_point='centroid' needs a court calibration fitted with camera intrinsics")
         self.calibration = calibration
@@ -176,6 +182,11 @@ class PlayerTracker:
         foot_px = blob.centroid_px + down * np.percentile(along, self.config.foot_percentile)
         return self.calibration.image_to_court(foot_px[None])[0]
 
+    def _on_player_side(self, point_m: np.ndarray) -> bool:
+        """Can a blob at this court position (m) be acquired as the instrumented player?"""
+        side = self.config.player_side
+        return side is None or (point_m[1] < 0.0) == (side == "near")
+
     def _learn_around(self, image: np.ndarray, player: Blob) -> None:
         """Background update that cannot learn the player: his (grown) box is replaced by the background."""
         cfg = self.config
@@ -208,15 +219,22 @@ class PlayerTracker:
         self._kalman.predict(dt)
         chosen: Blob | None = None
         raw = np.full(2, np.nan)
+        acquiring = not self._kalman.initialised or (
+            self._last_fix_t_s is not None and frame.t_host_s - self._last_fix_t_s > cfg.max_coast_s)
         for blob in self.blobs(mask):
             point = self.ground_point_m(blob)
-            if not self._kalman.initialised or self._kalman.innovation_distance_m(point) <= cfg.gate_m:
+            if acquiring and self._on_player_side(point) or (
+                    not acquiring and self._kalman.innovation_distance_m(point) <= cfg.gate_m):
                 chosen, raw = blob, point
                 break
         if chosen is not None:
             self._learn_around(frame.image, chosen)
-            innovation = self._kalman.innovation_distance_m(raw) if self._kalman.initialised else 0.0
-            self._kalman.update(raw)
+            if acquiring:  # a new track: a stale prediction says nothing about where he is now
+                innovation = 0.0
+                self._kalman.reset(raw)
+            else:
+                innovation = self._kalman.innovation_distance_m(raw)
+                self._kalman.update(raw)
             self._last_fix_t_s = frame.t_host_s
             self._confidence = float(np.clip(1.0 - innovation / cfg.gate_m, 0.1, 1.0))
         elif self._last_fix_t_s is None or frame.t_host_s - self._last_fix_t_s > cfg.max_coast_s:

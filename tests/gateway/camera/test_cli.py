@@ -35,3 +35,17 @@ def test_calibrate_from_clicks_and_errors(tmp_path, capsys, court_camera):
     np.testing.assert_allclose(CourtCalibration.load(out).camera_position_m(), court_camera.position_m, atol=0.01)
     assert main(["track", "--video", str(tmp_path / "none.mp4"), "--calibration", str(out)]) == 2
     assert "none.mp4: no such video file" in capsys.readouterr().err
+
+
+def test_synth_with_an_opponent_and_track_the_chosen_side(tmp_path, capsys):
+    video, calib, truth = (tmp_path / n for n in ("c.mp4", "c.json", "t.csv"))
+    assert main(["synth", "--seconds", "3", "--seed", "2", "--opponent", "--out", str(video), "--calibration",
+                 str(calib), "--truth", str(truth)]) == 0
+    capsys.readouterr()
+    rms = {}
+    for side in ("near", "far"):
+        assert main(["track", "--video", str(video), "--calibration", str(calib), "--truth", str(truth),
+                     "--side", side, "--out", str(tmp_path / f"{side}.jsonl")]) == 0
+        rms[side] = float(re.search(r"position RMS ([0-9.]+) m", capsys.readouterr().err).group(1))
+    assert rms["near"] < 0.2  # the instrumented (truth) player
+    assert rms["far"] > 5.0  # the opponent on the other half, as asked

@@ -124,3 +124,35 @@ def test_lighting_changes_global_and_local(court_camera, calibration):
           f"frozen {clutter['frozen']:.0f}")
     assert rms <= 0.2
     assert clutter["learning"] < 100 and clutter["frozen"] > 5000
+
+
+@pytest.fixture(scope="module")
+def two_player_frames(court_camera):
+    """The instrumented player's near-side rally with an opponent rallying on the far half, both in view."""
+    player = scripted_rally_path(8.0, seed=4)
+    opponent = scripted_rally_path(8.0, seed=9, side="far")
+    source = SyntheticCourtCamera(player, camera=court_camera, imperfections=REALISTIC, seed=7, opponents=[opponent])
+    return list(source), opponent
+
+
+@pytest.mark.parametrize("side", ["near", "far"])
+def test_player_side_picks_which_of_two_players_is_tracked(two_player_frames, calibration, side):
+    frames, opponent = two_player_frames
+    tracker = PlayerTracker(calibration, TrackerConfig(player_side=side))
+    pairs = run(frames, tracker)
+    assert len(pairs) > 0.9 * 8.0 * 30 * 0.95
+    if side == "near":  # the instrumented player: scored against the renderer's truth
+        rms = position_rms_m(pairs)
+    else:  # the opponent, scored against his own path
+        err = [np.subtract([r.x_m, r.y_m], [(o := opponent.state(t.t_true_s)).x_m, o.y_m]) for r, t in pairs]
+        rms = float(np.sqrt(np.mean(np.sum(np.square(err), axis=1))))
+    print(f"two players, {side} side: position RMS {rms:.3f} m")
+    assert rms <= 0.2
+    assert all((r.y_m < 0) == (side == "near") for r, _ in pairs)
+
+
+def test_player_side_is_validated(calibration):
+    with pytest.raises(ValueError, match="player_side"):
+        PlayerTracker(calibration, TrackerConfig(player_side="left"))
+    with pytest.raises(ValueError, match="side"):
+        scripted_rally_path(2.0, side="left")
