@@ -49,6 +49,8 @@ def start_stations(perf: Performance, rate_hz: int = 100, noise_g: float = 0.02,
 class DemoCamera:
     """Synthetic overhead camera on the performance, tracked by the gateway's player tracker, published to the
     gateway as camera observations (with a JPEG thumbnail and the court->image homography for the overlay).
+    An opponent rallies on the other half, as on a real court: the tracker acquires the performer on his half
+    (``TrackerConfig.player_side``) and must not follow the opponent.
 
     Runs as a gateway camera hook (``start(sink)`` / ``stop()``); frames are paced to the wall clock so their
     times line up with the emulated stations' samples."""
@@ -57,9 +59,9 @@ class DemoCamera:
                  image_size: tuple[int, int] = (640, 360)) -> None:
         from gateway.camera.court import COURT_KEYPOINTS_M
         from gateway.camera.court_calibration import CourtCalibration
-        from gateway.camera.paths import PlayerPath
+        from gateway.camera.paths import PlayerPath, scripted_rally_path
         from gateway.camera.synthetic import SyntheticCourtCamera, default_court_camera
-        from gateway.camera.tracker import PlayerTracker
+        from gateway.camera.tracker import PlayerTracker, TrackerConfig
 
         self.t0 = t0_monotonic_s
         self.empty_s = 2.5  # empty court first: the tracker learns the background
@@ -68,13 +70,16 @@ class DemoCamera:
         frames = np.floor(t * perf.fps).astype(int) % perf.n_frames
         lift = np.clip(perf.positions_m[frames, 0, 1] - np.median(perf.positions_m[:, 0, 1]), 0.0, None)
         path = PlayerPath(t + self.empty_s, xy, heading, lift)
+        side = "near" if xy[0, 1] < 0 else "far"
+        opponent = scripted_rally_path(duration_s + 1.0, seed=3, side="far" if side == "near" else "near",
+                                       start_s=self.empty_s)
         camera = default_court_camera(image_size)
-        self.source = SyntheticCourtCamera(path, camera=camera, fps=fps, empty_s=self.empty_s)
+        self.source = SyntheticCourtCamera(path, camera=camera, fps=fps, empty_s=self.empty_s, opponents=[opponent])
         names = list(COURT_KEYPOINTS_M)
         clicks = camera.project(np.c_[[COURT_KEYPOINTS_M[n] for n in names], np.zeros(len(names))])
         calibration = CourtCalibration.fit(clicks, names=names, image_size=image_size,
                                            camera_matrix=camera.camera_matrix)
-        self.tracker = PlayerTracker(calibration)
+        self.tracker = PlayerTracker(calibration, TrackerConfig(player_side=side))
         self.court_to_image = camera.ground_homography()
         self.thumbnail_every = 2
         self._stop = threading.Event()
