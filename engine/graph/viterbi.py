@@ -140,8 +140,9 @@ class ViterbiLattice:
             np.asarray(graph.meta_acc_g, dtype=np.float32)[:, sel, :].transpose(1, 2, 0)).reshape(-1, m)
         self._meta_acc_sq = np.einsum("ij,ij->j", self._meta_acc_t, self._meta_acc_t,
                                       dtype=np.float64).astype(np.float32)
-        self._dots = np.empty(m, dtype=np.float32)
-        self._axpy = np.empty(m, dtype=np.float32)
+        if kernel == "numpy":  # scratch of the reference's row-axpys (the compiled kernel batches its own)
+            self._dots = np.empty(m, dtype=np.float32)
+            self._axpy = np.empty(m, dtype=np.float32)
         self.runs = EdgeRuns(graph.edge_src, graph.edge_dst, graph.edge_meta, graph.n_nodes)
         r = self.runs
         self._src, self._dst = r.src.astype(np.intp), r.dst.astype(np.intp)
