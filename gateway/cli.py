@@ -9,6 +9,8 @@ from __future__ import annotations
 import sys
 from importlib.metadata import EntryPoint, entry_points
 
+from engine.errors import CourtsideError
+
 ENTRY_POINT_GROUP = "courtside.commands"
 
 
@@ -41,7 +43,11 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    return int(command(rest) or 0)
+    try:
+        return int(command(rest) or 0)
+    except CourtsideError as exc:
+        print(f"courtside {name}: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":
