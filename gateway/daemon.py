@@ -75,7 +75,7 @@ class Gateway:
         name: str = "courtside-gateway",
     ):
         self.name = name
-        self.recorder = Recorder(record_dir)
+        self.recorder = Recorder(record_dir, on_event=self._on_recorder_event)
         self.camera = camera
         self.calibration = calibration
         self.status_interval_s = status_interval_s
@@ -124,7 +124,10 @@ class Gateway:
         for reader in readers:
             reader.stop()
         if self.recorder.active:
-            self.recorder.stop()
+            try:
+                self.recorder.stop()
+            except ValueError:  # a disk fault closed the take in between: it is closed either way
+                pass
         if self._status_thread.is_alive():
             self._status_thread.join(timeout=2)
         self.server.close()
@@ -178,6 +181,11 @@ class Gateway:
 
     def on_station_event(self, station: str, level: str, message: str, details: dict | None = None) -> None:
         self.publish_event(level, station, message, details)
+
+    def _on_recorder_event(self, level: str, message: str) -> None:
+        """Disk fault or backlog refusal (recorder writer thread): alarm every client, publish the new state."""
+        self.publish_event(level, "recorder", message)
+        self.server.publish("recording", self.recorder.state())
 
     def publish_event(self, level: str, source: str, message: str, details: dict | None = None) -> None:
         header = {"t_host_s": time.monotonic(), "level": level, "source": source, "message": message,
