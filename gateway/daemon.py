@@ -28,6 +28,7 @@ import numpy as np
 
 import firmware_protocol as fp
 from gateway import wire
+from gateway.device_checks import I32_MAX, I32_MIN, command_int
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
 from gateway.recorder import Recorder, export_csv, export_npz
 from gateway.server import RequestError, StreamServer
@@ -307,15 +308,18 @@ class Gateway:
         if command not in STATION_COMMANDS:
             raise RequestError(f"unknown station command {command!r}; valid: {sorted(STATION_COMMANDS)}")
         extra = dict(args.get("args") or {})
-        target = int(extra.get("sensor", fp.BROADCAST_SENSOR))
         value = 0
-        if command in COMMAND_VALUE_ARG:
-            key, default = COMMAND_VALUE_ARG[command]
-            value = extra.get(key, default)
-            if value is None:
-                raise RequestError(f"{command} needs '{key}'")
+        try:  # the wire fields are u8 sensor and i32 value: refuse what does not fit, naming the argument
+            target = command_int("sensor", extra.get("sensor", fp.BROADCAST_SENSOR), 0, 255)
+            if command in COMMAND_VALUE_ARG:
+                key, default = COMMAND_VALUE_ARG[command]
+                if extra.get(key, default) is None:
+                    raise RequestError(f"{command} needs '{key}'")
+                value = command_int(key, extra.get(key, default), I32_MIN, I32_MAX)
+        except ValueError as exc:
+            raise RequestError(f"{command}: {exc}") from None
         try:
-            result = reader.command(STATION_COMMANDS[command], target=target, value=int(value))
+            result = reader.command(STATION_COMMANDS[command], target=target, value=value)
         except (LinkError, TimeoutError) as exc:
             raise RequestError(str(exc)) from exc
         return {"station": reader.name, "command": command, **result}
