@@ -19,6 +19,7 @@ import threading
 import time
 from typing import Any, Callable, Iterable
 
+from engine.errors import CourtsideError
 from gateway import wire
 from gateway.codec import Message
 
@@ -27,7 +28,7 @@ log = logging.getLogger(__name__)
 Listener = Callable[[Message], None]
 
 
-class GatewayRequestError(RuntimeError):
+class GatewayRequestError(CourtsideError, RuntimeError):
     """The gateway answered a request with ``ok: false`` (message = the gateway's reason)."""
 
 

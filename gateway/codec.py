@@ -20,11 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from engine.errors import CourtsideError
+
 _U32 = struct.Struct(">I")
 MAX_HEADER_BYTES = 1 << 20
 
 
-class CodecError(ValueError):
+class CodecError(CourtsideError, ValueError):
     """A body that cannot be decoded (bad length, bad JSON, array spec that does not match the payload)."""
 
 

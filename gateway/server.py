@@ -17,6 +17,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from engine.errors import CourtsideError
 from gateway import codec, wire
 
 log = logging.getLogger(__name__)
@@ -25,7 +26,7 @@ DROPPABLE_KINDS = frozenset({"samples", "camera"})
 RequestHandler = Callable[[str, dict[str, Any]], Any]
 
 
-class RequestError(Exception):
+class RequestError(CourtsideError):
     """Raised by a request handler to send a clean ``ok: false`` reply with this message."""
 
 

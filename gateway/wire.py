@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from engine.errors import CourtsideError
 from gateway import codec
 
 PROTOCOL_VERSION = 1
@@ -37,7 +38,7 @@ ACTIONS = (
 )
 
 
-class WireError(ConnectionError):
+class WireError(CourtsideError, ConnectionError):
     """The peer sent something that is not a valid frame (too long, undecodable)."""
 
 
