@@ -73,7 +73,8 @@ def check_synthesis_file(path: Path, data, graph_sensors: list[str]) -> None:
     acc = array(path, data, "acc_g", 3)
     if acc.shape[2] != 3:
         raise MalformedFileError(path, None, f"acc_g must have shape (T, S, 3), got {acc.shape}")
-    check_fps(path, data)
+    fps = check_fps(path, data)
+    _check_finite(path, "acc_g", acc, fps)
     if "sensor_names" in data.files:
         names = [str(n) for n in array(path, data, "sensor_names", 1, kind="str")]
         if len(set(names)) != len(names):
@@ -102,6 +103,7 @@ def check_gateway_export(path: Path, data, keys: list[str]) -> None:
                                                  "(N, 3) and (N,)")
         if len(t) < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
             raise MalformedFileError(path, None, f"'{key}/t_host_s' must hold at least 2 finite, increasing times")
+        _check_finite(path, f"{key}/acc_g", acc[:, None], 1.0 / float(np.median(np.diff(t))))
     if "messages" in data.files:
         try:
             messages = json.loads(str(array(path, data, "messages", 0, kind="str")))
@@ -117,6 +119,15 @@ def check_gateway_export(path: Path, data, keys: list[str]) -> None:
                 if not ok or (heading is not None and not isinstance(heading, (int, float))):
                     raise MalformedFileError(path, None, f"camera message {i} needs a numeric t_host_s, position_m "
                                                          f"[x, y] and heading_rad, got {json.dumps(m)[:120]}")
+
+
+def _check_finite(path: Path, name: str, acc: np.ndarray, fps: float) -> None:
+    """acc (T, S, 3) must be finite: a NaN would poison every path cost of the search."""
+    bad = ~np.isfinite(acc).all(axis=2)
+    if bad.any():
+        t, s = np.argwhere(bad)[0]
+        raise MalformedFileError(path, None, f"{name} holds {int(bad.sum())} non-finite sample(s) (first at sample "
+                                             f"{t} = {t / fps:.3f} s, sensor column {s})")
 
 
 def check_observations(path: Path, acc_g: np.ndarray | None, fps_graph: float) -> None:
