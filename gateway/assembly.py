@@ -101,6 +101,7 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
     ``camera`` / ``calibration`` / ``emulators`` replace what the config would build (the demo passes its
     performance-driven stations and camera); the gateway itself is always built here."""
     secrets = auth.Secrets.from_files(config.auth.operator_secret_file, config.auth.viewer_secret_file)
+    tls = auth.server_tls_context(config.auth.tls_cert, config.auth.tls_key) if config.auth.tls_cert else None
     if camera is None and config.camera.source is not None:
         camera = build_camera(config.camera)
     if calibration is None:
@@ -122,7 +123,7 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
     options = dict(listen=config.listen, record_dir=config.record_dir, camera=camera, calibration=calibration,
                    status_interval_s=config.status_interval_s, lock_after_s=config.clock_lock_after_s,
                    status_line=status_line, discover=config.stations.discover, name=config.name, secrets=secrets,
-                   max_clients=config.max_clients, handshake_timeout_s=config.handshake_timeout_s)
+                   max_clients=config.max_clients, handshake_timeout_s=config.handshake_timeout_s, tls=tls)
     options.update(gateway_options or {})
     try:
         gateway = Gateway(sources, **options).start()

@@ -21,12 +21,14 @@ import itertools
 import logging
 import secrets
 import socket
+import ssl
 import threading
 import time
 from typing import Any, Callable, Iterable
 
 from gateway import auth, wire
 from gateway.codec import Message
+from gateway.tls import TlsChannel
 
 log = logging.getLogger(__name__)
 
@@ -50,8 +52,9 @@ class GatewayClient:
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 7766, *, secret: bytes | None = None,
-                 inbox_size: int = 10_000):
+                 tls: ssl.SSLContext | None = None, inbox_size: int = 10_000):
         self.host = host
+        self.tls = tls
         self.port = port
         self.role: str | None = None
         self.server_hello: dict[str, Any] = {}
@@ -66,7 +69,7 @@ class GatewayClient:
         self._pending_lock = threading.Lock()
         self._ids = itertools.count(1)
         self._send_lock = threading.Lock()
-        self._sock: socket.socket | None = None
+        self._sock: Any = None  # socket.socket or gateway.tls.TlsChannel
         self._reader: threading.Thread | None = None
         self._hello_event = threading.Event()
         self._closed = threading.Event()
@@ -77,9 +80,16 @@ class GatewayClient:
 
         Raises ConnectionError when unreachable or refused (busy), `gateway.auth.AuthenticationError` when the
         gateway wants a secret we lack or rejects ours (or cannot prove it holds it)."""
-        sock = socket.create_connection((self.host, self.port), timeout=timeout_s)
+        sock: Any = socket.create_connection((self.host, self.port), timeout=timeout_s)
         sock.settimeout(None)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        if self.tls is not None:
+            sock = TlsChannel(sock, self.tls, server_side=False, server_hostname=self.host)
+            try:
+                sock.handshake(timeout_s)
+            except BaseException:
+                sock.close()
+                raise
         self._sock = sock
         self._closed.clear()
         self._hello_event.clear()

@@ -34,6 +34,8 @@ from gateway.server import RequestError, StreamServer
 from gateway.station import SampleBlock, StationReader
 
 if TYPE_CHECKING:
+    import ssl
+
     from gateway.court_config import CourtConfig
 
 log = logging.getLogger("gateway")
@@ -79,6 +81,7 @@ class Gateway:
         secrets: auth.Secrets = auth.Secrets(),
         max_clients: int = 32,
         handshake_timeout_s: float = 5.0,
+        tls: "ssl.SSLContext | None" = None,
     ):
         self.name = name
         self.recorder = Recorder(record_dir)
@@ -93,7 +96,8 @@ class Gateway:
         self._readers_lock = threading.Lock()
         self.server = StreamServer(self.handle_request, host=listen[0], port=listen[1], hello=self._hello,
                                    display_queue_frames=display_queue_frames, secrets=secrets,
-                                   max_clients=max_clients, handshake_timeout_s=handshake_timeout_s, name=name)
+                                   max_clients=max_clients, handshake_timeout_s=handshake_timeout_s, name=name,
+                                   tls=tls)
         # discovery functions polled for hot-plugged stations (True = USB serial + HID by VID:PID)
         self.discoverers = [discover_serial, discover_hid] if discover is True else list(discover or [])
         self.samples_in = 0
@@ -521,6 +525,8 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_START_FAILED
     host, port = court.address
     mode = "authentication required" if config.authenticated else "no authentication: loopback only"
+    if config.auth.tls_cert is not None:
+        mode += ", TLS"
     print(f"gateway listening on {host}:{port} ({mode})", flush=True)
     if court.take:
         print(f"recording take {court.take}", flush=True)

@@ -12,6 +12,7 @@ import collections
 import logging
 import secrets
 import socket
+import ssl
 import threading
 import time
 from dataclasses import dataclass
@@ -20,6 +21,7 @@ from typing import Any, Callable
 import numpy as np
 
 from gateway import auth, codec, wire
+from gateway.tls import TlsChannel
 
 log = logging.getLogger(__name__)
 
@@ -66,8 +68,8 @@ class _ClientSession:
         self._reader = threading.Thread(target=self._read_loop, name=f"gw-client-r-{address}", daemon=True)
 
     def start(self, hello: bytes) -> None:
+        """Queue the hello and start reading; the writer starts once any TLS handshake is done."""
         self.push(hello, droppable=False)
-        self._writer.start()
         self._reader.start()
 
     def push(self, data: bytes, droppable: bool) -> None:
@@ -117,6 +119,9 @@ class _ClientSession:
     def _read_loop(self) -> None:
         server = self.server
         try:
+            if isinstance(self.sock, TlsChannel):
+                self.sock.handshake(server.handshake_timeout_s)
+            self._writer.start()
             while not self._closed and not self._closing:
                 # until authenticated, the whole handshake must finish within the timeout
                 idle_deadline = None if self.role else self.connected_s + server.handshake_timeout_s
@@ -264,8 +269,10 @@ class StreamServer:
         handshake_timeout_s: float = 5.0,
         max_request_bytes: int = wire.MAX_REQUEST_BYTES,
         name: str = "courtside-gateway",
+        tls: ssl.SSLContext | None = None,
     ):
         self.handler = handler
+        self.tls = tls
         self.display_queue_frames = display_queue_frames
         self.reliable_queue_limit = reliable_queue_limit
         self.secrets = secrets
@@ -312,11 +319,15 @@ class StreamServer:
                 self.refused_connections += 1
                 log.warning("refused client %s: %d clients connected (limit %d)", address, self.max_clients,
                             self.max_clients)
-                self._refuse(sock, f"gateway busy: {self.max_clients} clients connected (limit)")
+                if self.tls is None:
+                    self._refuse(sock, f"gateway busy: {self.max_clients} clients connected (limit)")
+                else:
+                    sock.close()  # a TLS client could not read a plain refusal
                 continue
             sock.settimeout(None)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            session = _ClientSession(self, sock, address)
+            channel = sock if self.tls is None else TlsChannel(sock, self.tls, server_side=True)
+            session = _ClientSession(self, channel, address)
             with self._lock:
                 self._sessions.append(session)
             if session.role is None:

@@ -71,6 +71,9 @@ def _wait_readable(sock: socket.socket, deadline: float | None) -> None:
     """Block until ``sock`` has bytes (or EOF) to read; `WireTimeout` once ``deadline`` (monotonic) passes."""
     if deadline is None:
         return
+    pending = getattr(sock, "pending", None)  # a TLS channel may hold decrypted bytes already
+    if pending is not None and pending():
+        return
     remaining = deadline - time.monotonic()
     if remaining <= 0 or not select.select([sock], [], [], remaining)[0]:
         raise WireTimeout("peer too slow: frame or handshake not completed in time")
@@ -80,9 +83,16 @@ def _recv_exact(sock: socket.socket, n: int, deadline: float | None) -> bytes | 
     """Read exactly ``n`` bytes by chunks, so memory grows with the bytes that really arrive, never with a length
     the peer merely announced (four bytes must not allocate 64 MiB). None on a clean EOF before the first byte."""
     buf = bytearray()
+    read_some = getattr(sock, "read_some", None)  # gateway.tls.TlsChannel
     while len(buf) < n:
-        _wait_readable(sock, deadline)
-        chunk = sock.recv(min(n - len(buf), READ_CHUNK_BYTES))
+        if read_some is not None:
+            try:
+                chunk = read_some(min(n - len(buf), READ_CHUNK_BYTES), deadline)
+            except TimeoutError:
+                raise WireTimeout("peer too slow: frame not completed in time") from None
+        else:
+            _wait_readable(sock, deadline)
+            chunk = sock.recv(min(n - len(buf), READ_CHUNK_BYTES))
         if not chunk:
             if not buf:
                 return None

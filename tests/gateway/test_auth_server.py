@@ -7,8 +7,10 @@ from __future__ import annotations
 import json
 import logging
 import os
+import shutil
 import socket
 import struct
+import subprocess
 import threading
 import time
 import tracemalloc
@@ -269,3 +271,44 @@ def test_codec_refuses_negative_shapes():
     header = json.dumps({"kind": "x", "arrays": [{"name": "a", "dtype": "<f4", "shape": [-1]}]}).encode()
     with pytest.raises(codec.CodecError, match="invalid shape"):
         codec.decode(struct.pack(">I", len(header)) + header + b"\0" * 8)
+
+
+def make_certificate(tmp_path):
+    """A self-signed certificate for 127.0.0.2 via the openssl command (no Python crypto dependency)."""
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl command not installed")
+    cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1",
+                    "-nodes", "-days", "2", "-subj", "/CN=courtside-gateway", "-keyout", str(key), "-out", str(cert)],
+                   check=True, capture_output=True, timeout=60)
+    return cert, key
+
+
+def test_tls_with_authentication_full_duplex(tmp_path):
+    cert, key = make_certificate(tmp_path)
+    operator = auth.read_secret_file(secret_file(tmp_path, "operator"))
+    gw = Gateway([], listen=(HOST, 0), record_dir=tmp_path / "rec", secrets=auth.Secrets(operator),
+                 tls=auth.server_tls_context(cert, key), status_interval_s=0.1, handshake_timeout_s=2.0).start()
+    try:
+        with GatewayClient(*gw.address, secret=operator, tls=auth.client_tls_context(cert)) as client:
+            assert client.role == auth.OPERATOR
+            # replies and the periodic stream interleave on one TLS connection (reader and writer threads)
+            for _ in range(30):
+                assert client.request("ping")["t_host_s"] > 0
+            assert client.get(timeout_s=3.0, kinds=["status"]) is not None
+            assert client.start_recording("tls-take")["active"]
+            assert client.stop_recording()["take"] == "tls-take"
+        # a client speaking plain TCP to the TLS port gets nothing and is dropped
+        sock = raw_connect(gw.address)
+        try:
+            sock.sendall(wire.pack(wire.REQUEST, {"id": 1, "action": "ping", "args": {}}))
+            assert closed_within(sock, 5.0)
+        finally:
+            sock.close()
+        # a client that does not trust the certificate refuses the gateway
+        (tmp_path / "other").mkdir()
+        other_cert, _ = make_certificate(tmp_path / "other")
+        with pytest.raises(ConnectionError, match="TLS handshake failed"):
+            GatewayClient(*gw.address, secret=operator, tls=auth.client_tls_context(other_cert)).connect()
+    finally:
+        gw.stop()

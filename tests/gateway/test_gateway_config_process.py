@@ -39,7 +39,7 @@ def start_gateway(cwd, *args: str) -> tuple[subprocess.Popen, int]:
     while time.monotonic() < deadline:
         line = proc.stdout.readline()
         assert line, f"gateway exited early ({proc.poll()}): {proc.stderr.read()}"
-        if match := re.match(r"gateway listening on 127\.0\.0\.2:(\d+) \(authentication required\)", line):
+        if match := re.match(r"gateway listening on 127\.0\.0\.2:(\d+) \(authentication required", line):
             return proc, int(match[1])
     proc.kill()
     raise AssertionError("gateway did not start")
