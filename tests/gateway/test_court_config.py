@@ -175,3 +175,25 @@ def test_cli_refuses_a_bad_config_with_one_line_and_exit_2(tmp_path):
     assert str(path) in result.stderr and "stations.ports" in result.stderr
     result = _gateway_cli("--listen", "0.0.0.0:7766", cwd=tmp_path)
     assert result.returncode == 2 and "needs authentication" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_shipped_example_config_loads_and_every_key_is_documented():
+    from dataclasses import fields
+
+    from gateway.court_config import AuthConfig, CalibrationConfig, CameraConfig, StationsConfig
+
+    root = Path(__file__).resolve().parents[2]
+    example = root / "docs" / "deploy" / "court.example.toml"
+    config = load_court_config(example)
+    assert config.authenticated and config.camera.source == "/dev/video0" and config.stations.discover
+    text, docs = example.read_text(), (root / "docs" / "gateway.md").read_text()
+    sections = {"": CourtConfig, "[stations] ": StationsConfig, "[camera] ": CameraConfig,
+                "[calibration] ": CalibrationConfig, "[auth] ": AuthConfig}
+    for prefix, cls in sections.items():
+        for f in fields(cls):
+            if f.name in ("stations", "camera", "calibration", "auth"):
+                continue  # the tables themselves
+            assert f"\n{f.name} =" in text, f"{f.name} missing from {example.name}"
+            assert f"`{prefix}{f.name}`" in docs or f"`{prefix}{f.name}`," in docs or f", `{f.name}`" in docs, f.name
+    unit = (root / "docs" / "deploy" / "courtside-gateway.service").read_text()
+    assert "--config /etc/courtside/court.toml" in unit and "RestartPreventExitStatus=2" in unit
