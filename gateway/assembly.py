@@ -22,6 +22,11 @@ from gateway.names import free_name
 log = logging.getLogger("gateway")
 
 
+class DeviceUnavailableError(CourtsideError, OSError):
+    """A live device (camera) that exists in the config could not be opened now: unplugged, busy, not ready
+    yet. Unlike a bad config, a restart may fix it, so the CLI exits 1 (docs/gateway.md "Exit codes")."""
+
+
 @dataclass
 class Court:
     """A running court. ``stop()`` stops the gateway (recording flushed), then camera and emulators."""
@@ -69,7 +74,10 @@ def build_camera(config: CameraConfig) -> Any:
             source: Any = VideoFileSource(config.source)
             realtime, label = True, f"file {config.source}"
         else:
-            source = OpenCVCamera(config.source, fps=config.fps, latency_s=config.latency_s)
+            try:
+                source = OpenCVCamera(config.source, fps=config.fps, latency_s=config.latency_s)
+            except CameraError as exc:
+                raise DeviceUnavailableError(f"camera: {exc}") from None
             realtime, label = False, f"camera {config.source}"
     except CameraError as exc:
         raise CourtsideError(f"camera: {exc}") from None

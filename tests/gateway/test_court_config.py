@@ -197,3 +197,26 @@ def test_shipped_example_config_loads_and_every_key_is_documented():
             assert f"`{prefix}{f.name}`" in docs or f"`{prefix}{f.name}`," in docs or f", `{f.name}`" in docs, f.name
     unit = (root / "docs" / "deploy" / "courtside-gateway.service").read_text()
     assert "--config /etc/courtside/court.toml" in unit and "RestartPreventExitStatus=2" in unit
+
+
+def test_cli_exit_1_when_it_cannot_start_now(tmp_path):
+    """Exit 1 (a service manager retries): the address is taken, or a live camera is not there (yet)."""
+    import socket
+
+    import numpy as np
+
+    from gateway.camera.court import COURT_KEYPOINTS_M, keypoints_array
+    from gateway.camera.court_calibration import CourtCalibration
+    from gateway.camera.synthetic import default_court_camera
+
+    with socket.create_server(("127.0.0.4", 0)) as taken:
+        result = _gateway_cli("--listen", f"127.0.0.4:{taken.getsockname()[1]}", cwd=tmp_path)
+    assert result.returncode == 1 and "cannot start" in result.stderr and "Traceback" not in result.stderr
+    camera = default_court_camera((320, 180))
+    names = list(COURT_KEYPOINTS_M)
+    clicks = camera.project(np.column_stack([keypoints_array(names), np.zeros(len(names))]))
+    CourtCalibration.fit(clicks, names=names, image_size=camera.image_size).save(tmp_path / "court.json")
+    result = _gateway_cli("--camera", "/dev/video63", "--court", "court.json", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    assert result.returncode == 1 and "/dev/video63" in result.stderr and "Traceback" not in result.stderr
+    result = _gateway_cli("--camera", "/dev/video63", "--court", "absent.json", cwd=tmp_path)
+    assert result.returncode == 2 and "absent.json" in result.stderr
