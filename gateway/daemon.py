@@ -27,6 +27,7 @@ import numpy as np
 
 import firmware_protocol as fp
 from gateway import auth, wire
+from gateway.device_checks import I32_MAX, I32_MIN, command_int
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
 from gateway.recorder import Recorder, export_csv, export_npz
 from gateway.names import BadNameError, check_name
@@ -84,7 +85,7 @@ class Gateway:
         tls: "ssl.SSLContext | None" = None,
     ):
         self.name = name
-        self.recorder = Recorder(record_dir)
+        self.recorder = Recorder(record_dir, on_event=self._on_recorder_event)
         self.camera = camera
         self.calibration = calibration
         self.status_interval_s = status_interval_s
@@ -135,7 +136,10 @@ class Gateway:
         for reader in readers:
             reader.stop()
         if self.recorder.active:
-            self.recorder.stop()
+            try:
+                self.recorder.stop()
+            except ValueError:  # a disk fault closed the take in between: it is closed either way
+                pass
         if self._status_thread.is_alive():
             self._status_thread.join(timeout=2)
         self.server.close()
@@ -189,6 +193,11 @@ class Gateway:
 
     def on_station_event(self, station: str, level: str, message: str, details: dict | None = None) -> None:
         self.publish_event(level, station, message, details)
+
+    def _on_recorder_event(self, level: str, message: str) -> None:
+        """Disk fault or backlog refusal (recorder writer thread): alarm every client, publish the new state."""
+        self.publish_event(level, "recorder", message)
+        self.server.publish("recording", self.recorder.state())
 
     def publish_event(self, level: str, source: str, message: str, details: dict | None = None) -> None:
         header = {"t_host_s": time.monotonic(), "level": level, "source": source, "message": message,
@@ -319,15 +328,18 @@ class Gateway:
         if command not in STATION_COMMANDS:
             raise RequestError(f"unknown station command {command!r}; valid: {sorted(STATION_COMMANDS)}")
         extra = dict(args.get("args") or {})
-        target = int(extra.get("sensor", fp.BROADCAST_SENSOR))
         value = 0
-        if command in COMMAND_VALUE_ARG:
-            key, default = COMMAND_VALUE_ARG[command]
-            value = extra.get(key, default)
-            if value is None:
-                raise RequestError(f"{command} needs '{key}'")
+        try:  # the wire fields are u8 sensor and i32 value: refuse what does not fit, naming the argument
+            target = command_int("sensor", extra.get("sensor", fp.BROADCAST_SENSOR), 0, 255)
+            if command in COMMAND_VALUE_ARG:
+                key, default = COMMAND_VALUE_ARG[command]
+                if extra.get(key, default) is None:
+                    raise RequestError(f"{command} needs '{key}'")
+                value = command_int(key, extra.get(key, default), I32_MIN, I32_MAX)
+        except ValueError as exc:
+            raise RequestError(f"{command}: {exc}") from None
         try:
-            result = reader.command(STATION_COMMANDS[command], target=target, value=int(value))
+            result = reader.command(STATION_COMMANDS[command], target=target, value=value)
         except (LinkError, TimeoutError) as exc:
             raise RequestError(str(exc)) from exc
         return {"station": reader.name, "command": command, **result}
