@@ -169,15 +169,10 @@ class Gateway:
     # -- data in (reader / camera threads) --------------------------------------------------------------------
     def on_samples(self, block: SampleBlock) -> None:
         self.samples_in += len(block.counter)
+        header, arrays = block.header(), block.arrays()  # one samples message for the recording and clients
         if self.recorder.active:
-            self.recorder.put_samples(block.station, block.sensor, block.arrays(),
-                                      header={"nominal_hz": block.nominal_hz, "epoch": block.epoch})
-        self.server.publish(
-            "samples",
-            {"station": block.station, "sensor": block.sensor, "nominal_hz": block.nominal_hz,
-             "clock_locked": block.clock_locked},
-            {"counter": block.counter, "ticks": block.ticks, "t_host_s": block.t_host_s, "acc_g": block.acc_g},
-        )
+            self.recorder.put_samples(block.station, block.sensor, arrays, header=header)
+        self.server.publish("samples", header, arrays)
         on_samples = getattr(self.calibration, "on_samples", None)
         if on_samples is not None:
             on_samples(block.station, block.sensor, block.t_host_s, block.acc_g)
