@@ -26,6 +26,7 @@ from gateway.tls import TlsChannel
 log = logging.getLogger(__name__)
 
 DROPPABLE_KINDS = frozenset({"samples", "camera"})
+MAX_BAD_FRAMES = 10  # undecodable frames answered on one connection before it is dropped (no log flood)
 # handler(action, args, role) -> result; the server has already checked that ``role`` may run ``action``
 RequestHandler = Callable[[str, dict[str, Any], str], Any]
 
@@ -64,6 +65,7 @@ class _ClientSession:
         self._cond = threading.Condition()
         self._closed = False
         self._closing = False  # close once the reliable queue is sent
+        self.bad_frames = 0
         self._writer = threading.Thread(target=self._write_loop, name=f"gw-client-w-{address}", daemon=True)
         self._reader = threading.Thread(target=self._read_loop, name=f"gw-client-r-{address}", daemon=True)
 
@@ -129,6 +131,9 @@ class _ClientSession:
                     msg = wire.recv_message(self.sock, max_frame_bytes=server.max_request_bytes,
                                             frame_timeout_s=server.handshake_timeout_s, idle_deadline=idle_deadline)
                 except wire.UndecodableFrame as exc:
+                    self.bad_frames += 1
+                    if self.bad_frames > MAX_BAD_FRAMES:
+                        raise wire.WireError(f"{self.bad_frames} undecodable frames") from None
                     log.warning("client %s: %s", self.stats.address, exc)
                     self._reply(None, ok=False, error=str(exc))
                     continue
@@ -197,7 +202,7 @@ class _ClientSession:
                 return
             needed = auth.required_role(action, args)
             if not auth.permits(self.role, needed):
-                log.warning("client %s (%s) refused %r", self.stats.address, self.role, action)
+                log.info("client %s (%s) refused %r", self.stats.address, self.role, action)
                 self._reply(request_id, ok=False, error=f"{action!r} needs the {needed} role; this connection is "
                             f"a {self.role}")
                 return
@@ -281,6 +286,7 @@ class StreamServer:
         self.max_request_bytes = max_request_bytes
         self.name = name
         self.refused_connections = 0
+        self._last_refusal_log_s = -1e9
         self._hello = hello or (lambda: {})
         self._sessions: list[_ClientSession] = []
         self._lock = threading.Lock()
@@ -317,8 +323,10 @@ class StreamServer:
                 full = len(self._sessions) >= self.max_clients
             if full:
                 self.refused_connections += 1
-                log.warning("refused client %s: %d clients connected (limit %d)", address, self.max_clients,
-                            self.max_clients)
+                if time.monotonic() - self._last_refusal_log_s >= 1.0:  # a connection flood logs once a second
+                    self._last_refusal_log_s = time.monotonic()
+                    log.warning("refused client %s: %d clients connected (limit); %d refused so far", address,
+                                self.max_clients, self.refused_connections)
                 if self.tls is None:
                     self._refuse(sock, f"gateway busy: {self.max_clients} clients connected (limit)")
                 else:

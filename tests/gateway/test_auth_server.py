@@ -18,7 +18,7 @@ import tracemalloc
 import pytest
 
 from engine.errors import MalformedFileError
-from gateway import auth, codec, wire
+from gateway import auth, codec, server, wire
 from gateway.client import GatewayClient, GatewayRequestError
 from gateway.daemon import Gateway
 
@@ -235,6 +235,10 @@ def test_deep_json_and_absurd_shapes_get_an_error_reply_and_one_log_line(open_ga
             assert reply["id"] == 7 and reply["ok"]  # the same connection still works
         server_lines = [r for r in caplog.records if r.name == "gateway.server"]
         assert len(server_lines) == 2 and not any(r.exc_info for r in server_lines)
+        # a flood of garbage frames is cut off instead of flooding the log
+        for _ in range(server.MAX_BAD_FRAMES + 5):
+            sock.sendall(_frame(b"not json"))
+        assert closed_within(sock, 5.0)
     finally:
         sock.close()
 
