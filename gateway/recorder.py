@@ -36,7 +36,6 @@ import errno
 import json
 import logging
 import os
-import re
 import struct
 import threading
 import time
@@ -50,6 +49,7 @@ import numpy as np
 from engine.errors import CourtsideError
 from gateway import codec
 from gateway.clock import realign_offline
+from gateway.names import BadNameError, check_name
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +57,6 @@ FILE_MAGIC = b"CSREC\x00\x01\n"
 CHUNK_MAGIC = b"CHNK"
 _U32 = struct.Struct(">I")
 _CHUNK_HEAD = struct.Struct(">4sII")
-TAKE_NAME = re.compile(r"^[A-Za-z0-9_.-]{1,100}$")
 RECORDING_FILE = "take.csrec"
 META_KIND = "take_meta"  # first chunk: copy of the file header's meta
 END_KIND = "take_end"  # last chunk of a take closed on purpose: {"reason", "samples_written", ...}
@@ -212,8 +211,10 @@ class Recorder:
     def start(self, take: str, meta: dict[str, Any] | None = None) -> dict[str, Any]:
         """Open ``<record_dir>/<take>/take.csrec`` and start writing. Raises RecorderRefused (a ValueError) on a
         bad/duplicate take name, while recording, or when the file cannot be created (disk full...)."""
-        if not TAKE_NAME.match(take):
-            raise RecorderRefused(f"take name {take!r} must match {TAKE_NAME.pattern}")
+        try:
+            check_name(take, "take name")  # one definition of a safe take name (issue 12: "..", ".", newlines)
+        except BadNameError as exc:
+            raise RecorderRefused(str(exc)) from None
         with self._lock:
             if self._file is not None:
                 raise RecorderRefused(f"already recording take {self._take!r}")

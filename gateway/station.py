@@ -16,7 +16,7 @@ import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
@@ -50,8 +50,14 @@ class SampleBlock:
     t_host_s: np.ndarray  # (N,) float64 sample latch time on the gateway clock (online estimate)
     acc_g: np.ndarray  # (N, 3) float32
 
+    def header(self) -> dict[str, Any]:
+        """The ``samples`` message header. With `arrays` this is the one definition of a samples message:
+        clients receive it per batch, the recorder merges batches of it into chunks (docs/gateway.md)."""
+        return {"station": self.station, "sensor": self.sensor, "nominal_hz": self.nominal_hz, "epoch": self.epoch,
+                "clock_locked": self.clock_locked}
+
     def arrays(self) -> dict[str, np.ndarray]:
-        """Everything the recorder keeps per sample (raw ticks + arrival times allow offline re-alignment)."""
+        """Every per-sample array (raw ticks + arrival times allow offline re-alignment)."""
         return {"counter": self.counter, "epoch": np.full(len(self.counter), self.epoch, np.uint32),
                 "raw_ticks": self.raw_ticks, "ticks": self.ticks,
                 "arrival_s": self.arrival_s, "t_host_s": self.t_host_s, "acc_g": self.acc_g}

@@ -50,8 +50,10 @@ def test_duplicate_or_bad_take_name_refused(tmp_path):
     rec = Recorder(tmp_path)
     with pytest.raises(ValueError, match="already exists"):
         rec.start("t1")
-    with pytest.raises(ValueError, match="must match"):
-        rec.start("../evil")
+    for bad in ("../evil", "..", ".", "take\n", "a/b", "x" * 101):  # issue 12: names escaped the directory
+        with pytest.raises(ValueError, match="take name"):
+            rec.start(bad)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t1"] and not (tmp_path.parent / "take.csrec").exists()
 
 
 def test_truncated_anywhere_returns_intact_prefix(tmp_path):

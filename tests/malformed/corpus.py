@@ -604,11 +604,33 @@ def camera_cases() -> list[Case]:
 
 
 def config_cases() -> list[Case]:
-    """The gateway's TOML config as read today (`courtside gateway --config`)."""
+    """The gateway's court config TOML (`courtside gateway --config`, gateway.court_config): the issue's cases
+    (wrong types, a string where a list belongs, "no" as a boolean, negative counts, a table for a list)."""
     mutations = {
-        "not-toml": b"ports = [\n",
+        "not-toml": b"listen = [\n",
         "binary": bytes(range(256)),
+        "empty-key": b'= "x"\n',
         "unknown-key": b'portz = ["/dev/ttyACM0"]\n',
+        "unknown-section": b'[cameras]\nsource = 0\n',
+        "unknown-key-in-section": b'[stations]\nportz = ["/dev/ttyACM0"]\n',
+        "emulate-text": b'[stations]\nemulate = "two"\n',
+        "emulate-negative": b'[stations]\nemulate = -1\n',
+        "emulate-float": b'[stations]\nemulate = 1.5\n',
+        "ports-string": b'[stations]\nports = "/dev/ttyX"\n',
+        "ports-table": b'[stations.ports]\na = "/dev/ttyX"\n',
+        "ports-numbers": b'[stations]\nports = [1, 2]\n',
+        "discover-no": b'[stations]\ndiscover = "no"\n',
+        "listen-number": b"listen = 12\n",
+        "listen-port-99999": b'listen = "127.0.0.1:99999"\n',
+        "listen-no-port": b'listen = "localhost"\n',
+        "record-dir-number": b"record_dir = 5\n",
+        "record-take-dotdot": b'record = ".."\n',
+        "max-clients-zero": b"max_clients = 0\n",
+        "status-interval-negative": b"status_interval_s = -1.0\n",
+        "stations-not-table": b'stations = "all"\n',
+        "camera-side-bad": b'[camera]\nplayer_side = "middle"\n',
+        "placements-unknown": b'[calibration]\nplacements = ["tail"]\n',
+        "log-level-bad": b'log_level = "LOUD"\n',
         "missing-file": None,
     }
     cases = []
