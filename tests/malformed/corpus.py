@@ -122,6 +122,12 @@ def valid_calibration_record() -> dict:
             "passed": True, "sensors": sensors}
 
 
+def _body(header: dict) -> bytes:
+    """A codec body with exactly this header and no payload (to declare arrays that are not there)."""
+    text = json.dumps(header).encode()
+    return struct.pack(">I", len(text)) + text
+
+
 def recording_bytes(meta: bytes, bodies: list[bytes], magic: bytes = b"CSREC\x00\x01\n") -> bytes:
     out = magic + struct.pack(">I", len(meta)) + meta + struct.pack(">I", zlib.crc32(meta))
     for body in bodies:
@@ -554,6 +560,9 @@ def recording_cases() -> list[Case]:
         "chunk-body-not-codec": recording_bytes(meta, [b"\x00\x00\x00\x05hello"]),
         "chunk-body-bad-json": recording_bytes(meta, [struct.pack(">I", 5) + b"{bad}"]),
         "chunk-array-overruns": recording_bytes(meta, [samples[:-8]]),
+        "chunk-json-nested-deep": recording_bytes(meta, [struct.pack(">I", 400_000) + b"[" * 200_000 + b"]" * 200_000]),
+        "chunk-array-shape-huge": recording_bytes(meta, [_body({"kind": "samples", "station": "a", "sensor": 0, "arrays": [
+            {"name": "c", "dtype": "<f8", "shape": [2**32, 2**32]}]})]),
         "clock-points-no-tick-hz": recording_bytes(meta, [codec.encode("clock_points", {"station": "a", "sensor": -1}, {
             "raw_ticks": np.arange(3, dtype=np.uint32), "ticks": np.arange(3), "epoch": np.zeros(3, np.uint32),
             "arrival_s": np.arange(3.0)})]),
