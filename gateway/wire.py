@@ -5,6 +5,7 @@ Each frame is ``u32 big-endian length`` followed by that many bytes of a `gatewa
 """
 from __future__ import annotations
 
+import errno
 import select
 import socket
 import struct
@@ -74,11 +75,19 @@ def _wait_readable(sock: socket.socket, deadline: float | None) -> None:
     if pending is not None and pending():
         return
     if deadline is None:  # wait as long as it takes: an authenticated client may listen quietly for hours
-        select.select([sock], [], [])
+        _select(sock, None)
         return
     remaining = deadline - time.monotonic()
-    if remaining <= 0 or not select.select([sock], [], [], remaining)[0]:
+    if remaining <= 0 or not _select(sock, remaining):
         raise WireTimeout("peer too slow: frame or handshake not completed in time")
+
+
+def _select(sock: socket.socket, timeout_s: float | None) -> bool:
+    """select() on one socket; a socket closed meanwhile by another thread (fd -1) is a closed connection."""
+    try:
+        return bool(select.select([sock], [], [], timeout_s)[0])
+    except ValueError:
+        raise OSError(errno.EBADF, "connection closed") from None
 
 
 def _recv_exact(sock: socket.socket, n: int, deadline: float | None) -> bytes | None:
