@@ -302,3 +302,27 @@ def test_gateway_alarms_clients_keeps_streaming_and_records_again(tmp_path):
     r1 = read_recording(tmp_path / "r1")  # readable to its last chunk; never mistaken for a clean stop
     assert not r1.ended_cleanly and r1.intact_bytes == r1.total_bytes
     assert r1.end is None or r1.end["reason"] == "fault"  # the end record only if it still fitted
+
+
+def _limit_file_size() -> None:
+    import resource
+    import signal
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # write() fails with EFBIG instead of killing the process
+    resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
+
+
+def test_gateway_process_with_a_full_disk_keeps_running_and_exits_cleanly(tmp_path):
+    """The issue's run: the recorder thread died on ENOSPC, state stayed active, SIGTERM exited 1. Here the
+    kernel refuses writes past 150 kB (EFBIG, like a full quota) in a real `courtside gateway` process."""
+    done = subprocess.run(
+        [sys.executable, "-m", "gateway.cli", "gateway", "--url", "emu://full?sensors=6&rate=200&seed=2",
+         "--record-dir", str(tmp_path), "--record", "full", "--listen", "127.0.0.1:0", "--duration", "6", "--quiet"],
+        capture_output=True, text=True, timeout=120, preexec_fn=_limit_file_size)
+    assert done.returncode == 0, done.stderr
+    assert "gateway stopped" in done.stdout
+    assert "File too large (EFBIG)" in done.stderr and "recording take full stopped" in done.stderr
+    assert "Traceback" not in done.stderr
+    contents = read_recording(tmp_path / "full")
+    assert contents.intact_bytes == contents.total_bytes and not contents.ended_cleanly
+    assert len(load_take(tmp_path / "full").samples) == 6
