@@ -165,10 +165,12 @@ def hostile_clients(address: tuple[str, int], stop: threading.Event, tally: dict
             with socket.create_connection(address, timeout=2.0) as s:
                 if payload:
                     s.sendall(payload)
-                s.settimeout(linger_s)
+                end = time.monotonic() + linger_s  # read what the server says, for at most linger_s in total
                 try:
-                    while s.recv(65536):
-                        pass
+                    while (left := end - time.monotonic()) > 0:
+                        s.settimeout(left)
+                        if not s.recv(65536):
+                            break
                 except OSError:
                     pass
             tally[kind] = tally.get(kind, 0) + 1

@@ -131,17 +131,13 @@ def _check_finite(path: Path, name: str, acc: np.ndarray, fps: float) -> None:
 
 
 def check_observations(path: Path, acc_g: np.ndarray | None, fps_graph: float) -> None:
-    """After resampling: enough samples for a path, finite accelerations, and a units plausibility warning."""
+    """After resampling (the raw values were checked finite): enough samples for a path, and a units plausibility
+    warning."""
     if acc_g is None:
         return
     if len(acc_g) < MIN_GRAPH_SAMPLES:
         raise MalformedFileError(path, None, f"the take is too short: {len(acc_g)} sample(s) at the graph rate "
                                              f"{fps_graph:g} Hz (at least {MIN_GRAPH_SAMPLES} needed)")
-    bad = ~np.isfinite(acc_g)
-    if bad.any():
-        t, s, _ = np.argwhere(bad)[0]
-        raise MalformedFileError(path, None, f"acc_g holds {int(bad.any(axis=2).sum())} non-finite sample(s) "
-                                             f"(first at graph sample {t}, sensor column {s})")
     median_g = float(np.median(np.linalg.norm(acc_g, axis=2)))
     if median_g > PLAUSIBLE_MEDIAN_G:
         log.warning("warning: %s: acc_g has a median magnitude of %.1f g; a worn sensor reads about 1 g most of "

@@ -52,12 +52,8 @@ def _interp_track(values: np.ndarray, fps_in: float, n_out: int, fps_out: float,
 
 
 def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: float) -> Observations:
-    check_synthesis_file(path, data, graph_sensors)
+    check_synthesis_file(path, data, graph_sensors)  # shapes, fps, finite values: past here they are sound
     acc = np.asarray(data["acc_g"], float)
-    if acc.ndim != 3 or acc.shape[2] != 3:
-        raise MalformedFileError(path, None, f"acc_g must have shape (T, S, 3), got {acc.shape}")
-    if "fps" not in data.files:
-        raise MalformedFileError(path, None, "missing 'fps' (sample rate of the streams, Hz)")
     fps = float(data["fps"])
     names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else graph_sensors[:acc.shape[1]]
     unknown = [n for n in names if n not in graph_sensors]

@@ -50,8 +50,7 @@ def _short_motion(frames: int = 12) -> Motion:
 
 
 def valid_bvh_text() -> str:
-    buf = Path("/dev/null")  # write_bvh needs a path: render through a temporary in-memory file
-    del buf
+    """A 12-frame BVH written by `write_bvh` (it needs a path: a temporary directory)."""
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -178,7 +177,7 @@ def bvh_cases() -> list[Case]:
         "frame-time-inf": _replace_line(good, lambda l: l.startswith("Frame Time:"), "Frame Time: inf"),
         "frame-time-negative": _replace_line(good, lambda l: l.startswith("Frame Time:"), "Frame Time: -0.01"),
         "frame-time-missing": _replace_line(good, lambda l: l.startswith("Frame Time:"), None),
-        "row-short": frame_value("", 3, 0).replace("\n\n", "\n"),
+        "row-short": frame_value("", 3, 0),
         "row-long": _replace_line(good, lambda l: l == lines[first_frame + 1], lines[first_frame + 1] + " 1.0"),
         "row-text": frame_value("abc"),
         "value-nan": frame_value("nan"),

@@ -51,8 +51,8 @@ def shared(tmp_path_factory) -> dict[str, Path]:
     return {"graph": d / "g.npz", "take": d / "take.npz"}
 
 
-def _cases(shared_paths: dict[str, Path] | None = None) -> list[corpus.Case]:
-    """All cases; graph cases need the shared graph's bytes, so they are built lazily from `shared`."""
+def _cases() -> list[corpus.Case]:
+    """Every case but the graph ones, which need the shared graph's bytes (built in `test_malformed_graph`)."""
     return (corpus.bvh_cases() + corpus.asf_amc_cases() + corpus.c3d_cases() + corpus.calibration_cases()
             + corpus.take_cases(corpus.take_arrays()) + corpus.recording_cases() + corpus.camera_cases()
             + corpus.config_cases())
