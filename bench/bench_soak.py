@@ -283,7 +283,7 @@ def run(minutes: float, speed: float) -> bool:
     tally: dict[str, int] = {}
     rss: list[tuple[float, float]] = []
     takes: list[dict] = []
-    alarms: list[str] = []
+    events: list[tuple[str, str, str]] = []  # (level, source, message) as a client saw them
 
     def emulated_now() -> float:
         return (time.monotonic() - t_origin) * speed
@@ -301,8 +301,7 @@ def run(minutes: float, speed: float) -> bool:
         client = GatewayClient(*gw.address).connect()
         client.local_address = "%s:%d" % client._sock.getsockname()[:2]
         client.subscribe(["event"])
-        client.add_listener("event", lambda m: alarms.append(m["message"]) if m["level"] == "alarm"
-                            and m["source"] == "recorder" else None)
+        client.add_listener("event", lambda m: events.append((m["level"], m["source"], m["message"])))
         return client
 
     monitor = connect_monitor()
@@ -356,6 +355,8 @@ def run(minutes: float, speed: float) -> bool:
         emulator.terminate()
         emulator.wait(10)
     wall_s = time.monotonic() - wall0
+    alarms = [m for level, source, m in events if level == "alarm" and source == "recorder"]
+    stepped_back = {st: sum("went back" in m for _, source, m in events if source == st) for st in ("st1", "st2")}
 
     print(f"soak: {span_s / 60:g} min emulated at {speed:g}x in {wall_s:.0f} s wall, load average "
           f"{os.getloadavg()[0]:.1f}, records in {tmp}")
@@ -399,7 +400,14 @@ def run(minutes: float, speed: float) -> bool:
     print(f"recorder alarms seen by a client: {len(alarms)} (disk fills: {sum(1 for t in takes if t['fault'])}; "
           f"the monitoring client was dropped as too slow {monitor_drops[0]} time(s))")
     ok &= len(alarms) >= sum(1 for t in takes if t["fault"]) >= 1
-    print("hostile connections: " + ", ".join(f"{k} {v}" for k, v in sorted(tally.items())))
+    print("hostile connections: " + ", ".join(f"{k} {v}" for k, v in sorted(tally.items()))
+          + f"; the server refused {gw.server.refused_connections} over its {gw.server.max_clients}-client cap")
+    extra_epochs = {st["station"]: st["clock"].get("epoch", 0) - st["reconnects"] for st in status["stations"]
+                    if st["source"] != "faulty://9"}
+    print(f"clock epochs beyond one per replug: {extra_epochs} (at {speed:g}x a device clock runs {speed:g}x the host "
+          f"clock, so a reader starved for > {2.0 / (speed - 1) if speed > 1 else float('inf'):.2f} s sees a "
+          f"far jump and starts an epoch); 'device ticks went back' events on them: {stepped_back}")
+    ok &= not any(stepped_back.values())
     print(f"final take: {final['samples_written']:,} samples written")
     print("PASS" if ok else "FAIL")
     return ok
