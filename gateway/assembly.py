@@ -10,14 +10,16 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from engine.errors import CourtsideError
 from gateway import auth
 from gateway.court_config import CameraConfig, CourtConfig
 from gateway.daemon import Gateway
-from gateway.emulated import EmulatedStation, start_court_stations
 from gateway.names import free_name
+
+if TYPE_CHECKING:
+    from gateway.emulation.stations import EmulatedStation
 
 log = logging.getLogger("gateway")
 
@@ -116,6 +118,8 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
         calibration = build_calibration(config)
     started: list[EmulatedStation] = []
     if emulators is None and config.stations.emulate:
+        from gateway.emulation.stations import start_court_stations  # the emulator only when asked for
+
         try:
             started, _ = start_court_stations(config.stations.emulate, config.stations.emulate_motion,
                                               config.stations.emulate_clips)
