@@ -17,6 +17,7 @@ from gateway import auth
 from gateway.court_config import CameraConfig, CourtConfig
 from gateway.daemon import Gateway
 from gateway.names import free_name
+from gateway.server import RequestError
 
 if TYPE_CHECKING:
     from gateway.emulation.stations import EmulatedStation
@@ -24,9 +25,10 @@ if TYPE_CHECKING:
 log = logging.getLogger("gateway")
 
 
-class DeviceUnavailableError(CourtsideError, OSError):
-    """A live device (camera) that exists in the config could not be opened now: unplugged, busy, not ready
-    yet. Unlike a bad config, a restart may fix it, so the CLI exits 1 (docs/gateway.md "Exit codes")."""
+class StartError(CourtsideError, OSError):
+    """Something the config rightly asks for cannot be done now: a live camera unplugged, busy or not ready, the
+    first take not startable (disk full). Unlike a bad config, a restart may fix it, so the CLI exits 1
+    (docs/gateway.md "Exit codes")."""
 
 
 @dataclass
@@ -79,7 +81,7 @@ def build_camera(config: CameraConfig) -> Any:
             try:
                 source = OpenCVCamera(config.source, fps=config.fps, latency_s=config.latency_s)
             except CameraError as exc:
-                raise DeviceUnavailableError(f"camera: {exc}") from None
+                raise StartError(f"camera: {exc}") from None
             realtime, label = False, f"camera {config.source}"
     except CameraError as exc:
         raise CourtsideError(f"camera: {exc}") from None
@@ -149,6 +151,9 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
     if config.record:
         try:
             court.take = start_recording_fresh(gateway, config.record)
+        except RequestError as exc:
+            court.stop()
+            raise StartError(f"cannot start recording: {exc}") from None
         except BaseException:
             court.stop()
             raise

@@ -227,3 +227,6 @@ def test_cli_exit_1_when_it_cannot_start_now(tmp_path):
     assert result.returncode == 1 and "/dev/video63" in result.stderr and "Traceback" not in result.stderr
     result = _gateway_cli("--camera", "/dev/video63", "--court", "absent.json", cwd=tmp_path)
     assert result.returncode == 2 and "absent.json" in result.stderr
+    (tmp_path / "not-a-dir").write_text("")  # the first take cannot be started (as on a full disk)
+    result = _gateway_cli("--record-dir", "not-a-dir", "--record", "x", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    assert result.returncode == 1 and "cannot start recording" in result.stderr and "Traceback" not in result.stderr
