@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from engine.errors import CourtsideError
 from gateway import auth
-from gateway.court_config import CameraConfig, CourtConfig
+from gateway.court_config import CameraConfig, CourtConfig, check_consistent
 from gateway.daemon import Gateway
 from gateway.names import free_name
 from gateway.server import RequestError
@@ -111,7 +111,9 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
     """Start everything ``config`` describes and return the running `Court`.
 
     ``camera`` / ``calibration`` / ``emulators`` replace what the config would build (the demo passes its
-    performance-driven stations and camera); the gateway itself is always built here."""
+    performance-driven stations and camera); the gateway itself is always built here. The rules across keys
+    are checked here too, so a config built in code (the demo's) cannot listen beyond loopback unauthenticated."""
+    check_consistent(config)
     secrets = auth.Secrets.from_files(config.auth.operator_secret_file, config.auth.viewer_secret_file)
     tls = auth.server_tls_context(config.auth.tls_cert, config.auth.tls_key) if config.auth.tls_cert else None
     if camera is None and config.camera.source is not None:

@@ -230,3 +230,11 @@ def test_cli_exit_1_when_it_cannot_start_now(tmp_path):
     (tmp_path / "not-a-dir").write_text("")  # the first take cannot be started (as on a full disk)
     result = _gateway_cli("--record-dir", "not-a-dir", "--record", "x", "--listen", "127.0.0.4:0", cwd=tmp_path)
     assert result.returncode == 1 and "cannot start recording" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_a_config_built_in_code_is_checked_too(tmp_path):
+    """The demo builds its CourtConfig in code; build_court still refuses an unauthenticated open listener."""
+    from gateway.assembly import build_court
+
+    with pytest.raises(CourtsideError, match="beyond loopback"):
+        build_court(CourtConfig(listen=("0.0.0.0", 0), record_dir=tmp_path))
