@@ -118,7 +118,10 @@ class GatewayClient:
             raise auth.AuthenticationError(
                 f"{where} requires authentication: give the secret file (--secret-file, or "
                 f"${auth.SECRET_FILE_ENV})")
-        server_nonce = bytes.fromhex(challenge_hex)
+        try:
+            server_nonce = bytes.fromhex(challenge_hex)
+        except ValueError:
+            raise auth.AuthenticationError(f"{where} sent a malformed challenge") from None
         client_nonce = secrets.token_bytes(auth.NONCE_BYTES)
         try:
             result = self._send(wire.AUTH, {"nonce": client_nonce.hex(),

@@ -207,7 +207,10 @@ def _take(value: Any) -> str:
 
 
 _PATH = object()  # marker: a path, resolved against the config file's directory
+_CAMERA_SOURCE = object()  # marker: an index/device, or a video file path resolved like _PATH
+_CLIPS = object()  # marker: clip names, or .bvh/.amc paths resolved like _PATH
 Check = Callable[[Any], Any] | object
+CLIP_SUFFIXES = (".bvh", ".amc")
 
 _TOP: dict[str, Check] = {
     "listen": _listen, "record_dir": _PATH, "record": _take, "log_level": _upper_choice(LOG_LEVELS),
@@ -217,9 +220,9 @@ _TOP: dict[str, Check] = {
 _SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
     "stations": (StationsConfig, {
         "ports": _strings, "urls": _strings, "discover": _bool, "emulate": _int(0, MAX_EMULATED_STATIONS),
-        "emulate_motion": _choice(EMULATE_MOTIONS), "emulate_clips": _strings}),
+        "emulate_motion": _choice(EMULATE_MOTIONS), "emulate_clips": _CLIPS}),
     "camera": (CameraConfig, {
-        "source": _camera_source, "court": _PATH, "player_side": _choice(PLAYER_SIDES),
+        "source": _CAMERA_SOURCE, "court": _PATH, "player_side": _choice(PLAYER_SIDES),
         "fps": _number(0.0, 1000.0, lo_open=True), "latency_s": _number(0.0, 5.0), "loop": _bool,
         "thumbnail_every": _int(0, 10_000)}),
     "calibration": (CalibrationConfig, {"placements": _placements, "pose": _choice(POSES), "records_dir": _PATH}),
@@ -229,10 +232,20 @@ _SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
 _MOVED = {"ports": "stations", "urls": "stations", "discover": "stations", "emulate": "stations"}
 
 
+def _resolve(path: Path, base_dir: Path | None) -> Path:
+    path = path.expanduser()
+    return path if path.is_absolute() or base_dir is None else base_dir / path
+
+
 def _convert(check: Check, value: Any, base_dir: Path | None) -> Any:
     if check is _PATH:
-        path = Path(_string(value) if not isinstance(value, Path) else value).expanduser()
-        return path if path.is_absolute() or base_dir is None else base_dir / path
+        return _resolve(Path(_string(value) if not isinstance(value, Path) else value), base_dir)
+    if check is _CAMERA_SOURCE:  # a relative string is a video file next to the config (devices are absolute)
+        source = _camera_source(value)
+        return str(_resolve(Path(source), base_dir)) if isinstance(source, str) else source
+    if check is _CLIPS:
+        return tuple(str(_resolve(Path(c), base_dir)) if c.lower().endswith(CLIP_SUFFIXES) else c
+                     for c in _strings(value))
     return check(value)  # type: ignore[operator]
 
 

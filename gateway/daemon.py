@@ -512,7 +512,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     config = load_config(args)  # CourtsideError -> one line, exit 2 (gateway.cli)
     logging.basicConfig(level=config.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    from gateway.assembly import DeviceUnavailableError, build_court
+    from gateway.assembly import StartError, build_court
 
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -520,7 +520,7 @@ def main(argv: list[str] | None = None) -> int:
     printer = None if args.quiet else (lambda line: print(line, flush=True))
     try:
         court = build_court(config, status_line=printer)
-    except DeviceUnavailableError as exc:
+    except StartError as exc:
         print(f"courtside gateway: cannot start: {exc}", file=sys.stderr)
         return EXIT_START_FAILED
     except OSError as exc:

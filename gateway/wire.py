@@ -5,7 +5,6 @@ Each frame is ``u32 big-endian length`` followed by that many bytes of a `gatewa
 """
 from __future__ import annotations
 
-import errno
 import select
 import socket
 import struct
@@ -70,24 +69,21 @@ class UndecodableFrame(WireError):
 
 
 def _wait_readable(sock: socket.socket, deadline: float | None) -> None:
-    """Block until ``sock`` has bytes (or EOF) to read; `WireTimeout` once ``deadline`` (monotonic) passes."""
+    """Block until ``sock`` has bytes (or EOF) to read; `WireTimeout` once ``deadline`` (monotonic) passes;
+    ``deadline=None`` waits as long as it takes (an idle client between frames is fine)."""
     pending = getattr(sock, "pending", None)  # a TLS channel may hold decrypted bytes already
     if pending is not None and pending():
         return
-    if deadline is None:  # wait as long as it takes: an authenticated client may listen quietly for hours
-        _select(sock, None)
-        return
-    remaining = deadline - time.monotonic()
-    if remaining <= 0 or not _select(sock, remaining):
-        raise WireTimeout("peer too slow: frame or handshake not completed in time")
-
-
-def _select(sock: socket.socket, timeout_s: float | None) -> bool:
-    """select() on one socket; a socket closed meanwhile by another thread (fd -1) is a closed connection."""
     try:
-        return bool(select.select([sock], [], [], timeout_s)[0])
-    except ValueError:
-        raise OSError(errno.EBADF, "connection closed") from None
+        if deadline is None:
+            select.select([sock], [], [])
+            return
+        remaining = deadline - time.monotonic()
+        ready = remaining > 0 and select.select([sock], [], [], remaining)[0]
+    except ValueError:  # closed by another thread (fileno -1)
+        raise WireError("connection closed") from None
+    if not ready:
+        raise WireTimeout("peer too slow: frame or handshake not completed in time")
 
 
 def _recv_exact(sock: socket.socket, n: int, deadline: float | None) -> bytes | None:
@@ -102,7 +98,8 @@ def _recv_exact(sock: socket.socket, n: int, deadline: float | None) -> bytes | 
             except TimeoutError:
                 raise WireTimeout("peer too slow: frame not completed in time") from None
         else:
-            _wait_readable(sock, deadline)
+            if deadline is not None:
+                _wait_readable(sock, deadline)
             chunk = sock.recv(min(n - len(buf), READ_CHUNK_BYTES))
         if not chunk:
             if not buf:
@@ -116,8 +113,8 @@ def recv_message(sock: socket.socket, *, max_frame_bytes: int = MAX_FRAME_BYTES,
                  idle_deadline: float | None = None) -> codec.Message | None:
     """Block until one whole message arrives; None when the peer closed the connection cleanly.
 
-    ``idle_deadline`` (monotonic, None = wait forever) bounds the wait for a frame to start; once it has started,
-    the whole frame must arrive within ``frame_timeout_s``. Oversized, truncated or late frames raise `WireError`
+    ``idle_deadline`` (monotonic, None = wait forever) bounds the wait for a frame to start; once its first byte
+    is there, the whole frame must arrive within ``frame_timeout_s``. Oversized, truncated or late frames raise `WireError`
     (the connection is then unusable); a complete frame that does not decode raises `UndecodableFrame`."""
     _wait_readable(sock, idle_deadline)
     started = time.monotonic()

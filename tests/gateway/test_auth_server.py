@@ -316,3 +316,15 @@ def test_tls_with_authentication_full_duplex(tmp_path):
             GatewayClient(*gw.address, secret=operator, tls=auth.client_tls_context(other_cert)).connect()
     finally:
         gw.stop()
+
+
+def test_an_idle_client_is_not_timed_out(open_gateway):
+    """Regression: the frame timeout starts at a frame's first byte, not while a client (a console that only
+    watches) sends nothing. The gateway's timeout here is 1 s; the client idles 2.5 s."""
+    gw = open_gateway
+    with GatewayClient(*gw.address) as client:
+        time.sleep(2.5)
+        assert client.connected and client.request("ping")["t_host_s"] > 0
+        gw.publish_event("info", "test", "still there")
+        event = client.get(timeout_s=3.0, kinds=["event"])
+        assert event is not None and event["message"] == "still there"
