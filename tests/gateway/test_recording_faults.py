@@ -312,17 +312,34 @@ def _limit_file_size() -> None:
     resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
 
 
-def test_gateway_process_with_a_full_disk_keeps_running_and_exits_cleanly(tmp_path):
-    """The issue's run: the recorder thread died on ENOSPC, state stayed active, SIGTERM exited 1. Here the
-    kernel refuses writes past 150 kB (EFBIG, like a full quota) in a real `courtside gateway` process."""
-    done = subprocess.run(
-        [sys.executable, "-m", "gateway.cli", "gateway", "--url", "emu://full?sensors=6&rate=200&seed=2",
-         "--record-dir", str(tmp_path), "--record", "full", "--listen", "127.0.0.1:0", "--duration", "6", "--quiet"],
-        capture_output=True, text=True, timeout=120, preexec_fn=_limit_file_size)
-    assert done.returncode == 0, done.stderr
-    assert "gateway stopped" in done.stdout
-    assert "File too large (EFBIG)" in done.stderr and "recording take full stopped" in done.stderr
-    assert "Traceback" not in done.stderr
+def test_gateway_process_with_a_full_disk_keeps_running_and_stops_on_sigterm(tmp_path):
+    """The issue's run: the recorder thread died on ENOSPC, state stayed active, SIGTERM exited 1 and left the
+    emulators running. Here the kernel refuses writes past 150 kB (EFBIG, like a full quota) in a real
+    `courtside gateway --emulate 1` process, which is then stopped with SIGTERM."""
+    import signal
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gateway.cli", "gateway", "--emulate", "1", "--emulate-motion", "none",
+         "--record-dir", str(tmp_path), "--record", "full", "--listen", "127.0.0.1:0", "--quiet"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_limit_file_size)
+    try:
+        assert "gateway listening" in proc.stdout.readline()
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not (tmp_path / "full" / RECORDING_FILE).exists():
+            time.sleep(0.1)
+        while time.monotonic() < deadline and (tmp_path / "full" / RECORDING_FILE).stat().st_size < 140_000:
+            time.sleep(0.1)
+        time.sleep(1.0)  # the disk is full now; the gateway goes on streaming
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    assert "gateway stopped" in out
+    assert "File too large (EFBIG)" in err and "recording take full stopped" in err
+    assert "Traceback" not in err
     contents = read_recording(tmp_path / "full")
     assert contents.intact_bytes == contents.total_bytes and not contents.ended_cleanly
-    assert len(load_take(tmp_path / "full").samples) == 6
+    assert load_take(tmp_path / "full").samples
