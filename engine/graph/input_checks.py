@@ -17,7 +17,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from engine.errors import CourtsideError, MalformedFileError, check_output_dir as check_output  # noqa: F401
+from engine.errors import CourtsideError, MalformedFileError
 
 log = logging.getLogger(__name__)
 
