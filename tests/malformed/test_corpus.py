@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import logging
 import shutil
 import subprocess
 import sys
@@ -78,6 +79,10 @@ def _materialise(case: corpus.Case, d: Path, shared_paths: dict[str, Path]) -> l
 def _run_in_process(case: corpus.Case, argv: list[str]) -> tuple[int, str, str | None]:
     err, out = io.StringIO(), io.StringIO()
     crash = None
+    # what an unconfigured process does with warnings (logging.lastResort), which pytest's own handler would hide
+    handler = logging.StreamHandler(err)
+    handler.setLevel(logging.WARNING)
+    logging.getLogger().addHandler(handler)
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
         try:
             code = _entry(case.runner)(argv)
@@ -87,6 +92,8 @@ def _run_in_process(case: corpus.Case, argv: list[str]) -> tuple[int, str, str |
                 print(exc.code, file=sys.stderr)
         except BaseException:  # noqa: BLE001 - this is exactly what must never happen
             code, crash = 1, traceback.format_exc()
+        finally:
+            logging.getLogger().removeHandler(handler)
     return int(code or 0), err.getvalue(), crash
 
 
