@@ -328,3 +328,29 @@ def test_an_idle_client_is_not_timed_out(open_gateway):
         gw.publish_event("info", "test", "still there")
         event = client.get(timeout_s=3.0, kinds=["event"])
         assert event is not None and event["message"] == "still there"
+
+
+def test_unanswered_handshakes_cannot_hold_every_slot(tmp_path):
+    """Connections that never authenticate are bounded separately (max_pending): the oldest makes room, so a
+    real client still gets in; authenticated clients are capped by max_clients."""
+    secret = auth.read_secret_file(secret_file(tmp_path, "operator"))
+    gw = Gateway([], listen=(HOST, 0), record_dir=tmp_path / "rec", secrets=auth.Secrets(secret),
+                 handshake_timeout_s=30.0, max_clients=1)
+    gw.server.max_pending = 2
+    gw.start()
+    silent = []
+    try:
+        for _ in range(4):  # a slow flood of connections that never answer
+            sock = raw_connect(gw.address)
+            assert recv(sock).kind == "hello"
+            silent.append(sock)
+        with GatewayClient(*gw.address, secret=secret) as first:
+            assert first.role == auth.OPERATOR
+            assert sum(closed_within(s, 0.5) for s in silent) >= 3  # the oldest ones were dropped
+            with pytest.raises(ConnectionError, match="busy"):
+                GatewayClient(*gw.address, secret=secret).connect()  # max_clients=1 authenticated
+            assert first.request("ping")
+    finally:
+        for sock in silent:
+            sock.close()
+        gw.stop()
