@@ -354,3 +354,22 @@ def test_unanswered_handshakes_cannot_hold_every_slot(tmp_path):
         for sock in silent:
             sock.close()
         gw.stop()
+
+
+def test_a_client_object_reconnects_from_scratch(secured):
+    """The console reconnects with the same GatewayClient: the old hello must not satisfy the new connect."""
+    gw, operator_secret, _ = secured
+    client = GatewayClient(*gw.address, secret=operator_secret)
+    client.connect()
+    assert client.role == auth.OPERATOR
+    client.close()
+    client.connect()
+    assert client.role == auth.OPERATOR and client.request("ping")
+    client.close()
+    wrong = GatewayClient(*gw.address, secret=operator_secret)
+    wrong.connect()
+    wrong.close()
+    wrong._secret = b"not-the-secret-0123456789"
+    with pytest.raises(auth.AuthenticationError):
+        wrong.connect()
+    assert wrong.role is None
