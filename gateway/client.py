@@ -26,6 +26,7 @@ import threading
 import time
 from typing import Any, Callable, Iterable
 
+from engine.errors import CourtsideError
 from gateway import auth, wire
 from gateway.codec import Message
 from gateway.tls import TlsChannel
@@ -35,7 +36,7 @@ log = logging.getLogger(__name__)
 Listener = Callable[[Message], None]
 
 
-class GatewayRequestError(RuntimeError):
+class GatewayRequestError(CourtsideError, RuntimeError):
     """The gateway answered a request with ``ok: false`` (message = the gateway's reason)."""
 
 

@@ -276,7 +276,7 @@ def load_court_config(path: str | Path, check: bool = True) -> CourtConfig:
         raise MalformedFileError(path, None, "not a text (UTF-8 TOML) file") from None
     except tomllib.TOMLDecodeError as exc:
         where = re.search(r"\(at line (\d+), column \d+\)", str(exc))  # Python 3.11 has no exc.lineno
-        problem = str(exc).replace(where[0], f"(column {where[0].split()[-1]}" if where else "").strip()
+        problem = (str(exc).replace(where[0], f"(column {where[0].split()[-1]}") if where else str(exc)).strip()
         raise MalformedFileError(path, int(where[1]) if where else None, f"not valid TOML: {problem}") from None
     base_dir = path.resolve().parent
 

@@ -17,6 +17,8 @@ from typing import Any, Callable, Protocol
 import serial
 from serial.tools import list_ports
 
+from engine.errors import CourtsideError
+
 log = logging.getLogger(__name__)
 
 STATION_VID = 0x1209
@@ -24,7 +26,7 @@ STATION_PID = 0xC0DE
 READ_TIMEOUT_S = 0.05
 
 
-class LinkError(ConnectionError):
+class LinkError(CourtsideError, ConnectionError):
     """The link failed (cannot open, unplugged, I/O error). The message names the source."""
 
 

@@ -620,10 +620,20 @@ def realign_take(take: Take, window_s: float = 60.0) -> dict[tuple[str, int], np
     return out
 
 
+def _exportable(path: Path | str) -> Take:
+    """The take, checked for what the exporters rely on: every sample stream has its times."""
+    take = load_take(path)
+    path = Path(path) / RECORDING_FILE if Path(path).is_dir() else path
+    for (station, sensor), cols in take.samples.items():
+        if "t_host_s" not in cols:
+            raise RecordingError(path, f"samples of {station}/{sensor} carry no 't_host_s' (not a gateway recording?)")
+    return take
+
+
 def export_npz(path: Path | str, out: Path | str) -> Path:
     """One npz: ``<station>/<sensor>/<array>`` keys for samples (plus ``t_realigned_s``, the offline clock re-fit),
     ``meta`` and ``messages`` as JSON strings."""
-    take = load_take(path)
+    take = _exportable(path)
     realigned = realign_take(take)
     arrays: dict[str, Any] = {}
     for (station, sensor), cols in take.samples.items():
@@ -652,7 +662,7 @@ def _check_output_dir(directory: Path) -> None:
 def export_csv(path: Path | str, out_dir: Path | str) -> list[Path]:
     """One CSV per sensor (``<station>_<sensor>.csv``: one row per sample, vector arrays split into columns, plus
     ``t_realigned_s``) and ``messages.csv`` (t_host_s, kind, JSON header) for everything else."""
-    take = load_take(path)
+    take = _exportable(path)
     realigned = realign_take(take)
     out_dir = Path(out_dir)
     try:

@@ -20,6 +20,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from engine.errors import CourtsideError
 from gateway import auth, codec, wire
 from gateway.tls import TlsChannel
 
@@ -31,7 +32,7 @@ MAX_BAD_FRAMES = 10  # undecodable frames answered on one connection before it i
 RequestHandler = Callable[[str, dict[str, Any], str], Any]
 
 
-class RequestError(Exception):
+class RequestError(CourtsideError):
     """Raised by a request handler to send a clean ``ok: false`` reply with this message."""
 
 

@@ -17,8 +17,10 @@ import ssl
 import threading
 import time
 
+from engine.errors import CourtsideError
 
-class TlsError(ConnectionError):
+
+class TlsError(CourtsideError, ConnectionError):
     """The TLS handshake failed or timed out (wrong certificate, not TLS, too slow)."""
 
 

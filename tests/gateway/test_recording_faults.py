@@ -143,7 +143,8 @@ def test_disk_full_closes_the_take_cleanly_and_recording_restarts_when_space_is_
         assert wait_for(lambda: not rec.active, timeout_s=10)
         state = rec.state()
         assert "ENOSPC" in state["fault"] and state["samples_written"] > 0
-        assert any(level == "alarm" and "ENOSPC" in message for level, message in events)
+        # the alarm follows once the take is closed (it reports what was kept)
+        assert wait_for(lambda: any(level == "alarm" and "ENOSPC" in message for level, message in events))
         n_at_fault = fed[0]
         time.sleep(0.1)  # samples keep arriving: they are not queued any more (bounded memory)
         assert fed[0] > n_at_fault and rec._backlog_bytes == 0 and not rec._pending.rows
@@ -302,3 +303,44 @@ def test_gateway_alarms_clients_keeps_streaming_and_records_again(tmp_path):
     r1 = read_recording(tmp_path / "r1")  # readable to its last chunk; never mistaken for a clean stop
     assert not r1.ended_cleanly and r1.intact_bytes == r1.total_bytes
     assert r1.end is None or r1.end["reason"] == "fault"  # the end record only if it still fitted
+
+
+def _limit_file_size() -> None:
+    import resource
+    import signal
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # write() fails with EFBIG instead of killing the process
+    resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
+
+
+def test_gateway_process_with_a_full_disk_keeps_running_and_stops_on_sigterm(tmp_path):
+    """The issue's run: the recorder thread died on ENOSPC, state stayed active, SIGTERM exited 1 and left the
+    emulators running. Here the kernel refuses writes past 150 kB (EFBIG, like a full quota) in a real
+    `courtside gateway --emulate 1` process, which is then stopped with SIGTERM."""
+    import signal
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gateway.cli", "gateway", "--emulate", "1", "--emulate-motion", "none",
+         "--record-dir", str(tmp_path), "--record", "full", "--listen", "127.0.0.1:0", "--quiet"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_limit_file_size)
+    try:
+        assert "gateway listening" in proc.stdout.readline()
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not (tmp_path / "full" / RECORDING_FILE).exists():
+            time.sleep(0.1)
+        while time.monotonic() < deadline and (tmp_path / "full" / RECORDING_FILE).stat().st_size < 140_000:
+            time.sleep(0.1)
+        time.sleep(1.0)  # the disk is full now; the gateway goes on streaming
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    assert "gateway stopped" in out
+    assert "File too large (EFBIG)" in err and "recording take full stopped" in err
+    assert "Traceback" not in err
+    contents = read_recording(tmp_path / "full")
+    assert contents.intact_bytes == contents.total_bytes and not contents.ended_cleanly
+    assert load_take(tmp_path / "full").samples
