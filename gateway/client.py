@@ -92,6 +92,7 @@ class GatewayClient:
                 sock.close()
                 raise
         self._sock = sock
+        self.server_hello, self._refusal, self.role = {}, None, None  # a reconnect starts from scratch
         self._closed.clear()
         self._hello_event.clear()
         self._reader = threading.Thread(target=self._read_loop, name="gw-client-reader", daemon=True)

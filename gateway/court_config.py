@@ -15,7 +15,7 @@ import ipaddress
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -366,8 +366,3 @@ def check_consistent(config: CourtConfig) -> None:
     if config.camera.source is not None and config.camera.court is None:
         raise CourtsideError("camera.source is set but camera.court is not: give the court calibration file "
                              "(`courtside camera calibrate ... --out court.json`)")
-
-
-def section_fields(section: str) -> list[str]:
-    """Key names of one table (docs and tests iterate over them)."""
-    return [f.name for f in fields(_SECTIONS[section][0])]

@@ -390,7 +390,7 @@ def format_status_lines(status: dict[str, Any]) -> list[str]:
 # ---------------------------------------------------------------------------------------------------- CLI
 EXIT_OK = 0  # stopped by SIGINT/SIGTERM or --duration: recording flushed and closed
 EXIT_START_FAILED = 1  # could not start at run time (listen address in use, device gone): worth a restart
-EXIT_BAD_CONFIG = 2  # bad config, flag or file: refused before anything started; a restart cannot help
+# exit 2: bad config, flag or file (a CourtsideError, printed as one line by gateway.cli); a restart cannot help
 
 # command-line flag -> court config key (gateway.court_config); flags override the --config file
 FLAG_KEYS = {

@@ -168,6 +168,10 @@ class _ClientSession:
             self.close_after_flush()
             return
         role, secret = verified
+        if self.server.authenticated_clients() >= self.server.max_clients:
+            self._reply(request_id, ok=False, error=f"gateway busy: {self.server.max_clients} clients connected (limit)")
+            self.close_after_flush()
+            return
         self.role = self.stats.role = role
         with self._cond:
             self.topics = set(wire.TOPICS)
@@ -272,6 +276,7 @@ class StreamServer:
         *,
         secrets: auth.Secrets = auth.Secrets(),
         max_clients: int = 32,
+        max_pending: int = 8,
         handshake_timeout_s: float = 5.0,
         max_request_bytes: int = wire.MAX_REQUEST_BYTES,
         name: str = "courtside-gateway",
@@ -282,7 +287,8 @@ class StreamServer:
         self.display_queue_frames = display_queue_frames
         self.reliable_queue_limit = reliable_queue_limit
         self.secrets = secrets
-        self.max_clients = max_clients
+        self.max_clients = max_clients  # authenticated (or, without a secret, all) connections
+        self.max_pending = max_pending  # connections still owing the challenge's answer
         self.handshake_timeout_s = handshake_timeout_s
         self.max_request_bytes = max_request_bytes
         self.name = name
@@ -321,13 +327,18 @@ class StreamServer:
                 return
             address = f"{addr[0]}:{addr[1]}"
             with self._lock:
-                full = len(self._sessions) >= self.max_clients
+                full = sum(s.role is not None for s in self._sessions) >= self.max_clients
+                pending = [s for s in self._sessions if s.role is None]
+            if len(pending) >= self.max_pending:
+                # handshakes are bounded too: the oldest unfinished one makes room (a real client answers the
+                # challenge in milliseconds, so holding every slot would take a flood faster than that)
+                self._log_limited(f"too many unauthenticated connections (limit {self.max_pending}); dropping "
+                                  f"{pending[0].stats.address}")
+                pending[0].close()
             if full:
                 self.refused_connections += 1
-                if time.monotonic() - self._last_refusal_log_s >= 1.0:  # a connection flood logs once a second
-                    self._last_refusal_log_s = time.monotonic()
-                    log.warning("refused client %s: %d clients connected (limit); %d refused so far", address,
-                                self.max_clients, self.refused_connections)
+                self._log_limited(f"refused client {address}: {self.max_clients} clients connected (limit); "
+                                  f"{self.refused_connections} refused so far")
                 if self.tls is None:
                     self._refuse(sock, f"gateway busy: {self.max_clients} clients connected (limit)")
                 else:
@@ -346,6 +357,16 @@ class StreamServer:
                 hello = {**self.hello(), "role": session.role}
             session.start(wire.pack(wire.SERVER_HELLO, hello))
             log.info("client connected from %s", session.stats.address)
+
+    def _log_limited(self, message: str) -> None:
+        """A warning at most once a second: a connection flood must not flood the log."""
+        if time.monotonic() - self._last_refusal_log_s >= 1.0:
+            self._last_refusal_log_s = time.monotonic()
+            log.warning("%s", message)
+
+    def authenticated_clients(self) -> int:
+        with self._lock:
+            return sum(s.role is not None for s in self._sessions)
 
     @staticmethod
     def _refuse(sock: socket.socket, reason: str) -> None:

@@ -109,9 +109,6 @@ class TlsChannel:
     def fileno(self) -> int:
         return self.sock.fileno()
 
-    def setsockopt(self, *args: object) -> None:
-        self.sock.setsockopt(*args)  # type: ignore[arg-type]
-
     def shutdown(self, how: int) -> None:
         self.sock.shutdown(how)
 

@@ -69,20 +69,19 @@ class UndecodableFrame(WireError):
 
 
 def _wait_readable(sock: socket.socket, deadline: float | None) -> None:
-    """Block until ``sock`` has bytes (or EOF) to read; `WireTimeout` once ``deadline`` (monotonic) passes;
-    ``deadline=None`` waits as long as it takes (an idle client between frames is fine)."""
+    """Block until ``sock`` has bytes (or EOF) to read; `WireTimeout` once ``deadline`` (monotonic) passes.
+    ``deadline`` None waits for ever: an authenticated client may stay quiet as long as it likes."""
     pending = getattr(sock, "pending", None)  # a TLS channel may hold decrypted bytes already
     if pending is not None and pending():
         return
-    try:
-        if deadline is None:
+    if deadline is None:
+        try:
             select.select([sock], [], [])
-            return
-        remaining = deadline - time.monotonic()
-        ready = remaining > 0 and select.select([sock], [], [], remaining)[0]
-    except ValueError:  # closed by another thread (fileno -1)
-        raise WireError("connection closed") from None
-    if not ready:
+        except ValueError:  # closed by another thread meanwhile (fileno -1): as recv on a closed socket would
+            raise OSError("socket closed") from None
+        return
+    remaining = deadline - time.monotonic()
+    if remaining <= 0 or not select.select([sock], [], [], remaining)[0]:
         raise WireTimeout("peer too slow: frame or handshake not completed in time")
 
 
@@ -98,8 +97,7 @@ def _recv_exact(sock: socket.socket, n: int, deadline: float | None) -> bytes | 
             except TimeoutError:
                 raise WireTimeout("peer too slow: frame not completed in time") from None
         else:
-            if deadline is not None:
-                _wait_readable(sock, deadline)
+            _wait_readable(sock, deadline)
             chunk = sock.recv(min(n - len(buf), READ_CHUNK_BYTES))
         if not chunk:
             if not buf:
@@ -113,8 +111,8 @@ def recv_message(sock: socket.socket, *, max_frame_bytes: int = MAX_FRAME_BYTES,
                  idle_deadline: float | None = None) -> codec.Message | None:
     """Block until one whole message arrives; None when the peer closed the connection cleanly.
 
-    ``idle_deadline`` (monotonic, None = wait forever) bounds the wait for a frame to start; once its first byte
-    is there, the whole frame must arrive within ``frame_timeout_s``. Oversized, truncated or late frames raise `WireError`
+    ``idle_deadline`` (monotonic, None = wait forever) bounds the wait for a frame to start; once it has started,
+    the whole frame must arrive within ``frame_timeout_s``. Oversized, truncated or late frames raise `WireError`
     (the connection is then unusable); a complete frame that does not decode raises `UndecodableFrame`."""
     _wait_readable(sock, idle_deadline)
     started = time.monotonic()

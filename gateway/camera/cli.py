@@ -1,4 +1,4 @@
-"""Camera command line: ``python -m gateway.camera.cli {synth,calibrate,track} ...``.
+"""Camera command line: ``courtside camera {synth,calibrate,track} ...`` (or ``python -m gateway.camera.cli``).
 
 * ``synth``: render a synthetic court clip (scripted rally or a shipped CMU clip) to a video file, with its
   court calibration (JSON, with intrinsics) and the per-frame ground truth (CSV).
@@ -125,11 +125,11 @@ def track(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return report_errors("python -m gateway.camera.cli", _main, list(sys.argv[1:] if argv is None else argv))
+    return report_errors("courtside camera", _main, list(sys.argv[1:] if argv is None else argv))
 
 
 def _main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gateway.camera.cli", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="courtside camera", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("synth", help="render a synthetic court clip + calibration + ground truth")
     p.add_argument("--out", type=Path, default=Path("court.mp4"))
