@@ -24,17 +24,14 @@ from . import corpus
 SUBPROCESS_PREFIX = {
     "courtside": [sys.executable, "-m", "gateway.cli"],
     "mocap": [sys.executable, "-m", "engine.mocap"],
-    "camera": [sys.executable, "-m", "gateway.camera.cli"],
 }
 
 
 def _entry(runner: str):
     if runner == "courtside":
         from gateway.cli import main
-    elif runner == "mocap":
-        from engine.mocap.__main__ import main
     else:
-        from gateway.camera.cli import main
+        from engine.mocap.__main__ import main
     return main
 
 
