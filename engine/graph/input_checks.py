@@ -166,6 +166,13 @@ def check_sensor_map(path: Path, sensor_map: dict[str, str] | None, keys: list[s
                                              f"(it holds {keys})")
 
 
+def check_non_negative(option: str, values: list[float], positive: bool = False) -> None:
+    """Command-line numbers that must be finite and >= 0 (> 0 with ``positive``): weights, thresholds."""
+    for v in values:
+        if not np.isfinite(v) or v < 0 or (positive and v == 0):
+            raise CourtsideError(f"{option} {v!r}: must be a finite number {'> 0' if positive else '>= 0'}")
+
+
 def check_lag(lag_s: float | None, fps: float) -> None:
     if lag_s is not None and not (np.isfinite(lag_s) and lag_s >= 0 and lag_s * fps <= 1e6):
         raise CourtsideError(f"--lag {lag_s!r}: must be a non-negative number of seconds")

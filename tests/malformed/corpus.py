@@ -475,6 +475,14 @@ def take_cases(take: dict[str, np.ndarray]) -> list[Case]:
         cases.append(Case("take", f"lag-{lag}", {"take.npz": good},
                           ["synthesize", "--graph", "{d}/g.npz", "--input", "{d}/take.npz", "-o", "{d}/out.bvh",
                            "--lag", lag], "--lag", outputs=("out.bvh",), shared={"g.npz": "graph"}))
+    for weights in (["nan", "1", "1"], ["-1", "1", "1"]):
+        cases.append(Case("take", f"weights-{weights[0]}", {"take.npz": good},
+                          ["synthesize", "--graph", "{d}/g.npz", "--input", "{d}/take.npz", "-o", "{d}/out.bvh",
+                           "--weights", *weights], "--weights", outputs=("out.bvh",), shared={"g.npz": "graph"}))
+    cases.append(Case("bvh", "build-graph-threshold-negative", {}, ["build-graph", "--sample", "--threshold", "-1", "-o",
+                                                                   "{d}/g.npz"], "--threshold", outputs=("g.npz",)))
+    cases.append(Case("bvh", "build-graph-no-clips", {}, ["build-graph", "--mocap-dir", "{d}/none", "-o", "{d}/g.npz"],
+                      "no clips", outputs=("g.npz",)))
     cases.append(Case("take", "output-dir-missing", {"take.npz": good},
                       ["synthesize", "--graph", "{d}/g.npz", "--input", "{d}/take.npz", "-o", "{d}/no/such/out.bvh"],
                       "no/such", shared={"g.npz": "graph"}))

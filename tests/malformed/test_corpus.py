@@ -100,7 +100,7 @@ def _check(case: corpus.Case, d: Path, code: int, stderr: str, crash: str | None
     assert code != 0, f"{case.id}: exit 0 on a bad input (stderr {stderr!r})"
     lines = [line for line in stderr.splitlines() if line.strip()]
     assert len(lines) == 1, f"{case.id}: expected one stderr line, got {lines}"
-    named = case.bad if case.bad.startswith("--") else str(d / case.bad)
+    named = case.bad if case.bad.startswith("--") or " " in case.bad else str(d / case.bad)
     assert named in lines[0], f"{case.id}: {lines[0]!r} does not name {named}"
     assert len(lines[0]) > len(named) + 12, f"{case.id}: {lines[0]!r} does not say what is wrong"
     for rel in case.outputs:
