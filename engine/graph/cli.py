@@ -127,12 +127,18 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--require-tolerance", type=int, default=10, help="+- frames around each required time")
     p.add_argument("--no-blend", action="store_true")
     p.add_argument("--no-ik", action="store_true")
+    p.add_argument("--calibration", metavar="RECORD", help="sensor-calibration record (`courtside calibrate` or the "
+                   "wizard): readings are rotated from the measured into the graph's nominal sensor mountings")
     args = p.parse_args(argv)
     try:
         graph = MotionGraph.load(args.graph)
         sensor_map = dict(s.split("=", 1) for s in args.sensor_map) if args.sensor_map else None
         obs = load_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map)
-    except MalformedFileError as exc:
+        if args.calibration and graph.skeleton is not None:
+            from .calibrated_input import calibrated_observations
+
+            obs = calibrated_observations(obs, graph.skeleton, graph.config.sensor_names, args.calibration)
+    except (MalformedFileError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     if graph.skeleton is None:

@@ -1,0 +1,206 @@
+"""Sensor-to-segment calibration from an ordinary recording (no perfect N-pose needed).
+
+The live wizard waits for a still N-pose (std <= 0.02 g). Real takes rarely have one: in a 50 s acting take the
+stillest moment had a forearm std of ~0.12 g. This calibrates from what a take does have:
+
+1. **Gravity from quasi-static windows, weighted by stillness.** The take is cut into ``window_s`` windows; a
+   window counts when every sensor's std (of |a| and of each axis) is below ``max_std_g`` and its mean norm is
+   within ``norm_band_g`` of 1 g; its weight is ``1 / (std² + floor²)`` with std the worst sensor's, so a
+   stiller window counts more but many slightly moving ones still add up (their linear accelerations average
+   out). Per sensor, only the dominant cluster of window gravity directions is kept (within
+   ``cluster_deg`` of the weighted mean, iterated), so a stretch sitting or leaning does not pull the estimate.
+   These windows are taken to be the subject standing relaxed, i.e. the reference N-pose of
+   ``gateway.calibration.pose`` (arms hanging, legs straight): that gives each segment's expected up.
+2. **Heading about gravity.** One gravity direction leaves the rotation about it free (the wizard resolves it by
+   assuming the nominal mounting). Here it comes from *walking*: over the moving windows, the acceleration
+   component perpendicular to the sensor's gravity direction has a principal axis, which for trunk, shins and
+   (swinging) forearms is the body's forward axis in the N-pose (``G_jᵀ ẑ``). The axis has no sign; the sign
+   nearer the nominal mounting is taken. Or from a **second still pose** with a different segment inclination
+   (>= ``second_pose_min_deg``, e.g. a T-pose for the arms), which fixes all three angles with sign: both gravity directions go into
+   one Wahba/Kabsch fit and the walking axis is not needed for that segment.
+3. **Per-sensor quality** ``min(stillness, consistency, heading)`` in 0..1: stillness ``1 - std/max_std_g`` of the
+   windows used, consistency = weight fraction inside the dominant cluster, heading = the walking axis' share
+   of horizontal variance (``(λ1 - λ2)/(λ1 + λ2)``, 1 with a second pose). A sensor whose measured up is more than
+   90° from where its placement puts it is flagged as **flipped** (strapped upside down, or the Bandai-style
+   180° roll), and fails.
+
+The result is the wizard's :class:`CalibrationRecord` (same schema, same rotations convention), so
+``courtside build-graph --calibration`` / ``courtside synthesize --calibration`` use it unchanged.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from datetime import datetime, timezone
+from typing import Any
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+from gateway.calibration.alignment import (UP, norm_error_g, rotation_angle_deg, rotation_from_directions,
+                                           sensor_to_segment_rotation, tilt_deg)
+from gateway.calibration.record import CalibrationRecord, SensorCalibration
+
+FORWARD = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class RecordingCalibrationConfig:
+    """Thresholds (s, g, degrees) of the recording calibration (module docstring)."""
+
+    window_s: float = 0.5
+    max_std_g: float = 0.15
+    std_floor_g: float = 0.01
+    norm_band_g: float = 0.15
+    cluster_deg: float = 20.0
+    moving_std_g: float = 0.15
+    smooth_s: float = 0.0  # no smoothing measured best on CMU walks (0.1 s and more turned the axis lateral)
+    min_heading_share: float = 0.3
+    flipped_deg: float = 90.0
+    max_correction_deg: float = 60.0
+    min_still_windows: int = 2
+    second_pose_min_deg: float = 45.0  # a 20° change (legs in a T-pose) fixes the heading worse than walking
+
+
+@dataclass(frozen=True)
+class SegmentPose:
+    """Where a sensor goes and what its segment does in the poses: nominal rotation (sensor -> segment), up and
+    forward (segment frame) in the reference standing pose, up in the optional second pose."""
+
+    nominal_rotation: np.ndarray
+    up: np.ndarray
+    forward: np.ndarray
+    up_second: np.ndarray | None = None
+
+
+def standard_segment_poses(names: list[str], second_pose: str | None = None) -> dict[str, SegmentPose]:
+    """Segment poses of the engine's standard placements on the shipped CMU skeleton (the set-up of
+    ``CalibrationService.standard`` and of ``courtside build-graph --sample``), reference pose = N-pose."""
+    from engine.mocap import load_clip, sample_clips, standard_placements
+    from gateway.calibration.pose import pose_rotations
+
+    skeleton = load_clip(sample_clips()["16_01"]).skeleton
+    placements = standard_placements(skeleton, names)
+    npose = pose_rotations(skeleton, "npose")
+    second = pose_rotations(skeleton, second_pose) if second_pose else None
+    return {p.name: SegmentPose(p.rotation, npose[p.joint].T @ UP, npose[p.joint].T @ FORWARD,
+                                None if second is None else second[p.joint].T @ UP) for p in placements}
+
+
+def _windows(acc: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per window of n samples: mean (W, S, 3) and worst std (W, S) of |a| and of each axis."""
+    w = acc.shape[0] // n
+    blocks = acc[: w * n].reshape(w, n, acc.shape[1], 3)
+    norm_std = np.linalg.norm(blocks, axis=-1).std(axis=1)
+    return blocks.mean(axis=1), np.maximum(norm_std, blocks.std(axis=1).max(axis=-1))
+
+
+def _dominant(dirs: np.ndarray, weights: np.ndarray, cluster_deg: float) -> tuple[np.ndarray, float]:
+    """Mask of the dominant direction cluster (iterated weighted mean) and its share of the weight."""
+    keep = np.ones(len(dirs), bool)
+    cos = np.cos(np.radians(cluster_deg))
+    for _ in range(10):
+        mean = (weights[keep, None] * dirs[keep]).sum(axis=0)
+        mean /= np.linalg.norm(mean)
+        new = dirs @ mean >= cos
+        if not new.any() or np.array_equal(new, keep):
+            break
+        keep = new
+    return keep, float(weights[keep].sum() / weights.sum())
+
+
+def _walking_axis(acc: np.ndarray, moving: np.ndarray, up_s: np.ndarray, smooth: int) -> tuple[np.ndarray | None, float]:
+    """Principal axis (sensor frame, unit, no sign) of the acceleration perpendicular to ``up_s`` over the
+    moving samples, and its share ``(λ1 - λ2) / (λ1 + λ2)``. The readings are smoothed over ``smooth`` samples
+    first: gait acceleration lives below ~5 Hz, sensor noise and impacts above."""
+    a = uniform_filter1d(acc, max(1, smooth), axis=0, mode="nearest")[moving]
+    if len(a) < 10:
+        return None, 0.0
+    h = a - np.outer(a @ up_s, up_s)
+    h = h - h.mean(axis=0)
+    vals, vecs = np.linalg.eigh(h.T @ h)  # ascending; the smallest is ~along up_s
+    l1, l2 = vals[2], vals[1]
+    return vecs[:, 2], float((l1 - l2) / max(l1 + l2, 1e-12))
+
+
+def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], segments: list[str],
+                        poses: dict[str, SegmentPose], config: RecordingCalibrationConfig = RecordingCalibrationConfig(),
+                        second_window_s: tuple[float, float] | None = None, subject: str = "", take: str = "",
+                        pose_name: str = "npose", second_pose: str | None = None) -> CalibrationRecord:
+    """Calibrate every sensor of a take ``acc_g`` (T, S, 3) g at ``fps``; ``segments[k]`` is sensor k's standard
+    placement name, ``poses`` its :class:`SegmentPose`. ``second_window_s``: (start, end) s of a held second pose."""
+    acc = np.asarray(acc_g, float)
+    n = max(2, int(round(config.window_s * fps)))
+    t = np.arange(len(acc)) / fps
+    second_mask = np.zeros(len(acc), bool)
+    if second_window_s is not None:
+        second_mask = (t >= second_window_s[0]) & (t <= second_window_s[1])
+        if second_mask.sum() < 2:
+            raise ValueError(f"second-pose window {second_window_s} s holds no samples of the take "
+                             f"(0-{t[-1]:.1f} s)")
+    means, stds = _windows(acc, n)
+    worst = stds.max(axis=1)
+    in_second = second_mask[: len(worst) * n].reshape(len(worst), n).any(axis=1)
+    norms = np.linalg.norm(means, axis=-1)
+    ok = ~in_second & (worst <= config.max_std_g) & np.all(np.abs(norms - 1.0) <= config.norm_band_g, axis=1)
+    if ok.sum() < config.min_still_windows:
+        raise ValueError(f"no quasi-static stretch: {int(ok.sum())} of {len(worst)} windows of {config.window_s:g} s "
+                         f"have every sensor's std <= {config.max_std_g:g} g and |a| within "
+                         f"{config.norm_band_g:g} g of 1 g")
+    weights = 1.0 / (worst[ok] ** 2 + config.std_floor_g**2)
+    moving = np.zeros(len(acc), bool)
+    moving[: len(worst) * n] = np.repeat(~in_second & (worst > config.moving_std_g), n)
+    results: dict[str, SensorCalibration] = {}
+    raw: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for k, (sid, seg) in enumerate(zip(sensor_ids, segments)):
+        pose = poses[seg]
+        dirs = means[ok, k] / norms[ok, k, None]
+        keep, consistency = _dominant(dirs, weights, config.cluster_deg)
+        w = weights[keep]
+        gravity = (w[:, None] * means[ok, k][keep]).sum(axis=0) / w.sum()
+        std = float((w * stds[ok, k][keep]).sum() / w.sum())
+        up_s = gravity / np.linalg.norm(gravity)
+        tilt_only = sensor_to_segment_rotation(gravity, pose.nominal_rotation, pose.up)
+        sensor_dirs, segment_dirs, reasons = [up_s], [pose.up], []
+        heading_term = 0.0
+        if second_window_s is not None and pose.up_second is not None:
+            g2 = acc[second_mask, k].mean(axis=0)
+            if np.degrees(np.arccos(np.clip(pose.up @ pose.up_second, -1, 1))) >= config.second_pose_min_deg:
+                sensor_dirs.append(g2 / np.linalg.norm(g2))
+                segment_dirs.append(pose.up_second)
+                heading_term = 1.0
+        axis, share = (None, 0.0) if heading_term else _walking_axis(acc[:, k], moving, up_s,
+                                                                      int(round(config.smooth_s * fps)))
+        if heading_term:  # the second pose fixes the heading with sign (more exactly than walking)
+            rotation = rotation_from_directions(np.array(sensor_dirs), np.array(segment_dirs))
+        elif axis is not None and share >= config.min_heading_share:
+            # the walking axis has no sign: take the one nearer the nominal mounting
+            candidates = [rotation_from_directions(np.array([up_s, sign * axis]), np.array([pose.up, pose.forward]))
+                          for sign in (1.0, -1.0)]
+            rotation = min(candidates, key=lambda r: rotation_angle_deg(r @ tilt_only.T))
+            heading_term = share
+        else:
+            rotation = tilt_only
+            reasons.append("heading about gravity not observed (no walking, no second pose): nominal mounting "
+                           "assumed for it")
+        correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
+        flipped = tilt_deg(gravity, pose.nominal_rotation, pose.up)
+        if flipped > config.flipped_deg:
+            reasons.append(f"axes look flipped against the placement: the sensor's up is {flipped:.0f} deg from "
+                           "where the placement table puts it (strapped upside down or rolled 180 deg?)")
+        elif correction > config.max_correction_deg:
+            reasons.append(f"mounted {correction:.0f} deg away from the nominal orientation "
+                           f"(limit {config.max_correction_deg:g}); check the placement")
+        err = norm_error_g(gravity)
+        still_term = 1.0 - std / config.max_std_g
+        quality = float(np.clip(min(still_term, consistency, heading_term if heading_term else 0.5), 0.0, 1.0))
+        passed = not any("flipped" in r or "mounted" in r for r in reasons)
+        results[sid] = SensorCalibration(sid, seg, rotation, gravity, err, std, correction, quality, passed, reasons)
+        idx = (np.flatnonzero(ok)[keep][:, None] * n + np.arange(n)).ravel()
+        raw[sid] = (t[idx], acc[idx, k])
+    score = 100.0 * float(np.mean([r.quality for r in results.values()]))
+    grade = "good" if score >= 70 else "fair" if score >= 40 else "poor"
+    cfg = {"method": "recording", "pose": pose_name, "second_pose": second_pose,
+           "second_window_s": list(second_window_s) if second_window_s else None, "fps": fps, **asdict(config)}
+    return CalibrationRecord(results, round(score, 1), grade, all(r.passed for r in results.values()), None, subject,
+                             take, datetime.now(timezone.utc).isoformat(), cfg, {"still": raw})
+
