@@ -14,7 +14,9 @@ stillest moment had a forearm std of ~0.12 g. This calibrates from what a take d
 2. **Heading about gravity.** One gravity direction leaves the rotation about it free (the wizard resolves it by
    assuming the nominal mounting). Here it comes from *walking*: over the moving windows, the acceleration
    component perpendicular to the sensor's gravity direction has a principal axis, which for trunk, shins and
-   (swinging) forearms is the body's forward axis in the N-pose (``G_jᵀ ẑ``). The axis has no sign; the sign
+   shins is the body's forward axis in the N-pose (``G_jᵀ ẑ``). Not for forearms and wrists: on CMU walks the
+   swinging forearm twists (elbow flexion, pronation) and its principal axis was 14-47° off forward, so arms keep
+   the nominal heading unless a second pose is given. The axis has no sign; the sign
    nearer the nominal mounting is taken. Or from a **second still pose** with a different segment inclination
    (>= ``second_pose_min_deg``, e.g. a T-pose for the arms), which fixes all three angles with sign: both gravity directions go into
    one Wahba/Kabsch fit and the walking axis is not needed for that segment.
@@ -54,7 +56,8 @@ class RecordingCalibrationConfig:
     cluster_deg: float = 20.0
     moving_std_g: float = 0.15
     smooth_s: float = 0.0  # no smoothing measured best on CMU walks (0.1 s and more turned the axis lateral)
-    min_heading_share: float = 0.3
+    min_heading_share: float = 0.15
+    outlier_factor: float = 3.0
     flipped_deg: float = 90.0
     max_correction_deg: float = 60.0
     min_still_windows: int = 2
@@ -108,7 +111,8 @@ def _dominant(dirs: np.ndarray, weights: np.ndarray, cluster_deg: float) -> tupl
     return keep, float(weights[keep].sum() / weights.sum())
 
 
-def _walking_axis(acc: np.ndarray, moving: np.ndarray, up_s: np.ndarray, smooth: int) -> tuple[np.ndarray | None, float]:
+def _walking_axis(acc: np.ndarray, moving: np.ndarray, up_s: np.ndarray, smooth: int, config_outlier: float
+                  ) -> tuple[np.ndarray | None, float]:
     """Principal axis (sensor frame, unit, no sign) of the acceleration perpendicular to ``up_s`` over the
     moving samples, and its share ``(λ1 - λ2) / (λ1 + λ2)``. The readings are smoothed over ``smooth`` samples
     first: gait acceleration lives below ~5 Hz, sensor noise and impacts above."""
@@ -116,6 +120,8 @@ def _walking_axis(acc: np.ndarray, moving: np.ndarray, up_s: np.ndarray, smooth:
     if len(a) < 10:
         return None, 0.0
     h = a - np.outer(a @ up_s, up_s)
+    size = np.linalg.norm(h, axis=1)
+    h = h[size <= config_outlier * np.median(size)]  # a stumble or a jump would otherwise pick the axis
     h = h - h.mean(axis=0)
     vals, vecs = np.linalg.eigh(h.T @ h)  # ascending; the smallest is ~along up_s
     l1, l2 = vals[2], vals[1]
@@ -168,8 +174,10 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
                 sensor_dirs.append(g2 / np.linalg.norm(g2))
                 segment_dirs.append(pose.up_second)
                 heading_term = 1.0
-        axis, share = (None, 0.0) if heading_term else _walking_axis(acc[:, k], moving, up_s,
-                                                                      int(round(config.smooth_s * fps)))
+        arm = seg.endswith(("forearm", "wrist"))  # the swinging forearm twists: its walking axis is not forward
+        axis, share = (None, 0.0) if heading_term or arm else _walking_axis(acc[:, k], moving, up_s,
+                                                                             int(round(config.smooth_s * fps)),
+                                                                             config.outlier_factor)
         if heading_term:  # the second pose fixes the heading with sign (more exactly than walking)
             rotation = rotation_from_directions(np.array(sensor_dirs), np.array(segment_dirs))
         elif axis is not None and share >= config.min_heading_share:
@@ -180,8 +188,9 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
             heading_term = share
         else:
             rotation = tilt_only
-            reasons.append("heading about gravity not observed (no walking, no second pose): nominal mounting "
-                           "assumed for it")
+            reasons.append("heading about gravity not observed (" + ("an arm needs a second pose, e.g. "
+                           "--second-pose tpose@START:END" if arm else "no walking, no second pose")
+                           + "): nominal mounting assumed for it")
         correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
         flipped = tilt_deg(gravity, pose.nominal_rotation, pose.up)
         if flipped > config.flipped_deg:

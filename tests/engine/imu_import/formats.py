@@ -54,8 +54,29 @@ def virtual_recording(motion: Motion, placements: list[SensorPlacement]) -> Trut
                  motion.fps, [p.name for p in placements])
 
 
+def smoothed(motion: Motion, smooth_s: float = 0.02) -> Motion:
+    """``motion`` low-passed (Gaussian, sigma ``smooth_s``): twice-differentiated marker jitter would otherwise
+    give ~0.7 g of noise at 100 Hz, far more than a real IMU's ~0.01 g."""
+    from dataclasses import replace
+
+    from scipy.ndimage import gaussian_filter1d
+
+    sigma = smooth_s * motion.fps
+    q = motion.rotations.copy()
+    flip = np.cumprod(np.where(np.sum(q[1:] * q[:-1], axis=-1) < 0, -1.0, 1.0), axis=0)
+    q[1:] *= flip[..., None]
+    q = quat.normalize(gaussian_filter1d(q, sigma, axis=0, mode="nearest"))
+    root = gaussian_filter1d(motion.root_positions_m, sigma, axis=0, mode="nearest")
+    return replace(motion, rotations=q, root_positions_m=root)
+
+
 def clip(name: str = "16_11", fps: float = 100.0) -> Motion:
-    return resample(load_clip(sample_clips()[name]), fps)
+    """A shipped clip at ``fps``, smoothed (:func:`smoothed`)."""
+    return smoothed(resample(load_clip(sample_clips()[name]), fps))
+
+
+def _yaw(angle_rad: float) -> np.ndarray:
+    return quat.from_rotvec(np.array([0.0, angle_rad, 0.0]))
 
 
 def write_generic_csv(path: Path, truth: Truth, units: str = "m/s2", quat_order: str = "xyzw", delimiter: str = ",",
@@ -168,3 +189,53 @@ def write_mt_exports(folder: Path, truth: Truth, device_ids: list[str], packet_s
         path.write_text("\n".join(lines) + "\n")
         paths.append(path)
     return paths
+
+
+def standing_then_walking(stand_s: float = 3.0, walks: tuple[str, ...] = ("16_11", "16_16", "16_21"),
+                          tpose_s: float = 0.0, fps: float = 100.0, seed: int = 3) -> Motion:
+    """A take as a real one starts: the subject stands relaxed (the reference N-pose with a slow ~1° sway) and
+    then walks (shipped CMU walks joined end to start with continuous ground position and heading), optionally
+    ending in a held T-pose (the CMU zero pose); smoothed like :func:`clip`."""
+    from engine.mocap import root_heading
+    from gateway.calibration.pose import reference_npose
+
+    rng = np.random.default_rng(seed)
+    parts = [resample(load_clip(sample_clips()[c]), fps) for c in walks]
+    skeleton = parts[0].skeleton
+    rots, roots = [], []
+    for part in parts:
+        r, p = part.rotations.copy(), part.root_positions_m.copy()
+        if roots:  # continue where the last clip ended: same ground point, same heading
+            turn = float(root_heading(Motion(skeleton, fps, roots[-1][-2:], rots[-1][-2:]))[-1]
+                         - root_heading(part)[0])
+            yaw_m = quat.to_matrix(_yaw(turn))
+            p = (p - p[0]) @ yaw_m.T + np.r_[roots[-1][-1][0], p[0, 1], roots[-1][-1][2]]
+            r[:, 0] = quat.multiply(_yaw(turn)[None], r[:, 0])
+        rots.append(r)
+        roots.append(p)
+    n_stand, n_t = int(stand_s * fps), int(tpose_s * fps)
+    sway = quat.from_rotvec(np.radians(1.0) * np.sin(np.linspace(0, 3, n_stand))[:, None, None]
+                            * rng.normal(size=(1, skeleton.n_joints, 3)))
+    stand = quat.multiply(quat.from_matrix(reference_npose(skeleton)[0])[None], sway)
+    stand[:, 0] = quat.multiply(_yaw(float(root_heading(parts[0])[0]))[None], stand[:, 0])
+    rot = np.concatenate([stand] + rots + [quat.identity((n_t, skeleton.n_joints))])
+    root = np.concatenate([np.tile(roots[0][:1], (n_stand, 1))] + roots + [np.tile(roots[-1][-1:], (n_t, 1))])
+    return smoothed(Motion(skeleton, fps, root, rot, "stand-walk"))
+
+
+def mounted(placements: list[SensorPlacement], seed: int = 3, tilt_deg: tuple[float, float] = (20.0, 30.0),
+            flip: tuple[str, ...] = ()) -> list[SensorPlacement]:
+    """Placements strapped off nominal by a random rotation of 20-30° about a random axis (sensor frame);
+    sensors named in ``flip`` are additionally strapped upside down (180° about their Y axis)."""
+    from dataclasses import replace
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for p in placements:
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        m = quat.to_matrix(quat.from_rotvec(axis * np.radians(rng.uniform(*tilt_deg))))
+        if p.name in flip:
+            m = m @ np.diag([-1.0, 1.0, -1.0])
+        out.append(replace(p, rotation=p.rotation @ m))
+    return out
