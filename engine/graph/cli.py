@@ -129,6 +129,9 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--no-ik", action="store_true")
     p.add_argument("--calibration", metavar="RECORD", help="sensor-calibration record (`courtside calibrate` or the "
                    "wizard): readings are rotated from the measured into the graph's nominal sensor mountings")
+    p.add_argument("--stream-bvh", metavar="[HOST:]PORT", help="also stream the frames as BVH lines over TCP "
+                   "(Axis Neuron convention, e.g. 7001; host 127.0.0.1 unless given) to connected animation tools")
+    p.add_argument("--stream-wait", type=float, default=5.0, help="--stream-bvh: wait this long for a client (s)")
     args = p.parse_args(argv)
     try:
         graph = MotionGraph.load(args.graph)
@@ -182,6 +185,10 @@ def synthesize_main(argv: list[str]) -> int:
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
+    if args.stream_bvh:
+        from engine.livestream.stream_cli import stream_motion
+
+        stream_motion(motion, args.stream_bvh, args.stream_wait)
     print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
                       "broken_constraints": broken}))
     return 0
