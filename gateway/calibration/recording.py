@@ -36,7 +36,6 @@ from datetime import datetime, timezone
 from typing import Any
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from gateway.calibration.alignment import (UP, norm_error_g, rotation_angle_deg, rotation_from_directions,
                                            sensor_to_segment_rotation, tilt_deg)
@@ -55,9 +54,11 @@ class RecordingCalibrationConfig:
     norm_band_g: float = 0.15
     cluster_deg: float = 20.0
     moving_std_g: float = 0.15
-    smooth_s: float = 0.0  # no smoothing measured best on CMU walks (0.1 s and more turned the axis lateral)
-    min_heading_share: float = 0.15
-    outlier_factor: float = 3.0
+    cadence_band_hz: tuple[float, float] = (1.2, 3.5)  # steps/s of walking (1.6-2.2) and running (2.5-3.3)
+    # pass bands of the walking-axis PCA, in multiples of the step frequency (measured: bench/bench_calibrate.py)
+    pelvis_band: tuple[float | None, float] = (0.75, 1.5)  # fore-aft pelvis acceleration repeats every step
+    segment_band: tuple[float | None, float] = (None, 1.5)  # shins/chest: the swing, without impacts
+    min_heading_share: float = 0.4  # chest on CMU 16_32 + 16_11: share 0.26, axis 40° off
     flipped_deg: float = 90.0
     max_correction_deg: float = 60.0
     min_still_windows: int = 2
@@ -111,17 +112,36 @@ def _dominant(dirs: np.ndarray, weights: np.ndarray, cluster_deg: float) -> tupl
     return keep, float(weights[keep].sum() / weights.sum())
 
 
-def _walking_axis(acc: np.ndarray, moving: np.ndarray, up_s: np.ndarray, smooth: int, config_outlier: float
-                  ) -> tuple[np.ndarray | None, float]:
+def step_frequency_hz(acc: np.ndarray, moving: np.ndarray, ups: np.ndarray, fps: float,
+                      band_hz: tuple[float, float]) -> float | None:
+    """Cadence (steps/s) of the moving samples: the peak in ``band_hz`` of the summed, normalised spectra of every
+    sensor's acceleration along its gravity direction (the trunk bounces once per step; a shin's impacts repeat
+    once per stride and add their second harmonic). None when there is too little movement for a spectrum."""
+    from scipy.signal import welch
+
+    if moving.sum() < 4 * fps:
+        return None
+    total = 0.0
+    for k in range(acc.shape[1]):
+        vertical = acc[moving, k] @ ups[k]
+        f, pxx = welch(vertical - vertical.mean(), fs=fps, nperseg=min(int(4 * fps), int(moving.sum())))
+        total = total + pxx / max(pxx.sum(), 1e-12)
+    sel = (f >= band_hz[0]) & (f <= band_hz[1])
+    return float(f[sel][np.argmax(total[sel])]) if sel.any() else None
+
+
+def _walking_axis(acc: np.ndarray, moving: np.ndarray, up_s: np.ndarray, band: tuple[float | None, float],
+                  fps: float) -> tuple[np.ndarray | None, float]:
     """Principal axis (sensor frame, unit, no sign) of the acceleration perpendicular to ``up_s`` over the
-    moving samples, and its share ``(λ1 - λ2) / (λ1 + λ2)``. The readings are smoothed over ``smooth`` samples
-    first: gait acceleration lives below ~5 Hz, sensor noise and impacts above."""
-    a = uniform_filter1d(acc, max(1, smooth), axis=0, mode="nearest")[moving]
-    if len(a) < 10:
-        return None, 0.0
+    moving samples, after filtering to ``band`` (Hz; low edge None = low-pass), and its share
+    ``(λ1 - λ2) / (λ1 + λ2)``."""
+    from scipy.signal import butter, sosfiltfilt
+
+    lo, hi = band
+    sos = butter(2, hi, "lowpass", fs=fps, output="sos") if lo is None else \
+        butter(2, [lo, hi], "bandpass", fs=fps, output="sos")
+    a = sosfiltfilt(sos, acc, axis=0)[moving]
     h = a - np.outer(a @ up_s, up_s)
-    size = np.linalg.norm(h, axis=1)
-    h = h[size <= config_outlier * np.median(size)]  # a stumble or a jump would otherwise pick the axis
     h = h - h.mean(axis=0)
     vals, vecs = np.linalg.eigh(h.T @ h)  # ascending; the smallest is ~along up_s
     l1, l2 = vals[2], vals[1]
@@ -157,14 +177,19 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
     moving[: len(worst) * n] = np.repeat(~in_second & (worst > config.moving_std_g), n)
     results: dict[str, SensorCalibration] = {}
     raw: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for k, (sid, seg) in enumerate(zip(sensor_ids, segments)):
-        pose = poses[seg]
+    still = []
+    for k in range(len(sensor_ids)):
         dirs = means[ok, k] / norms[ok, k, None]
         keep, consistency = _dominant(dirs, weights, config.cluster_deg)
         w = weights[keep]
         gravity = (w[:, None] * means[ok, k][keep]).sum(axis=0) / w.sum()
-        std = float((w * stds[ok, k][keep]).sum() / w.sum())
-        up_s = gravity / np.linalg.norm(gravity)
+        still.append((keep, consistency, gravity, float((w * stds[ok, k][keep]).sum() / w.sum())))
+    ups = np.array([g / np.linalg.norm(g) for _, _, g, _ in still])
+    step_hz = step_frequency_hz(acc, moving, ups, fps, config.cadence_band_hz)
+    for k, (sid, seg) in enumerate(zip(sensor_ids, segments)):
+        pose = poses[seg]
+        keep, consistency, gravity, std = still[k]
+        up_s = ups[k]
         tilt_only = sensor_to_segment_rotation(gravity, pose.nominal_rotation, pose.up)
         sensor_dirs, segment_dirs, reasons = [up_s], [pose.up], []
         heading_term = 0.0
@@ -175,9 +200,11 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
                 segment_dirs.append(pose.up_second)
                 heading_term = 1.0
         arm = seg.endswith(("forearm", "wrist"))  # the swinging forearm twists: its walking axis is not forward
-        axis, share = (None, 0.0) if heading_term or arm else _walking_axis(acc[:, k], moving, up_s,
-                                                                             int(round(config.smooth_s * fps)),
-                                                                             config.outlier_factor)
+        axis, share = None, 0.0
+        if not (heading_term or arm or step_hz is None):
+            band = config.pelvis_band if seg == "lower_back" else config.segment_band
+            axis, share = _walking_axis(acc[:, k], moving, up_s, tuple(None if b is None else b * step_hz
+                                                                       for b in band), fps)
         if heading_term:  # the second pose fixes the heading with sign (more exactly than walking)
             rotation = rotation_from_directions(np.array(sensor_dirs), np.array(segment_dirs))
         elif axis is not None and share >= config.min_heading_share:
@@ -188,9 +215,10 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
             heading_term = share
         else:
             rotation = tilt_only
-            reasons.append("heading about gravity not observed (" + ("an arm needs a second pose, e.g. "
-                           "--second-pose tpose@START:END" if arm else "no walking, no second pose")
-                           + "): nominal mounting assumed for it")
+            why = ("an arm needs a second pose, e.g. --second-pose tpose@START:END" if arm else
+                   f"the walking axis is ambiguous, share {share:.2f} < {config.min_heading_share:g}"
+                   if axis is not None else "no walking, no second pose")
+            reasons.append(f"heading about gravity not observed ({why}): nominal mounting assumed for it")
         correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
         flipped = tilt_deg(gravity, pose.nominal_rotation, pose.up)
         if flipped > config.flipped_deg:

@@ -195,7 +195,8 @@ def standing_then_walking(stand_s: float = 3.0, walks: tuple[str, ...] = ("16_11
                           tpose_s: float = 0.0, fps: float = 100.0, seed: int = 3) -> Motion:
     """A take as a real one starts: the subject stands relaxed (the reference N-pose with a slow ~1° sway) and
     then walks (shipped CMU walks joined end to start with continuous ground position and heading), optionally
-    ending in a held T-pose (the CMU zero pose); smoothed like :func:`clip`."""
+    moving within 1 s into a held T-pose (the CMU zero pose, facing the last walking heading) for ``tpose_s``;
+    smoothed like :func:`clip`."""
     from engine.mocap import root_heading
     from gateway.calibration.pose import reference_npose
 
@@ -218,8 +219,14 @@ def standing_then_walking(stand_s: float = 3.0, walks: tuple[str, ...] = ("16_11
                             * rng.normal(size=(1, skeleton.n_joints, 3)))
     stand = quat.multiply(quat.from_matrix(reference_npose(skeleton)[0])[None], sway)
     stand[:, 0] = quat.multiply(_yaw(float(root_heading(parts[0])[0]))[None], stand[:, 0])
-    rot = np.concatenate([stand] + rots + [quat.identity((n_t, skeleton.n_joints))])
-    root = np.concatenate([np.tile(roots[0][:1], (n_stand, 1))] + roots + [np.tile(roots[-1][-1:], (n_t, 1))])
+    n_turn = int(fps) if n_t else 0  # 1 s from the last walking frame into the T-pose (root heading kept)
+    target = quat.identity((skeleton.n_joints,))
+    target[0] = _yaw(float(root_heading(Motion(skeleton, fps, roots[-1][-2:], rots[-1][-2:]))[-1]))  # upright
+    blend = np.linspace(0.0, 1.0, n_turn)[:, None]
+    turn = quat.slerp(np.repeat(rots[-1][-1:], n_turn, 0), np.repeat(target[None], n_turn, 0), blend)
+    hold = np.repeat(target[None], n_t, 0)
+    rot = np.concatenate([stand] + rots + [turn, hold])
+    root = np.concatenate([np.tile(roots[0][:1], (n_stand, 1))] + roots + [np.tile(roots[-1][-1:], (n_turn + n_t, 1))])
     return smoothed(Motion(skeleton, fps, root, rot, "stand-walk"))
 
 

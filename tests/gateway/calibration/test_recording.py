@@ -39,14 +39,16 @@ def test_standing_then_walking_recovers_mountings(walking):
     nominal = {p.name: p.rotation for p in standard_placements(standing_then_walking().skeleton, NAMES)}
     off = {p.name: rotation_angle_deg(p.rotation @ nominal[p.name].T) for p in truth}
     assert min(off.values()) > 19.0  # every sensor really is strapped 20-30° off, heading included
-    # trunk and shins from gravity + walking (measured 1.6-8.9°); forearms keep the nominal heading and say so
-    for name in ("lower_back", "chest", "left_shin", "right_shin"):
-        assert err[name] < 12.0, err
+    # gravity + the walking axis (band-passed at the cadence): measured 0.3-3.1° on shins and pelvis over six CMU
+    # takes (bench/bench_calibrate.py), the chest 5-6° when its axis is clear enough to be used
+    for name in ("lower_back", "left_shin", "right_shin"):
+        assert err[name] < 4.0, err
         assert not record.sensors[name].reasons
+    assert err["chest"] < 8.0, err
     for name in ("left_forearm", "right_forearm"):
         assert any("an arm needs a second pose" in r for r in record.sensors[name].reasons)
     assert all(s.passed and 0.1 < s.quality <= 1.0 for s in record.sensors.values())
-    assert record.sensors["left_shin"].quality > 0.6  # trunk walking axes are weaker (share ~0.2): lower quality
+    assert record.sensors["left_shin"].quality > 0.8
 
 
 def test_second_pose_fixes_the_arms(tmp_path):
@@ -55,7 +57,7 @@ def test_second_pose_fixes_the_arms(tmp_path):
     record = calibrate_recording(acc, FPS, NAMES, NAMES, standard_segment_poses(NAMES, "tpose"),
                                  second_window_s=(end - 1.8, end - 0.1), second_pose="tpose")
     err = _errors(record, truth)
-    assert max(err.values()) < 12.0 and err["left_forearm"] < 3.0 and err["right_forearm"] < 3.0, err
+    assert max(err.values()) < 8.0 and err["left_forearm"] < 3.0 and err["right_forearm"] < 3.0, err
 
 
 def test_without_heading_information_the_nominal_yaw_is_kept_and_said():
