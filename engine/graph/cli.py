@@ -129,8 +129,9 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--no-ik", action="store_true")
     p.add_argument("--calibration", metavar="RECORD", help="sensor-calibration record (`courtside calibrate` or the "
                    "wizard): readings are rotated from the measured into the graph's nominal sensor mountings")
-    p.add_argument("--stream-bvh", metavar="[HOST:]PORT", help="also stream the frames as BVH lines over TCP "
-                   "(Axis Neuron convention, e.g. 7001; host 127.0.0.1 unless given) to connected animation tools")
+    p.add_argument("--stream-bvh", metavar="[HOST:]PORT", help="also serve the poses as BVH lines over TCP (Axis "
+                   "Neuron convention, e.g. 7001; 127.0.0.1 unless a host is given): with --lag each pose as it is "
+                   "decided, at the take's rate; without, the written frames")
     p.add_argument("--stream-wait", type=float, default=5.0, help="--stream-bvh: wait this long for a client (s)")
     args = p.parse_args(argv)
     try:
@@ -158,6 +159,11 @@ def synthesize_main(argv: list[str]) -> int:
     if constraints and args.lag is not None:
         print("error: --require needs the batch search (no --lag)", file=sys.stderr)
         return 2
+    stream = None
+    if args.stream_bvh:
+        from engine.livestream.stream_cli import open_stream
+
+        stream = open_stream(args.stream_bvh, args.stream_wait)
     t0 = time.perf_counter()
     broken = 0
     if args.lag is None:
@@ -166,6 +172,10 @@ def synthesize_main(argv: list[str]) -> int:
         broken = res.broken_constraints
     else:
         syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)
+        if stream is not None:  # each pose goes out as the decoder commits to it, at the take's rate
+            from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
+
+            syn = StreamingSynthesizer(syn, PoseStreamer(graph, graph.skeleton, stream, realtime=True))
         poses = []
         for t in range(obs.n_samples):
             poses += syn.push(None if obs.acc_g is None else obs.acc_g[t],
@@ -185,10 +195,12 @@ def synthesize_main(argv: list[str]) -> int:
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
-    if args.stream_bvh:
-        from engine.livestream.stream_cli import stream_motion
+    if stream is not None:
+        if args.lag is None:  # the batch search decides the whole path at once: stream the written frames
+            from engine.mocap.bvh import bvh_frame_values
 
-        stream_motion(motion, args.stream_bvh, args.stream_wait)
+            stream.stream(bvh_frame_values(motion), motion.fps)
+        stream.close()
     print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
                       "broken_constraints": broken}))
     return 0

@@ -1,30 +1,29 @@
-"""`courtside synthesize --stream-bvh [HOST:]PORT`: the synthesised frames to live animation tools."""
+"""`--stream-bvh [HOST:]PORT` of `courtside synthesize` (and the console): synthesised poses to animation tools."""
 from __future__ import annotations
 
 import sys
 
 from engine.errors import CourtsideError
 from engine.livestream.bvh_server import BvhBroadcastServer
-from engine.mocap import Motion
-from engine.mocap.bvh import bvh_frame_values
 
 
 def parse_address(text: str) -> tuple[str, int]:
-    host, _, port = text.rpartition(":")
+    host, _, port = str(text).rpartition(":")
     try:
         return host or "127.0.0.1", int(port)
     except ValueError:
         raise CourtsideError(f"--stream-bvh {text!r}: expected [HOST:]PORT") from None
 
 
-def stream_motion(motion: Motion, address: str, wait_s: float) -> int:
-    """Serve ``motion`` at its own frame rate to the clients that connect within ``wait_s``; frames sent."""
+def open_stream(address: str, wait_s: float, who: str = "synthesize") -> BvhBroadcastServer:
+    """A broadcast server on ``address`` (loopback unless a host is given) that has waited up to ``wait_s`` for
+    its first client (it keeps accepting clients afterwards)."""
     host, port = parse_address(address)
-    with BvhBroadcastServer(host, port) as server:
-        print(f"synthesize: BVH stream on {server.address[0]}:{server.address[1]}, waiting up to {wait_s:g} s for a "
-              "client", file=sys.stderr)
-        if not server.wait_for_clients(1, wait_s):
-            print("synthesize: no BVH stream client connected; nothing streamed", file=sys.stderr)
-            return 0
-        server.stream(bvh_frame_values(motion), motion.fps)
-        return server.frames_sent
+    try:
+        server = BvhBroadcastServer(host, port)
+    except OSError as exc:
+        raise CourtsideError(f"--stream-bvh {address}: cannot listen ({exc.strerror or exc})") from None
+    print(f"{who}: BVH stream (Axis Neuron convention) on {server.address[0]}:{server.address[1]}", file=sys.stderr)
+    if wait_s > 0 and not server.wait_for_clients(1, wait_s):
+        print(f"{who}: no BVH client within {wait_s:g} s; streaming to whoever connects", file=sys.stderr)
+    return server
