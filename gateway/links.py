@@ -79,14 +79,14 @@ _HID_IDS = re.compile(r"^([0-9a-fA-F]{4}):([0-9a-fA-F]{4})(?::(.+))?$")
 class HidLink:
     """A base station on USB HID: ``hid:<hidapi path>`` or ``hid:VVVV:PPPP[:serial]`` (hex VID:PID).
 
-    The 64-byte report framing lives in firmware_protocol (`HidapiTransport`); this class adapts it to `Link`.
+    The 64-byte report framing is defined once in `firmware_protocol.hid` (`HidapiTransport`); this class adapts it to `Link`.
     ``hid_module`` is anything with the hidapi module API (``device()``, ``enumerate()``): the real ``hid``
     (hidapi) by default, `firmware_protocol.emulator.hid_transport.FakeHidBus` in tests."""
 
     transport = "hid"
 
     def __init__(self, source: str, hid_module: Any = None):
-        from firmware_protocol.emulator.hid_transport import HidapiTransport
+        from firmware_protocol.hid import HidapiTransport
 
         self.source = source
         if not source.startswith("hid:"):
