@@ -33,6 +33,7 @@ from gateway.recorder import Recorder, export_csv, export_npz
 from gateway.names import BadNameError, check_name
 from gateway.server import RequestError, StreamServer
 from gateway.station import SampleBlock, StationReader
+from gateway.vendors import make_reader
 
 if TYPE_CHECKING:
     import ssl
@@ -154,7 +155,7 @@ class Gateway:
 
     def add_station(self, source: str, open_link: Callable[[str], Link] | None = None) -> StationReader:
         """Read another link (path or URL); starts at once if the gateway is running."""
-        reader = StationReader(source, self, open_link=open_link or self._open_link, **self._reader_options)
+        reader = make_reader(source, self, open_link=open_link or self._open_link, **self._reader_options)
         with self._readers_lock:
             self.readers.append(reader)
         if self._status_thread.is_alive():

@@ -121,7 +121,7 @@ def write_ximu3_logger(root: Path, truth: Truth, serials: list[str], device_name
         qrows = ["Timestamp (us),W,X,Y,Z"] + [f"{ts[i]},{q[i, k, 0]:.6f},{q[i, k, 1]:.6f},{q[i, k, 2]:.6f},"
                                               f"{q[i, k, 3]:.6f}" for i in range(0, n, 2)]
         (folder / "Quaternion.csv").write_text("\n".join(qrows) + "\n")
-        ping = {"ping": {"interface": "USB", "deviceName": device, "serialNumber": serial}}
+        ping = {"ping": {"interface": "USB", "name": device, "sn": serial}}  # x-IMU3-API ping_response.rs
         (folder / "Command.json").write_text("[\n    " + json.dumps(ping) + "\n]")
     return root
 
