@@ -6,6 +6,7 @@ offline re-fit, and delivers the same `SampleBlock`s as the project's own statio
 is a device reset: a new clock epoch."""
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections import deque
@@ -18,6 +19,7 @@ from gateway.links import LinkError
 from gateway.station import SampleBlock
 from gateway.stats import SensorStats
 
+log = logging.getLogger(__name__)
 STALE_AFTER_S = 0.5
 RATE_LEARN_SAMPLES = 20
 
@@ -47,6 +49,9 @@ class CallbackStationReader:
         self._last: int | None = None
         self._last_arrival: float | None = None
         self._connected = False
+        self.reconnects = 0
+        self.internal_errors = 0
+        self._ever_connected = False
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -92,14 +97,15 @@ class CallbackStationReader:
                     self._stop.wait(self.reconnect_interval_s)
                     continue
                 self._connected, self.link_error = True, None
+                self.reconnects += self._ever_connected
+                self._ever_connected = True
                 self.sink.on_station_event(self.name, "info", f"{self.device} {self.identity} open on {self.source}")
             self._stop.wait(self.batch_s)
             try:
                 self._flush()
             except Exception:  # a bug downstream must not stop acquisition
-                import logging
-
-                logging.getLogger(__name__).exception("%s: processing failed", self.name)
+                self.internal_errors += 1
+                log.exception("%s: processing failed", self.name)
             fresh = self._last_arrival is not None and time.monotonic() - self._last_arrival < STALE_AFTER_S
             self.link_state = "streaming" if fresh else "stale"
 
@@ -161,7 +167,8 @@ class CallbackStationReader:
         clock["epoch"] = self.epoch
         return {"station": self.name, "source": self.source, "transport": self.transport, "link": self.link_state,
                 "device": self.device, "device_clock": self.has_device_clock, "station_serial": self.identity,
-                "tick_hz": self.tick_hz, "link_error": self.link_error, "clock": clock,
+                "tick_hz": self.tick_hz, "link_error": self.link_error, "reconnects": self.reconnects,
+                "internal_errors": self.internal_errors, "clock": clock,
                 "sensors": [self.stats.as_dict()], **self._extra_status()}
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from gateway.client import GatewayClient
-from gateway.daemon import Gateway
+from gateway.daemon import Gateway, format_status_lines
 from gateway.recorder import load_take, realign_take
 
 
@@ -52,6 +52,8 @@ def test_vendor_station_streams_records_and_aligns(tmp_path, make):
         with GatewayClient(*gw.address).connect() as client:  # what a console sees
             listed = client.list_stations()
         status = gw.list_stations()[0]
+        line = format_status_lines(gw.status())[0]  # what `courtside gateway` prints every second
+    assert line.split()[0] == station and "samples/s" in line
     assert listed[0]["station"] == station and listed[0]["device_clock"] is True
     sensor = status["sensors"][0]
     assert sensor["nominal_hz"] == pytest.approx(rate_hz, rel=1e-3)
