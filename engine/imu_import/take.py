@@ -60,8 +60,11 @@ class ImportedTake:
             arrays["gyro_rps"] = self.gyro_rps
         if self.quat_wxyz is not None:
             arrays["quat_wxyz"] = self.quat_wxyz
-        with open(path, "wb") as fh:  # np.savez would append ".npz" to any other suffix
-            np.savez_compressed(fh, **arrays)
+        try:
+            with open(path, "wb") as fh:  # np.savez would append ".npz" to any other suffix
+                np.savez_compressed(fh, **arrays)
+        except OSError as exc:
+            raise CourtsideError(f"{path}: cannot write the take ({exc.strerror or exc})") from None
         return path
 
 

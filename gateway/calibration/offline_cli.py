@@ -69,7 +69,10 @@ def main(argv: list[str] | None = None) -> int:
                                      window, args.subject, path.stem, second_pose=second_pose)
     except ValueError as exc:
         raise CourtsideError(f"{path}: {exc}") from None
-    record.save(args.output)
+    try:
+        record.save(args.output)
+    except OSError as exc:
+        raise CourtsideError(f"{args.output}: cannot write the record ({exc.strerror or exc})") from None
     for sid, s in record.sensors.items():
         for reason in s.reasons:
             print(f"calibrate: warning: {sid} ({s.segment}): {reason}", file=sys.stderr)

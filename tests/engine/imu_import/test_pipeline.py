@@ -82,3 +82,15 @@ def test_import_refuses_stated_g_on_metres_per_second_squared(setup):
                            "-o", str(tmp / "never.npz")], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "the data is in m/s2" in proc.stderr and "Traceback" not in proc.stderr
     assert not (tmp / "never.npz").exists()
+
+
+def test_commands_report_bad_paths_in_one_line(setup, tmp_path):
+    tmp, _, truth, _ = setup
+    args = _write("csv", tmp_path, truth)
+    for command in (["import-imu", *args, "--format", "csv", "-o", str(tmp_path / "missing" / "t.npz")],
+                    ["calibrate", str(tmp_path / "missing.npz"), "-o", str(tmp_path / "r.json")],
+                    ["import-imu", str(tmp_path / "take.csv"), "--format", "ximu3", "-o", str(tmp_path / "t.npz")]):
+        proc = subprocess.run([sys.executable, "-m", "gateway.cli", *command], capture_output=True, text=True,
+                              timeout=120)
+        assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+        assert len(proc.stderr.strip().splitlines()) == 1 and "courtside" in proc.stderr
