@@ -12,14 +12,14 @@ stillest moment had a forearm std of ~0.12 g. This calibrates from what a take d
    These windows are taken to be the subject standing relaxed, i.e. the reference N-pose of
    ``gateway.calibration.pose`` (arms hanging, legs straight): that gives each segment's expected up.
 2. **Heading about gravity.** One gravity direction leaves the rotation about it free (the wizard resolves it by
-   assuming the nominal mounting). Here it comes from *walking*: over the moving windows, the acceleration
-   component perpendicular to the sensor's gravity direction has a principal axis, which for trunk, shins and
-   shins is the body's forward axis in the N-pose (``G_jᵀ ẑ``). Not for forearms and wrists: on CMU walks the
-   swinging forearm twists (elbow flexion, pronation) and its principal axis was 14-47° off forward, so arms keep
-   the nominal heading unless a second pose is given. The axis has no sign; the sign
-   nearer the nominal mounting is taken. Or from a **second still pose** with a different segment inclination
-   (>= ``second_pose_min_deg``, e.g. a T-pose for the arms), which fixes all three angles with sign: both gravity directions go into
-   one Wahba/Kabsch fit and the walking axis is not needed for that segment.
+   assuming the nominal mounting). For the pelvis and the shanks it comes from *walking*: over the moving
+   windows, the acceleration perpendicular to the sensor's gravity direction, filtered around the cadence, has a
+   principal axis along the segment's forward axis in the N-pose (``G_jᵀ ẑ``). The axis has no sign; the sign
+   nearer the nominal mounting is taken; an ambiguous axis (share below ``min_heading_share``) is not used. Not
+   for forearms (they twist with the arm swing) nor the chest (it counter-rotates): their walking axes were
+   14-47° and up to 41° off forward, often with a clear share, so they keep the nominal heading (and say so)
+   unless a **second still pose** with a different segment inclination (>= ``second_pose_min_deg``, e.g. a
+   T-pose for the arms) fixes all three angles with sign: both gravity directions go into one Wahba/Kabsch fit.
 3. **Per-sensor quality** ``min(stillness, consistency, heading)`` in 0..1: stillness ``1 - std/max_std_g`` of the
    windows used, consistency = weight fraction inside the dominant cluster, heading = the walking axis' share
    of horizontal variance (``(λ1 - λ2)/(λ1 + λ2)``, 1 with a second pose). A sensor whose measured up is more than
@@ -42,6 +42,10 @@ from gateway.calibration.alignment import (UP, norm_error_g, rotation_angle_deg,
 from gateway.calibration.record import CalibrationRecord, SensorCalibration
 
 FORWARD = np.array([0.0, 0.0, 1.0])
+# segments whose principal walking axis is their forward axis, as measured (bench/bench_calibrate.py): the
+# pelvis and the shank (shin and ankle sensors ride it). Forearms twist with the arm swing and the chest
+# counter-rotates: their axes were 14-47° (forearms) and up to 41° (chest) off, often with a clear share.
+WALKING_HEADING_SEGMENTS = ("lower_back", "left_shin", "right_shin", "left_ankle", "right_ankle")
 
 
 @dataclass(frozen=True)
@@ -76,13 +80,15 @@ class SegmentPose:
     up_second: np.ndarray | None = None
 
 
-def standard_segment_poses(names: list[str], second_pose: str | None = None) -> dict[str, SegmentPose]:
-    """Segment poses of the engine's standard placements on the shipped CMU skeleton (the set-up of
-    ``CalibrationService.standard`` and of ``courtside build-graph --sample``), reference pose = N-pose."""
+def standard_segment_poses(names: list[str], second_pose: str | None = None, skeleton: Any = None
+                           ) -> dict[str, SegmentPose]:
+    """Segment poses of the engine's standard placements, reference pose = N-pose, on ``skeleton`` (an upright
+    T-pose zero pose, e.g. after ``engine.mocap.rebase_to_tpose``); default: the shipped CMU skeleton (the
+    set-up of ``CalibrationService.standard`` and of ``courtside build-graph --sample``)."""
     from engine.mocap import load_clip, sample_clips, standard_placements
     from gateway.calibration.pose import pose_rotations
 
-    skeleton = load_clip(sample_clips()["16_01"]).skeleton
+    skeleton = skeleton if skeleton is not None else load_clip(sample_clips()["16_01"]).skeleton
     placements = standard_placements(skeleton, names)
     npose = pose_rotations(skeleton, "npose")
     second = pose_rotations(skeleton, second_pose) if second_pose else None
@@ -199,9 +205,9 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
                 sensor_dirs.append(g2 / np.linalg.norm(g2))
                 segment_dirs.append(pose.up_second)
                 heading_term = 1.0
-        arm = seg.endswith(("forearm", "wrist"))  # the swinging forearm twists: its walking axis is not forward
+        walks = seg in WALKING_HEADING_SEGMENTS
         axis, share = None, 0.0
-        if not (heading_term or arm or step_hz is None):
+        if not (heading_term or not walks or step_hz is None):
             band = config.pelvis_band if seg == "lower_back" else config.segment_band
             axis, share = _walking_axis(acc[:, k], moving, up_s, tuple(None if b is None else b * step_hz
                                                                        for b in band), fps)
@@ -215,9 +221,10 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
             heading_term = share
         else:
             rotation = tilt_only
-            why = ("an arm needs a second pose, e.g. --second-pose tpose@START:END" if arm else
-                   f"the walking axis is ambiguous, share {share:.2f} < {config.min_heading_share:g}"
-                   if axis is not None else "no walking, no second pose")
+            why = (f"the walking axis is ambiguous, share {share:.2f} < {config.min_heading_share:g}"
+                   if axis is not None else "no walking, no second pose" if walks else
+                   "an arm needs a second pose, e.g. --second-pose tpose@START:END" if seg.endswith(("forearm", "wrist"))
+                   else "walking does not show this segment's forward axis reliably; give a second pose")
             reasons.append(f"heading about gravity not observed ({why}): nominal mounting assumed for it")
         correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
         flipped = tilt_deg(gravity, pose.nominal_rotation, pose.up)

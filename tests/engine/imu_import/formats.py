@@ -191,17 +191,18 @@ def write_mt_exports(folder: Path, truth: Truth, device_ids: list[str], packet_s
     return paths
 
 
-def standing_then_walking(stand_s: float = 3.0, walks: tuple[str, ...] = ("16_11", "16_16", "16_21"),
+def standing_then_walking(stand_s: float = 3.0, walks: tuple[str | Motion, ...] = ("16_11", "16_16", "16_21"),
                           tpose_s: float = 0.0, fps: float = 100.0, seed: int = 3) -> Motion:
-    """A take as a real one starts: the subject stands relaxed (the reference N-pose with a slow ~1° sway) and
-    then walks (shipped CMU walks joined end to start with continuous ground position and heading), optionally
+    """A take as a real one starts: the subject stands relaxed (the reference N-pose with a slow ~1° sway), moves
+    within 1 s into the first walking pose and walks (shipped CMU walks, or given Motions of one upright T-pose skeleton, joined end to start with
+    continuous ground position and heading), optionally
     moving within 1 s into a held T-pose (the CMU zero pose, facing the last walking heading) for ``tpose_s``;
     smoothed like :func:`clip`."""
     from engine.mocap import root_heading
     from gateway.calibration.pose import reference_npose
 
     rng = np.random.default_rng(seed)
-    parts = [resample(load_clip(sample_clips()[c]), fps) for c in walks]
+    parts = [resample(c if isinstance(c, Motion) else load_clip(sample_clips()[c]), fps) for c in walks]
     skeleton = parts[0].skeleton
     rots, roots = [], []
     for part in parts:
@@ -219,6 +220,11 @@ def standing_then_walking(stand_s: float = 3.0, walks: tuple[str, ...] = ("16_11
                             * rng.normal(size=(1, skeleton.n_joints, 3)))
     stand = quat.multiply(quat.from_matrix(reference_npose(skeleton)[0])[None], sway)
     stand[:, 0] = quat.multiply(_yaw(float(root_heading(parts[0])[0]))[None], stand[:, 0])
+    n_start = int(fps)  # 1 s from the standing pose into the first walking frame (no teleport)
+    start = quat.slerp(np.repeat(stand[-1:], n_start, 0), np.repeat(rots[0][:1], n_start, 0),
+                       np.linspace(0.0, 1.0, n_start)[:, None])
+    stand = np.concatenate([stand, start])
+    n_stand += n_start
     n_turn = int(fps) if n_t else 0  # 1 s from the last walking frame into the T-pose (root heading kept)
     target = quat.identity((skeleton.n_joints,))
     target[0] = _yaw(float(root_heading(Motion(skeleton, fps, roots[-1][-2:], rots[-1][-2:]))[-1]))  # upright

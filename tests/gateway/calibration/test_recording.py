@@ -39,14 +39,13 @@ def test_standing_then_walking_recovers_mountings(walking):
     nominal = {p.name: p.rotation for p in standard_placements(standing_then_walking().skeleton, NAMES)}
     off = {p.name: rotation_angle_deg(p.rotation @ nominal[p.name].T) for p in truth}
     assert min(off.values()) > 19.0  # every sensor really is strapped 20-30° off, heading included
-    # gravity + the walking axis (band-passed at the cadence): measured 0.3-3.1° on shins and pelvis over six CMU
-    # takes (bench/bench_calibrate.py), the chest 5-6° when its axis is clear enough to be used
+    # gravity + the walking axis (filtered around the cadence) on pelvis and shins: measured 1.8-3.4° over six CMU
+    # takes (bench/bench_calibrate.py); forearms and chest keep the nominal heading and say so
     for name in ("lower_back", "left_shin", "right_shin"):
         assert err[name] < 4.0, err
         assert not record.sensors[name].reasons
-    assert err["chest"] < 8.0, err
-    for name in ("left_forearm", "right_forearm"):
-        assert any("an arm needs a second pose" in r for r in record.sensors[name].reasons)
+    assert any("an arm needs a second pose" in r for r in record.sensors["left_forearm"].reasons)
+    assert any("give a second pose" in r for r in record.sensors["chest"].reasons)
     assert all(s.passed and 0.1 < s.quality <= 1.0 for s in record.sensors.values())
     assert record.sensors["left_shin"].quality > 0.8
 
@@ -57,7 +56,8 @@ def test_second_pose_fixes_the_arms(tmp_path):
     record = calibrate_recording(acc, FPS, NAMES, NAMES, standard_segment_poses(NAMES, "tpose"),
                                  second_window_s=(end - 1.8, end - 0.1), second_pose="tpose")
     err = _errors(record, truth)
-    assert max(err.values()) < 8.0 and err["left_forearm"] < 3.0 and err["right_forearm"] < 3.0, err
+    assert err["left_forearm"] < 3.0 and err["right_forearm"] < 3.0, err
+    assert max(err[n] for n in ("lower_back", "left_shin", "right_shin")) < 6.0, err
 
 
 def test_without_heading_information_the_nominal_yaw_is_kept_and_said():
