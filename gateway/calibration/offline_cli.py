@@ -11,7 +11,8 @@ import numpy as np
 
 from engine.errors import CourtsideError, MalformedFileError
 from engine.mocap import STANDARD_SENSORS
-from gateway.calibration.recording import RecordingCalibrationConfig, calibrate_recording, standard_segment_poses
+from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, calibrate_recording,
+                                           standard_segment_poses)
 
 
 def _read_take(path: Path) -> tuple[np.ndarray, float, list[str], list[str]]:
@@ -37,36 +38,39 @@ def _read_take(path: Path) -> tuple[np.ndarray, float, list[str], list[str]]:
     return acc, fps, names, labels
 
 
-def _window(text: str | None) -> tuple[str | None, tuple[float, float] | None]:
-    if not text:
-        return None, None
-    try:
-        pose, span = text.split("@", 1)
-        start, end = (float(x) for x in span.split(":", 1))
-    except ValueError:
-        raise CourtsideError(f"--second-pose {text!r}: expected POSE@START:END (seconds), e.g. tpose@12:14") from None
-    if pose not in ("tpose", "npose"):
-        raise CourtsideError(f"--second-pose: unknown pose {pose!r}; known: tpose")
-    return pose, (start, end)
+def _windows(texts: list[str] | None) -> dict[str, tuple[float, float]]:
+    out: dict[str, tuple[float, float]] = {}
+    for text in texts or []:
+        try:
+            pose, span = text.split("@", 1)
+            start, end = (float(x) for x in span.split(":", 1))
+        except ValueError:
+            raise CourtsideError(f"--second-pose {text!r}: expected POSE@START:END (seconds), e.g. tpose@12:14") \
+                from None
+        if pose not in SECOND_POSES:
+            raise CourtsideError(f"--second-pose: unknown pose {pose!r}; known: {', '.join(SECOND_POSES)}")
+        out[pose] = (start, end)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="courtside calibrate", description=__doc__)
     p.add_argument("take", help="take .npz from `courtside import-imu`")
     p.add_argument("-o", "--output", required=True, help="record .calibration.json (raw still samples go beside it)")
-    p.add_argument("--second-pose", metavar="POSE@START:END",
-                   help="a second still pose held in the take, e.g. tpose@12:14 (fixes the heading with sign)")
+    p.add_argument("--second-pose", metavar="POSE@START:END", action="append",
+                   help="a second still pose held in the take (fixes the heading with sign): tpose@12:14 for the "
+                        "arms, bow@20:22 (a forward bow from the hips) for pelvis and chest; repeatable")
     p.add_argument("--max-std", type=float, default=RecordingCalibrationConfig.max_std_g,
                    help="windows stiller than this (g) count as quasi-static")
     p.add_argument("--subject", default="")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
     acc, fps, names, labels = _read_take(path)
-    second_pose, window = _window(args.second_pose)
+    windows = _windows(args.second_pose)
     config = RecordingCalibrationConfig(max_std_g=args.max_std)
     try:
-        record = calibrate_recording(acc, fps, labels, names, standard_segment_poses(names, second_pose), config,
-                                     window, args.subject, path.stem, second_pose=second_pose)
+        record = calibrate_recording(acc, fps, labels, names, standard_segment_poses(names, tuple(windows)), config,
+                                     windows, args.subject, path.stem)
     except ValueError as exc:
         raise CourtsideError(f"{path}: {exc}") from None
     try:

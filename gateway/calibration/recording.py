@@ -18,8 +18,9 @@ stillest moment had a forearm std of ~0.12 g. This calibrates from what a take d
    nearer the nominal mounting is taken; an ambiguous axis (share below ``min_heading_share``) is not used. Not
    for forearms (they twist with the arm swing) nor the chest (it counter-rotates): their walking axes were
    14-47° and up to 41° off forward, often with a clear share, so they keep the nominal heading (and say so)
-   unless a **second still pose** with a different segment inclination (>= ``second_pose_min_deg``, e.g. a
-   T-pose for the arms) fixes all three angles with sign: both gravity directions go into one Wahba/Kabsch fit.
+   unless a **second still pose** inclines the segment (>= ``second_pose_min_deg``; ``SECOND_POSES``: a T-pose
+   for the arms, a forward bow for pelvis and chest) and fixes all three angles with sign: all gravity
+   directions go into one Wahba/Kabsch fit.
 3. **Per-sensor quality** ``min(stillness, consistency, heading)`` in 0..1: stillness ``1 - std/max_std_g`` of the
    windows used, consistency = weight fraction inside the dominant cluster, heading = the walking axis' share
    of horizontal variance (``(λ1 - λ2)/(λ1 + λ2)``, 1 with a second pose). A sensor whose measured up is more than
@@ -31,7 +32,7 @@ The result is the wizard's :class:`CalibrationRecord` (same schema, same rotatio
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from typing import Any
 
@@ -66,34 +67,44 @@ class RecordingCalibrationConfig:
     flipped_deg: float = 90.0
     max_correction_deg: float = 60.0
     min_still_windows: int = 2
-    second_pose_min_deg: float = 45.0  # a 20° change (legs in a T-pose) fixes the heading worse than walking
+    pose_margin_s: float = 1.5  # moving windows this close to a held second pose are not walking
+    second_pose_min_deg: float = 45.0  # a smaller inclination change fixes the heading worse than walking
+
+
+# second still poses `courtside calibrate` knows, and the segments each one is meant to incline
+SECOND_POSES = {"tpose": ("left_forearm", "right_forearm", "left_wrist", "right_wrist"),
+                "bow": ("lower_back", "chest")}
 
 
 @dataclass(frozen=True)
 class SegmentPose:
     """Where a sensor goes and what its segment does in the poses: nominal rotation (sensor -> segment), up and
-    forward (segment frame) in the reference standing pose, up in the optional second pose."""
+    forward (segment frame) in the reference standing pose, up in each second pose it takes part in."""
 
     nominal_rotation: np.ndarray
     up: np.ndarray
     forward: np.ndarray
-    up_second: np.ndarray | None = None
+    up_in: dict[str, np.ndarray] = field(default_factory=dict)
 
 
-def standard_segment_poses(names: list[str], second_pose: str | None = None, skeleton: Any = None
+def standard_segment_poses(names: list[str], second_poses: tuple[str, ...] = (), skeleton: Any = None
                            ) -> dict[str, SegmentPose]:
     """Segment poses of the engine's standard placements, reference pose = N-pose, on ``skeleton`` (an upright
     T-pose zero pose, e.g. after ``engine.mocap.rebase_to_tpose``); default: the shipped CMU skeleton (the
     set-up of ``CalibrationService.standard`` and of ``courtside build-graph --sample``)."""
     from engine.mocap import load_clip, sample_clips, standard_placements
-    from gateway.calibration.pose import pose_rotations
+    from gateway.calibration.pose import pose_rotations, reference_bow
 
+    unknown = [p for p in second_poses if p not in SECOND_POSES]
+    if unknown:
+        raise ValueError(f"unknown second pose(s) {unknown}; known: {', '.join(SECOND_POSES)}")
     skeleton = skeleton if skeleton is not None else load_clip(sample_clips()["16_01"]).skeleton
     placements = standard_placements(skeleton, names)
     npose = pose_rotations(skeleton, "npose")
-    second = pose_rotations(skeleton, second_pose) if second_pose else None
+    others = {p: reference_bow(skeleton) if p == "bow" else pose_rotations(skeleton, p) for p in second_poses}
     return {p.name: SegmentPose(p.rotation, npose[p.joint].T @ UP, npose[p.joint].T @ FORWARD,
-                                None if second is None else second[p.joint].T @ UP) for p in placements}
+                                {pose: rots[p.joint].T @ UP for pose, rots in others.items()
+                                 if p.name in SECOND_POSES[pose]}) for p in placements}
 
 
 def _windows(acc: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -156,19 +167,26 @@ def _walking_axis(acc: np.ndarray, moving: np.ndarray, up_s: np.ndarray, band: t
 
 def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], segments: list[str],
                         poses: dict[str, SegmentPose], config: RecordingCalibrationConfig = RecordingCalibrationConfig(),
-                        second_window_s: tuple[float, float] | None = None, subject: str = "", take: str = "",
-                        pose_name: str = "npose", second_pose: str | None = None) -> CalibrationRecord:
+                        second_windows: dict[str, tuple[float, float]] | None = None, subject: str = "",
+                        take: str = "", pose_name: str = "npose") -> CalibrationRecord:
     """Calibrate every sensor of a take ``acc_g`` (T, S, 3) g at ``fps``; ``segments[k]`` is sensor k's standard
-    placement name, ``poses`` its :class:`SegmentPose`. ``second_window_s``: (start, end) s of a held second pose."""
+    placement name, ``poses`` its :class:`SegmentPose`. ``second_windows``: second pose name -> (start, end) s
+    where the subject holds it (see ``SECOND_POSES``)."""
     acc = np.asarray(acc_g, float)
     n = max(2, int(round(config.window_s * fps)))
     t = np.arange(len(acc)) / fps
-    second_mask = np.zeros(len(acc), bool)
-    if second_window_s is not None:
-        second_mask = (t >= second_window_s[0]) & (t <= second_window_s[1])
-        if second_mask.sum() < 2:
-            raise ValueError(f"second-pose window {second_window_s} s holds no samples of the take "
+    second_windows = dict(second_windows or {})
+    masks = {}
+    for pose_name_2, (start, end) in second_windows.items():
+        masks[pose_name_2] = (t >= start) & (t <= end)
+        if masks[pose_name_2].sum() < 2:
+            raise ValueError(f"{pose_name_2} window {start:g}-{end:g} s holds no samples of the take "
                              f"(0-{t[-1]:.1f} s)")
+    second_mask = np.any(list(masks.values()), axis=0) if masks else np.zeros(len(acc), bool)
+    # getting into and out of a held pose is movement but not walking: keep it out of the walking axis
+    near_second = np.zeros(len(acc), bool)
+    for start, end in second_windows.values():
+        near_second |= (t >= start - config.pose_margin_s) & (t <= end + config.pose_margin_s)
     means, stds = _windows(acc, n)
     worst = stds.max(axis=1)
     in_second = second_mask[: len(worst) * n].reshape(len(worst), n).any(axis=1)
@@ -181,6 +199,7 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
     weights = 1.0 / (worst[ok] ** 2 + config.std_floor_g**2)
     moving = np.zeros(len(acc), bool)
     moving[: len(worst) * n] = np.repeat(~in_second & (worst > config.moving_std_g), n)
+    moving &= ~near_second
     results: dict[str, SensorCalibration] = {}
     raw: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     still = []
@@ -199,11 +218,12 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
         tilt_only = sensor_to_segment_rotation(gravity, pose.nominal_rotation, pose.up)
         sensor_dirs, segment_dirs, reasons = [up_s], [pose.up], []
         heading_term = 0.0
-        if second_window_s is not None and pose.up_second is not None:
-            g2 = acc[second_mask, k].mean(axis=0)
-            if np.degrees(np.arccos(np.clip(pose.up @ pose.up_second, -1, 1))) >= config.second_pose_min_deg:
+        for other, up_other in pose.up_in.items():
+            if other in masks and np.degrees(np.arccos(np.clip(pose.up @ up_other, -1, 1))) >= \
+                    config.second_pose_min_deg:
+                g2 = acc[masks[other], k].mean(axis=0)
                 sensor_dirs.append(g2 / np.linalg.norm(g2))
-                segment_dirs.append(pose.up_second)
+                segment_dirs.append(up_other)
                 heading_term = 1.0
         walks = seg in WALKING_HEADING_SEGMENTS
         axis, share = None, 0.0
@@ -224,7 +244,7 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
             why = (f"the walking axis is ambiguous, share {share:.2f} < {config.min_heading_share:g}"
                    if axis is not None else "no walking, no second pose" if walks else
                    "an arm needs a second pose, e.g. --second-pose tpose@START:END" if seg.endswith(("forearm", "wrist"))
-                   else "walking does not show this segment's forward axis reliably; give a second pose")
+                   else "the trunk needs a second pose, e.g. --second-pose bow@START:END")
             reasons.append(f"heading about gravity not observed ({why}): nominal mounting assumed for it")
         correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
         flipped = tilt_deg(gravity, pose.nominal_rotation, pose.up)
@@ -243,8 +263,8 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
         raw[sid] = (t[idx], acc[idx, k])
     score = 100.0 * float(np.mean([r.quality for r in results.values()]))
     grade = "good" if score >= 70 else "fair" if score >= 40 else "poor"
-    cfg = {"method": "recording", "pose": pose_name, "second_pose": second_pose,
-           "second_window_s": list(second_window_s) if second_window_s else None, "fps": fps, **asdict(config)}
+    cfg = {"method": "recording", "pose": pose_name,
+           "second_windows_s": {k: list(v) for k, v in second_windows.items()}, "fps": fps, **asdict(config)}
     return CalibrationRecord(results, round(score, 1), grade, all(r.passed for r in results.values()), None, subject,
                              take, datetime.now(timezone.utc).isoformat(), cfg, {"still": raw})
 

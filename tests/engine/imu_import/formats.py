@@ -75,6 +75,14 @@ def clip(name: str = "16_11", fps: float = 100.0) -> Motion:
     return smoothed(resample(load_clip(sample_clips()[name]), fps))
 
 
+def _local_from_global(skeleton, glob: np.ndarray) -> np.ndarray:
+    """Local joint rotation matrices (J, 3, 3) from global ones."""
+    local = glob.copy()
+    for j in range(1, skeleton.n_joints):
+        local[j] = glob[skeleton.parents[j]].T @ glob[j]
+    return local
+
+
 def _yaw(angle_rad: float) -> np.ndarray:
     return quat.from_rotvec(np.array([0.0, angle_rad, 0.0]))
 
@@ -192,12 +200,13 @@ def write_mt_exports(folder: Path, truth: Truth, device_ids: list[str], packet_s
 
 
 def standing_then_walking(stand_s: float = 3.0, walks: tuple[str | Motion, ...] = ("16_11", "16_16", "16_21"),
-                          tpose_s: float = 0.0, fps: float = 100.0, seed: int = 3) -> Motion:
+                          tpose_s: float = 0.0, fps: float = 100.0, seed: int = 3, bow_s: float = 0.0) -> Motion:
     """A take as a real one starts: the subject stands relaxed (the reference N-pose with a slow ~1° sway), moves
     within 1 s into the first walking pose and walks (shipped CMU walks, or given Motions of one upright T-pose skeleton, joined end to start with
     continuous ground position and heading), optionally
-    moving within 1 s into a held T-pose (the CMU zero pose, facing the last walking heading) for ``tpose_s``;
-    smoothed like :func:`clip`."""
+    moving within 1 s into a held T-pose (the CMU zero pose, facing the last walking heading) for ``tpose_s``
+    and then into a forward bow (``gateway.calibration.pose.reference_bow``) for ``bow_s``; smoothed like
+    :func:`clip`."""
     from engine.mocap import root_heading
     from gateway.calibration.pose import reference_npose
 
@@ -225,14 +234,28 @@ def standing_then_walking(stand_s: float = 3.0, walks: tuple[str | Motion, ...] 
                        np.linspace(0.0, 1.0, n_start)[:, None])
     stand = np.concatenate([stand, start])
     n_stand += n_start
-    n_turn = int(fps) if n_t else 0  # 1 s from the last walking frame into the T-pose (root heading kept)
-    target = quat.identity((skeleton.n_joints,))
-    target[0] = _yaw(float(root_heading(Motion(skeleton, fps, roots[-1][-2:], rots[-1][-2:]))[-1]))  # upright
-    blend = np.linspace(0.0, 1.0, n_turn)[:, None]
-    turn = quat.slerp(np.repeat(rots[-1][-1:], n_turn, 0), np.repeat(target[None], n_turn, 0), blend)
-    hold = np.repeat(target[None], n_t, 0)
-    rot = np.concatenate([stand] + rots + [turn, hold])
-    root = np.concatenate([np.tile(roots[0][:1], (n_stand, 1))] + roots + [np.tile(roots[-1][-1:], (n_turn + n_t, 1))])
+    heading = _yaw(float(root_heading(Motion(skeleton, fps, roots[-1][-2:], rots[-1][-2:]))[-1]))
+    tails = []  # held end poses, each reached within 1 s from the previous frame
+    if n_t:
+        tpose = quat.identity((skeleton.n_joints,))
+        tpose[0] = heading  # upright, facing the last walking heading
+        tails.append((tpose, n_t))
+    if bow_s:
+        from gateway.calibration.pose import reference_bow
+
+        bow = quat.from_matrix(_local_from_global(skeleton, reference_bow(skeleton)))
+        bow[0] = quat.multiply(heading, bow[0])
+        tails.append((bow, int(bow_s * fps)))
+    rot_parts, previous = [stand] + rots, rots[-1][-1]
+    n_tail = 0
+    for target, n_hold in tails:
+        n_turn = int(fps)
+        turn = quat.slerp(np.repeat(previous[None], n_turn, 0), np.repeat(target[None], n_turn, 0),
+                          np.linspace(0.0, 1.0, n_turn)[:, None])
+        rot_parts += [turn, np.repeat(target[None], n_hold, 0)]
+        previous, n_tail = target, n_tail + n_turn + n_hold
+    rot = np.concatenate(rot_parts)
+    root = np.concatenate([np.tile(roots[0][:1], (n_stand, 1))] + roots + [np.tile(roots[-1][-1:], (n_tail, 1))])
     return smoothed(Motion(skeleton, fps, root, rot, "stand-walk"))
 
 
