@@ -90,3 +90,24 @@ def test_a_port_with_another_device_is_reported(tmp_path, prefix, module, reason
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_courtside_gateway_records_both_families(tmp_path):
+    """The real `courtside gateway` process reads an x-IMU3 and a Shimmer3 (emulated in this process) into one
+    recording."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("ximu3")
+    pytest.importorskip("pyshimmer")
+    from gateway.vendors.shimmer_emulator import ShimmerEmulator
+    from gateway.vendors.ximu3_emulator import Ximu3Emulator
+
+    with Ximu3Emulator(serial="0000BEEF") as x, ShimmerEmulator(name="S1") as s:
+        proc = subprocess.run([sys.executable, "-m", "gateway.cli", "gateway", "--port", f"ximu3:{x.path}",
+                               "--port", f"shimmer:{s.path}", "--record-dir", str(tmp_path), "--record", "both",
+                               "--duration", "5", "--quiet"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    take = load_take(tmp_path / "both")
+    counts = {key[0]: len(cols["t_host_s"]) for key, cols in take.samples.items()}
+    assert set(counts) == {"ximu3-0000BEEF", "shimmer3-S1"} and min(counts.values()) > 200, counts
