@@ -133,6 +133,8 @@ def synthesize_main(argv: list[str]) -> int:
                    "Neuron convention, e.g. 7001; 127.0.0.1 unless a host is given): with --lag each pose as it is "
                    "decided, at the take's rate; without, the written frames")
     p.add_argument("--stream-wait", type=float, default=5.0, help="--stream-bvh: wait this long for a client (s)")
+    p.add_argument("--stream-vmc", metavar="[HOST:]PORT", help="also send the poses as VMC (OSC over UDP, e.g. 39539; "
+                   "127.0.0.1 unless a host is given) to Unity/Blender/VSeeFace VMC receivers")
     args = p.parse_args(argv)
     try:
         graph = MotionGraph.load(args.graph)
@@ -159,11 +161,16 @@ def synthesize_main(argv: list[str]) -> int:
     if constraints and args.lag is not None:
         print("error: --require needs the batch search (no --lag)", file=sys.stderr)
         return 2
-    stream = None
+    stream, outputs = None, []
     if args.stream_bvh:
         from engine.livestream.stream_cli import open_stream
 
         stream = open_stream(args.stream_bvh, args.stream_wait)
+        outputs.append(stream)
+    if args.stream_vmc:
+        from engine.livestream.stream_cli import open_vmc
+
+        outputs.append(open_vmc(args.stream_vmc, graph.skeleton))
     t0 = time.perf_counter()
     broken = 0
     if args.lag is None:
@@ -172,10 +179,10 @@ def synthesize_main(argv: list[str]) -> int:
         broken = res.broken_constraints
     else:
         syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)
-        if stream is not None:  # each pose goes out as the decoder commits to it, at the take's rate
+        if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
             from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
 
-            syn = StreamingSynthesizer(syn, PoseStreamer(graph, graph.skeleton, stream, realtime=True))
+            syn = StreamingSynthesizer(syn, PoseStreamer(graph, graph.skeleton, outputs, realtime=True))
         poses = []
         for t in range(obs.n_samples):
             poses += syn.push(None if obs.acc_g is None else obs.acc_g[t],
@@ -195,11 +202,11 @@ def synthesize_main(argv: list[str]) -> int:
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
-    if stream is not None:
-        if args.lag is None:  # the batch search decides the whole path at once: stream the written frames
-            from engine.mocap.bvh import bvh_frame_values
+    if outputs and args.lag is None:  # the batch search decides the whole path at once: stream the written frames
+        from engine.livestream.stream_cli import stream_motion
 
-            stream.stream(bvh_frame_values(motion), motion.fps)
+        stream_motion(outputs, motion)
+    if stream is not None:
         stream.close()
     print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
                       "broken_constraints": broken}))

@@ -13,6 +13,7 @@ from __future__ import annotations
 import socket
 import threading
 import time
+from typing import Any
 
 import numpy as np
 
@@ -82,6 +83,13 @@ class BvhBroadcastServer:
                     conn.close()
             self._clients = alive
         self.frames_sent += 1
+
+    def send_motion(self, motion: Any) -> None:
+        """Every frame of an `engine.mocap.Motion` (the live-output interface `PoseStreamer` uses)."""
+        from engine.mocap.bvh import bvh_frame_values
+
+        for row in bvh_frame_values(motion):
+            self.send_frame(row)
 
     def stream(self, frames: np.ndarray, fps: float | None = None) -> None:
         """Send frames (F, C) in order, paced at ``fps`` (None: as fast as the clients take them)."""

@@ -12,21 +12,26 @@ from typing import Any
 import numpy as np
 
 from engine.graph.postprocess import place_path
-from engine.livestream.bvh_server import BvhBroadcastServer
 from engine.mocap import Motion
-from engine.mocap.bvh import bvh_frame_values
 
 
 class PoseStreamer:
-    """Sends emitted poses (``EmittedPose``: node, ground_m, heading_rad) of ``graph`` as BVH frames of ``skeleton``
-    (the graph's, whose BVH the client loaded), optionally paced at the graph rate (a recorded take shown live)."""
+    """Sends emitted poses (``EmittedPose``: node, ground_m, heading_rad) of ``graph`` as frames of ``skeleton``
+    (the graph's) to every output (anything with ``send_motion(motion)``: `BvhBroadcastServer`,
+    `engine.livestream.vmc.VmcSender`), optionally paced at the graph rate (a recorded take shown live)."""
 
-    def __init__(self, graph: Any, skeleton: Any, server: BvhBroadcastServer, realtime: bool = False) -> None:
-        self.graph, self.skeleton, self.server = graph, skeleton, server
+    def __init__(self, graph: Any, skeleton: Any, outputs: Any, realtime: bool = False) -> None:
+        self.graph, self.skeleton = graph, skeleton
+        self.outputs = list(outputs) if isinstance(outputs, (list, tuple)) else [outputs]
         self.fps = float(graph.config.fps)
         self.realtime = realtime
         self._start: float | None = None
         self._sent = 0
+
+    @property
+    def server(self) -> Any:
+        """The first output (the BVH server when there is one)."""
+        return self.outputs[0]
 
     def send(self, poses: list) -> None:
         if not poses:
@@ -35,13 +40,16 @@ class PoseStreamer:
         ground = np.array([p.ground_m for p in poses])
         heading = np.array([p.heading_rad for p in poses])
         root, rots = place_path(self.graph, nodes, ground, heading)
-        for row in bvh_frame_values(Motion(self.skeleton, self.fps, root, rots)):
+        motion = Motion(self.skeleton, self.fps, root, rots)
+        for f in range(motion.n_frames):
             if self.realtime:
                 self._start = time.monotonic() if self._start is None else self._start
                 delay = self._start + self._sent / self.fps - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
-            self.server.send_frame(row)
+            frame = motion.slice(f, f + 1)
+            for output in self.outputs:
+                output.send_motion(frame)
             self._sent += 1
 
 

@@ -1,7 +1,10 @@
-"""`--stream-bvh [HOST:]PORT` of `courtside synthesize` (and the console): synthesised poses to animation tools."""
+"""`--stream-bvh` / `--stream-vmc [HOST:]PORT` of `courtside synthesize` (and the console's `--stream-bvh`):
+synthesised poses to animation tools."""
 from __future__ import annotations
 
 import sys
+import time
+from typing import Any
 
 from engine.errors import CourtsideError
 from engine.livestream.bvh_server import BvhBroadcastServer
@@ -27,3 +30,24 @@ def open_stream(address: str, wait_s: float, who: str = "synthesize") -> BvhBroa
     if wait_s > 0 and not server.wait_for_clients(1, wait_s):
         print(f"{who}: no BVH client within {wait_s:g} s; streaming to whoever connects", file=sys.stderr)
     return server
+
+
+def open_vmc(address: str, skeleton: Any, who: str = "synthesize") -> Any:
+    """A VMC sender (OSC over UDP) to ``address`` (127.0.0.1 unless a host is given)."""
+    from engine.livestream.vmc import VmcSender
+
+    host, port = parse_address(address)
+    print(f"{who}: VMC (OSC/UDP) to {host}:{port}", file=sys.stderr)
+    return VmcSender(skeleton, host, port)
+
+
+def stream_motion(outputs: list[Any], motion: Any) -> None:
+    """Every frame of ``motion`` to every output (``send_motion``), paced at the motion's rate."""
+    start = time.monotonic()
+    for f in range(motion.n_frames):
+        delay = start + f / motion.fps - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        frame = motion.slice(f, f + 1)
+        for output in outputs:
+            output.send_motion(frame)

@@ -158,3 +158,84 @@ def test_console_setup_streams_what_its_synthesizer_emits(tmp_path):
     assert all(line.startswith("0 Avatar00 ") and line.endswith(" ||") for line in lines)
     client.close()
     synth._streamer.server.close()
+
+
+def test_vmc_bundles_rebuild_the_skeleton_on_a_real_udp_receiver():
+    """VMC over OSC/UDP to a python-osc server on 127.0.0.1: composing the received bones (converted back from
+    Unity's left-handed frame) along the humanoid hierarchy gives exactly the clip's mapped joint positions."""
+    import threading as th
+
+    from pythonosc.dispatcher import Dispatcher
+    from pythonosc.osc_server import ThreadingOSCUDPServer
+
+    from engine.livestream.vmc import VmcSender
+    from engine.mocap import forward_kinematics, quaternions as quat
+
+    motion = load_clip(sample_clips()["16_05"]).slice(100, 103)
+    received: list[tuple] = []
+    dispatcher = Dispatcher()
+    dispatcher.map("/VMC/Ext/*", lambda address, *args: received.append((address, *args)))
+    server = ThreadingOSCUDPServer(("127.0.0.1", 0), dispatcher)
+    thread = th.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        sender = VmcSender(motion.skeleton, "127.0.0.1", server.server_address[1])
+        sender.send_motion(motion)
+        deadline = time.monotonic() + 5
+        while sum(1 for m in received if m[0] == "/VMC/Ext/OK") < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        server.shutdown()
+    frames, current = [], {}
+    for address, *args in received:
+        if address == "/VMC/Ext/Bone/Pos":
+            current[args[0]] = (np.array(args[1:4]) * [-1, 1, 1], np.array([args[7], args[4], -args[5], -args[6]]))
+        elif address == "/VMC/Ext/OK":
+            frames.append(current)
+            current = {}
+    assert len(frames) == 3 and len(frames[0]) == 21
+    pos, _ = forward_kinematics(motion)
+    vmap = sender.map
+    for f, bones in enumerate(frames):
+        world: dict[str, tuple] = {}
+        for bone in vmap.parent_of:  # parents come before children in the table
+            p, q = bones[bone]
+            parent = vmap.parent_of[bone]
+            if parent is None:
+                world[bone] = (p, quat.to_matrix(q))
+            else:
+                pp, pr = world[parent]
+                world[bone] = (pp + pr @ p, pr @ quat.to_matrix(q))
+            np.testing.assert_allclose(world[bone][0], pos[f, vmap.joint_of[bone]], atol=1e-4)
+    assert [m for m in received if m[0] == "/VMC/Ext/Root/Pos"][0][1] == "root"
+
+
+def test_synthesize_sends_vmc_frames(tmp_path):
+    """`courtside synthesize --lag 0.5 --stream-vmc PORT`: one VMC bundle per sample reaches a UDP receiver."""
+    import threading as th
+
+    from pythonosc.dispatcher import Dispatcher
+    from pythonosc.osc_server import ThreadingOSCUDPServer
+
+    from engine.graph.cli import build_graph_main, synthesize_main
+    from engine.mocap import SEED000_SENSORS, resample, standard_placements, virtual_accelerometers
+
+    assert build_graph_main(["--sample", "-o", str(tmp_path / "g.npz")]) == 0
+    motion = resample(load_clip(sample_clips()["16_11"]), 30.0).slice(0, 60)
+    acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS))
+    np.savez(tmp_path / "take.npz", acc_g=acc, fps=30.0)
+    oks: list[float] = []
+    dispatcher = Dispatcher()
+    dispatcher.map("/VMC/Ext/T", lambda address, t: oks.append(t))
+    server = ThreadingOSCUDPServer(("127.0.0.1", 0), dispatcher)
+    th.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        assert synthesize_main(["--graph", str(tmp_path / "g.npz"), "--input", str(tmp_path / "take.npz"),
+                                "-o", str(tmp_path / "o.bvh"), "--lag", "0.5",
+                                "--stream-vmc", f"127.0.0.1:{server.server_address[1]}"]) == 0
+        deadline = time.monotonic() + 5
+        while len(oks) < 60 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        server.shutdown()
+    assert len(oks) == 60 and oks == sorted(oks)
