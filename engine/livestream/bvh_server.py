@@ -91,16 +91,6 @@ class BvhBroadcastServer:
         for row in bvh_frame_values(motion):
             self.send_frame(row)
 
-    def stream(self, frames: np.ndarray, fps: float | None = None) -> None:
-        """Send frames (F, C) in order, paced at ``fps`` (None: as fast as the clients take them)."""
-        start = time.monotonic()
-        for k, row in enumerate(frames):
-            if fps:
-                delay = start + k / fps - time.monotonic()
-                if delay > 0:
-                    time.sleep(delay)
-            self.send_frame(row)
-
     def close(self) -> None:
         self._stop.set()
         self._sock.close()

@@ -47,7 +47,8 @@ def test_two_clients_receive_every_frame_in_axis_format():
     with BvhBroadcastServer("127.0.0.1", 0) as server:
         clients = [socket.create_connection(server.address) for _ in range(2)]
         assert server.wait_for_clients(2, 5.0)
-        server.stream(frames)
+        for row in frames:
+            server.send_frame(row)
         for client in clients:
             lines = _read_lines(client, len(frames))
             assert len(lines) == len(frames)
