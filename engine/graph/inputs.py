@@ -136,7 +136,9 @@ def load_take(path: str | Path, graph_sensors: list[str], fps_graph: float,
     try:
         data = np.load(path, allow_pickle=False)
     except (OSError, ValueError) as exc:
-        raise MalformedFileError(path, None, f"not a readable .npz ({exc})") from exc
+        hint = ("; a device recording (CSV/TSV, Xsens, x-IMU3) becomes a take with `courtside import-imu`"
+                if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx") else "")
+        raise MalformedFileError(path, None, f"not a readable .npz ({exc}){hint}") from exc
     with data:
         if "acc_g" in data.files:
             return _from_synthesis_file(path, data, graph_sensors, fps_graph)

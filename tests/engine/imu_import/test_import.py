@@ -129,3 +129,12 @@ def test_take_with_a_sensor_the_graph_lacks_still_loads(tmp_path, walk_truth):
     assert obs.acc_g.shape[1] == 6 and obs.sensor_indices == tuple(range(6))
     with pytest.raises(MalformedFileError, match="do not match"):
         load_take(tmp_path / "take.npz", ["head_top"], 30.0)
+
+
+def test_synthesis_input_points_a_raw_device_file_to_import_imu(tmp_path, walk_truth):
+    """The issue's first stumble: a CSV given to synthesize. The error now says what to do."""
+    from engine.graph.inputs import load_take
+
+    write_generic_csv(tmp_path / "take.csv", walk_truth, "m/s2")
+    with pytest.raises(MalformedFileError, match="courtside import-imu"):
+        load_take(tmp_path / "take.csv", walk_truth.names[:6], 30.0)
