@@ -96,3 +96,14 @@ def test_commands_report_bad_paths_in_one_line(setup, tmp_path):
                               timeout=120)
         assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
         assert len(proc.stderr.strip().splitlines()) == 1 and "courtside" in proc.stderr
+
+
+def test_reconstruct_reads_an_imported_take_in_its_own_sensor_order(setup, tmp_path):
+    """`courtside reconstruct --method hmm` on an imported x-IMU3 take (gyro included): the HMM's IMUs are taken
+    by name from a take that lists more sensors, in another order."""
+    _, motion, truth, _ = setup
+    args = _write("ximu3", tmp_path, truth)
+    courtside("import-imu", *args, "--format", "ximu3", "-o", str(tmp_path / "take.npz"))
+    out = courtside("reconstruct", "--method", "hmm", "--sample", "--imus", "right_shin", "left_shin",
+                    "--input", str(tmp_path / "take.npz"), "-o", str(tmp_path / "hmm.bvh"))
+    assert out["frames"] == read_bvh(tmp_path / "hmm.bvh").n_frames > 0.9 * motion.duration_s * 30
