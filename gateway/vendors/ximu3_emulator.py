@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import pty
+import select
 import threading
 import time
 import tty
@@ -108,8 +109,6 @@ class Ximu3Emulator:
         buffer = b""
         while not self._stop.is_set():
             try:
-                import select
-
                 ready, _, _ = select.select([self._master], [], [], 0.1)
                 if not ready:
                     continue
