@@ -103,3 +103,21 @@ def test_record_round_trip_and_reading_corrections(tmp_path, walking):
         before = np.median(np.sum((real[:, k] - ideal[:, k]) ** 2, axis=1))  # median: the clip joins spike
         after = np.median(np.sum((fixed - ideal[:, k]) ** 2, axis=1))
         assert after < 0.15 * before, (name, before, after)
+
+
+def test_an_arm_sensor_rolled_180_degrees_about_the_bone_is_caught_by_the_t_pose():
+    """The Bandai right-limb convention as a strapping error: in the N-pose the roll is a heading (invisible to
+    gravity); the T-pose shows it as a ~180° correction, and the sensor fails."""
+    from dataclasses import replace
+
+    motion = standing_then_walking(tpose_s=2.0, fps=FPS, seed=4)
+    nominal = standard_placements(motion.skeleton, NAMES)
+    roll = np.diag([1.0, -1.0, -1.0])  # 180° about the sensor's X, which runs along the bone
+    truth = [replace(p, rotation=p.rotation @ roll) if p.name == "right_forearm" else p for p in nominal]
+    acc = virtual_accelerometers(motion, truth)
+    end = motion.n_frames / FPS
+    record = calibrate_recording(acc, FPS, NAMES, NAMES, standard_segment_poses(NAMES, ("tpose",)),
+                                 second_windows={"tpose": (end - 1.8, end - 0.1)})
+    arm = record.sensors["right_forearm"]
+    assert arm.correction_deg > 170 and not arm.passed and any("mounted 18" in r for r in arm.reasons), arm
+    assert rotation_angle_deg(arm.rotation @ truth[1].rotation.T) < 3.0
