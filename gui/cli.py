@@ -41,6 +41,8 @@ def _console_parser() -> argparse.ArgumentParser:
                         "each segment from the live sensor the record assigned to it")
     p.add_argument("--duration", type=float, default=None, help="close after this many seconds")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs before closing")
+    p.add_argument("--stream-bvh", default=None, metavar="[HOST:]PORT",
+                   help="serve the synthesised poses as BVH over TCP (Axis Neuron convention) to animation tools")
     return p
 
 
@@ -144,6 +146,10 @@ def console_main(argv: list[str]) -> int:
     worn: dict = {}
     if keys is not None:
         synth = synthesis_setup(graph, skeleton, keys, args.lag)
+        if args.stream_bvh:
+            from engine.livestream.console import streaming_setup
+
+            synth = streaming_setup(synth, graph, skeleton, args.stream_bvh)
         worn = dict(zip(synth.sensors, segments))
     else:
         log.warning("synthesis off: pass --synth-station (or a calibration record) to say which sensors are worn")

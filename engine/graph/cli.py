@@ -130,12 +130,27 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--require-tolerance", type=int, default=10, help="+- frames around each required time")
     p.add_argument("--no-blend", action="store_true")
     p.add_argument("--no-ik", action="store_true")
+    p.add_argument("--calibration", metavar="RECORD", help="sensor-calibration record (`courtside calibrate` or the "
+                   "wizard): readings are rotated from the measured into the graph's nominal sensor mountings")
+    p.add_argument("--stream-bvh", metavar="[HOST:]PORT", help="also serve the poses as BVH lines over TCP (Axis "
+                   "Neuron convention, e.g. 7001; 127.0.0.1 unless a host is given): with --lag each pose as it is "
+                   "decided, at the take's rate; without, the written frames")
+    p.add_argument("--stream-wait", type=float, default=5.0, help="--stream-bvh: wait this long for a client (s)")
+    p.add_argument("--stream-vmc", metavar="[HOST:]PORT", help="also send the poses as VMC (OSC over UDP, e.g. 39539; "
+                   "127.0.0.1 unless a host is given) to Unity/Blender/VSeeFace VMC receivers")
     args = p.parse_args(argv)
     graph = MotionGraph.load(args.graph)
     sensor_map = parse_sensor_map(args.sensor_map, graph.config.sensor_names)
     check_lag(args.lag, graph.config.fps)
     check_output_dir(args.output)
     obs = load_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map)
+    if args.calibration and graph.skeleton is not None:
+        from .calibrated_input import calibrated_observations
+
+        try:
+            obs = calibrated_observations(obs, graph.skeleton, graph.config.sensor_names, args.calibration)
+        except ValueError as exc:  # a record made for another skeleton's joint frames
+            raise MalformedFileError(args.calibration, None, str(exc)) from None
     if graph.skeleton is None:
         raise MalformedFileError(args.graph, None, "graph holds no skeleton (rebuild it with build-graph)")
     check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, obs.n_samples, graph.config.fps)
@@ -150,6 +165,16 @@ def synthesize_main(argv: list[str]) -> int:
     if constraints and args.lag is not None:
         print("error: --require needs the batch search (no --lag)", file=sys.stderr)
         return 2
+    stream, outputs = None, []
+    if args.stream_bvh:
+        from engine.livestream.stream_cli import open_stream
+
+        stream = open_stream(args.stream_bvh, args.stream_wait)
+        outputs.append(stream)
+    if args.stream_vmc:
+        from engine.livestream.stream_cli import open_vmc
+
+        outputs.append(open_vmc(args.stream_vmc, graph.skeleton))
     t0 = time.perf_counter()
     broken = 0
     if args.lag is None:
@@ -158,6 +183,10 @@ def synthesize_main(argv: list[str]) -> int:
         broken = res.broken_constraints
     else:
         syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)
+        if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
+            from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
+
+            syn = StreamingSynthesizer(syn, PoseStreamer(graph, graph.skeleton, outputs, realtime=True))
         poses = []
         for t in range(obs.n_samples):
             poses += syn.push(None if obs.acc_g is None else obs.acc_g[t],
@@ -177,6 +206,12 @@ def synthesize_main(argv: list[str]) -> int:
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
+    if outputs and args.lag is None:  # the batch search decides the whole path at once: stream the written frames
+        from engine.livestream.stream_cli import stream_motion
+
+        stream_motion(outputs, motion)
+    if stream is not None:
+        stream.close()
     print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
                       "broken_constraints": broken}))
     return 0

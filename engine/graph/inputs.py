@@ -56,6 +56,9 @@ def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: 
     acc = np.asarray(data["acc_g"], float)
     fps = float(data["fps"])
     names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else graph_sensors[:acc.shape[1]]
+    if len(names) == acc.shape[1] and any(n in graph_sensors for n in names):  # drop sensors the graph lacks
+        used = [k for k, n in enumerate(names) if n in graph_sensors]
+        acc, names = acc[:, used], [names[k] for k in used]
     unknown = [n for n in names if n not in graph_sensors]
     if unknown or len(names) != acc.shape[1]:
         raise MalformedFileError(path, None, f"sensor names {names} do not match the acc_g columns / graph "
