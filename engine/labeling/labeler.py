@@ -15,6 +15,7 @@ label order throughout.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +25,7 @@ from engine.mocap.rotations import best_rotation
 
 from .config import LabelingConfig
 from .kalman import KalmanBank
+from .reacquire import reacquire_body
 from .search import search_body
 from .structure import DistanceWindow, choose_cluster_tau, cluster_rigid_bodies, pair_distances
 
@@ -80,15 +82,16 @@ class OnlineLabeler:
             raise ValueError(f"training needs at least 3 labelled frames, got {n_frames}")
         if len(subjects) != n_labels:
             raise ValueError(f"{len(subjects)} subject ids for {n_labels} labels")
-        if np.isnan(training_m[-1]).any():
-            raise ValueError("every label must be observed in the last training frame (it seeds the trackers)")
         self.n_labels, self.dt = n_labels, 1.0 / fps
         if bodies is None:
             dist = pair_distances(training_m)
             bodies = []
             for s in np.unique(subjects):
                 members = np.flatnonzero(subjects == s)
-                std = np.nanstd(dist[:, members][:, :, members], axis=0)
+                pair = dist[:, members][:, :, members]
+                with np.errstate(invalid="ignore"), warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)  # pairs never seen together stay NaN
+                    std = np.nanstd(pair, axis=0) + cfg.cluster_proximity * np.nanmean(pair, axis=0)
                 tau = cfg.cluster_tau_m
                 if cfg.cluster_tau_max_m > tau:
                     taus = np.geomspace(tau, cfg.cluster_tau_max_m, 12)
@@ -100,15 +103,31 @@ class OnlineLabeler:
 
         # Motion models: per-marker process noise from training accelerations, then warm up over the frames.
         acc = (train[2:] - 2 * train[1:-1] + train[:-2]) / self.dt**2
-        acc_std = np.sqrt(np.nanmean(np.nanvar(acc, axis=0), axis=1))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # labels seen in < 3 consecutive frames: no estimate
+            acc_std = np.sqrt(np.nanmean(np.nanvar(acc, axis=0), axis=1))
         acc_std = np.nan_to_num(acc_std, nan=0.0) * cfg.accel_std_scale
         accel_var = np.maximum(acc_std, cfg.accel_std_floor_mps2) ** 2
-        first = np.where(np.isnan(train[0]), train[-1], train[0])
+        # A label missing from some training frames starts where it is first seen and is held at its last seen
+        # position (velocity zeroed) while missing; a label never seen in training cannot be learned: it stays
+        # out of gating and re-acquisition (it is reported LOST) and starts at its subject's mean position.
+        seen_any = ~np.isnan(train).any(axis=2)  # (T0, L)
+        self.trained = seen_any.any(axis=0)
+        first_seen = np.argmax(seen_any, axis=0)
+        first = train[first_seen, np.arange(n_labels)]
+        subject_mean = {s: np.nanmean(training_m[:, subjects == s], axis=(0, 1)) for s in np.unique(subjects)}
+        for i in np.flatnonzero(~self.trained):
+            first[i] = np.nan_to_num(subject_mean[subjects[order[i]]])
         self.kf = KalmanBank(first, np.zeros_like(first), accel_var, cfg.meas_noise_m, self.dt)
         for t in range(1, n_frames):
             self.kf.predict()
-            seen = np.flatnonzero(~np.isnan(train[t]).any(axis=1))
+            seen = np.flatnonzero(seen_any[t] & (t > first_seen))
             self.kf.update(seen, train[t, seen])
+            self.kf.vel[~seen_any[t]] = 0.0
+        self._learn_neighbours(train, subjects[order])
+        self._reliable = seen_any[-1].copy()  # observed in the previous frame: its prediction can anchor others
+        self._recovered_frames = np.zeros(n_labels, int)
+        self._max_recovered = max(int(round(cfg.max_recovered_s * fps)), 1)
 
         # Structure model and recovery state, from the training frames.
         self.window = DistanceWindow(len(self.bodies), self._n_max, cfg.window_frames, cfg.sigma_min_m)
@@ -116,6 +135,66 @@ class OnlineLabeler:
         self._template = np.full((len(self.bodies), self._n_max, 3), np.nan)
         for t in range(max(0, n_frames - cfg.window_frames), n_frames):
             self._update_structure(train[t], ~np.isnan(train[t]).any(axis=1))
+
+    def _learn_neighbours(self, train: np.ndarray, subjects: np.ndarray) -> None:
+        """Per label, up to max_neighbours markers of the same subject in *other* bodies whose training distance
+        to it varied least (std ≤ neighbour_std_m): markers across one joint. Their (D, A) are fixed."""
+        cfg = self.config
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            dist = pair_distances(train)
+            mean, std = np.nanmean(dist, axis=0), np.nanstd(dist, axis=0)
+        eligible = (subjects[:, None] == subjects[None, :]) & (self._body_of[:, None] != self._body_of[None, :])
+        eligible &= np.isfinite(std) & (std <= cfg.neighbour_std_m)
+        ranked = np.argsort(np.where(eligible, std, np.inf), axis=1)[:, : cfg.max_neighbours]
+        ok = np.take_along_axis(eligible, ranked, axis=1)
+        self._nb = np.where(ok, ranked, -1)
+        self._nb_mean = np.where(ok, np.take_along_axis(mean, ranked, axis=1), np.nan)
+        self._nb_std = np.maximum(np.where(ok, np.take_along_axis(std, ranked, axis=1), np.nan),
+                                  cfg.neighbour_sigma_min_m)
+
+    def _unary(self, labels: np.ndarray, option_pos: np.ndarray) -> tuple[np.ndarray, int]:
+        """Neighbour link terms of each option (n, K) of ``labels`` against the predicted positions of their
+        neighbours that were observed last frame, and the number of such links (see search_body)."""
+        nb = self._nb[labels]
+        valid = (nb >= 0) & self._reliable[np.maximum(nb, 0)]
+        if not valid.any():
+            return np.zeros(option_pos.shape[:2]), 0
+        anchor = self.kf.pos[np.maximum(nb, 0)]  # (n, J, 3)
+        d = np.linalg.norm(option_pos[:, :, None, :] - anchor[:, None, :, :], axis=-1)  # (n, K, J)
+        with np.errstate(invalid="ignore"):
+            z = (d - self._nb_mean[labels][:, None, :]) / self._nb_std[labels][:, None, :]
+            terms = np.where(valid[:, None, :], np.nan_to_num(np.exp(-0.5 * z * z), nan=0.0), 0.0)
+        return terms.sum(axis=2), int(valid.sum())
+
+    def _prior(self, labels: np.ndarray, option_pos: np.ndarray) -> tuple[np.ndarray, float]:
+        """Terms that join Eq. 5 in the body search (search_body's ``unary``): neighbour links (see _unary) plus
+        motion_weight · exp(−½ Mahalanobis²) of each option against its label's Kalman prediction.
+
+        Why the motion term: when a marker hides, its gate may hold a body-mate's point (toe and fifth metatarsal
+        are 5 cm apart), and Eq. 5 alone scores "toe takes it" and "metatarsal keeps it" alike on a body that is
+        not quite rigid. The first swap then persists and the window learns it. The prediction breaks the tie."""
+        terms, count = self._unary(labels, option_pos)
+        weight = self.config.motion_weight
+        if weight <= 0:
+            return terms, float(count)
+        diff = option_pos - self.kf.pos[labels][:, None, :]
+        with np.errstate(invalid="ignore"):
+            m2 = np.einsum("nki,nki->nk", diff, diff) / self.kf.innovation_var()[labels][:, None]
+        return terms + weight * np.nan_to_num(np.exp(-0.5 * m2), nan=0.0), count + weight * len(labels)
+
+    def _neighbour_veto(self, labels: np.ndarray, option_pos: np.ndarray) -> np.ndarray:
+        """(n, K) True where an option is farther than neighbour_veto_m from the learned distance to *every*
+        reliable neighbour of its label: the right hand's points offered to the left hand's labels. Lenient on
+        purpose (one agreeing neighbour is enough, and the bound is absolute) because a quiet training window
+        understates how much a joint stretches, and a wrong neighbour must not veto the right point."""
+        nb = self._nb[labels]
+        valid = (nb >= 0) & self._reliable[np.maximum(nb, 0)]
+        anchor = self.kf.pos[np.maximum(nb, 0)]
+        d = np.linalg.norm(option_pos[:, :, None, :] - anchor[:, None, :, :], axis=-1)  # (n, K, J)
+        with np.errstate(invalid="ignore"):
+            off = np.abs(d - self._nb_mean[labels][:, None, :]) > self.config.neighbour_veto_m
+        return valid.any(axis=1)[:, None] & (off | ~valid[:, None, :]).all(axis=2)
 
     def _set_bodies(self, bodies: list[np.ndarray]) -> None:
         labels = np.concatenate(bodies)
@@ -145,7 +224,8 @@ class OnlineLabeler:
         disp = body_pos[:, None, :, :] - body_pos[:, :, None, :]  # disp[b, k, m] = M_m − M_k
         both = ~np.isnan(disp).any(axis=-1)
         self._disp[both] = disp[both]
-        complete = (~np.isnan(body_pos).any(axis=-1) | (self._pad < 0)).all(axis=1)
+        untrained = self._padded(np.where(self.trained, 0.0, 1.0)[:, None])[..., 0] == 1.0
+        complete = (~np.isnan(body_pos).any(axis=-1) | (self._pad < 0) | untrained).all(axis=1)
         self._template[complete] = body_pos[complete]
 
     # ---------------------------------------------------------------- online step
@@ -166,6 +246,9 @@ class OnlineLabeler:
             dist, idx = dist.reshape(self.n_labels, k), idx.reshape(self.n_labels, k)
             ok = dist * dist <= cfg.gate_chi2 * s_var[:, None]
             cand[:, :k] = np.where(ok, finite[np.minimum(idx, len(finite) - 1)], -1)
+            cand[~self.trained] = -1
+            veto = self._neighbour_veto(np.arange(self.n_labels), np.vstack([points, np.full((1, 3), np.nan)])[cand])
+            cand = _valid_first(np.where(veto, -1, cand))
         mean_candidates = float((cand >= 0).sum() / self.n_labels)
         ext_points = np.vstack([points, np.full((1, 3), np.nan)])
 
@@ -181,9 +264,9 @@ class OnlineLabeler:
         while open_.any():
             for b in np.flatnonzero(open_ & need):
                 sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
-                pid, score, _ = search_body(
-                    cand[sl], ext_points[cand[sl]], mean[b, :n, :n], std[b, :n, :n], cfg.max_combinations
-                )
+                pos_b = ext_points[cand[sl]]
+                pid, score, _ = search_body(cand[sl], pos_b, mean[b, :n, :n], std[b, :n, :n], cfg.max_combinations,
+                                            self._prior(np.arange(sl.start, sl.stop), pos_b))
                 best_pid[b], best_score[b], need[b] = pid, score, False
             b = int(np.flatnonzero(open_)[np.argmax(best_score[open_])])
             open_[b] = False
@@ -204,7 +287,53 @@ class OnlineLabeler:
                     need[r] = bool(used[best_pid[r]].any())
 
         self._second_chance(points, finite, assigned, used, best_score, mean, std)
+        if cfg.shape_reacquire:
+            self._reacquire_by_shape(points, finite, assigned, mean, std)
         return self._finish(points, assigned, mean_candidates)
+
+    def _reacquire_by_shape(self, points: np.ndarray, finite: np.ndarray, assigned: np.ndarray, mean: np.ndarray,
+                            std: np.ndarray) -> None:
+        """Give missing labels leftover points that fit their body's shape, wherever the filters predict them.
+
+        Bodies are tried most-labelled first (their anchors make the match the least ambiguous). A label found
+        this way restarts its Kalman filter at the point: the old state is what lost it. Modifies ``assigned``."""
+        cfg = self.config
+        free = np.ones(len(points), bool)
+        free[assigned[assigned >= 0]] = False
+        leftover = finite[free[finite]]
+        missing = (assigned < 0) & self.trained
+        if len(leftover) == 0 or not missing.any():
+            return
+        bodies = np.unique(self._body_of[missing])
+        labelled_count = np.array([np.sum(assigned[self._pad[b, : self._sizes[b]]] >= 0) for b in bodies])
+        std_shape = np.maximum(std, cfg.shape_sigma_min_m)
+        restart = []
+        for b in bodies[np.argsort(-labelled_count, kind="stable")]:
+            if len(leftover) == 0:
+                break
+            sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
+            body_pos = np.full((n, 3), np.nan)
+            have = assigned[sl] >= 0
+            body_pos[have] = points[assigned[sl][have]]
+            pick = reacquire_body(points[leftover], body_pos, mean[b, :n, :n], std_shape[b, :n, :n],
+                                  cfg.shape_min_support)
+            pick[~self.trained[sl]] = -1
+            got = np.flatnonzero(pick >= 0)
+            if len(got):  # a shape twin (the other hand) fits the body's own links: its neighbours must agree too
+                labels = self._starts[b] + got
+                terms, _ = self._unary(labels, points[leftover[pick[got]]][:, None, :])
+                nb = self._nb[labels]
+                n_links = ((nb >= 0) & self._reliable[np.maximum(nb, 0)]).sum(axis=1)
+                bad = (n_links > 0) & (terms[:, 0] < cfg.shape_min_support * n_links)
+                pick[got[bad]] = -1
+                got = got[~bad]
+            if len(got) == 0:
+                continue
+            assigned[self._starts[b] + got] = leftover[pick[got]]
+            restart.extend(self._starts[b] + got)
+            leftover = np.delete(leftover, pick[got])
+        if restart:
+            self.kf.restart(np.asarray(restart), points[assigned[restart]])
 
     def _second_chance(
         self,
@@ -225,24 +354,33 @@ class OnlineLabeler:
         reacquire_gate_scale·γ; the new assignment is kept only if it scores higher. Modifies ``assigned``."""
         cfg = self.config
         leftover = finite[~used[finite]]
-        missing = assigned < 0
+        missing = (assigned < 0) & self.trained
         if len(leftover) == 0 or not missing.any():
             return
         k = min(cfg.max_candidates, len(leftover))
         dist, idx = cKDTree(points[leftover]).query(self.kf.pos[missing], k=k)
         dist, idx = dist.reshape(-1, k), idx.reshape(-1, k)
-        ok = dist * dist <= cfg.reacquire_gate_scale * cfg.gate_chi2 * self.kf.innovation_var()[missing, None]
+        m2 = dist * dist / self.kf.innovation_var()[missing, None]
+        ok = m2 <= cfg.reacquire_gate_scale * cfg.gate_chi2
+        # Competitive gate: in the wide gate a point is offered only to the missing label whose prediction it is
+        # nearest to (Mahalanobis), else a hidden toe takes its visible neighbour's point and the swap persists.
+        pid = np.where(ok, leftover[np.minimum(idx, len(leftover) - 1)], -1)
+        nearest = np.full(len(points), np.inf)
+        np.minimum.at(nearest, pid[ok], m2[ok])
+        ok &= m2 <= nearest[np.maximum(pid, 0)]
         cand = np.full((self.n_labels, cfg.max_candidates), -1)
-        cand[missing, :k] = np.where(ok, leftover[np.minimum(idx, len(leftover) - 1)], -1)
+        cand[missing, :k] = _valid_first(np.where(ok, pid, -1))
+        veto = self._neighbour_veto(np.arange(self.n_labels), np.vstack([points, np.full((1, 3), np.nan)])[cand])
+        cand[missing] = _valid_first(np.where(veto[missing], -1, cand[missing]))
         cand[~missing, 0] = assigned[~missing]
         ext_points = np.vstack([points, np.full((1, 3), np.nan)])
         taken = np.zeros(len(points) + 1, bool)
         for b in np.unique(self._body_of[missing & (cand[:, 0] >= 0)]):
             sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
             body_cand = _valid_first(np.where(taken[cand[sl]], -1, cand[sl]))
-            pid, score, _ = search_body(
-                body_cand, ext_points[body_cand], mean[b, :n, :n], std[b, :n, :n], cfg.max_combinations
-            )
+            pos_b = ext_points[body_cand]
+            pid, score, _ = search_body(body_cand, pos_b, mean[b, :n, :n], std[b, :n, :n], cfg.max_combinations,
+                                        self._prior(np.arange(sl.start, sl.stop), pos_b))
             if score <= best_score[b]:
                 continue
             new = np.flatnonzero((pid >= 0) & (assigned[sl] < 0))
@@ -260,6 +398,8 @@ class OnlineLabeler:
         status = np.where(observed, OBSERVED, LOST)
         recovered = self._recover(pos, observed)
         rec = ~np.isnan(recovered).any(axis=1) & ~observed
+        self._recovered_frames = np.where(rec, self._recovered_frames + 1, 0)
+        rec &= self._recovered_frames <= self._max_recovered  # a long-recovered marker counts as lost
         pos[rec] = recovered[rec]
         status[rec] = RECOVERED
 
@@ -269,6 +409,7 @@ class OnlineLabeler:
         self.kf.vel[lost] = 0.0
         pos[lost] = self.kf.pos[lost]
         self._update_structure(pos, observed)
+        self._reliable = observed
 
         label_point = np.full(self.n_labels, -1)
         label_point[self._order] = assigned
