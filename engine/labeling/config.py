@@ -50,10 +50,15 @@ class LabelingConfig:
         to markers of its subject's other bodies (training std ≤ neighbour_std_m: across one joint) join the
         Eq. 5 score, with A floored at neighbour_sigma_min_m. Why: bodies of identical shape (left and right hand)
         score the same on their own links, and on CMU 135_02 the hands swapped for good when they met; a link to
-        the elbow tells them apart. neighbour_veto_m: a candidate whose distance to every reliable neighbour
-        is off the learned one by more than this is never offered to the label.
+        the elbow tells them apart. neighbour_min_support: a marker re-acquired by shape is dropped when its mean
+        neighbour link term is below this (≈ 3 sigmas off: a quiet training window understates how far a joint
+        stretches, so only a clear contradiction, the other hand, is refused).
     motion_weight: weight (in links) of each marker's agreement with its Kalman prediction in the body score;
         it breaks ties between body-mates' points (see OnlineLabeler._prior). 0 = the paper's gate-only use.
+    repair_swaps, repair_min_rms_m, repair_tol_scale, repair_ratio: undo swaps inside a body by its training
+        template (see OnlineLabeler._repair_swaps); a body whose rigid-fit RMS is below repair_min_rms_m and below
+        repair_tol_scale x its training 95th percentile is left alone, and a relabelling is kept only if its RMS
+        is below repair_ratio x the current one.
     max_recovered_s: a marker recovered from its body for longer than this counts as lost (its position is no
         longer reported nor fed to its Kalman filter): a rigid-body guess drifts as the skin and the body move.
     """
@@ -83,8 +88,12 @@ class LabelingConfig:
     neighbour_std_m: float = 0.03
     max_neighbours: int = 3
     neighbour_sigma_min_m: float = 0.015
-    neighbour_veto_m: float = 0.12
+    neighbour_min_support: float = 0.01
     motion_weight: float = 0.3
+    repair_swaps: bool = True
+    repair_min_rms_m: float = 0.004
+    repair_tol_scale: float = 2.0
+    repair_ratio: float = 0.5
     max_recovered_s: float = 0.5
 
     def __post_init__(self) -> None:

@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 
 from engine.mocap.rotations import best_rotation
@@ -135,6 +137,18 @@ class OnlineLabeler:
         self._template = np.full((len(self.bodies), self._n_max, 3), np.nan)
         for t in range(max(0, n_frames - cfg.window_frames), n_frames):
             self._update_structure(train[t], ~np.isnan(train[t]).any(axis=1))
+        self._train_template = self._template.copy()
+        self._rigid_tol = np.zeros(len(self.bodies))  # 95th-percentile rigid-fit RMS of each body in training
+        for b in range(len(self.bodies)):
+            rows = self._pad[b, : self._sizes[b]]
+            if np.isnan(self._train_template[b, : self._sizes[b]]).all():  # never complete in the window
+                self._train_template[b, : self._sizes[b]] = _last_seen_positions(train[:, rows])
+            tmpl = self._train_template[b, : self._sizes[b]]
+            known = ~np.isnan(tmpl).any(axis=1)
+            frames = train[:, rows][:, known]
+            full = ~np.isnan(frames).any(axis=(1, 2))
+            if known.sum() >= 3 and full.any():
+                self._rigid_tol[b] = np.percentile([_rigid_rms(tmpl[known], f) for f in frames[full][::5]], 95)
 
     def _learn_neighbours(self, train: np.ndarray, subjects: np.ndarray) -> None:
         """Per label, up to max_neighbours markers of the same subject in *other* bodies whose training distance
@@ -182,19 +196,6 @@ class OnlineLabeler:
         with np.errstate(invalid="ignore"):
             m2 = np.einsum("nki,nki->nk", diff, diff) / self.kf.innovation_var()[labels][:, None]
         return terms + weight * np.nan_to_num(np.exp(-0.5 * m2), nan=0.0), count + weight * len(labels)
-
-    def _neighbour_veto(self, labels: np.ndarray, option_pos: np.ndarray) -> np.ndarray:
-        """(n, K) True where an option is farther than neighbour_veto_m from the learned distance to *every*
-        reliable neighbour of its label: the right hand's points offered to the left hand's labels. Lenient on
-        purpose (one agreeing neighbour is enough, and the bound is absolute) because a quiet training window
-        understates how much a joint stretches, and a wrong neighbour must not veto the right point."""
-        nb = self._nb[labels]
-        valid = (nb >= 0) & self._reliable[np.maximum(nb, 0)]
-        anchor = self.kf.pos[np.maximum(nb, 0)]
-        d = np.linalg.norm(option_pos[:, :, None, :] - anchor[:, None, :, :], axis=-1)  # (n, K, J)
-        with np.errstate(invalid="ignore"):
-            off = np.abs(d - self._nb_mean[labels][:, None, :]) > self.config.neighbour_veto_m
-        return valid.any(axis=1)[:, None] & (off | ~valid[:, None, :]).all(axis=2)
 
     def _set_bodies(self, bodies: list[np.ndarray]) -> None:
         labels = np.concatenate(bodies)
@@ -247,8 +248,6 @@ class OnlineLabeler:
             ok = dist * dist <= cfg.gate_chi2 * s_var[:, None]
             cand[:, :k] = np.where(ok, finite[np.minimum(idx, len(finite) - 1)], -1)
             cand[~self.trained] = -1
-            veto = self._neighbour_veto(np.arange(self.n_labels), np.vstack([points, np.full((1, 3), np.nan)])[cand])
-            cand = _valid_first(np.where(veto, -1, cand))
         mean_candidates = float((cand >= 0).sum() / self.n_labels)
         ext_points = np.vstack([points, np.full((1, 3), np.nan)])
 
@@ -289,7 +288,55 @@ class OnlineLabeler:
         self._second_chance(points, finite, assigned, used, best_score, mean, std)
         if cfg.shape_reacquire:
             self._reacquire_by_shape(points, finite, assigned, mean, std)
+        if cfg.repair_swaps:
+            self._repair_swaps(points, assigned)
         return self._finish(points, assigned, mean_candidates)
+
+    def _repair_swaps(self, points: np.ndarray, assigned: np.ndarray) -> None:
+        """Undo swaps inside a body by its training template (rigid fit + one-to-one nearest, i.e. Hungarian).
+
+        Why: a swap between body-mates (a hidden toe taking the metatarsal's point) passes Eq. 5 on a body that
+        is not quite rigid; the Kalman gates then follow the swapped points and the sliding window learns the
+        swapped distances, so nothing in the paper's loop ever undoes it. The training template is known to be
+        correctly labelled. When a body fits it worse than it ever did in training (RMS above repair_tol_scale x
+        its training 95th percentile), the template is fitted rigidly to the body's points on all of them and,
+        since the swapped ones pull that fit off, on every subset leaving two out (one for a 4-marker body); each fit gives every point to
+        the label whose template position lands nearest; the best relabelling is kept if its RMS is below
+        repair_ratio x the current one. Modifies ``assigned``."""
+        cfg = self.config
+        for b in range(len(self.bodies)):
+            sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
+            current = assigned[sl]
+            tmpl = self._train_template[b, :n]
+            known = ~np.isnan(tmpl).any(axis=1)
+            usable = np.flatnonzero((current >= 0) & known)
+            if len(usable) < 3:
+                continue
+            pts = points[current[usable]]
+            old_rms = _rigid_rms(tmpl[usable], pts)
+            if old_rms < max(cfg.repair_min_rms_m, cfg.repair_tol_scale * self._rigid_tol[b]):
+                continue  # fits as well as in training: nothing to repair (the common case, one SVD)
+            rows = np.flatnonzero(known)
+            drop = min(len(usable) - 3, 2)  # leave out up to two markers, keeping at least three to fit
+            subsets = [np.delete(np.arange(len(usable)), out) for out in combinations(range(len(usable)), drop)]
+            if drop:
+                subsets.insert(0, np.arange(len(usable)))
+            best, best_rms = None, cfg.repair_ratio * old_rms
+            for subset in subsets:
+                rot, shift = _kabsch(tmpl[usable[subset]], pts[subset])
+                cost = np.linalg.norm((tmpl[rows] @ rot.T + shift)[:, None] - pts[None], axis=2)
+                r, c = linear_sum_assignment(cost)
+                proposal = current.copy()
+                proposal[usable] = -1
+                proposal[rows[r]] = current[usable][c]
+                if np.array_equal(proposal, current):
+                    continue
+                use = np.flatnonzero((proposal >= 0) & known)
+                rms = _rigid_rms(tmpl[use], points[proposal[use]])
+                if rms < best_rms:
+                    best, best_rms = proposal, rms
+            if best is not None:
+                assigned[sl] = best
 
     def _reacquire_by_shape(self, points: np.ndarray, finite: np.ndarray, assigned: np.ndarray, mean: np.ndarray,
                             std: np.ndarray) -> None:
@@ -324,7 +371,7 @@ class OnlineLabeler:
                 terms, _ = self._unary(labels, points[leftover[pick[got]]][:, None, :])
                 nb = self._nb[labels]
                 n_links = ((nb >= 0) & self._reliable[np.maximum(nb, 0)]).sum(axis=1)
-                bad = (n_links > 0) & (terms[:, 0] < cfg.shape_min_support * n_links)
+                bad = (n_links > 0) & (terms[:, 0] < cfg.neighbour_min_support * n_links)
                 pick[got[bad]] = -1
                 got = got[~bad]
             if len(got) == 0:
@@ -370,8 +417,6 @@ class OnlineLabeler:
         ok &= m2 <= nearest[np.maximum(pid, 0)]
         cand = np.full((self.n_labels, cfg.max_candidates), -1)
         cand[missing, :k] = _valid_first(np.where(ok, pid, -1))
-        veto = self._neighbour_veto(np.arange(self.n_labels), np.vstack([points, np.full((1, 3), np.nan)])[cand])
-        cand[missing] = _valid_first(np.where(veto[missing], -1, cand[missing]))
         cand[~missing, 0] = assigned[~missing]
         ext_points = np.vstack([points, np.full((1, 3), np.nan)])
         taken = np.zeros(len(points) + 1, bool)
@@ -452,6 +497,12 @@ class OnlineLabeler:
         return out
 
 
+def _rigid_rms(src: np.ndarray, dst: np.ndarray) -> float:
+    """RMS distance after the best rigid fit of src onto dst (paired rows)."""
+    rot, shift = _kabsch(src, dst)
+    return float(np.sqrt(np.mean(np.sum((src @ rot.T + shift - dst) ** 2, axis=1))))
+
+
 def _link_support(points: np.ndarray, pid: np.ndarray, which: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
     """Mean Eq. 5 link term of each marker in ``which`` with the body's other assigned markers (0 if none)."""
     others = np.flatnonzero(pid >= 0)
@@ -462,6 +513,14 @@ def _link_support(points: np.ndarray, pid: np.ndarray, which: np.ndarray, mean: 
     is_other = others[None] != which[:, None]
     terms = np.where(is_other, np.nan_to_num(np.exp(-0.5 * z * z), nan=0.0), 0.0)
     return terms.sum(axis=1) / np.maximum(is_other.sum(axis=1), 1)
+
+
+def _last_seen_positions(frames: np.ndarray) -> np.ndarray:
+    """(T, n, 3) → (n, 3): each marker's position in the last frame where the whole set of markers seen in that
+    frame is largest; markers not seen there are NaN (a template must be one rigid configuration)."""
+    seen = ~np.isnan(frames).any(axis=2)
+    best = len(frames) - 1 - int(np.argmax(seen.sum(axis=1)[::-1]))
+    return frames[best].copy()
 
 
 def _valid_first(rows: np.ndarray) -> np.ndarray:
