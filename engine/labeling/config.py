@@ -48,7 +48,8 @@ class LabelingConfig:
     shape_sigma_min_m: floor on A when matching by shape (skin markers stretch more than a short window shows).
     neighbour_std_m, max_neighbours, neighbour_sigma_min_m: each marker's (up to max_neighbours) steadiest links
         to markers of its subject's other bodies (training std ≤ neighbour_std_m: across one joint) join the
-        Eq. 5 score, with A floored at neighbour_sigma_min_m. Why: bodies of identical shape (left and right hand)
+        Eq. 5 score of the second-chance pass and check shape re-acquisition, with A floored at
+        neighbour_sigma_min_m. Why: bodies of identical shape (left and right hand)
         score the same on their own links, and on CMU 135_02 the hands swapped for good when they met; a link to
         the elbow tells them apart. neighbour_min_support: a marker re-acquired by shape is dropped when its mean
         neighbour link term is below this (≈ 3 sigmas off: a quiet training window understates how far a joint

@@ -181,14 +181,16 @@ class OnlineLabeler:
             terms = np.where(valid[:, None, :], np.nan_to_num(np.exp(-0.5 * z * z), nan=0.0), 0.0)
         return terms.sum(axis=2), int(valid.sum())
 
-    def _prior(self, labels: np.ndarray, option_pos: np.ndarray) -> tuple[np.ndarray, float]:
-        """Terms that join Eq. 5 in the body search (search_body's ``unary``): neighbour links (see _unary) plus
+    def _prior(self, labels: np.ndarray, option_pos: np.ndarray, neighbours: bool = True) -> tuple[np.ndarray, float]:
+        """Terms that join Eq. 5 in the body search (search_body's ``unary``): neighbour links (see _unary; only
+        in the second-chance pass, whose wide gate can offer the other hand's points — in Algorithm 1 they
+        raised swaps between the two tennis players tenfold where their arms interleave) plus
         motion_weight · exp(−½ Mahalanobis²) of each option against its label's Kalman prediction.
 
         Why the motion term: when a marker hides, its gate may hold a body-mate's point (toe and fifth metatarsal
         are 5 cm apart), and Eq. 5 alone scores "toe takes it" and "metatarsal keeps it" alike on a body that is
         not quite rigid. The first swap then persists and the window learns it. The prediction breaks the tie."""
-        terms, count = self._unary(labels, option_pos)
+        terms, count = self._unary(labels, option_pos) if neighbours else (np.zeros(option_pos.shape[:2]), 0)
         weight = self.config.motion_weight
         if weight <= 0:
             return terms, float(count)
@@ -265,7 +267,7 @@ class OnlineLabeler:
                 sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
                 pos_b = ext_points[cand[sl]]
                 pid, score, _ = search_body(cand[sl], pos_b, mean[b, :n, :n], std[b, :n, :n], cfg.max_combinations,
-                                            self._prior(np.arange(sl.start, sl.stop), pos_b))
+                                            self._prior(np.arange(sl.start, sl.stop), pos_b, neighbours=False))
                 best_pid[b], best_score[b], need[b] = pid, score, False
             b = int(np.flatnonzero(open_)[np.argmax(best_score[open_])])
             open_[b] = False

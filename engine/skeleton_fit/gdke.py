@@ -80,8 +80,8 @@ class JointFitConfig:
         24·σ/√N; 30° cap: 402·σ/√N); the geometric optimum has no such bias, and from the GDKE start a few
         steps reach it.
     refine_tol: stop when a step moves the centre by less than this (input unit; 1 µm in metres).
-    outlier_k: before fitting, drop points whose distance from a first closed-form centre is off by more than
-        this many robust sigmas (0 = keep every point; see _drop_outliers)."""
+    outlier_k: after the refinement, points whose geometric residual exceeds this many robust sigmas are dropped
+        and the fit refined again (0 = keep every point; see refine_centre)."""
 
     kappa_max: float = 300.0
     static_std: float = 3e-3
@@ -195,25 +195,20 @@ def fit_joint(trajectories: np.ndarray | list[np.ndarray], config: JointFitConfi
     n_points = sum(m.n for m in stats)
     if not moving:
         return JointFit(JointType.STATIC, np.full(3, np.nan), None, float("nan"), float("inf"), n_points)
-    if config.outlier_k > 0:
-        kept = _drop_outliers([valid[i] for i in moving], [stats[i] for i in moving], config)
-        for i, pts in zip(moving, kept):
-            if len(pts) < len(valid[i]):
-                valid[i], stats[i] = pts, _moments_of_valid(pts, config.min_points)
     cov_sum, rhs = pooled_normal_equations([stats[i] for i in moving])
     evals, evecs = np.linalg.eigh(cov_sum)
     kappa = float(evals[-1] / evals[0]) if evals[0] > 0 else float("inf")
     used = [valid[i] for i in moving]
     if kappa <= config.kappa_max:
         start = np.linalg.solve(cov_sum, rhs)
-        geo = refine_centre(used, start, config.refine_iterations, config.refine_tol)
+        geo = refine_centre(used, start, config.refine_iterations, config.refine_tol, outlier_k=config.outlier_k)
         return JointFit(JointType.BALL, geo.centre, None, geo.radius, kappa, n_points, geo.arc_deg,
                         geo.expected_error, geo.iterations)
     cylinder = cylinder_fit(used)
     basis = np.linalg.svd(np.eye(3) - np.outer(cylinder.axis, cylinder.axis))[0][:, :2]  # in-plane axes
     heights = [float(np.mean(t @ cylinder.axis)) for t in used]
     flat = [(t - cylinder.point) @ basis for t in used]  # project on the plane ⊥ axis, origin on the axis
-    geo = refine_centre(flat, np.zeros(2), config.refine_iterations, config.refine_tol)
+    geo = refine_centre(flat, np.zeros(2), config.refine_iterations, config.refine_tol, outlier_k=config.outlier_k)
     point = cylinder.point + basis @ geo.centre
     point = point + (np.mean(heights) - point @ cylinder.axis) * cylinder.axis
     return JointFit(JointType.HINGE, point, cylinder.axis, geo.radius, kappa, n_points, geo.arc_deg,
@@ -232,7 +227,7 @@ class GeometricFit:
 
 
 def refine_centre(trajectories: list[np.ndarray], start: np.ndarray, iterations: int = 8,
-                  tol: float = 1e-6, rel_tol: float = 0.01) -> GeometricFit:
+                  tol: float = 1e-6, rel_tol: float = 0.01, outlier_k: float = 0.0) -> GeometricFit:
     """Levenberg-Marquardt on the geometric residual r_i = |x_i − c| − R_m, one free radius R_m per marker.
 
     Works in 3-D (sphere) or 2-D (circle, points projected on the hinge plane). The radii are eliminated
@@ -241,7 +236,12 @@ def refine_centre(trajectories: list[np.ndarray], start: np.ndarray, iterations:
     and Jᵀr = −Σ u_i r_i (Σ r_i = 0 per marker): one O(N) pass and a D×D solve. Started from the closed form,
     which is close to the optimum, it converges in 2-4 steps; the damping only matters on nearly degenerate arcs.
     Expected error: sqrt(trace(σ̂² (JᵀJ)⁻¹)) with σ̂² = Σr²/(N − D − M). Stops when a step is below ``tol`` or
-    below ``rel_tol`` x the expected error (statistically nothing left to gain; 0 = iterate to ``tol``)."""
+    below ``rel_tol`` x the expected error (statistically nothing left to gain; 0 = iterate to ``tol``).
+    outlier_k > 0: if some residuals exceed outlier_k robust sigmas (1.4826 x median |r|), those points are
+    dropped (each marker keeps at least 4) and the fit is refined again from the current centre. Why: a least-
+    squares sphere is not robust, and labelled capture has a few frames where a marker was mislabelled or the
+    parent frame was built from a wrong marker; on the two-player tennis serve 1-3 % such frames moved a hip
+    centre by 10 cm. Checking after the fit costs one median; the refit happens only when needed."""
     pts = [np.asarray(t, float) for t in trajectories]
     sizes = np.array([len(t) for t in pts])
     bounds = np.concatenate([[0], np.cumsum(sizes)])
@@ -249,7 +249,7 @@ def refine_centre(trajectories: list[np.ndarray], start: np.ndarray, iterations:
     dim, n = x.shape
     n_markers = len(pts)
 
-    def evaluate(c: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate(c: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         rel = x - c[:, None]
         dist = np.sqrt(np.einsum("in,in->n", rel, rel))
         unit = rel / dist
@@ -268,10 +268,10 @@ def refine_centre(trajectories: list[np.ndarray], start: np.ndarray, iterations:
                 res[sl] = dist[sl] - mean_d[m]
                 u_mean = unit[:, sl].mean(axis=1)
                 jtj -= sizes[m] * np.outer(u_mean, u_mean)
-        return float(res @ res), jtj, -(unit @ res), mean_d, unit
+        return float(res @ res), jtj, -(unit @ res), mean_d, unit, res
 
     centre = np.asarray(start, float).copy()
-    cost, jtj, jtr, mean_d, unit = evaluate(centre)
+    cost, jtj, jtr, mean_d, unit, res = evaluate(centre)
     dof = max(n - dim - n_markers, 1)
     lam, steps, eye = 0.0, 0, np.eye(dim)
     for _ in range(iterations):  # Gauss-Newton; Levenberg-Marquardt damping only after a step that failed
@@ -283,7 +283,7 @@ def refine_centre(trajectories: list[np.ndarray], start: np.ndarray, iterations:
         steps += 1
         evaluated = evaluate(trial)
         if evaluated[0] <= cost:
-            centre, (cost, jtj, jtr, mean_d, unit) = trial, evaluated
+            centre, (cost, jtj, jtr, mean_d, unit, res) = trial, evaluated
             lam *= 0.1
             if step @ step < tol * tol:
                 break
@@ -293,6 +293,14 @@ def refine_centre(trajectories: list[np.ndarray], start: np.ndarray, iterations:
         expected = float(np.sqrt(cost / dof * np.trace(np.linalg.inv(jtj))))
     except np.linalg.LinAlgError:  # a direction the data do not constrain at all
         expected = float("inf")
+    if outlier_k > 0:
+        limit = outlier_k * 1.4826 * float(np.median(np.abs(res)))
+        outlier = np.abs(res) > limit
+        if limit > 0 and outlier.any():
+            kept = [t[~outlier[bounds[m] : bounds[m + 1]]] for m, t in enumerate(pts)]
+            kept = [k if len(k) >= 4 else t for k, t in zip(kept, pts)]
+            if sum(len(k) for k in kept) < n:
+                return refine_centre(kept, centre, iterations, tol, rel_tol)
     arcs = [_arc_deg(unit[:, bounds[m] : bounds[m + 1]]) for m in range(n_markers)]
     return GeometricFit(centre, float(np.mean(mean_d)), expected, float(np.median(arcs)), steps)
 
@@ -303,32 +311,6 @@ def _arc_deg(unit: np.ndarray) -> float:
     axis = unit.sum(axis=1)
     cos_min = float((axis @ unit).min() / max(float(np.sqrt(axis @ axis)), 1e-300))
     return float(np.degrees(np.arccos(min(max(cos_min, -1.0), 1.0))))
-
-
-def _drop_outliers(trajs: list[np.ndarray], stats: list[Moments], config: JointFitConfig) -> list[np.ndarray]:
-    """Points whose distance from a first closed-form centre is off their marker's mean by more than
-    outlier_k robust sigmas (1.4826 x MAD) removed. Why: a least-squares sphere is not robust, and labelled
-    capture has a few frames where a marker was mislabelled or a parent frame was built from a wrong marker;
-    on the two-player tennis serve 1-3 % such frames moved a hip centre by 10 cm. A marker keeps at least
-    min_points points."""
-    cov_sum, rhs = pooled_normal_equations(stats)
-    try:
-        centre = np.linalg.solve(cov_sum, rhs)
-    except np.linalg.LinAlgError:
-        return trajs
-    res = []
-    for t in trajs:
-        dist = np.linalg.norm(t - centre, axis=1)
-        res.append(dist - dist.mean())
-    every = np.concatenate(res)
-    scale = 1.4826 * np.median(np.abs(every - np.median(every)))
-    if not scale > 0:
-        return trajs
-    kept = []
-    for t, r in zip(trajs, res):
-        keep = np.abs(r) <= config.outlier_k * scale
-        kept.append(t[keep] if keep.sum() >= config.min_points else t)
-    return kept
 
 
 def _moves(cov: np.ndarray, threshold: float) -> bool:

@@ -115,7 +115,7 @@ def test_real_hip_trial_centre_is_plausible_and_knee_is_a_hinge(shared_mocap):
     assert fit.kind is JointType.BALL
     centre_world = origin + rot @ fit.centre  # (F,3): the fitted centre through the trial
     gap = np.linalg.norm(np.nanmean(centre_world, axis=0) - _harrington_hip({k: m[k] for k in m}))
-    print(f"\nGDKE hip centre vs Harrington regression: {1000 * gap:.1f} mm (kappa {fit.kappa:.1f})")
+    print(f"\nhip centre vs Harrington regression: {1000 * gap:.1f} mm (kappa {fit.kappa:.1f})")
     assert gap < 0.03
     knee = read_c3d(shared_mocap / "markers" / "biobuddy_right_knee.c3d")
     m = {k: knee.positions_m[:, i] for i, k in enumerate(knee.labels)}
