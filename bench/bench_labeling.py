@@ -128,7 +128,7 @@ def real_takes(mocap: Path) -> list[MarkerData]:
 
 
 def takes_table(mocap: Path, seed: int = 1) -> None:
-    print("\n0. every shared real take, as `courtside label FILE --degrade 1` scores it (train 5 s, at most half "
+    print("\n0. every shared real take, as `courtside label FILE --degrade 1` scores it (train 10 s, at most half "
           "the take; one rigid body removed for 0.5 s every 10 s)")
     print(f"{'take':<36}{'frames':>7}{'Hz':>5}{'acc':>7}{'base':>7}{'obs':>6}{'rec':>6}{'lost':>6}{'rec_mm':>8}"
           f"{'fps':>6}  {'re-acq s (median/max)':<22}accuracy per 10 s")

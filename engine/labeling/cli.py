@@ -1,8 +1,8 @@
 """`courtside label in.c3d -o labelled.c3d`: online labeling of every frame after the labelled training frames.
 
-The input's first --train-frames frames (default: the first 5 s) must carry correct labels ("Subject:MARKER"),
-or with --bootstrap only the first frame, the rest of the training window being labelled by closest point (the paper's set-up:
-one labelled frame, subjects apart during training). Every later frame is taken as an unordered point cloud — the
+The input's first --train-frames frames (default: the first 10 s) must carry correct labels ("Subject:MARKER"),
+or with --bootstrap only the first frame, the rest of the training window being labelled by closest point
+(the paper's set-up: one labelled frame, subjects apart during training). Every later frame is taken as an unordered point cloud — the
 labels in the file are ignored — and labelled online. --degrade SEED first scrambles the frames the way
 optical capture does (shuffle, noise, gaps ≤ 20 frames, ghosts), removes one rigid body for 0.5 s every 10 s,
 and scores the result against the file's own labels: accuracy per 10 s, re-acquisition time after each forced
@@ -63,7 +63,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("-o", "--output", required=True, help="labelled C3D to write (observed + recovered)")
     parser.add_argument("--train-frames", type=int, default=None,
                         help="labelled training frames (default: the first --train-s seconds)")
-    parser.add_argument("--train-s", type=float, default=5.0,
+    parser.add_argument("--train-s", type=float, default=10.0,
                         help="training window in seconds when --train-frames is not given (at most half the take): "
                              "the clustering needs the body segments to move relative to each other")
     parser.add_argument("--recovery", choices=["offsets", "kabsch"], default=LabelingConfig.recovery)
@@ -97,7 +97,8 @@ def main(argv: list[str]) -> int:
     if untrained:
         print(f"{untrained} labels never seen in the training frames: they cannot be learned and stay unlabelled")
     print(f"observed {np.mean(status == 0):.3f}, recovered {np.mean(status == RECOVERED):.3f}, "
-          f"lost {np.mean(status == LOST):.3f}; mean gated candidates {np.mean([r.mean_candidates for r in results]):.2f}")
+          f"lost {np.mean(status == LOST):.3f}; "
+          f"mean gated candidates {np.mean([r.mean_candidates for r in results]):.2f}")
     if args.degrade is not None:
         ev = evaluation
         print(f"rigid bodies: sizes {ev.body_sizes}")

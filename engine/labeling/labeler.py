@@ -302,9 +302,9 @@ class OnlineLabeler:
         swapped distances, so nothing in the paper's loop ever undoes it. The training template is known to be
         correctly labelled. When a body fits it worse than it ever did in training (RMS above repair_tol_scale x
         its training 95th percentile), the template is fitted rigidly to the body's points on all of them and,
-        since the swapped ones pull that fit off, on every subset leaving two out (one for a 4-marker body); each fit gives every point to
-        the label whose template position lands nearest; the best relabelling is kept if its RMS is below
-        repair_ratio x the current one. Modifies ``assigned``."""
+        since the swapped ones pull that fit off, on every subset leaving two out (one for a 4-marker body);
+        each fit gives every point to the label whose template position lands nearest; the best relabelling is
+        kept if its RMS is below repair_ratio x the current one. Modifies ``assigned``."""
         cfg = self.config
         for b in range(len(self.bodies)):
             sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]

@@ -9,7 +9,7 @@ import numpy as np
 from engine.labeling.baseline import ClosestPointTracker, bootstrap_training_labels
 from engine.labeling.config import LabelingConfig
 from engine.labeling.evaluation import evaluate_take, force_losses
-from engine.labeling.labeler import LOST, OBSERVED, RECOVERED, OnlineLabeler
+from engine.labeling.labeler import LOST, RECOVERED, OnlineLabeler
 from engine.labeling.reacquire import reacquire_body
 from engine.labeling.scenario import DegradeConfig, degrade
 from engine.labeling.structure import DistanceWindow, pair_distances

@@ -3,7 +3,6 @@ The end-to-end pipeline (label → fit-skeleton → BVH → build-graph) is in t
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from engine.mocap import read_c3d
 from engine.skeleton_fit.cli import main as fit_main, subject_markers
