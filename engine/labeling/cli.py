@@ -11,12 +11,11 @@ loss, and the closest-point baseline on the same stream (engine.labeling.evaluat
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 
 import numpy as np
 
-from engine.errors import MalformedFileError
+from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import MarkerData, read_c3d
 
 from .baseline import bootstrap_training_labels
@@ -56,6 +55,7 @@ def run(
     return out, labeler, results
 
 
+@cli_command("courtside label")
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="courtside label", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -71,12 +71,14 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--bootstrap", action="store_true",
                         help="trust only the first frame's labels; label the other training frames by closest point")
     args = parser.parse_args(argv)
+    check_output_dir(args.output)
     try:
         data = read_c3d(args.input)
         train = args.train_frames or default_train_frames(data.n_frames, data.fps, args.train_s)
         config = LabelingConfig(train_frames=train, recovery=args.recovery)
         if data.n_frames <= config.train_frames:
-            raise ValueError(f"{args.input}: {data.n_frames} frames, not more than --train-frames")
+            raise MalformedFileError(args.input, None, f"{data.n_frames} frames, not more than --train-frames "
+                                                       f"{config.train_frames}")
         subjects = subjects_of(data.labels)
         start = time.perf_counter()
         if args.degrade is not None:
@@ -86,9 +88,10 @@ def main(argv: list[str]) -> int:
             out, _, results = run(data, config, stream, args.bootstrap)
         elapsed = time.perf_counter() - start
         write_c3d(args.output, MarkerData(data.labels, out, data.fps, data.name))
-    except (MalformedFileError, ValueError) as exc:
-        print(f"courtside label: {exc}", file=sys.stderr)
-        return 1
+    except ValueError as exc:  # the labeler refuses the file's markers (an argument error names itself)
+        if isinstance(exc, CourtsideError):
+            raise
+        raise MalformedFileError(args.input, None, str(exc)) from None
     status = np.array([r.status for r in results])
     n = len(results)
     untrained = int(np.sum(np.isnan(out[: config.train_frames]).any(axis=2).all(axis=0)))

@@ -7,11 +7,10 @@ expected centre error (from the fit's residuals and geometry: short arcs give la
 from __future__ import annotations
 
 import argparse
-import sys
 
 import numpy as np
 
-from engine.errors import MalformedFileError
+from engine.errors import MalformedFileError, check_output_dir, cli_command
 from engine.mocap import read_c3d, write_bvh
 
 from .gdke import DegenerateFitError, JointFitConfig
@@ -29,6 +28,7 @@ def subject_markers(labels: tuple[str, ...], positions_m: np.ndarray, subject: s
     return {lab.split(":")[-1]: positions_m[:, i] for i, lab in enumerate(labels) if prefixes[i] == chosen}
 
 
+@cli_command("courtside fit-skeleton")
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="courtside fit-skeleton", description=__doc__)
     parser.add_argument("input", help="labelled marker C3D")
@@ -41,6 +41,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--refine-iterations", type=int, default=JointFitConfig.refine_iterations,
                         help="geometric refinement steps after the closed form (0 = GDKE only)")
     args = parser.parse_args(argv)
+    check_output_dir(args.output)
     try:
         data = read_c3d(args.input)
         markers = subject_markers(data.labels, data.positions_m, args.subject)
@@ -51,9 +52,10 @@ def main(argv: list[str]) -> int:
         model = fit_skeleton(markers, marker_set, config)
         motion = to_motion(model, markers, data.fps, name=data.name)
         write_bvh(args.output, motion)
-    except (MalformedFileError, DegenerateFitError, ValueError) as exc:
-        print(f"courtside fit-skeleton: {exc}", file=sys.stderr)
-        return 1
+    except (DegenerateFitError, ValueError) as exc:  # the markers cannot give a skeleton: name the file
+        if isinstance(exc, MalformedFileError):
+            raise
+        raise MalformedFileError(args.input, None, str(exc)) from None
     print(f"{args.input}: marker set {marker_set.name}, {motion.rotations.shape[0]} frames at {data.fps:g} Hz")
     print(f"{'joint':<14}{'parent':<14}{'type':<8}{'kappa':>9}{'radius_m':>10}{'arc_deg':>9}{'expected_mm':>12}"
           "  centre_in_parent_m")

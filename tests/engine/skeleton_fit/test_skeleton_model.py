@@ -132,7 +132,7 @@ def test_real_hip_trial_centre_is_plausible_and_knee_is_a_hinge(shared_mocap):
 def test_fit_skeleton_cli_reports_bad_input(tmp_path, capsys):
     bad = tmp_path / "bad.c3d"
     bad.write_bytes(b"not a c3d")
-    assert fit_main([str(bad), "-o", str(tmp_path / "x.bvh")]) == 1
+    assert fit_main([str(bad), "-o", str(tmp_path / "x.bvh")]) == 2
     assert "bad.c3d" in capsys.readouterr().err
 
 
