@@ -60,11 +60,11 @@ class TakeEvaluation:
 
 def default_train_frames(n_frames: int, fps: float, train_s: float = 10.0) -> int:
     """The training window `courtside label` uses without --train-frames: ``train_s`` seconds, at most half the
-    take. Why seconds: the clustering needs the segments to move relative to each other, and 50 frames are
+    take, at least the paper's 50 frames (so a take of 50 frames or fewer is refused as too short). Why seconds: the clustering needs the segments to move relative to each other, and 50 frames are
     0.4 s at 120 Hz (a break dancer standing still), 1 s at 50 Hz; 3 s of a tennis serve still cluster a whole
     arm into one body (accuracy 0.80 on the one-player serve), 5 s separate it (0.975); on the long CMU takes
     and the jyu dances 10 s beat 5 s (cmu_135_02 0.911 -> 0.983, jyu_dance2 0.760 -> 0.838)."""
-    return max(3, min(int(round(train_s * fps)), n_frames // 2))
+    return max(LabelingConfig.train_frames, min(int(round(train_s * fps)), n_frames // 2))
 
 
 def force_losses(stream: Stream, bodies: list[np.ndarray], first: int, fps: float, every_s: float,

@@ -159,3 +159,12 @@ def test_evaluation_scores_windows_forced_losses_and_the_baseline():
     assert [(loss.start, loss.end) for loss in losses] == [(150, 180), (330, 360), (510, 540)]
     assert not np.isin(stream.truth[179], np.arange(5, 10)).any() and len(stream.clouds[179]) == 10
     assert len(stream.clouds[180]) == 15 and not stream.visible[179, 5:10].any() and stream.visible[180].all()
+
+
+def test_default_training_window_is_ten_seconds_at_most_half_the_take_at_least_fifty_frames():
+    from engine.labeling.evaluation import default_train_frames
+
+    assert default_train_frames(4499, 120.0) == 1200  # a long CMU take: 10 s
+    assert default_train_frames(599, 50.0) == 299  # the two-player serve: half of it
+    assert default_train_frames(138, 100.0) == 69
+    assert default_train_frames(20, 100.0) == 50  # more than the take: the CLI refuses it as too short
