@@ -243,7 +243,7 @@ def refine_centre(trajectories: list[np.ndarray], start: np.ndarray, iterations:
     dropped (each marker keeps at least 4) and the fit is refined again from the current centre. Why: a least-
     squares sphere is not robust, and labelled capture has a few frames where a marker was mislabelled or the
     parent frame was built from a wrong marker; on the two-player tennis serve 1-3 % such frames moved a hip
-    centre by 10 cm. Checking after the fit costs one median; the refit happens only when needed."""
+    centre by 10 cm. Checking after the fit costs one partition; the refit happens only when needed."""
     pts = [np.asarray(t, float) for t in trajectories]
     sizes = np.array([len(t) for t in pts])
     bounds = np.concatenate([[0], np.cumsum(sizes)])
@@ -275,11 +275,12 @@ def refine_centre(trajectories: list[np.ndarray], start: np.ndarray, iterations:
     centre = np.asarray(start, float).copy()
     cost, jtj, jtr, mean_d, unit, res = evaluate(centre)
     dof = max(n - dim - n_markers, 1)
-    lam, steps, eye = 0.0, 0, np.eye(dim)
+    lam, steps, eye, covariance = 0.0, 0, np.eye(dim), None
     for _ in range(iterations):  # Gauss-Newton; Levenberg-Marquardt damping only after a step that failed
         inverse = np.linalg.inv(jtj + lam * np.trace(jtj) / dim * eye)
         step = -(inverse @ jtr)
         if lam == 0.0 and step @ step < rel_tol**2 * cost / dof * np.trace(inverse):
+            covariance = inverse  # (JᵀJ)⁻¹ at the final centre: reused for the expected error
             break  # the step is far below the expected error: statistically nothing left to gain
         trial = centre + step
         steps += 1
@@ -292,12 +293,14 @@ def refine_centre(trajectories: list[np.ndarray], start: np.ndarray, iterations:
         else:
             lam = max(lam * 10.0, 1e-4)
     try:
-        expected = float(np.sqrt(cost / dof * np.trace(np.linalg.inv(jtj))))
+        covariance = np.linalg.inv(jtj) if covariance is None else covariance
+        expected = float(np.sqrt(cost / dof * np.trace(covariance)))
     except np.linalg.LinAlgError:  # a direction the data do not constrain at all
         expected = float("inf")
     if outlier_k > 0:
-        limit = outlier_k * 1.4826 * float(np.median(np.abs(res)))
-        outlier = np.abs(res) > limit
+        magnitude = np.abs(res)
+        limit = outlier_k * 1.4826 * float(np.partition(magnitude, n // 2)[n // 2])  # ≈ median, one O(N) pass
+        outlier = magnitude > limit
         if limit > 0 and outlier.any():
             kept = [t[~outlier[bounds[m] : bounds[m + 1]]] for m, t in enumerate(pts)]
             kept = [k if len(k) >= 4 else t for k, t in zip(kept, pts)]
