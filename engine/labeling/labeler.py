@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from itertools import combinations
+from itertools import combinations, permutations
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -301,7 +301,8 @@ class OnlineLabeler:
         is not quite rigid; the Kalman gates then follow the swapped points and the sliding window learns the
         swapped distances, so nothing in the paper's loop ever undoes it. The training template is known to be
         correctly labelled. When a body fits it worse than it ever did in training (RMS above repair_tol_scale x
-        its training 95th percentile), the template is fitted rigidly to the body's points on all of them and,
+        its training 95th percentile), a body with three labelled markers tries the other permutations of its
+        points; a larger one has the template fitted rigidly to its points on all of them and,
         since the swapped ones pull that fit off, on every subset leaving two out (one for a 4-marker body);
         each fit gives every point to the label whose template position lands nearest; the best relabelling is
         kept if its RMS is below repair_ratio x the current one. Modifies ``assigned``."""
@@ -318,12 +319,22 @@ class OnlineLabeler:
             old_rms = _rigid_rms(tmpl[usable], pts)
             if old_rms < max(cfg.repair_min_rms_m, cfg.repair_tol_scale * self._rigid_tol[b]):
                 continue  # fits as well as in training: nothing to repair (the common case, one SVD)
-            rows = np.flatnonzero(known)
-            drop = min(len(usable) - 3, 2)  # leave out up to two markers, keeping at least three to fit
-            subsets = [np.delete(np.arange(len(usable)), out) for out in combinations(range(len(usable)), drop)]
-            if drop:
-                subsets.insert(0, np.arange(len(usable)))
             best, best_rms = None, cfg.repair_ratio * old_rms
+            if len(usable) == 3:  # three points: no subset to fit on, so try their 5 other permutations
+                for perm in permutations(range(len(usable))):
+                    if list(perm) == list(range(len(usable))):
+                        continue
+                    rms = _rigid_rms(tmpl[usable], pts[list(perm)])
+                    if rms < best_rms:
+                        best, best_rms = current.copy(), rms
+                        best[usable] = current[usable][list(perm)]
+                if best is not None:
+                    assigned[sl] = best
+                continue
+            rows = np.flatnonzero(known)
+            drop = min(len(usable) - 3, 2)  # leave out up to two markers (one of four), keeping three to fit
+            subsets = [np.arange(len(usable))]
+            subsets += [np.delete(np.arange(len(usable)), out) for out in combinations(range(len(usable)), drop)]
             for subset in subsets:
                 rot, shift = _kabsch(tmpl[usable[subset]], pts[subset])
                 cost = np.linalg.norm((tmpl[rows] @ rot.T + shift)[:, None] - pts[None], axis=2)

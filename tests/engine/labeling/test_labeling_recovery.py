@@ -5,6 +5,7 @@ Synthetic scenes with exact answers; each test fails on the labeler before issue
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from engine.labeling.baseline import ClosestPointTracker, bootstrap_training_labels
 from engine.labeling.config import LabelingConfig
@@ -24,19 +25,20 @@ def _rotation(rng):
     return q if np.linalg.det(q) > 0 else -q
 
 
-def _walking_scene(rng, frames, speed_mps=0.5):
-    """One subject of three rigid 5-marker bodies (1 m apart, no two alike) walking along x and turning slowly."""
-    local = rng.uniform(-0.1, 0.1, (3, 5, 3))
+def _walking_scene(rng, frames, speed_mps=0.5, per_body=5):
+    """One subject of three rigid bodies (0.35 m apart, no two alike) walking along x and turning slowly."""
+    local = rng.uniform(-0.1, 0.1, (3, per_body, 3))
     offsets = np.array([[0.0, 0, 1.0], [0.0, 0.35, 1.0], [0.0, 0.7, 1.0]])
     t = np.arange(frames) / FPS
-    pos = np.zeros((frames, 15, 3))
+    pos = np.zeros((frames, 3 * per_body, 3))
     for b in range(3):
         ang = 0.5 * np.sin(0.7 * t + b)
         c, s = np.cos(ang), np.sin(ang)
         rot = np.stack([np.stack([c, -s, 0 * c], -1), np.stack([s, c, 0 * c], -1),
                         np.stack([0 * c, 0 * c, 1 + 0 * c], -1)], -2)
-        pos[:, 5 * b : 5 * b + 5] = np.einsum("fij,nj->fni", rot, local[b]) + (offsets[b] + np.outer(t, [speed_mps, 0, 0]))[:, None]
-    return pos, np.zeros(15, int)
+        pos[:, per_body * b : per_body * (b + 1)] = (np.einsum("fij,nj->fni", rot, local[b])
+                                                     + (offsets[b] + np.outer(t, [speed_mps, 0, 0]))[:, None])
+    return pos, np.zeros(3 * per_body, int)
 
 
 def test_reacquire_body_finds_a_body_by_shape_alone_and_refuses_ghosts():
@@ -98,11 +100,13 @@ def test_recovery_is_bounded_then_the_marker_counts_as_lost():
     assert (status[:30] == RECOVERED).all() and (status[31:] == LOST).all()
 
 
-def test_a_swap_inside_a_body_is_undone_by_the_training_template():
+@pytest.mark.parametrize("per_body", [5, 3])
+def test_a_swap_inside_a_body_is_undone_by_the_training_template(per_body):
     """Force a swapped track (two body-mates' filters exchanged): the next frame labels them correctly again.
-    Before issue 14 Algorithm 1 kept the swap (Eq. 5 scores only the gated candidates)."""
+    Before issue 14 Algorithm 1 kept the swap (Eq. 5 scores only the gated candidates). Three-marker bodies
+    (CMU's C7 / T10 / LSHO) are repaired by trying the permutations of their points."""
     rng = np.random.default_rng(4)
-    pos, subjects = _walking_scene(rng, 120)
+    pos, subjects = _walking_scene(rng, 120, per_body=per_body)
     labeler = OnlineLabeler(LabelingConfig(train_frames=60, accel_std_floor_mps2=2.0))
     labeler.train(pos[:60], subjects, FPS)
     for t in range(60, 80):
@@ -112,7 +116,7 @@ def test_a_swap_inside_a_body_is_undone_by_the_training_template():
     labeler.kf.pos[[a, b]] = labeler.kf.pos[[b, a]]  # the tracks now follow each other's marker
     labeler.kf.vel[[a, b]] = labeler.kf.vel[[b, a]]
     result = labeler.step(pos[80])
-    assert np.array_equal(result.label_point, np.arange(15))
+    assert np.array_equal(result.label_point, np.arange(3 * per_body))
 
 
 def test_window_keeps_the_last_statistics_of_a_pair_absent_for_longer_than_the_window():
