@@ -82,6 +82,30 @@ def test_a_body_hidden_for_a_second_while_it_moves_is_reacquired():
     assert np.array_equal(got, np.arange(15))
 
 
+def test_a_whole_subject_hidden_for_a_second_is_reacquired_body_by_body():
+    """Every marker of the subject vanishes for 1 s while it walks 0.5 m on; each body is then found again from
+    no anchor at all, by its shape, among the points of the returning subject and ghosts."""
+    rng = np.random.default_rng(7)
+    pos, subjects = _walking_scene(rng, 330)
+    labeler = OnlineLabeler(LabelingConfig(train_frames=60, accel_std_floor_mps2=2.0))
+    labeler.train(pos[:60], subjects, FPS)
+    back = None
+    for t in range(60, 330):
+        if 120 <= t < 240:
+            cloud = rng.uniform(-0.5, 0.5, (3, 3)) + pos[t].mean(axis=0)  # only ghosts while the subject is gone
+        else:
+            cloud = pos[t] + rng.normal(0, 0.0005, pos[t].shape)
+        perm = rng.permutation(len(cloud))
+        result = labeler.step(cloud[perm])
+        if t < 240:
+            continue
+        got = np.where(result.label_point >= 0, perm[np.maximum(result.label_point, 0)], -1)
+        if back is None and np.array_equal(got, np.arange(15)):
+            back = t
+    assert back is not None and back - 240 <= 2
+    assert np.array_equal(got, np.arange(15))
+
+
 def test_recovery_is_bounded_then_the_marker_counts_as_lost():
     """A marker hidden for 1 s is RECOVERED for at most max_recovered_s, then LOST (no position reported)."""
     rng = np.random.default_rng(3)
