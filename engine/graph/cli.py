@@ -78,11 +78,15 @@ def build_graph_main(argv: list[str]) -> int:
     p.add_argument("-o", "--output", required=True, help="graph .npz (a .json summary is written beside it)")
     p.add_argument("--msv", action="store_true", help="add motion speed variations")
     p.add_argument("--interp", action="store_true", help="add interpolated motions")
+    p.add_argument("--no-connect", action="store_true",
+                   help="keep the graph as built: no relaxed transitions for poorly connected clips and no pruning "
+                        "to the largest strongly connected component (default: connect and prune)")
     p.add_argument("--calibration", metavar="RECORD",
                    help="sensor-calibration record (.calibration.json from the gateway's calibration workflow): "
                         "virtual sensors use its measured sensor-to-segment rotations")
     args = p.parse_args(argv)
-    config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold)
+    config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold,
+                         connect=not args.no_connect)
     t0 = time.perf_counter()
     try:
         motions, clips, sensor_model = load_clips(args, config)
@@ -98,6 +102,14 @@ def build_graph_main(argv: list[str]) -> int:
                "build_s": round(t2 - t1, 2), "frames": int(sum(c.n_frames for c in clips))}
     if args.calibration:
         summary["calibration"] = {"record": str(args.calibration), "sensors": args.calibrated_sensors}
+    if graph.build_report:
+        summary.update(graph.build_report)
+        c = graph.build_report["component"]
+        print(f"component step: largest strongly connected component held {100 * c['share_before']:.1f} % of "
+              f"{c['frames']} frames; {c['relaxed_transitions']} relaxed transitions (thresholds "
+              f"{c['thresholds_used_m']} m) -> {100 * c['share_connected']:.1f} %; pruned {c['pruned_nodes']} nodes "
+              f"({c['pruned_frames']} database frames), {c['pruned_edges']} edges; {c['clips_kept']} of "
+              f"{c['clips_total']} clips kept", file=sys.stderr)
     Path(args.output).with_suffix(".json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(summary))
     return 0

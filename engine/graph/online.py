@@ -16,6 +16,7 @@ from scipy import signal
 from .graph import MotionGraph
 from .poses import world_joint_positions
 from .viterbi import DEFAULT_KERNEL, PRUNE_EVERY, SearchWeights, ViterbiLattice
+from .warp import RootWarp
 
 
 @dataclass(frozen=True)
@@ -35,12 +36,12 @@ class FixedLagSynthesizer:
 
     def __init__(self, graph: MotionGraph, lag_s: float, weights: SearchWeights = SearchWeights(),
                  sensor_indices: tuple[int, ...] | None = None, prune_every: int = PRUNE_EVERY,
-                 kernel: str = DEFAULT_KERNEL) -> None:
+                 kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> None:
         if lag_s < 0:
             raise ValueError("lag must be non-negative")
         self.graph = graph
         self.lag = int(round(lag_s * graph.config.fps))
-        self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel)
+        self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp)
         self.next_emit = 0  # first sample not yet emitted
         self._last: tuple[complex, float, int] | None = None  # (ground, heading, node) of the last emitted sample
 
@@ -61,24 +62,36 @@ class FixedLagSynthesizer:
         self.lattice.prune()
         return self._emit(self.next_emit, self.lattice.t)
 
+    def _step_after_last_emitted(self, node: int, edge: int) -> int:
+        """Metadata row of the step from the last emitted sample into the first one to emit: the arriving edge if
+        it leaves the last emitted node, else the node's own natural step (the decoder changed its mind; the pose
+        jumps but the root path stays continuous)."""
+        g = self.graph
+        return int(g.edge_meta[edge] if edge >= 0 and g.edge_src[edge] == self._last[2] else g.node_arrival[node])
+
     def _start_after_last_emitted(self, node: int, edge: int) -> tuple[complex, float] | None:
         """Markov (accelerometer-only) search: the global state of the first sample to emit, continuing from the
-        last emitted one -- along the arriving edge if it leaves the last emitted node, else with the node's
-        own natural step (the decoder changed its mind; the pose jumps but the root path stays continuous)."""
+        last emitted one (see `_step_after_last_emitted`)."""
         if self._last is None:
             return None  # first sample: the lattice's start state
-        ground, heading, prev = self._last
-        g = self.graph
-        row = g.edge_meta[edge] if edge >= 0 and g.edge_src[edge] == prev else g.node_arrival[node]
-        d = complex(*g.meta_dpos_m[row])
-        return ground + d * np.exp(-1j * heading), heading + g.meta_dheading_rad[row]
+        ground, heading, _ = self._last
+        row = self._step_after_last_emitted(node, edge)
+        d = complex(*self.graph.meta_dpos_m[row])
+        return ground + d * np.exp(-1j * heading), heading + self.graph.meta_dheading_rad[row]
 
     def _emit(self, first: int, last: int) -> list[EmittedPose]:
         lat = self.lattice
         best = lat.best_node()
         nodes, edges = lat.backtrace(best, lat.t - first)
-        start = None if lat.track_global else self._start_after_last_emitted(int(nodes[0]), int(edges[0]))
-        ground, heading = lat.global_states(best, edges, start)
+        if lat.warp.active:  # replay the warped root from the last emitted sample (or the first input)
+            if self._last is None:
+                ground, heading = lat.warped_states(edges, first, lat.start_state, None)
+            else:
+                ground, heading = lat.warped_states(edges, first, self._last[:2],
+                                                    self._step_after_last_emitted(int(nodes[0]), int(edges[0])))
+        else:
+            start = None if lat.track_global else self._start_after_last_emitted(int(nodes[0]), int(edges[0]))
+            ground, heading = lat.global_states(best, edges, start)
         k = last - first + 1
         nodes, ground, heading = nodes[:k], ground[:k], heading[:k]
         joints = world_joint_positions(self.graph, nodes, ground, heading)
