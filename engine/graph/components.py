@@ -6,8 +6,9 @@ rest of a long take (issue 11: one clip for 50 s; the largest component held 22 
 Two steps fix it:
 
 1. *connect*: while the largest component holds less than `min_component_share` of the frames, add transitions
-   at a relaxed threshold, but only ones that start or end outside the component (so well-connected clips keep
-   the strict threshold and its clean transitions), trying each of `connect_thresholds_m` in turn;
+   at a relaxed threshold, but only ones that join two different components, one of them not the largest (so
+   well-connected clips keep the strict threshold and its clean transitions, and a clip group that is already
+   strongly connected in itself gets only the links it lacks), trying each of `connect_thresholds_m` in turn;
 2. *prune*: keep only the largest component (nodes and the edges between them), as Kovar et al. do.
 
 `ComponentReport` says what each step did; `courtside build-graph` prints it.
@@ -21,14 +22,22 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 
-def largest_component(src: np.ndarray, dst: np.ndarray, n_nodes: int) -> np.ndarray:
-    """(N,) bool: the nodes of the largest strongly connected component of the directed graph src -> dst."""
+def component_labels(src: np.ndarray, dst: np.ndarray, n_nodes: int) -> np.ndarray:
+    """(N,) strongly connected component of every node of the directed graph src -> dst, numbered by size
+    (0 = the largest)."""
     if n_nodes == 0:
-        return np.zeros(0, dtype=bool)
+        return np.zeros(0, dtype=np.int64)
     adj = csr_matrix((np.ones(len(src), dtype=np.int8), (np.asarray(src), np.asarray(dst))),
                      shape=(n_nodes, n_nodes))
     _, labels = connected_components(adj, directed=True, connection="strong")
-    return labels == np.bincount(labels).argmax()
+    rank = np.empty_like(labels)
+    rank[np.argsort(-np.bincount(labels), kind="stable")] = np.arange(labels.max() + 1)
+    return rank[labels]
+
+
+def largest_component(src: np.ndarray, dst: np.ndarray, n_nodes: int) -> np.ndarray:
+    """(N,) bool: the nodes of the largest strongly connected component of the directed graph src -> dst."""
+    return component_labels(src, dst, n_nodes) == 0
 
 
 @dataclass

@@ -19,7 +19,7 @@ from engine.errors import MalformedFileError
 from engine.mocap.skeleton import Skeleton
 
 from .clips import ClipData
-from .components import ComponentReport, largest_component
+from .components import ComponentReport, component_labels, largest_component
 from .config import GraphConfig
 from .metadata import step_offsets
 from .transitions import find_transitions
@@ -322,21 +322,21 @@ def _connect(parts: GraphParts, clips: list[ClipData], config: GraphConfig, join
     until the component holds `min_component_share` of the frames."""
     n = int(sum(c.n_frames for c in clips))
     src, dst = np.concatenate(parts.edge["src"]), np.concatenate(parts.edge["dst"])
-    inside = largest_component(src, dst, n)
-    report = ComponentReport(frames=n, share_before=float(inside.mean()))
+    labels = component_labels(src, dst, n)
+    report = ComponentReport(frames=n, share_before=float(np.mean(labels == 0)))
     used = []
     for threshold in config.connect_thresholds_m:
-        if inside.mean() >= config.min_component_share:
+        if np.mean(labels == 0) >= config.min_component_share:
             break
         tr = find_transitions(clips, config.window_frames, joint_weights, threshold, config.min_jump_frames,
                               config.max_transitions_per_frame, idle_spacing_frames=config.idle_spacing_frames,
-                              involving=~inside)
+                              components=labels)
         parts.add_edges(tr.src_frame - 1, tr.dst_frame, EDGE_TRANSITION, arrival[tr.dst_frame])
         report.relaxed_transitions += len(tr.src_frame)
         used.append(float(threshold))
         src, dst = np.r_[src, tr.src_frame - 1], np.r_[dst, tr.dst_frame]
-        inside = largest_component(src, dst, n)
-    report.share_connected = float(inside.mean())
+        labels = component_labels(src, dst, n)
+    report.share_connected = float(np.mean(labels == 0))
     report.thresholds_used_m = tuple(used)
     return report
 

@@ -58,7 +58,7 @@ def contact_code(contacts: np.ndarray) -> np.ndarray:
 def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: np.ndarray,
                      threshold_m: float, min_jump_frames: int, max_per_frame: int = 0,
                      block_rows: int = 1024, idle_spacing_frames: int = 0,
-                     involving: np.ndarray | None = None) -> Transitions:
+                     components: np.ndarray | None = None) -> Transitions:
     """All transitions between contact-change frames of `clips` (including within one clip).
 
     A pair is kept when both frames have the same contact state, the distance is below `threshold_m`, and the
@@ -66,8 +66,9 @@ def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: n
     within the same clip, as Kovar keeps local minima of the frame-by-frame matrix). With `max_per_frame` > 0
     only that many of the closest transitions leave each frame (repetitive locomotion otherwise links every
     step to nearly every similar step of every other clip). `idle_spacing_frames` > 0 adds `idle_frames`
-    candidates. `involving` (bool per global frame): keep only transitions i ~ j where frame i - 1 or frame j
-    is flagged -- the component step uses it to connect only what lies outside the largest component."""
+    candidates. `components` (strongly connected component label per global frame, the largest labelled 0):
+    keep only transitions i ~ j that join two different components, one of them not the largest -- the component
+    step uses it to connect what lies outside the largest component, and nothing else."""
     offsets = np.concatenate([[0], np.cumsum([c.n_frames for c in clips])])
     feats, glob, clip_id, code = [], [], [], []
     for ci, clip in enumerate(clips):
@@ -113,8 +114,9 @@ def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: n
         keep &= (masked <= left) & (masked <= right) & (masked <= up) & (masked <= down)
         keep[: r0 - lo] = False  # halo rows belong to the neighbouring blocks
         keep[keep.shape[0] - (hi - r1):] = False
-        if involving is not None:
-            keep &= involving[glob_idx[rows] - 1][:, None] | involving[glob_idx][None, :]
+        if components is not None:
+            a, b = components[glob_idx[rows] - 1][:, None], components[glob_idx][None, :]
+            keep &= (a != b) & ((a != 0) | (b != 0))
         r, c = np.nonzero(keep)
         if max_per_frame > 0 and len(r):
             order = np.lexsort((dist[r, c], r))  # by row, then distance

@@ -73,6 +73,15 @@ class SearchWeights:
     position: float = 1.0
     heading: float = 1.0
 
+    @classmethod
+    def camera_following(cls) -> "SearchWeights":
+        """Weights for a search with root warping (warp.RootWarp): 0.5 / 10 / 3. The warped state sits within a
+        few cm / degrees of the camera, so the position and heading terms see residuals of ~5 cm and ~0.1 rad;
+        at the paper's 1 / 1 they would add ~0.15 per sample beside an accelerometer term of ~0.8 (the 1.6 g^2
+        real-vs-virtual gap at W_A 0.5) and decide nothing. 10 per metre and 3 per radian put a 10 cm / 10 deg
+        mismatch on the scale of that gap (measured: docs/engine-graph.md)."""
+        return cls(0.5, 10.0, 3.0)
+
 
 @dataclass(frozen=True)
 class Constraint:
@@ -430,6 +439,21 @@ class ViterbiLattice:
         nPx[nodes] = Px + (dx * C + dz * Sn)
         nPz[nodes] = Pz + (dz * C - dx * Sn)
         nO[nodes] = _wrap32(O + dh)
+
+    def reanchor(self, position_m: np.ndarray | None, heading_rad: float | None) -> None:
+        """Forget the accumulated costs (every live path starts over at cost 0, so the next samples decide
+        afresh) and, with global state, put every path's root on this sample's camera fix. Paths stay graph
+        paths: back-pointers are kept, only the evidence before now no longer counts. For the online decoder's
+        lost-track recovery (online.FixedLagSynthesizer)."""
+        live = np.isfinite(self._G)
+        self._G[live] = 0.0
+        pos = None if position_m is None or np.any(np.isnan(position_m)) else np.asarray(position_m, float)
+        head = None if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
+        if pos is not None or head is not None:
+            self._set_first_fix(pos, head)
+            if self.warp.active:
+                old = self._fixes[-1]
+                self._fixes[-1] = (old[0] if pos is None else complex(*pos), old[1] if head is None else head, True)
 
     # ----- state by graph node ------------------------------------------------------------------
     def cost_of(self, node: int) -> float:
