@@ -19,6 +19,7 @@ from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .viterbi import SearchWeights
+from .warp import RootWarp
 
 _BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+")
 
@@ -130,7 +131,12 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--graph", required=True, help="graph .npz from build-graph")
     p.add_argument("--input", required=True, help="take .npz (synthesis input format or a gateway export)")
     p.add_argument("-o", "--output", required=True, help="output .bvh")
-    p.add_argument("--weights", nargs=3, type=float, default=[0.5, 1.0, 1.0], metavar=("W_A", "W_P", "W_O"))
+    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
+                   help="search weights (default: 0.5 10 3 with root warping, the paper's 0.5 1 1 without)")
+    p.add_argument("--root-warp", nargs=2, type=float, default=[RootWarp().position_gain, RootWarp().heading_gain],
+                   metavar=("GAIN_P", "GAIN_O"),
+                   help="pull the root towards the camera by these gains per sample, bounded to human speeds "
+                        "(engine/graph/warp.py); 0 0 = seed 000's search")
     p.add_argument("--lag", type=float, default=None, help="fixed-lag online decoding with this latency (s)")
     p.add_argument("--sensor-map", nargs="*", default=None, metavar="STATION/SENSOR=NAME",
                    help="gateway exports: which recorded sensor is which graph sensor")
@@ -150,7 +156,9 @@ def synthesize_main(argv: list[str]) -> int:
     if graph.skeleton is None:
         print(f"error: {args.graph}: graph holds no skeleton (rebuild it with build-graph)", file=sys.stderr)
         return 1
-    weights = _weights(args.weights)
+    warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
+    weights = _weights(args.weights) if args.weights else (
+        SearchWeights.camera_following() if warp.active else SearchWeights())
     try:
         constraints = [label_constraint(graph, r.rsplit("@", 1)[0], int(round(float(r.rsplit("@", 1)[1])
                                                                                 * graph.config.fps)),
@@ -163,18 +171,21 @@ def synthesize_main(argv: list[str]) -> int:
         return 2
     t0 = time.perf_counter()
     broken = 0
+    extra = {}
     if args.lag is None:
-        res = ViterbiSearch(graph, weights).run(obs, constraints)
+        res = ViterbiSearch(graph, weights, warp=warp).run(obs, constraints)
         nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
         broken = res.broken_constraints
     else:
-        syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)
+        syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp)
         poses = []
         for t in range(obs.n_samples):
             poses += syn.push(None if obs.acc_g is None else obs.acc_g[t],
                               None if obs.position_m is None else obs.position_m[t],
                               None if obs.heading_rad is None else float(obs.heading_rad[t]))
         poses += syn.flush()
+        extra = {"confidence_mean": round(float(np.mean([q.confidence for q in poses])), 3),
+                 "reanchors": len(syn.reanchors)}
         nodes = np.array([q.node for q in poses])
         ground = np.array([q.ground_m for q in poses])
         heading = np.array([q.heading_rad for q in poses])
@@ -189,7 +200,7 @@ def synthesize_main(argv: list[str]) -> int:
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
     print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
-                      "broken_constraints": broken}))
+                      "broken_constraints": broken, **extra}))
     return 0
 
 

@@ -32,7 +32,7 @@ from .edge_runs import EdgeRuns
 from .geometry import wrap_angle
 from .graph import MotionGraph
 from .trig32 import cos_sin
-from .warp import RootWarp, warp_one
+from .warp import RootWarp, follow_camera
 
 KERNELS = ("numba", "numpy")
 DEFAULT_KERNEL = "numba" if kernels is not None else "numpy"  # identical results; numba is several times faster
@@ -561,24 +561,16 @@ class ViterbiLattice:
         """Ground (T, 2) and heading (T,) of a path whose samples time0 .. time0 + T - 1 arrive by `edges`, with
         root warping replayed (float64) from `start`: the state *before* sample time0 if `first_row` (the metadata
         row of the step into time0) is given, else the state *at* time0 (the first input sample)."""
-        g, fps = self.graph, self.graph.config.fps
-        ground, heading = complex(start[0]), float(start[1])
-        out_g = np.empty(len(edges), dtype=complex)
-        out_h = np.empty(len(edges))
+        g = self.graph
         rows = g.edge_meta[np.maximum(np.asarray(edges), 0)]
-        for i in range(len(edges)):
-            row = (first_row if i == 0 else rows[i])
-            if row is not None:
-                ground += complex(*g.meta_dpos_m[row]) * np.exp(-1j * heading)
-                heading += g.meta_dheading_rad[row]
-            pos, head, reset = self._fixes[time0 + i - self.first_fix_time]
-            if reset:  # the first fix of a take that started without one sets every path (ViterbiLattice.step)
-                ground = pos if pos is not None else ground
-                heading = head if head is not None else heading
-            else:
-                ground, heading = warp_one(ground, heading, pos, head, self.warp, fps)
-            out_g[i], out_h[i] = ground, heading
-        return np.stack([out_g.real, out_g.imag], axis=1), wrap_angle(out_h)
+        if first_row is not None:
+            rows[0] = first_row
+        fixes = self._fixes[time0 - self.first_fix_time:time0 - self.first_fix_time + len(edges)]
+        pos = np.array([[np.nan, np.nan] if f[0] is None else [f[0].real, f[0].imag] for f in fixes]).reshape(-1, 2)
+        head = np.array([np.nan if f[1] is None else f[1] for f in fixes])
+        return follow_camera(g.meta_dpos_m[rows], g.meta_dheading_rad[rows], start, pos, head, self.warp,
+                             g.config.fps, reset=np.array([f[2] for f in fixes], dtype=bool),
+                             step_first=first_row is not None)
 
     def drop_before(self, time: int) -> None:
         """Forget columns of samples earlier than `time` (already emitted by a fixed-lag decoder)."""

@@ -68,3 +68,35 @@ def warp_one(ground_m: complex, heading_rad: float, fix_m: complex | None, fix_h
         heading_rad = float(wrap_angle(heading_rad + np.clip(
             warp.heading_gain * wrap_angle(fix_heading_rad - heading_rad), -lim, lim)))
     return ground_m, heading_rad
+
+
+def follow_camera(steps_local_m: np.ndarray, dheading_rad: np.ndarray, start: tuple[complex, float],
+                  fix_m: np.ndarray | None, fix_heading_rad: np.ndarray | None, warp: RootWarp, fps: float,
+                  reset: np.ndarray | None = None, heading_offset_rad: np.ndarray | float = 0.0,
+                  step_first: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """A root path integrated from per-frame steps (ground step (T, 2) in the previous frame's heading frame, and
+    heading change (T,)) and warped towards camera fixes (T, 2) / (T,) (NaN = no fix) after every frame.
+
+    `start` is the state at frame 0 (no step into it) unless `step_first`. `reset` (T,) bool: put the root on that
+    frame's fix instead of pulling (a take's first fix). `heading_offset_rad`: the body's heading minus the
+    integrated one, per frame or constant -- for reconstructors whose integrated yaw is the root joint's twist
+    while the camera reports where the body faces. Returns ground (T, 2) and heading (T,) (wrapped)."""
+    n = len(dheading_rad)
+    ground, heading = complex(start[0]), float(start[1])
+    out_g = np.empty(n, dtype=complex)
+    out_h = np.empty(n)
+    offset = np.broadcast_to(np.asarray(heading_offset_rad, float), (n,))
+    for i in range(n):
+        if i > 0 or step_first:
+            ground += complex(steps_local_m[i, 0], steps_local_m[i, 1]) * np.exp(-1j * heading)
+            heading += dheading_rad[i]
+        pos = None if fix_m is None or np.any(np.isnan(fix_m[i])) else complex(fix_m[i, 0], fix_m[i, 1])
+        head = None if fix_heading_rad is None or np.isnan(fix_heading_rad[i]) else float(fix_heading_rad[i])
+        if reset is not None and reset[i]:
+            ground = pos if pos is not None else ground
+            heading = head - offset[i] if head is not None else heading
+        else:
+            ground, body = warp_one(ground, heading + offset[i], pos, head, warp, fps)
+            heading = body - offset[i]
+        out_g[i], out_h[i] = ground, heading
+    return np.stack([out_g.real, out_g.imag], axis=1), wrap_angle(out_h)
