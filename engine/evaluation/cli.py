@@ -45,6 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--takes", type=int, default=3, help="chained: number of takes")
     p.add_argument("--take-seconds", type=float, default=60.0, help="chained: minimum take length (s)")
     p.add_argument("--first-content", default="walk", help="chained: content each take starts with, if present")
+    p.add_argument("--max-clip-seconds", type=float, default=15.0,
+                   help="chained: a longer held-out clip contributes only its first this many seconds")
     p.add_argument("--groups", default="walk-left,walk-right", help="loco/loso: contents (styles) to leave out")
     p.add_argument("--test-clips", type=int, default=5, help="loco/loso: clips scored per group (0 = all); "
                                                              "loo: as in the leave-one-out")
@@ -129,8 +131,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.protocol == "chained":
         contents = [lab.content for lab in db.labels]
         plan = plan_chained_takes(contents, [c.n_frames / fps for c in db.clips], args.takes, args.take_seconds,
-                                  args.seed, args.first_content)
-        results, takes = protocols.chained_takes(db, plan, cfg)
+                                  args.seed, args.first_content, args.max_clip_seconds)
+        results, takes = protocols.chained_takes(db, plan, cfg, args.max_clip_seconds)
         for k, take in enumerate(takes):
             print(f"take {k + 1}: {take.duration_s:.1f} s from {len(take.segments)} held-out clips: "
                   + " > ".join(s.label for s in take.segments))

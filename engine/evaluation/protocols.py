@@ -203,12 +203,14 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                    lambda: engines.hmm(model, imu_acc, gyro, skeleton, take, root0, quat0))
 
 
-def chained_takes(db: Database, takes: list[list[int]], cfg: EvalConfig) -> tuple[dict[Row, RowScores], list[Take]]:
-    """Each take's clips held out of every database, the take simulated and scored whole."""
+def chained_takes(db: Database, takes: list[list[int]], cfg: EvalConfig, max_clip_s: float | None = None
+                  ) -> tuple[dict[Row, RowScores], list[Take]]:
+    """Each take's clips held out of every database (whole, even when only their start is played), the take
+    simulated and scored whole."""
     results: dict[Row, RowScores] = {}
     built = []
     for k, ids in enumerate(takes):
-        take = chain_clips(db.motions, ids, [lab.content for lab in db.labels])
+        take = chain_clips(db.motions, ids, [lab.content for lab in db.labels], max_clip_s=max_clip_s)
         evaluate_take(take, db.held_out(ids), cfg, [cfg.seed, k], results)
         built.append(take)
     return results, built

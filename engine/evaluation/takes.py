@@ -68,8 +68,10 @@ def place_motion(motion: Motion, turn_rad: float, pivot_m: np.ndarray, target_gr
 
 
 def chain_clips(motions: list[Motion], clip_ids: list[int], labels: list[str],
-                start_ground_m: np.ndarray = np.zeros(2), start_heading_rad: float = 0.0) -> Take:
-    """Chain the given clips (all at one rate, one skeleton) into a take starting at the given root and heading."""
+                start_ground_m: np.ndarray = np.zeros(2), start_heading_rad: float = 0.0,
+                max_clip_s: float | None = None) -> Take:
+    """Chain the given clips (all at one rate, one skeleton) into a take starting at the given root and heading;
+    clips longer than `max_clip_s` contribute their first `max_clip_s` seconds."""
     if not clip_ids:
         raise CourtsideError("a take needs at least one clip")
     fps = motions[clip_ids[0]].fps
@@ -79,6 +81,8 @@ def chain_clips(motions: list[Motion], clip_ids: list[int], labels: list[str],
         m = motions[ci]
         if abs(m.fps - fps) > 1e-9:
             raise CourtsideError(f"clip {m.name!r} is at {m.fps:g} Hz, the take at {fps:g} Hz")
+        if max_clip_s is not None and m.duration_s > max_clip_s:
+            m = m.slice(0, int(round(max_clip_s * fps)))
         pos, _ = forward_kinematics(m)
         h0 = float(root_heading(m, pos[:1])[0])
         placed = place_motion(m, heading - h0, pos[0, 0], ground)
@@ -93,9 +97,10 @@ def chain_clips(motions: list[Motion], clip_ids: list[int], labels: list[str],
 
 
 def plan_chained_takes(labels: list[str], durations_s: list[float], n_takes: int, min_duration_s: float,
-                       seed: int = 0, first: str | None = None) -> list[list[int]]:
-    """Clip ids of `n_takes` takes, each ≥ `min_duration_s`, no clip used twice, consecutive clips of different
-    contents whenever the data allows (contents visited in a shuffled round-robin, rarest-first on ties)."""
+                       seed: int = 0, first: str | None = None, max_clip_s: float | None = None) -> list[list[int]]:
+    """Clip ids of `n_takes` takes, each ≥ `min_duration_s` (clips counted up to `max_clip_s`), no clip used
+    twice, consecutive clips of different contents whenever the data allows (contents visited in a round-robin
+    whose order is shuffled per take; `first` opens every take while it has clips)."""
     rng = np.random.default_rng(seed)
     pool: dict[str, list[int]] = {}
     for ci in rng.permutation(len(labels)):
@@ -116,7 +121,7 @@ def plan_chained_takes(labels: list[str], durations_s: list[float], n_takes: int
                 min(available, key=lambda c: (order.index(c) - order.index(last)) % len(order) or len(order))
             ci = pool[content].pop()
             take.append(ci)
-            total += durations_s[ci]
+            total += durations_s[ci] if max_clip_s is None else min(durations_s[ci], max_clip_s)
             last = content
         takes.append(take)
     return takes
