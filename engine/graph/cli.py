@@ -18,6 +18,7 @@ from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load
 from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
+from .report import coverage_warning, format_report, graph_report, motion_range
 from .viterbi import SearchWeights
 from .warp import RootWarp
 
@@ -113,6 +114,16 @@ def build_graph_main(argv: list[str]) -> int:
               f"{c['clips_total']} clips kept", file=sys.stderr)
     Path(args.output).with_suffix(".json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(summary))
+    print(format_report(graph_report(graph)))
+    return 0
+
+
+def graph_info_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="courtside graph-info",
+                                description="What a motion graph can do: size, strongly connected components, "
+                                            "dead ends, clips reachable, turn rates and speeds covered.")
+    p.add_argument("graph", help="graph .npz from build-graph")
+    print(format_report(graph_report(MotionGraph.load(p.parse_args(argv).graph))))
     return 0
 
 
@@ -156,7 +167,11 @@ def synthesize_main(argv: list[str]) -> int:
     if graph.skeleton is None:
         print(f"error: {args.graph}: graph holds no skeleton (rebuild it with build-graph)", file=sys.stderr)
         return 1
+    warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
+    if warning:
+        print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"
+                         if warp.active else ""), file=sys.stderr)
     weights = _weights(args.weights) if args.weights else (
         SearchWeights.camera_following() if warp.active else SearchWeights())
     try:

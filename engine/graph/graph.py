@@ -141,7 +141,11 @@ class MotionGraph:
     def without_clips(self, clip_ids: list[int]) -> "MotionGraph":
         """A copy without every node derived from the given clips (incl. interpolated nodes that used them)."""
         drop = np.isin(self.node_clip, clip_ids) | np.isin(self.node_clip2, clip_ids)
-        return self.subgraph(~drop)
+        keep = ~drop
+        if self.config.connect:  # a connected graph stays connected: what the removal cut off is pruned too
+            sub = keep[self.edge_src] & keep[self.edge_dst]
+            keep &= largest_component(self.edge_src[sub], self.edge_dst[sub], self.n_nodes)
+        return self.subgraph(keep)
 
     def subgraph(self, keep: np.ndarray) -> "MotionGraph":
         """A copy with only the nodes where `keep` (N,) is True and the edges between them (ids renumbered in
