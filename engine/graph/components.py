@@ -6,9 +6,10 @@ rest of a long take (issue 11: one clip for 50 s; the largest component held 22 
 Two steps fix it:
 
 1. *connect*: while the largest component holds less than `min_component_share` of the frames, add transitions
-   at a relaxed threshold, but only ones that join two different components, one of them not the largest (so
-   well-connected clips keep the strict threshold and its clean transitions, and a clip group that is already
-   strongly connected in itself gets only the links it lacks), trying each of `connect_thresholds_m` in turn;
+   at a relaxed threshold, but only ones that join two different components, one of them not the largest, and
+   at most `connect_max_per_frame` from one frame (so well-connected clips keep the strict threshold and its
+   clean transitions, and a clip group that is strongly connected in itself gets only the few links it
+   lacks), trying each of `connect_thresholds_m` in turn;
 2. *prune*: keep only the largest component (nodes and the edges between them), as Kovar et al. do.
 
 `ComponentReport` says what each step did; `courtside build-graph` prints it.

@@ -20,7 +20,8 @@ class GraphConfig:
     connect: make the graph one strongly connected component (engine/graph/components.py): candidates every
         `idle_spacing_frames` inside long single-contact-state runs, transitions at the relaxed
         `connect_thresholds_m` (tried in turn) for frames outside the largest component until it holds
-        `min_component_share` of the frames, then everything outside it pruned. Off in the library (exact-answer
+        `min_component_share` of the frames (at most `connect_max_per_frame` relaxed transitions leave one
+        frame), then everything outside it pruned. Off in the library (exact-answer
         tests build small graphs with dead ends on purpose); `courtside build-graph` turns it on.
     """
 
@@ -39,6 +40,7 @@ class GraphConfig:
     idle_spacing_frames: int = 15
     connect_thresholds_m: list[float] = field(default_factory=lambda: [0.09, 0.12, 0.18, 0.25])
     min_component_share: float = 0.9
+    connect_max_per_frame: int = 2
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)

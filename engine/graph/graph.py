@@ -333,7 +333,7 @@ def _connect(parts: GraphParts, clips: list[ClipData], config: GraphConfig, join
         if np.mean(labels == 0) >= config.min_component_share:
             break
         tr = find_transitions(clips, config.window_frames, joint_weights, threshold, config.min_jump_frames,
-                              config.max_transitions_per_frame, idle_spacing_frames=config.idle_spacing_frames,
+                              config.connect_max_per_frame, idle_spacing_frames=config.idle_spacing_frames,
                               components=labels)
         parts.add_edges(tr.src_frame - 1, tr.dst_frame, EDGE_TRANSITION, arrival[tr.dst_frame])
         report.relaxed_transitions += len(tr.src_frame)
