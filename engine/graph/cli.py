@@ -104,8 +104,20 @@ def build_graph_main(argv: list[str]) -> int:
                "build_s": round(t2 - t1, 2), "frames": int(sum(c.n_frames for c in clips))}
     if args.calibration:
         summary["calibration"] = {"record": str(args.calibration), "sensors": args.calibrated_sensors}
+    from .budget import live_verdict, online_rate
+
+    summary["online_samples_per_s"] = round(online_rate(graph), 1)
+    verdict = live_verdict(graph, summary["online_samples_per_s"])
+    if verdict:
+        print(verdict, file=sys.stderr)
+    if graph.build_report and "interpolation" in graph.build_report:
+        i = graph.build_report["interpolation"]
+        print(f"interpolation: {i['alignments_found']} alignments ({i['frames_found']} frames) found, the cleanest "
+              f"{i['alignments_kept']} ({i['frames_kept']} frames) kept under the cap of {i['cap_frames']} frames",
+              file=sys.stderr)
     if graph.build_report:
         summary.update(graph.build_report)
+    if graph.build_report and "component" in graph.build_report:
         c = graph.build_report["component"]
         print(f"component step: largest strongly connected component held {100 * c['share_before']:.1f} % of "
               f"{c['frames']} frames; {c['relaxed_transitions']} relaxed transitions (thresholds "
