@@ -106,8 +106,9 @@ def build_graph_main(argv: list[str]) -> int:
         summary["calibration"] = {"record": str(args.calibration), "sensors": args.calibrated_sensors}
     from .budget import live_verdict, online_rate
 
-    summary["online_samples_per_s"] = round(online_rate(graph), 1)
-    verdict = live_verdict(graph, summary["online_samples_per_s"])
+    cpu_rate, wall_rate = online_rate(graph)
+    summary["online_samples_per_cpu_s"], summary["online_samples_per_s"] = round(cpu_rate, 1), round(wall_rate, 1)
+    verdict = live_verdict(graph, cpu_rate, wall_rate)
     if verdict:
         print(verdict, file=sys.stderr)
     if graph.build_report and "interpolation" in graph.build_report:
