@@ -127,8 +127,8 @@ def build_graph_main(argv: list[str]) -> int:
               f"({c['pruned_frames']} database frames), {c['pruned_edges']} edges; {c['clips_kept']} of "
               f"{c['clips_total']} clips kept", file=sys.stderr)
     Path(args.output).with_suffix(".json").write_text(json.dumps(summary, indent=2))
-    print(json.dumps(summary))
     print(format_report(graph_report(graph)))
+    print(json.dumps(summary))  # last line: the machine-readable summary scripts parse
     return 0
 
 
