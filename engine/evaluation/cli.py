@@ -137,6 +137,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"take {k + 1}: {take.duration_s:.1f} s from {len(take.segments)} held-out clips: "
                   + " > ".join(s.label for s in take.segments))
         print(table.format_table(results, fps))
+        print("\n".join(table.chained_verdict(results, args.camera_noise_m)))
         key = protocols.Row("motion graph", str(max(cfg.sensor_sets)), protocols.CAMERA_ON)
         if key in results:
             print(f"per-second global joint error (cm), motion graph, {key.sensors} sensors + camera:")
@@ -156,6 +157,8 @@ def main(argv: list[str] | None = None) -> int:
         for g, results in per_group.items():
             print(f"[{key} {g}]")
             print("\n".join(table.format_rows(results, fps)))
+        for g, results in per_group.items():
+            print("\n".join(table.group_verdict(f"{key} {g}", results)))
         extra = {}
     print(f"total {time.perf_counter() - t0:.0f} s")
     if args.json:
