@@ -51,6 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--test-clips", type=int, default=5, help="loco/loso: clips scored per group (0 = all); "
                                                              "loo: as in the leave-one-out")
     p.add_argument("--weights", nargs=3, type=float, default=[0.5, 1.0, 1.0], metavar=("W_A", "W_P", "W_O"))
+    p.add_argument("--lag", type=float, default=None,
+                   help="motion graph: the online fixed-lag decoder with this latency (s) instead of the batch search")
     p.add_argument("--camera-noise-m", type=float, default=0.05)
     p.add_argument("--camera-noise-deg", type=float, default=10.0)
     p.add_argument("--camera-hz", type=float, default=30.0)
@@ -76,7 +78,7 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
         sensor_sets=sets, engines=engines,
         camera=CameraModel(args.camera_noise_m, float(np.radians(args.camera_noise_deg)), args.camera_hz),
         error_model=SensorErrorModel.seed000() if args.sensor_noise == "seed000" else None,
-        weights=SearchWeights(*args.weights), seed=args.seed)
+        weights=SearchWeights(*args.weights), lag_s=args.lag, seed=args.seed)
 
 
 def _database(args: argparse.Namespace) -> protocols.Database:
@@ -126,7 +128,8 @@ def main(argv: list[str] | None = None) -> int:
     fps = db.graph.config.fps
     print(f"database: {len(db.motions)} clips, {sum(c.n_frames for c in db.clips)} frames at {fps:g} Hz; graph "
           f"{db.graph.n_nodes} nodes, {db.graph.n_edges} edges ({args.graph or 'built: ' + args.variant}); "
-          f"sensor noise: {args.sensor_noise}; camera: {args.camera_noise_m * 100:g} cm / "
+          f"motion graph: {'batch search' if args.lag is None else f'fixed lag {args.lag:g} s'}, weights "
+          f"{' / '.join(f'{w:g}' for w in args.weights)}; sensor noise: {args.sensor_noise}; camera: {args.camera_noise_m * 100:g} cm / "
           f"{args.camera_noise_deg:g} deg at {args.camera_hz:g} Hz; seed {args.seed}")
     if args.protocol == "chained":
         contents = [lab.content for lab in db.labels]

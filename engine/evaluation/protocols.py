@@ -72,6 +72,7 @@ class EvalConfig:
     error_model: SensorErrorModel | None = field(default_factory=SensorErrorModel.seed000)
     weights: SearchWeights = SearchWeights(0.5, 1.0, 1.0)
     nn_window: int = 15
+    lag_s: float | None = None  # motion graph: None = batch search, else the online fixed-lag decoder
     seed: int = 0
 
 
@@ -172,10 +173,11 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
             for camera, w in ((CAMERA_ON, w_on), (CAMERA_OFF, w_off)):
                 record(Row("motion graph", str(k), camera),
                        lambda: engines.motion_graph(graph, acc, idx, cam.position_m, cam.heading_rad, w,
-                                                    camera == CAMERA_ON))
+                                                    camera == CAMERA_ON, cfg.lag_s))
         record(Row("camera only (W_A=0)", "0", CAMERA_ON),
                lambda: engines.motion_graph(graph, None, (), cam.position_m, cam.heading_rad,
-                                            SearchWeights(0.0, cfg.weights.position, cfg.weights.heading), True))
+                                            SearchWeights(0.0, cfg.weights.position, cfg.weights.heading), True,
+                                            cfg.lag_s))
     if "baselines" in cfg.engines:
         for k, idx in sets:
             nn = held.nearest_neighbour(idx, cfg.nn_window)
