@@ -19,6 +19,7 @@ from engine.graph.cli import _add_database_args, database_paths, evaluate_main a
 from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph, build_from_clips
 from engine.graph.viterbi import SearchWeights
+from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 
 from . import protocols, table
@@ -50,13 +51,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--groups", default="walk-left,walk-right", help="loco/loso: contents (styles) to leave out")
     p.add_argument("--test-clips", type=int, default=5, help="loco/loso: clips scored per group (0 = all); "
                                                              "loo: as in the leave-one-out")
-    p.add_argument("--weights", nargs=3, type=float, default=[0.5, 1.0, 1.0], metavar=("W_A", "W_P", "W_O"))
+    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
+                   help="motion-graph weights (default 0.5 10 3 with root warping, 0.5 1 1 without)")
+    p.add_argument("--root-warp", nargs=2, type=float, default=[0.5, 0.25], metavar=("GAIN_P", "GAIN_O"),
+                   help="root warping towards the camera for all engines (0 0 = off; engine/graph/warp.py)")
     p.add_argument("--lag", type=float, default=None,
                    help="motion graph: the online fixed-lag decoder with this latency (s) instead of the batch search")
     p.add_argument("--camera-noise-m", type=float, default=0.05)
     p.add_argument("--camera-noise-deg", type=float, default=10.0)
     p.add_argument("--camera-hz", type=float, default=30.0)
-    p.add_argument("--sensor-noise", choices=["seed000", "clean"], default="seed000")
+    p.add_argument("--sensor-noise", choices=["seed000", "measured_real", "clean"], default="seed000",
+                   help="accelerometer error model: seed 000's 1.6 g^2 gap, the 0.15 g^2 gap measured on a real "
+                        "recording (SensorErrorModel.measured_real), or none")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
     p.add_argument("--seed", type=int, default=0)
     return p
@@ -77,8 +83,10 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
     return protocols.EvalConfig(
         sensor_sets=sets, engines=engines,
         camera=CameraModel(args.camera_noise_m, float(np.radians(args.camera_noise_deg)), args.camera_hz),
-        error_model=SensorErrorModel.seed000() if args.sensor_noise == "seed000" else None,
-        weights=SearchWeights(*args.weights), lag_s=args.lag, seed=args.seed)
+        error_model=None if args.sensor_noise == "clean" else getattr(SensorErrorModel, args.sensor_noise)(),
+        weights=SearchWeights(*args.weights) if args.weights else (
+            SearchWeights.camera_following() if any(args.root_warp) else SearchWeights()),
+        warp=RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off(), lag_s=args.lag, seed=args.seed)
 
 
 def _database(args: argparse.Namespace) -> protocols.Database:
@@ -129,7 +137,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"database: {len(db.motions)} clips, {sum(c.n_frames for c in db.clips)} frames at {fps:g} Hz; graph "
           f"{db.graph.n_nodes} nodes, {db.graph.n_edges} edges ({args.graph or 'built: ' + args.variant}); "
           f"motion graph: {'batch search' if args.lag is None else f'fixed lag {args.lag:g} s'}, weights "
-          f"{' / '.join(f'{w:g}' for w in args.weights)}; sensor noise: {args.sensor_noise}; camera: {args.camera_noise_m * 100:g} cm / "
+          f"{cfg.weights.acc:g} / {cfg.weights.position:g} / {cfg.weights.heading:g}; root warp gains "
+          f"{cfg.warp.position_gain:g} / {cfg.warp.heading_gain:g}; sensor noise: {args.sensor_noise}; camera: {args.camera_noise_m * 100:g} cm / "
           f"{args.camera_noise_deg:g} deg at {args.camera_hz:g} Hz; seed {args.seed}")
     if args.protocol == "chained":
         contents = [lab.content for lab in db.labels]

@@ -20,6 +20,7 @@ from .graph import MotionGraph, build_from_clips
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .report import coverage_warning, format_report, graph_report, motion_range
 from .viterbi import SearchWeights
+from .warp import RootWarp
 
 _BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+")
 
@@ -79,11 +80,15 @@ def build_graph_main(argv: list[str]) -> int:
     p.add_argument("-o", "--output", required=True, help="graph .npz (a .json summary is written beside it)")
     p.add_argument("--msv", action="store_true", help="add motion speed variations")
     p.add_argument("--interp", action="store_true", help="add interpolated motions")
+    p.add_argument("--no-connect", action="store_true",
+                   help="keep the graph as built: no relaxed transitions for poorly connected clips and no pruning "
+                        "to the largest strongly connected component (default: connect and prune)")
     p.add_argument("--calibration", metavar="RECORD",
                    help="sensor-calibration record (.calibration.json from the gateway's calibration workflow): "
                         "virtual sensors use its measured sensor-to-segment rotations")
     args = p.parse_args(argv)
-    config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold)
+    config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold,
+                         connect=not args.no_connect)
     t0 = time.perf_counter()
     try:
         motions, clips, sensor_model = load_clips(args, config)
@@ -99,6 +104,26 @@ def build_graph_main(argv: list[str]) -> int:
                "build_s": round(t2 - t1, 2), "frames": int(sum(c.n_frames for c in clips))}
     if args.calibration:
         summary["calibration"] = {"record": str(args.calibration), "sensors": args.calibrated_sensors}
+    from .budget import live_verdict, online_rate
+
+    summary["online_samples_per_s"] = round(online_rate(graph), 1)
+    verdict = live_verdict(graph, summary["online_samples_per_s"])
+    if verdict:
+        print(verdict, file=sys.stderr)
+    if graph.build_report and "interpolation" in graph.build_report:
+        i = graph.build_report["interpolation"]
+        print(f"interpolation: {i['alignments_found']} alignments ({i['frames_found']} frames) found, the cleanest "
+              f"{i['alignments_kept']} ({i['frames_kept']} frames) kept under the cap of {i['cap_frames']} frames",
+              file=sys.stderr)
+    if graph.build_report:
+        summary.update(graph.build_report)
+    if graph.build_report and "component" in graph.build_report:
+        c = graph.build_report["component"]
+        print(f"component step: largest strongly connected component held {100 * c['share_before']:.1f} % of "
+              f"{c['frames']} frames; {c['relaxed_transitions']} relaxed transitions (thresholds "
+              f"{c['thresholds_used_m']} m) -> {100 * c['share_connected']:.1f} %; pruned {c['pruned_nodes']} nodes "
+              f"({c['pruned_frames']} database frames), {c['pruned_edges']} edges; {c['clips_kept']} of "
+              f"{c['clips_total']} clips kept", file=sys.stderr)
     Path(args.output).with_suffix(".json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(summary))
     print(format_report(graph_report(graph)))
@@ -129,7 +154,12 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--graph", required=True, help="graph .npz from build-graph")
     p.add_argument("--input", required=True, help="take .npz (synthesis input format or a gateway export)")
     p.add_argument("-o", "--output", required=True, help="output .bvh")
-    p.add_argument("--weights", nargs=3, type=float, default=[0.5, 1.0, 1.0], metavar=("W_A", "W_P", "W_O"))
+    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
+                   help="search weights (default: 0.5 10 3 with root warping, the paper's 0.5 1 1 without)")
+    p.add_argument("--root-warp", nargs=2, type=float, default=[RootWarp().position_gain, RootWarp().heading_gain],
+                   metavar=("GAIN_P", "GAIN_O"),
+                   help="pull the root towards the camera by these gains per sample, bounded to human speeds "
+                        "(engine/graph/warp.py); 0 0 = seed 000's search")
     p.add_argument("--lag", type=float, default=None, help="fixed-lag online decoding with this latency (s)")
     p.add_argument("--sensor-map", nargs="*", default=None, metavar="STATION/SENSOR=NAME",
                    help="gateway exports: which recorded sensor is which graph sensor")
@@ -150,9 +180,12 @@ def synthesize_main(argv: list[str]) -> int:
         print(f"error: {args.graph}: graph holds no skeleton (rebuild it with build-graph)", file=sys.stderr)
         return 1
     warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
+    warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
     if warning:
-        print(warning, file=sys.stderr)
-    weights = _weights(args.weights)
+        print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"
+                         if warp.active else ""), file=sys.stderr)
+    weights = _weights(args.weights) if args.weights else (
+        SearchWeights.camera_following() if warp.active else SearchWeights())
     try:
         constraints = [label_constraint(graph, r.rsplit("@", 1)[0], int(round(float(r.rsplit("@", 1)[1])
                                                                                 * graph.config.fps)),
@@ -165,18 +198,21 @@ def synthesize_main(argv: list[str]) -> int:
         return 2
     t0 = time.perf_counter()
     broken = 0
+    extra = {}
     if args.lag is None:
-        res = ViterbiSearch(graph, weights).run(obs, constraints)
+        res = ViterbiSearch(graph, weights, warp=warp).run(obs, constraints)
         nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
         broken = res.broken_constraints
     else:
-        syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)
+        syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp)
         poses = []
         for t in range(obs.n_samples):
             poses += syn.push(None if obs.acc_g is None else obs.acc_g[t],
                               None if obs.position_m is None else obs.position_m[t],
                               None if obs.heading_rad is None else float(obs.heading_rad[t]))
         poses += syn.flush()
+        extra = {"confidence_mean": round(float(np.mean([q.confidence for q in poses])), 3),
+                 "reanchors": len(syn.reanchors)}
         nodes = np.array([q.node for q in poses])
         ground = np.array([q.ground_m for q in poses])
         heading = np.array([q.heading_rad for q in poses])
@@ -191,7 +227,7 @@ def synthesize_main(argv: list[str]) -> int:
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
     print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
-                      "broken_constraints": broken}))
+                      "broken_constraints": broken, **extra}))
     return 0
 
 
