@@ -65,6 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "recording (SensorErrorModel.measured_real), or none")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--compare", nargs=2, metavar=("BEFORE.json", "AFTER.json"),
+                   help="print two --json reports side by side (before -> after) and exit")
     return p
 
 
@@ -125,9 +127,19 @@ def main(argv: list[str] | None = None) -> int:
     first = argparse.ArgumentParser(add_help=False)
     first.add_argument("--protocol", choices=PROTOCOLS, default="loo")
     known, rest = first.parse_known_args(argv)
-    if known.protocol == "loo" and not {"-h", "--help"} & set(argv):
+    if known.protocol == "loo" and not {"-h", "--help", "--compare"} & set(argv):
         return leave_one_out_main(rest)  # seed 000 Tables 2/3, with its own options (--variants ...)
     args = build_parser().parse_args(argv)
+    if args.compare:
+        reports = []
+        for path in args.compare:
+            try:
+                with open(path) as fh:
+                    reports.append(json.load(fh))
+            except (OSError, ValueError) as exc:
+                raise CourtsideError(f"{path}: not a readable --json report ({exc})") from exc
+        print(table.format_comparison(*reports))
+        return 0
     if not (args.clips or args.sample or args.mocap_dir):
         args.sample = True
     cfg = _config(args)

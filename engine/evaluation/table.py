@@ -89,3 +89,25 @@ def group_verdict(group: str, results: dict[Row, RowScores]) -> list[str]:
     ok = main["heading_deg"] <= 10.0 and main["position_cm"] <= 15.0
     return [f"done-when ({group}, motion graph, 6 sensors + camera): heading {main['heading_deg']:.1f} deg "
             f"(<= 10), position {main['position_cm']:.1f} cm (<= 15) -> {'PASS' if ok else 'FAIL'}"]
+
+
+COMPARED = (("global_cm", "global cm"), ("root_relative_cm", "root-rel cm"), ("position_cm", "pos cm"),
+            ("heading_deg", "head deg"))
+
+
+def format_comparison(before: dict, after: dict) -> str:
+    """Rows of two `--json` reports side by side (before -> after), matched by group, engine, sensors, camera;
+    a row present in only one report shows '-' on the other side."""
+    def rows(report: dict) -> dict[tuple[str, str, str, str], dict]:
+        return {(g, r["engine"], r["sensors"], r["camera"]): r for g, rs in report["groups"].items() for r in rs}
+    a, b = rows(before), rows(after)
+    head = f"{'group':<12}{'engine':<30}{'sensors':>7} {'camera':<7}" + "".join(f"{name:>22}" for _, name in COMPARED)
+    lines = [head, "-" * len(head)]
+    for key in list(a) + [k for k in b if k not in a]:
+        cells = []
+        for field, _ in COMPARED:
+            old = f"{a[key][field]:.1f}" if key in a else "-"
+            new = f"{b[key][field]:.1f}" if key in b else "-"
+            cells.append(f"{old + ' -> ' + new:>22}")
+        lines.append(f"{key[0]:<12}{key[1]:<30}{key[2]:>7} {key[3]:<7}" + "".join(cells))
+    return "\n".join(lines)

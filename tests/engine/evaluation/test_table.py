@@ -31,3 +31,23 @@ def test_group_verdict_thresholds():
     bad = {Row("motion graph", "6", CAMERA_ON): scores(10, 5, 15.0, 10.5)}
     assert group_verdict("content walk-left", ok)[0].endswith("PASS")
     assert group_verdict("content walk-left", bad)[0].endswith("FAIL")
+
+
+def test_comparison_matches_rows_by_group_engine_sensors_camera(tmp_path, capsys):
+    import json
+
+    from gateway.cli import main as courtside
+
+    def report(pos):
+        return {"groups": {"chained": [{"engine": "motion graph", "sensors": "6", "camera": "yes", "global_cm": 20.0,
+                                        "root_relative_cm": 10.0, "position_cm": pos, "heading_deg": 5.0}]}}
+    before, after = tmp_path / "a.json", tmp_path / "b.json"
+    before.write_text(json.dumps(report(113.1)))
+    after_report = report(7.25)
+    after_report["groups"]["chained"].append({**after_report["groups"]["chained"][0], "camera": "no"})
+    after.write_text(json.dumps(after_report))
+    assert courtside(["evaluate", "--compare", str(before), str(after)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "113.1 -> 7.2" in lines[2] and "20.0 -> 20.0" in lines[2]
+    assert "- -> 7.2" in lines[3]
+    assert courtside(["evaluate", "--compare", str(before), str(tmp_path / "missing.json")]) == 2
