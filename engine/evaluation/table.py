@@ -75,8 +75,8 @@ def chained_verdict(results: dict[Row, RowScores], camera_noise_m: float) -> lis
                 s = summary(scores.errors)
                 ok = s["position_cm"] <= cam["position_cm"] and s["heading_deg"] <= cam["heading_deg"]
                 lines.append(f"done-when: {row.sensors} accelerometers + camera vs camera only: position "
-                             f"{s['position_cm']:.1f} vs {cam['position_cm']:.1f} cm, heading {s['heading_deg']:.1f} "
-                             f"vs {cam['heading_deg']:.1f} deg -> {'PASS' if ok else 'FAIL'}")
+                             f"{s['position_cm']:.2f} vs {cam['position_cm']:.2f} cm, heading {s['heading_deg']:.2f} "
+                             f"vs {cam['heading_deg']:.2f} deg -> {'PASS' if ok else 'FAIL'}")
     return lines
 
 
