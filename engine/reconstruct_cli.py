@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import MalformedFileError
+from engine.errors import MalformedFileError, cli_command
 
 SAMPLE_PREFIX = "16_"
 
@@ -71,12 +71,11 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
 
     kb = _olng_knowledge_base(args)
     obs = load_take(args.input, list(SEED003_SENSORS), kb.fps)
-    if obs.acc_g is None or tuple(obs.sensor_indices) != tuple(range(len(SEED003_SENSORS))):
-        raise MalformedFileError(args.input, None, f"the OLNG needs all four sensors {list(SEED003_SENSORS)} in that order")
+    acc = _acc_in_order(args.input, obs, len(SEED003_SENSORS), f"the OLNG needs all four sensors {list(SEED003_SENSORS)}")
     rec = OLNGReconstructor(kb, _olng_config(args))
     t0 = time.perf_counter()
-    cam_pos, cam_head = _camera(obs)
-    poses = [rec.push(a, cam_pos[t], cam_head[t]) for t, a in enumerate(obs.acc_g)]
+    cam_pos, cam_head = _camera(obs, len(acc))
+    poses = [rec.push(a, cam_pos[t], cam_head[t]) for t, a in enumerate(acc)]
     elapsed = time.perf_counter() - t0
     motion = Motion(skeleton_from_rig(kb.rig), kb.fps, np.stack([p.root_pos_m for p in poses]),
                     np.stack([p.local_quats for p in poses]), Path(args.input).stem)
@@ -92,37 +91,48 @@ def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     motions = _load_motions(args)
     model = train_model(motions, imu_names=tuple(args.imus))
     obs = load_take(args.input, list(args.imus), model.fps)
-    if obs.acc_g is None or tuple(obs.sensor_indices) != tuple(range(len(args.imus))):
-        raise MalformedFileError(args.input, None, f"the HMM needs the IMUs {args.imus} in that order")
-    gyro = _take_gyro(args.input, len(obs.acc_g), model.fps)
+    acc = _acc_in_order(args.input, obs, len(args.imus), f"the HMM needs the IMUs {args.imus}")
+    gyro = _take_gyro(args.input, len(acc), model.fps, list(args.imus))
     skeleton = motions[0].skeleton
     start = resample(motions[0], model.fps)
     t0 = time.perf_counter()
-    cam_pos, cam_head = _camera(obs)
-    root, quats, frames = reconstruct(model, obs.acc_g, gyro, skeleton.n_joints, np.r_[0.0, start.root_positions_m[0, 1], 0.0],
+    cam_pos, cam_head = _camera(obs, len(acc))
+    root, quats, frames = reconstruct(model, acc, gyro, skeleton.n_joints, np.r_[0.0, start.root_positions_m[0, 1], 0.0],
                                       np.array([1.0, 0.0, 0.0, 0.0]), cam_pos, cam_head, skeleton)
     elapsed = time.perf_counter() - t0
     write_bvh(args.output, to_motion(skeleton, model.fps, root, quats, not args.no_ik, Path(args.input).stem))
     return {"frames": len(frames), "seconds": round(elapsed, 3), "fps": round(len(frames) / max(elapsed, 1e-9), 1)}
 
 
-def _camera(obs) -> tuple[np.ndarray, np.ndarray]:
-    """The take's camera track (ground position (T, 2) m, heading (T,) rad; NaN rows where it has none): OLNG and
-    the HMM pull their integrated root onto it (engine/graph/warp.py)."""
-    n = len(obs.acc_g)
+def _camera(obs, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The take's camera track for its first n samples (ground position (n, 2) m, heading (n,) rad; NaN rows where
+    it has none): OLNG and the HMM pull their integrated root onto it (engine/graph/warp.py)."""
     pos = np.full((n, 2), np.nan) if obs.position_m is None else np.asarray(obs.position_m, float)[:n]
     head = np.full(n, np.nan) if obs.heading_rad is None else np.asarray(obs.heading_rad, float)[:n]
     return pos, head
 
 
-def _take_gyro(path: str, frames: int, fps: float) -> np.ndarray:
-    """`gyro_rps` (T, S, 3) rad/s from the take (the HMM's IMU feature is acc + gyro), at the model rate."""
+def _acc_in_order(path: str, obs, n: int, need: str) -> np.ndarray:
+    """The take's acc columns in the method's sensor order (a take may list its sensors in any order)."""
+    indices = tuple(obs.sensor_indices) if obs.sensor_indices is not None else tuple(range(n))
+    if obs.acc_g is None or sorted(indices) != list(range(n)):
+        raise MalformedFileError(path, None, need)
+    return obs.acc_g[:, np.argsort(indices)]
+
+
+def _take_gyro(path: str, frames: int, fps: float, imus: list[str]) -> np.ndarray:
+    """`gyro_rps` (T, S, 3) rad/s of the model's IMUs from the take (the HMM's IMU feature is acc + gyro), at the
+    model rate; a take naming its sensors (`sensor_names`, e.g. from `courtside import-imu`) may hold more."""
     from engine.graph.online import resample_stream
 
     data = np.load(path, allow_pickle=False)
     if "gyro_rps" not in data.files:
         raise MalformedFileError(path, None, "the HMM method needs 'gyro_rps' (T, S, 3) rad/s beside 'acc_g'")
-    gyro = resample_stream(np.asarray(data["gyro_rps"], float), float(data["fps"]), fps)
+    gyro = np.asarray(data["gyro_rps"], float)
+    if "sensor_names" in data.files:
+        names = [str(n) for n in data["sensor_names"]]
+        gyro = gyro[:, [names.index(n) for n in imus if n in names]]
+    gyro = resample_stream(gyro, float(data["fps"]), fps)
     if len(gyro) < frames:
         raise MalformedFileError(path, None, f"gyro_rps has {len(gyro)} frames at {fps:g} Hz, acc_g {frames}")
     return gyro[:frames]
@@ -223,20 +233,17 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
-    try:
-        if args.evaluate:
-            return _evaluate(args)
-        if not args.input or not args.output:
-            print("courtside reconstruct: --input and -o are required (or use --evaluate)", file=sys.stderr)
-            return 2
-        if args.method == "motion-graph":
-            return _reconstruct_motion_graph(args)
-        summary = _reconstruct_olng(args) if args.method == "olng" else _reconstruct_hmm(args)
-    except MalformedFileError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+@cli_command("courtside reconstruct")
+def main(argv: list[str]) -> int:
+    args = build_parser().parse_args(argv)
+    if args.evaluate:
+        return _evaluate(args)
+    if not args.input or not args.output:
+        print("courtside reconstruct: --input and -o are required (or use --evaluate)", file=sys.stderr)
+        return 2
+    if args.method == "motion-graph":
+        return _reconstruct_motion_graph(args)
+    summary = _reconstruct_olng(args) if args.method == "olng" else _reconstruct_hmm(args)
     print(json.dumps({"method": args.method, "output": args.output, **summary}))
     return 0
 

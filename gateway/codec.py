@@ -14,17 +14,20 @@ numpy dtype strings with explicit byte order (``"<f4"``), so the format is porta
 from __future__ import annotations
 
 import json
+import math
 import struct
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from engine.errors import CourtsideError
+
 _U32 = struct.Struct(">I")
 MAX_HEADER_BYTES = 1 << 20
 
 
-class CodecError(ValueError):
+class CodecError(CourtsideError, ValueError):
     """A body that cannot be decoded (bad length, bad JSON, array spec that does not match the payload)."""
 
 
@@ -95,6 +98,8 @@ def decode(body: bytes | memoryview) -> Message:
         head = json.loads(bytes(view[4 : 4 + header_len]).decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CodecError(f"header is not UTF-8 JSON: {exc}") from exc
+    except RecursionError:  # [[[[...]]]] 200 000 deep: json's recursion guard, not a reason to die
+        raise CodecError("header JSON is nested too deeply") from None
     if not isinstance(head, dict) or not isinstance(head.get("kind"), str):
         raise CodecError("header must be a JSON object with a string 'kind'")
     arrays: dict[str, np.ndarray] = {}
@@ -108,7 +113,9 @@ def decode(body: bytes | memoryview) -> Message:
             raise CodecError(f"bad array spec {spec!r}: {exc}") from exc
         if dtype.hasobject:
             raise CodecError(f"array {name!r} declares an object dtype")
-        nbytes = dtype.itemsize * int(np.prod(shape, dtype=np.int64))
+        if any(n < 0 for n in shape) or len(shape) > 32:
+            raise CodecError(f"array {name!r} has an invalid shape {list(shape)[:8]}")
+        nbytes = dtype.itemsize * math.prod(shape)  # Python ints: [2**32, 2**32] must not wrap to 0
         if offset + nbytes > len(view):
             raise CodecError(f"array {name!r} needs {nbytes} bytes but only {len(view) - offset} remain")
         arrays[name] = np.frombuffer(view[offset : offset + nbytes], dtype=dtype).reshape(shape)

@@ -25,6 +25,11 @@ def _console_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="courtside console", description="Operator console for a Courtside gateway.")
     p.add_argument("--connect", type=_host_port, default=("127.0.0.1", 7766), metavar="HOST:PORT",
                    help="gateway to connect to (default 127.0.0.1:7766)")
+    p.add_argument("--secret-file", type=Path, default=None, metavar="FILE",
+                   help="secret for a gateway that requires authentication (default: $COURTSIDE_SECRET_FILE, "
+                        "or the secret itself in $COURTSIDE_SECRET); never give the secret itself here")
+    p.add_argument("--tls-ca", type=Path, default=None, metavar="CERT",
+                   help="connect with TLS, trusting this certificate (the gateway's cert.pem or its CA)")
     p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
     p.add_argument("--synth-station", default=None, metavar="ST",
                    help="station whose sensors 0-5 are worn as the graph's sensors (default: the only station "
@@ -36,6 +41,8 @@ def _console_parser() -> argparse.ArgumentParser:
                         "each segment from the live sensor the record assigned to it")
     p.add_argument("--duration", type=float, default=None, help="close after this many seconds")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs before closing")
+    p.add_argument("--stream-bvh", default=None, metavar="[HOST:]PORT",
+                   help="serve the synthesised poses as BVH over TCP (Axis Neuron convention) to animation tools")
     return p
 
 
@@ -107,8 +114,11 @@ def console_main(argv: list[str]) -> int:
         # a demo take names the clips it replayed: keep them out of the graph, as the live demo does
         held_out = next((e["truth_clips"] for e in playback.events if "truth_clips" in e), [])
     else:
+        from gateway.auth import client_secret, client_tls_context
+
+        tls = client_tls_context(args.tls_ca) if args.tls_ca is not None else None
         try:
-            client = GatewayClient(*args.connect).connect()
+            client = GatewayClient(*args.connect, secret=client_secret(args.secret_file), tls=tls).connect()
         except OSError as exc:
             print(f"courtside console: cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})",
                   file=sys.stderr)
@@ -136,6 +146,10 @@ def console_main(argv: list[str]) -> int:
     worn: dict = {}
     if keys is not None:
         synth = synthesis_setup(graph, skeleton, keys, args.lag)
+        if args.stream_bvh:
+            from engine.livestream.console import streaming_setup
+
+            synth = streaming_setup(synth, graph, skeleton, args.stream_bvh)
         worn = dict(zip(synth.sensors, segments))
     else:
         log.warning("synthesis off: pass --synth-station (or a calibration record) to say which sensors are worn")

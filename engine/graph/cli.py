@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import MalformedFileError
+from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load_sensor_calibration,
                           placements_from_calibration, sample_clips, standard_placements, write_bvh)
 
 from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
+from .input_checks import check_database, check_lag, check_non_negative, check_path_length, parse_sensor_map
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .report import coverage_warning, format_report, graph_report, motion_range
 from .viterbi import SearchWeights
@@ -41,7 +42,7 @@ def database_paths(args: argparse.Namespace) -> list[Path]:
     if args.max_clips:
         paths = paths[: args.max_clips]
     if not paths:
-        raise SystemExit("no clips: give clip files, --sample, or --mocap-dir with --pattern")
+        raise CourtsideError("no clips: give clip files, --sample, or --mocap-dir with --pattern (matching files)")
     return paths
 
 
@@ -59,6 +60,7 @@ def _add_database_args(p: argparse.ArgumentParser) -> None:
 def load_clips(args: argparse.Namespace, config: GraphConfig):
     paths = database_paths(args)
     motions = load_database(paths, fps=config.fps)
+    check_database(paths, motions, config.fps)
     placements = standard_placements(motions[0].skeleton, args.sensors)
     if getattr(args, "calibration", None):
         # measured sensor-to-segment rotations instead of the nominal mounting (ValueError: other joint frames)
@@ -73,6 +75,7 @@ def load_clips(args: argparse.Namespace, config: GraphConfig):
     return motions, clips, mocap_sensor_model(motions[0].skeleton, placements, config.fps)
 
 
+@cli_command("courtside build-graph")
 def build_graph_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="courtside build-graph", description="Build a motion graph from mocap clips.")
     p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
@@ -87,14 +90,12 @@ def build_graph_main(argv: list[str]) -> int:
                    help="sensor-calibration record (.calibration.json from the gateway's calibration workflow): "
                         "virtual sensors use its measured sensor-to-segment rotations")
     args = p.parse_args(argv)
+    check_non_negative("--threshold", [args.threshold], positive=True)
     config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold,
                          connect=not args.no_connect)
+    check_output_dir(args.output)
     t0 = time.perf_counter()
-    try:
-        motions, clips, sensor_model = load_clips(args, config)
-    except (MalformedFileError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+    motions, clips, sensor_model = load_clips(args, config)
     t1 = time.perf_counter()
     graph = build_from_clips(clips, config, sensor_model)
     graph.skeleton = motions[0].skeleton
@@ -106,8 +107,9 @@ def build_graph_main(argv: list[str]) -> int:
         summary["calibration"] = {"record": str(args.calibration), "sensors": args.calibrated_sensors}
     from .budget import live_verdict, online_rate
 
-    summary["online_samples_per_s"] = round(online_rate(graph), 1)
-    verdict = live_verdict(graph, summary["online_samples_per_s"])
+    cpu_rate, wall_rate = online_rate(graph)
+    summary["online_samples_per_cpu_s"], summary["online_samples_per_s"] = round(cpu_rate, 1), round(wall_rate, 1)
+    verdict = live_verdict(graph, cpu_rate, wall_rate)
     if verdict:
         print(verdict, file=sys.stderr)
     if graph.build_report and "interpolation" in graph.build_report:
@@ -140,9 +142,11 @@ def graph_info_main(argv: list[str]) -> int:
 
 
 def _weights(values: list[float]) -> SearchWeights:
+    check_non_negative("--weights", values)
     return SearchWeights(*values)
 
 
+@cli_command("courtside synthesize")
 def synthesize_main(argv: list[str]) -> int:
     from .inputs import load_take
     from .online import FixedLagSynthesizer
@@ -168,17 +172,30 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--require-tolerance", type=int, default=10, help="+- frames around each required time")
     p.add_argument("--no-blend", action="store_true")
     p.add_argument("--no-ik", action="store_true")
+    p.add_argument("--calibration", metavar="RECORD", help="sensor-calibration record (`courtside calibrate` or the "
+                   "wizard): readings are rotated from the measured into the graph's nominal sensor mountings")
+    p.add_argument("--stream-bvh", metavar="[HOST:]PORT", help="also serve the poses as BVH lines over TCP (Axis "
+                   "Neuron convention, e.g. 7001; 127.0.0.1 unless a host is given): with --lag each pose as it is "
+                   "decided, at the take's rate; without, the written frames")
+    p.add_argument("--stream-wait", type=float, default=5.0, help="--stream-bvh: wait this long for a client (s)")
+    p.add_argument("--stream-vmc", metavar="[HOST:]PORT", help="also send the poses as VMC (OSC over UDP, e.g. 39539; "
+                   "127.0.0.1 unless a host is given) to Unity/Blender/VSeeFace VMC receivers")
     args = p.parse_args(argv)
-    try:
-        graph = MotionGraph.load(args.graph)
-        sensor_map = dict(s.split("=", 1) for s in args.sensor_map) if args.sensor_map else None
-        obs = load_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map)
-    except MalformedFileError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+    graph = MotionGraph.load(args.graph)
+    sensor_map = parse_sensor_map(args.sensor_map, graph.config.sensor_names)
+    check_lag(args.lag, graph.config.fps)
+    check_output_dir(args.output)
+    obs = load_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map)
+    if args.calibration and graph.skeleton is not None:
+        from .calibrated_input import calibrated_observations
+
+        try:
+            obs = calibrated_observations(obs, graph.skeleton, graph.config.sensor_names, args.calibration)
+        except ValueError as exc:  # a record made for another skeleton's joint frames
+            raise MalformedFileError(args.calibration, None, str(exc)) from None
     if graph.skeleton is None:
-        print(f"error: {args.graph}: graph holds no skeleton (rebuild it with build-graph)", file=sys.stderr)
-        return 1
+        raise MalformedFileError(args.graph, None, "graph holds no skeleton (rebuild it with build-graph)")
+    check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, obs.n_samples, graph.config.fps)
     warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
     if warning:
@@ -196,6 +213,16 @@ def synthesize_main(argv: list[str]) -> int:
     if constraints and args.lag is not None:
         print("error: --require needs the batch search (no --lag)", file=sys.stderr)
         return 2
+    stream, outputs = None, []
+    if args.stream_bvh:
+        from engine.livestream.stream_cli import open_stream
+
+        stream = open_stream(args.stream_bvh, args.stream_wait)
+        outputs.append(stream)
+    if args.stream_vmc:
+        from engine.livestream.stream_cli import open_vmc
+
+        outputs.append(open_vmc(args.stream_vmc, graph.skeleton))
     t0 = time.perf_counter()
     broken = 0
     extra = {}
@@ -204,7 +231,12 @@ def synthesize_main(argv: list[str]) -> int:
         nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
         broken = res.broken_constraints
     else:
-        syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp)
+        decoder = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp)
+        syn = decoder
+        if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
+            from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
+
+            syn = StreamingSynthesizer(decoder, PoseStreamer(graph, graph.skeleton, outputs, realtime=True))
         poses = []
         for t in range(obs.n_samples):
             poses += syn.push(None if obs.acc_g is None else obs.acc_g[t],
@@ -212,7 +244,7 @@ def synthesize_main(argv: list[str]) -> int:
                               None if obs.heading_rad is None else float(obs.heading_rad[t]))
         poses += syn.flush()
         extra = {"confidence_mean": round(float(np.mean([q.confidence for q in poses])), 3),
-                 "reanchors": len(syn.reanchors)}
+                 "reanchors": len(decoder.reanchors)}
         nodes = np.array([q.node for q in poses])
         ground = np.array([q.ground_m for q in poses])
         heading = np.array([q.heading_rad for q in poses])
@@ -226,11 +258,18 @@ def synthesize_main(argv: list[str]) -> int:
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
+    if outputs and args.lag is None:  # the batch search decides the whole path at once: stream the written frames
+        from engine.livestream.stream_cli import stream_motion
+
+        stream_motion(outputs, motion)
+    if stream is not None:
+        stream.close()
     print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
                       "broken_constraints": broken, **extra}))
     return 0
 
 
+@cli_command("courtside evaluate")
 def evaluate_main(argv: list[str]) -> int:
     from .evaluate import Setting, leave_one_out, summarise
 
@@ -247,11 +286,7 @@ def evaluate_main(argv: list[str]) -> int:
     variants = args.variants.split(",")
     full = GraphConfig(msv="msv" in args.variants, interp="interp" in args.variants,
                        transition_threshold_m=args.threshold)
-    try:
-        motions, clips, sensor_model = load_clips(args, full)
-    except MalformedFileError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+    motions, clips, sensor_model = load_clips(args, full)
     idx = {n: args.sensors.index(n) for n in args.sensors}
     all_s = tuple(range(len(args.sensors)))
     two = tuple(idx[n] for n in ("left_forearm", "right_forearm") if n in idx)

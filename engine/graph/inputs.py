@@ -24,6 +24,7 @@ import numpy as np
 from engine.errors import MalformedFileError
 from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
 
+from .input_checks import check_gateway_export, check_observations, check_sensor_map, check_synthesis_file, open_npz
 from .online import resample_stream
 from .viterbi import Observations
 
@@ -51,13 +52,13 @@ def _interp_track(values: np.ndarray, fps_in: float, n_out: int, fps_out: float,
 
 
 def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: float) -> Observations:
+    check_synthesis_file(path, data, graph_sensors)  # shapes, fps, finite values: past here they are sound
     acc = np.asarray(data["acc_g"], float)
-    if acc.ndim != 3 or acc.shape[2] != 3:
-        raise MalformedFileError(path, None, f"acc_g must have shape (T, S, 3), got {acc.shape}")
-    if "fps" not in data.files:
-        raise MalformedFileError(path, None, "missing 'fps' (sample rate of the streams, Hz)")
     fps = float(data["fps"])
     names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else graph_sensors[:acc.shape[1]]
+    if len(names) == acc.shape[1] and any(n in graph_sensors for n in names):  # drop sensors the graph lacks
+        used = [k for k, n in enumerate(names) if n in graph_sensors]
+        acc, names = acc[:, used], [names[k] for k in used]
     unknown = [n for n in names if n not in graph_sensors]
     if unknown or len(names) != acc.shape[1]:
         raise MalformedFileError(path, None, f"sensor names {names} do not match the acc_g columns / graph "
@@ -79,6 +80,8 @@ def _from_gateway_export(path: Path, data, graph_sensors: list[str], fps_graph: 
     keys = sorted({k.rsplit("/", 1)[0] for k in data.files if k.endswith("/acc_g")})
     if not keys:
         raise MalformedFileError(path, None, "no 'acc_g' array and no '<station>/<sensor>/acc_g' arrays")
+    check_gateway_export(path, data, keys)
+    check_sensor_map(path, sensor_map, keys)
     mapping = sensor_map or dict(zip(keys, graph_sensors))
     missing = [k for k in keys if k not in mapping]
     if missing or any(v not in graph_sensors for v in mapping.values()):
@@ -130,11 +133,10 @@ def load_take(path: str | Path, graph_sensors: list[str], fps_graph: float,
               sensor_map: dict[str, str] | None = None) -> Observations:
     """Observations at the graph rate from a synthesis-input .npz or a gateway export."""
     path = Path(path)
-    try:
-        data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise MalformedFileError(path, None, f"not a readable .npz ({exc})") from exc
-    with data:
+    with open_npz(path) as data:
         if "acc_g" in data.files:
-            return _from_synthesis_file(path, data, graph_sensors, fps_graph)
-        return _from_gateway_export(path, data, graph_sensors, fps_graph, sensor_map)
+            obs = _from_synthesis_file(path, data, graph_sensors, fps_graph)
+        else:
+            obs = _from_gateway_export(path, data, graph_sensors, fps_graph, sensor_map)
+    check_observations(path, obs.acc_g, fps_graph)
+    return obs
