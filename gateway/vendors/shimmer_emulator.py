@@ -25,15 +25,15 @@ alignment, from its own drifting crystal clock, in bursts. ``truth`` keeps every
 from __future__ import annotations
 
 import os
-import pty
 import select
 import struct
 import threading
 import time
-import tty
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .pty_device import PtyDeviceEmulator
 
 CLOCK_HZ = 32768.0
 SENSITIVITY_LSB_PER_MPS2 = 208
@@ -55,7 +55,7 @@ def calibration_bytes() -> bytes:
     return block * 4
 
 
-class ShimmerEmulator:
+class ShimmerEmulator(PtyDeviceEmulator):
     def __init__(self, name: str = "Shimmer3-A1B2", rate_hz: float = 102.4, acc_g: np.ndarray | None = None,
                  drift_ppm: float = -30.0, start_ticks: int = 16_700_000, burst: int = 4, seed: int = 0) -> None:
         rng = np.random.default_rng(seed)
@@ -67,42 +67,8 @@ class ShimmerEmulator:
         self.drift_ppm, self.start_ticks, self.burst = drift_ppm, start_ticks, burst
         self.truth = ShimmerTruth()
         self.commands: list[int] = []
-        self._master, self._slave = pty.openpty()
-        tty.setraw(self._slave)
-        self.path = os.ttyname(self._slave)
-        self._stop = threading.Event()
         self._streaming = threading.Event()
-        self._write_lock = threading.Lock()
-        self._threads = [threading.Thread(target=self._commands, daemon=True),
-                         threading.Thread(target=self._stream, daemon=True)]
-
-    def start(self) -> "ShimmerEmulator":
-        for t in self._threads:
-            t.start()
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        for t in self._threads:
-            t.join(2.0)
-        for fd in (self._master, self._slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-
-    def __enter__(self) -> "ShimmerEmulator":
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
-
-    def _write(self, data: bytes) -> None:
-        with self._write_lock:
-            try:
-                os.write(self._master, data)
-            except OSError:
-                self._stop.set()
+        super().__init__(self._commands, self._stream)
 
     def _read(self, n: int) -> bytes:
         out = b""

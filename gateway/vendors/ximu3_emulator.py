@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import json
 import os
-import pty
 import select
-import threading
 import time
-import tty
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .pty_device import PtyDeviceEmulator
 
 
 @dataclass
@@ -34,7 +33,7 @@ class Ximu3Truth:
     dropped: int = 0
 
 
-class Ximu3Emulator:
+class Ximu3Emulator(PtyDeviceEmulator):
     """``acc_g`` (N, 3) g played at ``rate_hz`` in a loop (default: still, 1 g up + 0.005 g noise)."""
 
     def __init__(self, name: str = "x-IMU3", serial: str = "65577B49", rate_hz: float = 100.0,
@@ -48,40 +47,7 @@ class Ximu3Emulator:
         self.drift_ppm, self.offset_us, self.loss, self.burst = drift_ppm, offset_us, loss, burst
         self.truth = Ximu3Truth()
         self.commands: list[dict] = []
-        self._master, slave = pty.openpty()
-        tty.setraw(slave)
-        self.path = os.ttyname(slave)
-        self._slave = slave
-        self._stop = threading.Event()
-        self._threads = [threading.Thread(target=self._stream, daemon=True),
-                         threading.Thread(target=self._answer, daemon=True)]
-
-    def start(self) -> "Ximu3Emulator":
-        for t in self._threads:
-            t.start()
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        for t in self._threads:
-            t.join(2.0)
-        for fd in (self._master, self._slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-
-    def __enter__(self) -> "Ximu3Emulator":
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
-
-    def _write(self, data: bytes) -> None:
-        try:
-            os.write(self._master, data)
-        except OSError:
-            self._stop.set()
+        super().__init__(self._stream, self._answer)
 
     def _stream(self) -> None:
         t0 = time.monotonic()
