@@ -18,6 +18,7 @@ import numpy as np
 from gui.ringbuffer import TraceStore
 from gui.synthesis import SensorKey
 SampleSink = Callable[[SensorKey, np.ndarray, np.ndarray], None]
+CameraSink = Callable[[float, Any, "float | None"], None]  # (t_host_s, position_m [x, y] or None, heading_rad)
 
 
 def gateway_clock_offset_s(client: Any, pings: int = 3) -> float:
@@ -71,6 +72,9 @@ class GatewayBridge:
         self._trail: collections.deque[tuple[float, float, float]] = collections.deque(maxlen=self.TRAIL_LEN)
         self.events: queue.SimpleQueue[dict[str, Any]] = queue.SimpleQueue()
         self.sample_sinks: list[SampleSink] = []
+        self.camera_sinks: list[CameraSink] = []  # every camera observation, in stream order (synthesis)
+        self.recording_sinks: list[Callable[[float], None]] = []  # started_t_host_s of each new take
+        self._take_started_s: float | None = None
         self.camera_rate = CameraRate()
         self.samples_received = 0
         self.sensors_seen: dict[SensorKey, float] = {}  # sensor -> nominal rate (Hz)
@@ -114,6 +118,16 @@ class GatewayBridge:
 
     def _on_latest(self, msg: Any) -> None:
         self.set_latest(msg.kind, msg.header)
+        if msg.kind == "recording":
+            self.note_recording(msg.header)
+
+    def note_recording(self, state: dict[str, Any]) -> None:
+        """A recording state (broadcast or request reply): tell the recording sinks once per new take."""
+        started = state.get("started_t_host_s") if state.get("active") else None
+        if started is not None and started != self._take_started_s:
+            self._take_started_s = started
+            for sink in self.recording_sinks:
+                sink(float(started))
 
     def set_latest(self, kind: str, header: dict[str, Any]) -> None:
         """Store the newest header of ``kind`` (also used for request replies that carry the same state)."""
@@ -130,6 +144,9 @@ class GatewayBridge:
             pos = header.get("position_m")
             if pos is not None:
                 self._trail.append((float(header.get("t_host_s", 0.0)), float(pos[0]), float(pos[1])))
+        if header.get("t_host_s") is not None:
+            for sink in self.camera_sinks:
+                sink(float(header["t_host_s"]), header.get("position_m"), header.get("heading_rad"))
 
     def on_event(self, msg: Any) -> None:
         header = dict(msg.header)

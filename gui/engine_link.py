@@ -19,9 +19,9 @@ import numpy as np
 
 from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph
-from engine.graph.online import FixedLagSynthesizer
 from engine.mocap import (SEED000_SENSORS, SensorCalibrationData, Skeleton, default_cache_dir, load_clip,
                           placements_from_calibration, sample_clips, standard_placements)
+from engine.stream.engines import EngineSpec, motion_graph_spec
 
 from gui.synthesis import SensorKey, SynthesisSetup
 
@@ -65,12 +65,18 @@ def load_or_build_graph(exclude: Sequence[str] = (), sensor_names: Sequence[str]
     return graph, skeleton, cache
 
 
-def synthesis_setup(graph: MotionGraph, skeleton: Skeleton, sensors: list[SensorKey], lag_s: float = 0.5) -> SynthesisSetup:
-    """Console synthesis over ``graph``; ``sensors[i]`` is the live sensor worn where graph sensor i is."""
-    if len(sensors) != graph.n_sensors:
-        raise ValueError(f"graph expects {graph.n_sensors} sensors, {len(sensors)} mapped")
-    return SynthesisSetup(make_synthesizer=lambda lag: FixedLagSynthesizer(graph, lag), sensors=list(sensors),
-                          rate_hz=graph.config.fps, parents=np.asarray(skeleton.parents), lag_s=lag_s)
+def shipped_graph_spec(exclude: Sequence[str] = (), calibration: SensorCalibrationData | None = None,
+                       cache_dir: Path | None = None) -> EngineSpec:
+    """The motion-graph engine on the shipped clips (the console's default database), cached."""
+    graph, skeleton, cache = load_or_build_graph(exclude=exclude, calibration=calibration, cache_dir=cache_dir)
+    return motion_graph_spec(graph, f"shipped CMU clips ({cache.name})", skeleton.parents)
+
+
+def synthesis_setup(spec: EngineSpec, sensors: list[SensorKey], lag_s: float = 0.5) -> SynthesisSetup:
+    """Console synthesis with ``spec``; ``sensors[i]`` is the live sensor worn where engine sensor i is."""
+    if len(sensors) != len(spec.sensor_names):
+        raise ValueError(f"{spec.name} expects {len(spec.sensor_names)} sensors, {len(sensors)} mapped")
+    return SynthesisSetup(engine=spec, sensors=list(sensors), lag_s=lag_s)
 
 
 def worn_sensors(segments: Sequence[str], station: str | None,
@@ -107,3 +113,68 @@ def sensor_joints(skeleton: Skeleton, sensors: dict[SensorKey, str]) -> dict[Sen
     paints that segment with the sensor's health)."""
     placements = standard_placements(skeleton, tuple(sensors.values()))
     return {key: int(p.joint) for key, p in zip(sensors, placements)}
+
+
+def shipped_olng_spec(exclude: Sequence[str] = ()) -> EngineSpec:
+    """The OLNG engine on a knowledge base built from the shipped subject-16 clips (about a second; not cached)."""
+    from engine.olng.config import KnowledgeBaseConfig
+    from engine.olng.mocap_bridge import build_knowledge_base
+    from engine.stream.engines import olng_spec
+
+    clips = [load_clip(path, fps=GRAPH_FPS) for name, path in sample_clips().items()
+             if name.startswith("16_") and name not in exclude]
+    return olng_spec(build_knowledge_base(clips, KnowledgeBaseConfig()), "shipped CMU clips")
+
+
+def engine_spec(engine: str | None, *, graph_path: Path | None = None, kb_path: Path | None = None,
+                n_worn: int = 6, exclude: Sequence[str] = (),
+                calibration: SensorCalibrationData | None = None) -> tuple[EngineSpec, list[str]]:
+    """The engine the console runs, and notes on what was assumed.
+
+    ``engine`` None: a --graph file means the motion graph, a --kb file the OLNG, otherwise
+    `engine.stream.default_engine` of the number of worn sensors — where the HMM it names for one sensor falls
+    back to the motion graph (the live stream has no gyroscope; an explicit ``hmm`` is refused)."""
+    from engine.graph.graph import MotionGraph
+    from engine.olng.knowledge_base import KnowledgeBase
+    from engine.stream.engines import default_engine, hmm_spec, olng_spec
+
+    notes: list[str] = []
+    if engine is None:
+        engine = "motion-graph" if graph_path else "olng" if kb_path else default_engine(n_worn)
+        if engine == "hmm":
+            notes.append(f"{n_worn} worn sensor(s) call for the hmm, which needs gyroscopes the stations do not "
+                         "stream: using the motion graph")
+            engine = "motion-graph"
+        else:
+            notes.append(f"engine {engine} (default for {n_worn} worn sensors)")
+    if engine == "hmm":
+        return hmm_spec(), notes
+    if engine == "olng":
+        if kb_path is not None:
+            return olng_spec(KnowledgeBase.load(kb_path), kb_path), notes
+        return shipped_olng_spec(exclude), notes
+    if graph_path is not None:
+        if calibration is not None:
+            notes.append(f"{graph_path}: the graph's virtual sensors keep the mounting it was built with "
+                         "(build it with `courtside build-graph --calibration` to use the record's rotations)")
+        return motion_graph_spec(MotionGraph.load(graph_path), graph_path), notes
+    return shipped_graph_spec(exclude, calibration), notes
+
+
+def check_worn_sensors(spec: EngineSpec, keys: list[SensorKey], stations: list[dict],
+                       calibration: SensorCalibrationData | None = None) -> None:
+    """Refuse unless every live sensor feeding ``spec`` exists and fits it: the station list (gateway status or a
+    take) must have each sensor; its placement (the calibration record's, else the one assumed from the
+    engine's column order) must be the engine's, and its nominal rate at least the engine's frame rate."""
+    from engine.stream.engines import SensorsMissingError, check_live_sensors
+
+    listed = {(str(st["station"]), int(s["sensor"])): float(s.get("nominal_hz") or 0.0)
+              for st in stations for s in st.get("sensors", [])}
+    missing = [f"{st}/{i}" for st, i in keys if (st, i) not in listed]
+    if missing:
+        raise SensorsMissingError(f"{spec.name} needs sensors {', '.join(missing)} for "
+                                  f"{', '.join(n for n, k in zip(spec.sensor_names, keys) if f'{k[0]}/{k[1]}' in missing)}"
+                                  f"; live: {', '.join(f'{st}/{i}' for st, i in sorted(listed)) or 'none'}")
+    by_id = {sid: seg for seg, sid in calibration.sensor_ids.items()} if calibration is not None else {}
+    worn = [by_id.get(f"{st}/{i}", name) for (st, i), name in zip(keys, spec.sensor_names)]
+    check_live_sensors(spec, worn, [listed[k] for k in keys])

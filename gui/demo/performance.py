@@ -129,6 +129,10 @@ class TruthClock:
         self.perf = perf
         self.t0 = t0_monotonic_s
 
+    @property
+    def parents(self) -> np.ndarray:
+        return self.perf.parents
+
     def __call__(self, t_host_s: float) -> np.ndarray | None:
         if t_host_s < self.t0:
             return None

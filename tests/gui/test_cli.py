@@ -73,8 +73,8 @@ def test_console_reads_each_segment_from_the_sensor_the_calibration_record_assig
 
     worn = []
     setup = gui.engine_link.synthesis_setup
-    monkeypatch.setattr(gui.engine_link, "synthesis_setup", lambda g, s, sensors, lag: worn.append(sensors) or
-                        setup(g, s, sensors, lag))
+    monkeypatch.setattr(gui.engine_link, "synthesis_setup", lambda spec, sensors, lag: worn.append(sensors) or
+                        setup(spec, sensors, lag))
     gateway, _ = live_gateway(StillSource(6), 6)
     host, port = gateway.address
     reversed_ids = {seg: f"st1/{5 - i}" for i, seg in enumerate(SEED000_SENSORS)}  # worn in the opposite order
