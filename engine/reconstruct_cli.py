@@ -84,16 +84,17 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
 
 
 def _reconstruct_hmm(args: argparse.Namespace) -> dict:
-    from engine.graph.inputs import load_take
+    from engine.graph.inputs import read_take
     from engine.hmm.evaluation import reconstruct, to_motion, train_model
     from engine.mocap import resample, write_bvh
 
     motions = _load_motions(args)
     model = train_model(motions, imu_names=tuple(args.imus))
-    obs = load_take(args.input, list(args.imus), model.fps)
+    take = read_take(args.input, list(args.imus), model.fps)
+    obs = take.obs
     if obs.acc_g is None or tuple(obs.sensor_indices) != tuple(range(len(args.imus))):
         raise MalformedFileError(args.input, None, f"the HMM needs the IMUs {args.imus} in that order")
-    gyro = _take_gyro(args.input, len(obs.acc_g), model.fps)
+    gyro = _take_gyro(args.input, take.frame, model.fps)
     skeleton = motions[0].skeleton
     start = resample(motions[0], model.fps)
     t0 = time.perf_counter()
@@ -104,17 +105,19 @@ def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     return {"frames": len(frames), "seconds": round(elapsed, 3), "fps": round(len(frames) / max(elapsed, 1e-9), 1)}
 
 
-def _take_gyro(path: str, frames: int, fps: float) -> np.ndarray:
-    """`gyro_rps` (T, S, 3) rad/s from the take (the HMM's IMU feature is acc + gyro), at the model rate."""
-    from engine.graph.online import resample_stream
+def _take_gyro(path: str, frames: np.ndarray, fps: float) -> np.ndarray:
+    """`gyro_rps` (T, S, 3) rad/s from the take (the HMM's IMU feature is acc + gyro), on the same frames as the
+    accelerations (`engine.stream.resample_uniform`, the one sample -> frame path)."""
+    from engine.stream import resample_uniform
 
     data = np.load(path, allow_pickle=False)
     if "gyro_rps" not in data.files:
         raise MalformedFileError(path, None, "the HMM method needs 'gyro_rps' (T, S, 3) rad/s beside 'acc_g'")
-    gyro = resample_stream(np.asarray(data["gyro_rps"], float), float(data["fps"]), fps)
-    if len(gyro) < frames:
-        raise MalformedFileError(path, None, f"gyro_rps has {len(gyro)} frames at {fps:g} Hz, acc_g {frames}")
-    return gyro[:frames]
+    gyro = resample_uniform(np.asarray(data["gyro_rps"], float), float(data["fps"]), fps)
+    rows = np.searchsorted(gyro.index, frames)
+    if len(gyro) == 0 or np.any(rows >= len(gyro)) or not np.array_equal(gyro.index[np.minimum(rows, len(gyro) - 1)], frames):
+        raise MalformedFileError(path, None, f"gyro_rps does not cover the acc_g frames at {fps:g} Hz")
+    return gyro.acc_g[rows]
 
 
 def _reconstruct_motion_graph(args: argparse.Namespace) -> int:

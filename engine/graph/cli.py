@@ -108,10 +108,14 @@ def _weights(values: list[float]) -> SearchWeights:
 
 
 def synthesize_main(argv: list[str]) -> int:
-    from .inputs import load_take
-    from .online import FixedLagSynthesizer
-    from .postprocess import path_to_motion
+    from engine.stream import FramePose, synthesize_streams
+    from engine.stream.poses_file import save_poses
+
     from . import label_constraint
+    from .inputs import TIME_COLUMNS, read_take
+    from .online import FixedLagSynthesizer
+    from .poses import world_joint_positions
+    from .postprocess import path_to_motion
     from .viterbi import ViterbiSearch
 
     p = argparse.ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
@@ -119,9 +123,21 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--input", required=True, help="take .npz (synthesis input format or a gateway export)")
     p.add_argument("-o", "--output", required=True, help="output .bvh")
     p.add_argument("--weights", nargs=3, type=float, default=[0.5, 1.0, 1.0], metavar=("W_A", "W_P", "W_O"))
-    p.add_argument("--lag", type=float, default=None, help="fixed-lag online decoding with this latency (s)")
+    p.add_argument("--lag", type=float, default=None,
+                   help="fixed-lag online decoding with this latency (s); on a gateway export this is the console's "
+                        "live path itself, so the same lag gives the poses the console showed")
     p.add_argument("--sensor-map", nargs="*", default=None, metavar="STATION/SENSOR=NAME",
                    help="gateway exports: which recorded sensor is which graph sensor")
+    p.add_argument("--camera-heading", action="store_true",
+                   help="gateway exports: use the tracker's heading as a constraint (off by default, as live: the "
+                        "tracker's heading is a rule, not a measurement)")
+    p.add_argument("--times", choices=TIME_COLUMNS, default="t_host_s",
+                   help="gateway exports: sample times online (as the console saw them; default) or re-fitted offline")
+    p.add_argument("--start", type=float, default=None, metavar="T_HOST_S",
+                   help="gateway exports: first frame at this gateway time (default: the take's defined first frame, "
+                        "0.5 s after recording started, as the console)")
+    p.add_argument("--save-poses", default=None, metavar="OUT.npz",
+                   help="also save every frame's joint positions (the format `courtside console --save-poses` writes)")
     p.add_argument("--require", nargs="*", default=[], metavar="LABEL@SECONDS",
                    help="human constraints (eq. 8): be on a clip labelled LABEL around this time of the take")
     p.add_argument("--require-tolerance", type=int, default=10, help="+- frames around each required time")
@@ -131,10 +147,12 @@ def synthesize_main(argv: list[str]) -> int:
     try:
         graph = MotionGraph.load(args.graph)
         sensor_map = dict(s.split("=", 1) for s in args.sensor_map) if args.sensor_map else None
-        obs = load_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map)
+        take = read_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map,
+                         use_camera_heading=args.camera_heading, times=args.times, start_s=args.start)
     except MalformedFileError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
+    obs = take.obs
     if graph.skeleton is None:
         print(f"error: {args.graph}: graph holds no skeleton (rebuild it with build-graph)", file=sys.stderr)
         return 1
@@ -151,21 +169,24 @@ def synthesize_main(argv: list[str]) -> int:
         return 2
     t0 = time.perf_counter()
     broken = 0
+    fps = graph.config.fps
     if args.lag is None:
         res = ViterbiSearch(graph, weights).run(obs, constraints)
         nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
         broken = res.broken_constraints
+        joints = world_joint_positions(graph, nodes, ground, heading)
+        poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
     else:
-        syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)
-        poses = []
-        for t in range(obs.n_samples):
-            poses += syn.push(None if obs.acc_g is None else obs.acc_g[t],
-                              None if obs.position_m is None else obs.position_m[t],
-                              None if obs.heading_rad is None else float(obs.heading_rad[t]))
-        poses += syn.flush()
-        nodes = np.array([q.node for q in poses])
-        ground = np.array([q.ground_m for q in poses])
-        heading = np.array([q.heading_rad for q in poses])
+        make = lambda: FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)  # noqa: E731
+        if take.streams is not None:  # a gateway take: the live path, sample by sample
+            poses, _ = synthesize_streams(make, take.streams, take.stream_keys, fps, start_s=args.start,
+                                          use_camera_heading=args.camera_heading)
+        else:
+            poses = _fixed_lag_over_frames(make(), take)
+        emitted = [q.source for q in poses]
+        nodes = np.array([q.node for q in emitted])
+        ground = np.array([q.ground_m for q in emitted])
+        heading = np.array([q.heading_rad for q in emitted])
         edges = np.full(len(nodes), -1)
         for t in range(1, len(nodes)):
             try:
@@ -176,9 +197,34 @@ def synthesize_main(argv: list[str]) -> int:
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
-    print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
-                      "broken_constraints": broken}))
+    if args.save_poses:
+        save_poses(args.save_poses, poses, graph.skeleton.parents,
+                   {"engine": "motion-graph", "database": str(args.graph), "lag_s": args.lag, "rate_hz": fps,
+                    "start_frame": int(poses[0].frame) if poses else None, "input": str(args.input),
+                    "use_camera_heading": args.camera_heading})
+    print(json.dumps({"samples": int(obs.n_samples), "first_frame": int(take.frame[0]), "search_s": round(elapsed, 3),
+                      "output": args.output, "broken_constraints": broken}))
     return 0
+
+
+def _fixed_lag_over_frames(synthesizer, take) -> list:
+    """Fixed-lag decoding of frames already on the clock (a synthesis-input file): one push per frame, a NaN
+    row (dropout) pushed without accelerations, as the live path does."""
+    from engine.stream import FramePose
+
+    obs, out = take.obs, []
+    first = int(take.frame[0])
+    fps = synthesizer.graph.config.fps
+
+    def frame_poses(emitted):
+        return [FramePose(first + q.t, (first + q.t) / fps, q.joint_positions_m,
+                          getattr(q, "confidence", None), q) for q in emitted]
+
+    for t in range(obs.n_samples):
+        acc = None if obs.acc_g is None or np.isnan(obs.acc_g[t]).any() else obs.acc_g[t]
+        out += frame_poses(synthesizer.push(acc, None if obs.position_m is None else obs.position_m[t],
+                                            None if obs.heading_rad is None else float(obs.heading_rad[t])))
+    return out + frame_poses(synthesizer.flush())
 
 
 def evaluate_main(argv: list[str]) -> int:

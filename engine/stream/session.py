@@ -46,6 +46,7 @@ class FramePose:
     t_s: float
     joint_positions_m: np.ndarray  # (J, 3) world frame (x, y up, z) m
     confidence: float | None = None  # the engine's per-frame confidence in [0, 1], when it reports one
+    source: Any = field(default=None, compare=False, repr=False)  # the engine's own pose object (node, path...)
 
 
 @dataclass
@@ -133,7 +134,7 @@ class StreamSynthesis:
             frame = self.first_frame + int(e.t)
             conf = getattr(e, "confidence", None)
             out.append(FramePose(frame, frame / self.rate_hz, np.asarray(e.joint_positions_m, float),
-                                 None if conf is None else float(conf)))
+                                 None if conf is None else float(conf), e))
         self.stats.poses_out += len(out)
         return out
 
