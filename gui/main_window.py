@@ -431,6 +431,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         meta = {"engine": spec.name, "database": spec.database, "lag_s": self.worker.stats.lag_s,
                 "rate_hz": spec.rate_hz, "start_frame": start, "take": recording.get("take"),
                 "use_camera_heading": self.synthesis.use_camera_heading,
+                "frames_in": self.worker.stats.frames_in, "frames_invalid": self.worker.stats.frames_invalid,
+                "frames_with_camera": self.worker.stats.frames_with_camera,
                 "sensors": [{"stream": f"{st}/{i}", "placement": name}
                             for (st, i), name in zip(self.synthesis.sensors, spec.sensor_names)]}
         return save_poses(path, poses, spec.parents, meta)

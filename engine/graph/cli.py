@@ -170,6 +170,7 @@ def synthesize_main(argv: list[str]) -> int:
     t0 = time.perf_counter()
     broken = 0
     fps = graph.config.fps
+    counts: dict = {}
     if args.lag is None:
         res = ViterbiSearch(graph, weights).run(obs, constraints)
         nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
@@ -179,8 +180,9 @@ def synthesize_main(argv: list[str]) -> int:
     else:
         make = lambda: FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)  # noqa: E731
         if take.streams is not None:  # a gateway take: the live path, sample by sample
-            poses, _ = synthesize_streams(make, take.streams, take.stream_keys, fps, start_s=args.start,
-                                          use_camera_heading=args.camera_heading)
+            poses, session = synthesize_streams(make, take.streams, take.stream_keys, fps, start_s=args.start,
+                                                use_camera_heading=args.camera_heading)
+            counts = vars(session.stats)
         else:
             poses = _fixed_lag_over_frames(make(), take)
         emitted = [q.source for q in poses]
@@ -201,7 +203,7 @@ def synthesize_main(argv: list[str]) -> int:
         save_poses(args.save_poses, poses, graph.skeleton.parents,
                    {"engine": "motion-graph", "database": str(args.graph), "lag_s": args.lag, "rate_hz": fps,
                     "start_frame": int(poses[0].frame) if poses else None, "input": str(args.input),
-                    "use_camera_heading": args.camera_heading})
+                    "use_camera_heading": args.camera_heading, **counts})
     print(json.dumps({"samples": int(obs.n_samples), "first_frame": int(take.frame[0]), "search_s": round(elapsed, 3),
                       "output": args.output, "broken_constraints": broken}))
     return 0
