@@ -8,19 +8,27 @@ Incoming messages are delivered two ways, use either or both:
 
 Requests (``start_recording``, ``station_command`` ...) block until the matching reply arrives and raise
 `GatewayRequestError` when the gateway refuses. Wire format: docs/gateway.md.
+
+Authentication: a gateway with a secret greets with a challenge; `connect` answers it with ``secret`` (bytes,
+from `gateway.auth.client_secret`: a file or the environment, never the command line) and checks the gateway's
+answer in turn. The role the secret grants (operator / viewer) is ``client.role``.
 """
 from __future__ import annotations
 
 import collections
+import hmac
 import itertools
 import logging
+import secrets
 import socket
+import ssl
 import threading
 import time
 from typing import Any, Callable, Iterable
 
-from gateway import wire
+from gateway import auth, wire
 from gateway.codec import Message
+from gateway.tls import TlsChannel
 
 log = logging.getLogger(__name__)
 
@@ -43,10 +51,15 @@ class GatewayClient:
             gw.start_recording("rally-01")
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 7766, *, inbox_size: int = 10_000):
+    def __init__(self, host: str = "127.0.0.1", port: int = 7766, *, secret: bytes | None = None,
+                 tls: ssl.SSLContext | None = None, inbox_size: int = 10_000):
         self.host = host
+        self.tls = tls
         self.port = port
+        self.role: str | None = None
         self.server_hello: dict[str, Any] = {}
+        self._secret = secret
+        self._refusal: str | None = None
         self.inbox_dropped = 0
         self._inbox: collections.deque[Message] = collections.deque(maxlen=inbox_size)
         self._inbox_cond = threading.Condition()
@@ -56,25 +69,67 @@ class GatewayClient:
         self._pending_lock = threading.Lock()
         self._ids = itertools.count(1)
         self._send_lock = threading.Lock()
-        self._sock: socket.socket | None = None
+        self._sock: Any = None  # socket.socket or gateway.tls.TlsChannel
         self._reader: threading.Thread | None = None
         self._hello_event = threading.Event()
         self._closed = threading.Event()
 
     # -- connection -------------------------------------------------------------------------------------------
     def connect(self, timeout_s: float = 5.0) -> "GatewayClient":
-        """Open the TCP connection and wait for the gateway's hello (raises ConnectionError on failure)."""
-        sock = socket.create_connection((self.host, self.port), timeout=timeout_s)
+        """Open the TCP connection, wait for the gateway's hello and authenticate if it asks to.
+
+        Raises ConnectionError when unreachable or refused (busy), `gateway.auth.AuthenticationError` when the
+        gateway wants a secret we lack or rejects ours (or cannot prove it holds it)."""
+        sock: Any = socket.create_connection((self.host, self.port), timeout=timeout_s)
         sock.settimeout(None)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        if self.tls is not None:
+            sock = TlsChannel(sock, self.tls, server_side=False, server_hostname=self.host)
+            try:
+                sock.handshake(timeout_s)
+            except BaseException:
+                sock.close()
+                raise
         self._sock = sock
         self._closed.clear()
+        self._hello_event.clear()
         self._reader = threading.Thread(target=self._read_loop, name="gw-client-reader", daemon=True)
         self._reader.start()
-        if not self._hello_event.wait(timeout_s):
+        if not self._hello_event.wait(timeout_s) or not self.server_hello:
             self.close()
+            if self._refusal:
+                raise ConnectionError(f"gateway {self.host}:{self.port} refused the connection: {self._refusal}")
             raise ConnectionError(f"no hello from gateway {self.host}:{self.port} within {timeout_s} s")
+        challenge = self.server_hello.get("auth")
+        if challenge is None:
+            self.role = self.server_hello.get("role", auth.OPERATOR)
+            return self
+        try:
+            self._authenticate(str(challenge.get("challenge", "")), timeout_s)
+        except BaseException:
+            self.close()
+            raise
         return self
+
+    def _authenticate(self, challenge_hex: str, timeout_s: float) -> None:
+        where = f"gateway {self.host}:{self.port}"
+        if self._secret is None:
+            raise auth.AuthenticationError(
+                f"{where} requires authentication: give the secret file (--secret-file, or "
+                f"${auth.SECRET_FILE_ENV})")
+        server_nonce = bytes.fromhex(challenge_hex)
+        client_nonce = secrets.token_bytes(auth.NONCE_BYTES)
+        try:
+            result = self._send(wire.AUTH, {"nonce": client_nonce.hex(),
+                                            "proof": auth.proof(self._secret, "client", server_nonce, client_nonce)},
+                                timeout_s)
+        except GatewayRequestError as exc:
+            raise auth.AuthenticationError(f"{where}: {exc}") from None
+        expected = auth.proof(self._secret, "server", server_nonce, client_nonce)
+        if not isinstance(result, dict) or not hmac.compare_digest(str(result.get("proof")), expected):
+            raise auth.AuthenticationError(f"{where} could not prove it holds the secret (an impostor?)")
+        self.role = str(result["role"])
+        self.server_hello = {k: v for k, v in result.items() if k != "proof"}
 
     @property
     def connected(self) -> bool:
@@ -145,6 +200,7 @@ class GatewayClient:
                 log.warning("gateway connection lost: %s", exc)
         finally:
             self._closed.set()
+            self._hello_event.set()  # a connect() still waiting for the hello learns at once
             with self._inbox_cond:
                 self._inbox_cond.notify_all()
             self._fail_pending("connection lost")
@@ -152,6 +208,10 @@ class GatewayClient:
     def _dispatch(self, msg: Message) -> None:
         if msg.kind == wire.SERVER_HELLO:
             self.server_hello = msg.header
+            self._hello_event.set()
+            return
+        if msg.kind == wire.REPLY and msg.header.get("id") is None and not self.server_hello:
+            self._refusal = str(msg.header.get("error"))  # refused before any hello (e.g. too many clients)
             self._hello_event.set()
             return
         if msg.kind == wire.REPLY:

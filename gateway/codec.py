@@ -14,6 +14,7 @@ numpy dtype strings with explicit byte order (``"<f4"``), so the format is porta
 from __future__ import annotations
 
 import json
+import math
 import struct
 from dataclasses import dataclass, field
 from typing import Any
@@ -108,7 +109,9 @@ def decode(body: bytes | memoryview) -> Message:
             raise CodecError(f"bad array spec {spec!r}: {exc}") from exc
         if dtype.hasobject:
             raise CodecError(f"array {name!r} declares an object dtype")
-        nbytes = dtype.itemsize * int(np.prod(shape, dtype=np.int64))
+        if any(n < 0 for n in shape) or len(shape) > 32:
+            raise CodecError(f"array {name!r} has an invalid shape {list(shape)[:8]}")
+        nbytes = dtype.itemsize * math.prod(shape)  # Python ints: [2**32, 2**32] must not wrap to 0
         if offset + nbytes > len(view):
             raise CodecError(f"array {name!r} needs {nbytes} bytes but only {len(view) - offset} remain")
         arrays[name] = np.frombuffer(view[offset : offset + nbytes], dtype=dtype).reshape(shape)

@@ -20,18 +20,23 @@ import signal
 import sys
 import threading
 import time
-import tomllib
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 import firmware_protocol as fp
-from gateway import wire
+from gateway import auth, wire
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
 from gateway.recorder import Recorder, export_csv, export_npz
+from gateway.names import BadNameError, check_name
 from gateway.server import RequestError, StreamServer
 from gateway.station import SampleBlock, StationReader
+
+if TYPE_CHECKING:
+    import ssl
+
+    from gateway.court_config import CourtConfig
 
 log = logging.getLogger("gateway")
 
@@ -73,6 +78,10 @@ class Gateway:
         status_line: Callable[[str], None] | None = None,
         discover: bool | list[Callable[[], list[DiscoveredPort]]] = False,
         name: str = "courtside-gateway",
+        secrets: auth.Secrets = auth.Secrets(),
+        max_clients: int = 32,
+        handshake_timeout_s: float = 5.0,
+        tls: "ssl.SSLContext | None" = None,
     ):
         self.name = name
         self.recorder = Recorder(record_dir)
@@ -86,7 +95,9 @@ class Gateway:
         self.readers: list[StationReader] = []
         self._readers_lock = threading.Lock()
         self.server = StreamServer(self.handle_request, host=listen[0], port=listen[1], hello=self._hello,
-                                   display_queue_frames=display_queue_frames)
+                                   display_queue_frames=display_queue_frames, secrets=secrets,
+                                   max_clients=max_clients, handshake_timeout_s=handshake_timeout_s, name=name,
+                                   tls=tls)
         # discovery functions polled for hot-plugged stations (True = USB serial + HID by VID:PID)
         self.discoverers = [discover_serial, discover_hid] if discover is True else list(discover or [])
         self.samples_in = 0
@@ -212,12 +223,18 @@ class Gateway:
             readers = list(self.readers)
         return [reader.status() for reader in readers]
 
-    def status(self) -> dict[str, Any]:
-        return {
+    def status(self, role: str = auth.OPERATOR) -> dict[str, Any]:
+        """One status snapshot. Viewers see how many clients are connected, not who (issue 12)."""
+        clients = self.server.client_stats()
+        status = {
             "t_host_s": time.monotonic(), "stations": self.list_stations(), "recording": self.recorder.state(),
-            "samples_in": self.samples_in, "camera_frames": self.camera_frames,
-            "clients": [vars(c) for c in self.server.client_stats()],
+            "samples_in": self.samples_in, "camera_frames": self.camera_frames, "n_clients": len(clients),
+            "clients": [vars(c) for c in clients] if role == auth.OPERATOR else [],
         }
+        health = getattr(self.camera, "health", None)
+        if health is not None:
+            status["camera"] = health()
+        return status
 
     def _hello(self) -> dict[str, Any]:
         return {"gateway": self.name, "t_host_s": time.monotonic(), "stations": self.list_stations()}
@@ -243,7 +260,7 @@ class Gateway:
                 last_discovery = time.monotonic()
                 self.discover_stations()
             status = self.status()
-            self.server.publish("status", status)
+            self.server.publish("status", status, viewer_header={**status, "clients": []})
             self.server.publish("recording", status["recording"])
             if self.recorder.active:
                 self.recorder.put("clock", {"stations": [{"station": s["station"], **s["clock"]}
@@ -257,17 +274,20 @@ class Gateway:
                     self._status_line(line)
 
     # -- control requests (client reader threads) -------------------------------------------------------------
-    def handle_request(self, action: str, args: dict[str, Any]) -> Any:
+    def handle_request(self, action: str, args: dict[str, Any], role: str = auth.OPERATOR) -> Any:
+        """Serve one control request. Network clients reach this only after the server checked ``role`` may
+        make it (`gateway.auth.required_role`); in-process callers are operators."""
         if action == "ping":
             return {"t_host_s": time.monotonic()}
         if action == "list_stations":
             return self.list_stations()
         if action == "status":
-            return self.status()
+            return self.status(role)
         if action == "start_recording":
-            take = args.get("take")
-            if not isinstance(take, str):
-                raise RequestError("start_recording needs a string 'take'")
+            try:
+                take = check_name(args.get("take"), "take name")
+            except BadNameError as exc:
+                raise RequestError(str(exc)) from None
             try:
                 state = self.recorder.start(take, meta={"gateway": self.name, "stations": self.list_stations()})
             except ValueError as exc:
@@ -346,6 +366,14 @@ def format_status_lines(status: dict[str, Any]) -> list[str]:
             f"residual {'%.2f ms' % (residual * 1e3) if residual is not None else 'n/a'}"
             f"{'' if clock.get('locked') else ' (warming up)'}"
         )
+    camera = status.get("camera")
+    if camera:
+        confidence = camera.get("confidence")
+        lines.append(
+            f"  camera {camera['state']:<8} {camera['fps']:5.1f} fps ({camera['nominal_fps']:.0f} nominal) "
+            f"frames {camera['frames']} dropped {camera['dropped']} "
+            + (f"tracking, confidence {confidence:.2f}" if confidence is not None else "not tracking")
+            + (f" error: {camera['error']}" if camera.get("error") else ""))
     rec = status["recording"]
     if rec.get("active"):
         lines.append(f"recording {rec['take']}: {rec['samples_written']} samples, {rec['bytes_written']} bytes")
@@ -353,22 +381,69 @@ def format_status_lines(status: dict[str, Any]) -> list[str]:
 
 
 # ---------------------------------------------------------------------------------------------------- CLI
+EXIT_OK = 0  # stopped by SIGINT/SIGTERM or --duration: recording flushed and closed
+EXIT_START_FAILED = 1  # could not start at run time (listen address in use, device gone): worth a restart
+EXIT_BAD_CONFIG = 2  # bad config, flag or file: refused before anything started; a restart cannot help
+
+# command-line flag -> court config key (gateway.court_config); flags override the --config file
+FLAG_KEYS = {
+    "port": "stations.ports", "url": "stations.urls", "discover": "stations.discover", "emulate": "stations.emulate",
+    "emulate_motion": "stations.emulate_motion", "emulate_clip": "stations.emulate_clips",
+    "camera": "camera.source", "court": "camera.court", "player_side": "camera.player_side",
+    "camera_fps": "camera.fps", "camera_loop": "camera.loop", "placements": "calibration.placements",
+    "pose": "calibration.pose", "calibration_dir": "calibration.records_dir", "record_dir": "record_dir",
+    "record": "record", "listen": "listen", "log_level": "log_level", "secret_file": "auth.operator_secret_file",
+    "viewer_secret_file": "auth.viewer_secret_file", "tls_cert": "auth.tls_cert", "tls_key": "auth.tls_key",
+    "max_clients": "max_clients", "handshake_timeout": "handshake_timeout_s",
+}
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside gateway", description=__doc__.split("\n")[0],
-                                epilog="Export a recording: courtside gateway export <take dir> [--npz F] [--csv-dir D]")
-    p.add_argument("--port", action="append", default=[], metavar="PATH",
+    p = argparse.ArgumentParser(
+        prog="courtside gateway", description=__doc__.split("\n")[0],
+        epilog="Every option can come from --config court.toml (keys in docs/gateway.md); options given here win. "
+               "Also: courtside gateway export <take dir> [--npz F] [--csv-dir D]; "
+               "courtside gateway new-secret FILE. Exit codes: 0 stopped cleanly, 1 could not start "
+               "(e.g. address in use), 2 bad config/arguments.")
+    p.add_argument("--config", type=Path, help="court config TOML (stations, camera, calibration, auth, ...)")
+    g = p.add_argument_group("stations")
+    g.add_argument("--port", action="append", default=None, metavar="PATH",
                    help="serial port path, or hid:<path> / hid:VVVV:PPPP[:serial] (repeatable)")
-    p.add_argument("--url", action="append", default=[], metavar="URL", help="pyserial URL, e.g. emu://... (repeatable)")
-    p.add_argument("--discover", action="store_true",
+    g.add_argument("--url", action="append", default=None, metavar="URL", help="pyserial URL, e.g. emu://... (repeatable)")
+    g.add_argument("--discover", action=argparse.BooleanOptionalAction, default=None,
                    help="find stations by USB VID:PID 1209:C0DE (serial + HID), also hot-plugged ones")
-    p.add_argument("--emulate", type=int, default=0, metavar="N", help="start N emulated stations over ptys")
-    p.add_argument("--config", type=Path, help="TOML file with the same keys (ports, urls, emulate, listen, record_dir, discover)")
-    p.add_argument("--record-dir", type=Path, default=None, help="where takes are written (default ./recordings)")
-    p.add_argument("--record", metavar="TAKE", help="start recording this take at once")
-    p.add_argument("--listen", default=None, help=f"host:port for clients (default {DEFAULT_LISTEN})")
+    g.add_argument("--emulate", type=int, default=None, metavar="N", help="start N emulated stations over ptys")
+    g.add_argument("--emulate-motion", default=None, metavar="mocap|none",
+                   help="emulated sensors replay mocap clips (default) or stay still")
+    g.add_argument("--emulate-clip", action="append", default=None, metavar="CLIP",
+                   help="shipped clip name or .bvh/.amc file to replay (repeatable; default every shipped clip)")
+    g = p.add_argument_group("camera")
+    g.add_argument("--camera", default=None, metavar="SRC", help="V4L2 index, device path or video file")
+    g.add_argument("--court", type=Path, default=None, metavar="JSON",
+                   help="court calibration (`courtside camera calibrate ... --out court.json`)")
+    g.add_argument("--player-side", default=None, metavar="near|far", help="half the player starts on")
+    g.add_argument("--camera-fps", type=float, default=None, help="frame rate asked of a live camera")
+    g.add_argument("--camera-loop", action=argparse.BooleanOptionalAction, default=None,
+                   help="play a video file again at its end")
+    g = p.add_argument_group("calibration")
+    g.add_argument("--placements", type=lambda text: [s.strip() for s in text.split(",") if s.strip()], default=None,
+                   metavar="SITE,SITE,...", help="worn sensor sites: attaches the calibration wizard")
+    g.add_argument("--pose", default=None, metavar="npose|tpose", help="calibration pose (default npose)")
+    g.add_argument("--calibration-dir", type=Path, default=None, help="where calibration records are saved")
+    g = p.add_argument_group("recording and network")
+    g.add_argument("--record-dir", type=Path, default=None, help="where takes are written (default ./recordings)")
+    g.add_argument("--record", metavar="TAKE", help="start recording this take at once (TAKE-2... if it exists)")
+    g.add_argument("--listen", default=None, help=f"host:port for clients (default {DEFAULT_LISTEN}; beyond "
+                   "loopback needs --secret-file)")
+    g.add_argument("--secret-file", type=Path, default=None, help="operator secret (every client authenticates)")
+    g.add_argument("--viewer-secret-file", type=Path, default=None, help="viewer secret (watch only)")
+    g.add_argument("--tls-cert", type=Path, default=None, help="PEM certificate: serve TLS")
+    g.add_argument("--tls-key", type=Path, default=None, help="PEM private key for --tls-cert")
+    g.add_argument("--max-clients", type=int, default=None)
+    g.add_argument("--handshake-timeout", type=float, default=None, metavar="S")
     p.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
     p.add_argument("--quiet", action="store_true", help="no status lines")
-    p.add_argument("--log-level", default="INFO")
+    p.add_argument("--log-level", default=None, help="DEBUG, INFO (default), WARNING, ERROR")
     return p
 
 
@@ -380,19 +455,18 @@ def _export_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _load_config(path: Path) -> dict[str, Any]:
-    try:
-        with open(path, "rb") as fh:
-            config = tomllib.load(fh)
-    except OSError as exc:
-        raise SystemExit(f"courtside gateway: cannot read config {path}: {exc.strerror}")
-    except tomllib.TOMLDecodeError as exc:
-        raise SystemExit(f"courtside gateway: {path}: {exc}")
-    known = {"ports", "urls", "emulate", "listen", "record_dir", "discover"}
-    unknown = set(config) - known
-    if unknown:
-        raise SystemExit(f"courtside gateway: {path}: unknown keys {sorted(unknown)} (valid: {sorted(known)})")
-    return config
+def load_config(args: argparse.Namespace) -> "CourtConfig":
+    """The court config file (or the defaults) with the command line's options applied on top."""
+    from gateway.court_config import CourtConfig, load_court_config, with_overrides
+
+    config = load_court_config(args.config, check=False) if args.config else CourtConfig()
+    overrides = {key: getattr(args, flag) for flag, key in FLAG_KEYS.items()}
+    flags = {key: "--" + flag.replace("_", "-") for flag, key in FLAG_KEYS.items()}
+    for key in ("record_dir", "calibration.records_dir", "camera.court", "auth.operator_secret_file",
+                "auth.viewer_secret_file", "auth.tls_cert", "auth.tls_key"):
+        if overrides[key] is not None:
+            overrides[key] = str(overrides[key])
+    return with_overrides(config, overrides, flags)
 
 
 def _export_main(argv: list[str]) -> int:
@@ -414,47 +488,51 @@ def _export_main(argv: list[str]) -> int:
     return 0
 
 
+def _new_secret_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="courtside gateway new-secret",
+                                description="Write a new random secret to FILE (mode 600; never overwrites).")
+    p.add_argument("file", type=Path)
+    args = p.parse_args(argv)
+    try:
+        auth.write_secret_file(args.file)
+    except OSError as exc:
+        print(f"courtside gateway new-secret: {args.file}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.file} (copy it to each console machine, mode 600)")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "export":
         return _export_main(argv[1:])
+    if argv and argv[0] == "new-secret":
+        return _new_secret_main(argv[1:])
     args = _parser().parse_args(argv)
-    logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    config = _load_config(args.config) if args.config else {}
-    sources = list(config.get("ports", [])) + list(config.get("urls", [])) + args.port + args.url
-    emulate = args.emulate or int(config.get("emulate", 0))
-    listen = wire.parse_hostport(args.listen or config.get("listen", DEFAULT_LISTEN))
-    record_dir = args.record_dir or Path(config.get("record_dir", "recordings"))
-    emulators = []
-    if emulate:
-        from gateway.emulated import start_emulated_stations
+    config = load_config(args)  # CourtsideError -> one line, exit 2 (gateway.cli)
+    logging.basicConfig(level=config.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    from gateway.assembly import build_court
 
-        emulators, pty_paths = start_emulated_stations(emulate)
-        sources += pty_paths
-    discover = args.discover or bool(config.get("discover", False))
-    if not sources and not discover:
-        print("courtside gateway: no stations (give --port, --url, --emulate, --discover or --config)",
-              file=sys.stderr)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     printer = None if args.quiet else (lambda line: print(line, flush=True))
     try:
-        gateway = Gateway(sources, listen=listen, record_dir=record_dir, status_line=printer,
-                          discover=discover).start()
+        court = build_court(config, status_line=printer)
     except OSError as exc:
-        print(f"courtside gateway: cannot listen on {listen[0]}:{listen[1]}: {exc.strerror}", file=sys.stderr)
-        for emulator in emulators:
-            emulator.stop()
-        return 1
-    print(f"gateway listening on {gateway.address[0]}:{gateway.address[1]}", flush=True)
+        print(f"courtside gateway: cannot start: {exc.strerror or exc} (listen {config.listen[0]}:"
+              f"{config.listen[1]})", file=sys.stderr)
+        return EXIT_START_FAILED
+    host, port = court.address
+    mode = "authentication required" if config.authenticated else "no authentication: loopback only"
+    if config.auth.tls_cert is not None:
+        mode += ", TLS"
+    print(f"gateway listening on {host}:{port} ({mode})", flush=True)
+    if court.take:
+        print(f"recording take {court.take}", flush=True)
     try:
-        if args.record:
-            gateway.handle_request("start_recording", {"take": args.record})
         stop.wait(args.duration)
     finally:
-        gateway.stop()
-        for emulator in emulators:
-            emulator.stop()
+        court.stop()
     print("gateway stopped", flush=True)
-    return 0
+    return EXIT_OK

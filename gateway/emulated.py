@@ -15,7 +15,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from firmware_protocol.emulator import BaseStation, MotionSource, StationConfig
+from firmware_protocol.emulator import BaseStation, MotionSource, StationConfig, TraceSource
 from firmware_protocol.emulator.link import EmulatorLink
 from firmware_protocol.emulator.pty_transport import PtyTransport
 
@@ -80,3 +80,60 @@ def start_emulated_stations(n: int, seed: int = 0, motion_factory: Callable[[int
     stations = [start_emulated_station(demo_config(i, rng, **overrides),
                                        motion=motion_factory(i) if motion_factory else None) for i in range(n)]
     return stations, [s.path for s in stations]
+
+
+def worn_sensor_sites(index: int) -> tuple[str, ...]:
+    """Standard sensor sites worn on emulated station ``index`` (0-based) when replaying mocap: the first
+    station carries the engine's six seed-000 sensors (what the console synthesises from by default), the
+    next the other standard sites, and so on alternately."""
+    from engine.mocap import SEED000_SENSORS, STANDARD_SENSORS
+
+    others = tuple(s for s in STANDARD_SENSORS if s not in SEED000_SENSORS)
+    return tuple(SEED000_SENSORS) if index % 2 == 0 else others
+
+
+def mocap_traces(clips: tuple[str | Path, ...], worn: list[tuple[str, ...]], fps: float = 60.0) -> list[TraceSource]:
+    """Virtual accelerometer traces of ``clips`` played back to back (each clip on its own skeleton), one trace
+    per station with its ``worn`` sites; ``clips`` are shipped clip names or .bvh/.amc paths, () = every
+    shipped clip. Raises CourtsideError naming a clip that is neither."""
+    from engine.errors import CourtsideError
+    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers
+
+    shipped = sample_clips()
+    paths = []
+    for clip in clips or tuple(shipped):
+        if str(clip) in shipped:
+            paths.append(shipped[str(clip)])
+        elif Path(clip).is_file():
+            paths.append(Path(clip))
+        else:
+            raise CourtsideError(f"emulated motion: {clip}: no such file, and not a shipped clip "
+                                 f"({', '.join(sorted(shipped))})")
+    sites = sorted({s for w in worn for s in w})
+    parts = []
+    for path in paths:
+        motion = load_clip(path, fps=fps)
+        parts.append(virtual_accelerometers(motion, standard_placements(motion.skeleton, sites)))
+    acc = np.concatenate(parts)  # (F, sites, 3)
+    return [TraceSource(acc[:, [sites.index(s) for s in w]], fps) for w in worn]
+
+
+def start_court_stations(n: int, motion: str = "mocap", clips: tuple[str | Path, ...] = (), seed: int = 0
+                         ) -> tuple[list[EmulatedStation], list[str]]:
+    """``n`` emulated stations for `courtside gateway --emulate N`: with ``motion="mocap"`` they replay mocap
+    clips as worn accelerometers (`worn_sensor_sites`, `mocap_traces`), so a console shows a moving skeleton;
+    ``"none"`` gives the emulator's still sensors."""
+    if motion == "mocap":
+        worn = [worn_sensor_sites(i) for i in range(n)]
+        traces = mocap_traces(clips, worn)
+        rng = np.random.default_rng(seed)
+        stations: list[EmulatedStation] = []
+        try:
+            for i, trace in enumerate(traces):
+                stations.append(start_emulated_station(demo_config(i, rng, n_sensors=trace.n_sensors), motion=trace))
+        except Exception:
+            for st in stations:
+                st.stop()
+            raise
+        return stations, [s.path for s in stations]
+    return start_emulated_stations(n, seed=seed)

@@ -10,19 +10,24 @@ from __future__ import annotations
 
 import collections
 import logging
+import secrets
 import socket
+import ssl
 import threading
+import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
 
-from gateway import codec, wire
+from gateway import auth, codec, wire
+from gateway.tls import TlsChannel
 
 log = logging.getLogger(__name__)
 
 DROPPABLE_KINDS = frozenset({"samples", "camera"})
-RequestHandler = Callable[[str, dict[str, Any]], Any]
+# handler(action, args, role) -> result; the server has already checked that ``role`` may run ``action``
+RequestHandler = Callable[[str, dict[str, Any], str], Any]
 
 
 class RequestError(Exception):
@@ -34,6 +39,7 @@ class ClientStats:
     """Per-client counters (frames), reported in status and by `StreamServer.client_stats`."""
 
     address: str
+    role: str | None = None  # None until authenticated
     sent: int = 0
     dropped: int = 0
     queued: int = 0
@@ -47,17 +53,23 @@ class _ClientSession:
         self.server = server
         self.sock = sock
         self.stats = ClientStats(address=address)
-        self.topics: set[str] = set(wire.TOPICS)
+        self.connected_s = time.monotonic()
+        self.nonce = secrets.token_bytes(auth.NONCE_BYTES)
+        self.role: str | None = None if server.secrets.required else auth.OPERATOR
+        self.stats.role = self.role
+        # nothing is streamed to a connection before it has authenticated
+        self.topics: set[str] = set(wire.TOPICS) if self.role else set()
         self._display: collections.deque[bytes] = collections.deque()
         self._reliable: collections.deque[bytes] = collections.deque()
         self._cond = threading.Condition()
         self._closed = False
+        self._closing = False  # close once the reliable queue is sent
         self._writer = threading.Thread(target=self._write_loop, name=f"gw-client-w-{address}", daemon=True)
         self._reader = threading.Thread(target=self._read_loop, name=f"gw-client-r-{address}", daemon=True)
 
     def start(self, hello: bytes) -> None:
+        """Queue the hello and start reading; the writer starts once any TLS handshake is done."""
         self.push(hello, droppable=False)
-        self._writer.start()
         self._reader.start()
 
     def push(self, data: bytes, droppable: bool) -> None:
@@ -91,9 +103,9 @@ class _ClientSession:
         try:
             while True:
                 with self._cond:
-                    while not self._closed and not self._reliable and not self._display:
+                    while not self._closed and not self._reliable and not self._display and not self._closing:
                         self._cond.wait()
-                    if self._closed:
+                    if self._closed or (self._closing and not self._reliable):
                         return
                     data = self._reliable.popleft() if self._reliable else self._display.popleft()
                     self.stats.queued = len(self._display) + len(self._reliable)
@@ -105,24 +117,72 @@ class _ClientSession:
             self.close()
 
     def _read_loop(self) -> None:
+        server = self.server
         try:
-            while True:
-                msg = wire.recv_message(self.sock)
+            if isinstance(self.sock, TlsChannel):
+                self.sock.handshake(server.handshake_timeout_s)
+            self._writer.start()
+            while not self._closed and not self._closing:
+                # until authenticated, the whole handshake must finish within the timeout
+                idle_deadline = None if self.role else self.connected_s + server.handshake_timeout_s
+                try:
+                    msg = wire.recv_message(self.sock, max_frame_bytes=server.max_request_bytes,
+                                            frame_timeout_s=server.handshake_timeout_s, idle_deadline=idle_deadline)
+                except wire.UndecodableFrame as exc:
+                    log.warning("client %s: %s", self.stats.address, exc)
+                    self._reply(None, ok=False, error=str(exc))
+                    continue
                 if msg is None:
                     return
                 self._handle(msg)
         except (OSError, wire.WireError) as exc:
             if not self._closed:
-                log.info("client %s: %s", self.stats.address, exc)
+                log.warning("client %s: %s; disconnecting", self.stats.address, exc)
+        except Exception:  # never a traceback per client thread: one line, then the connection closes
+            log.exception("client %s: unexpected error; disconnecting", self.stats.address)
         finally:
-            self.close()
+            if self._closing:  # the writer sends the refusal, then closes; a peer that never reads is cut off
+                timer = threading.Timer(self.server.handshake_timeout_s, self.close)
+                timer.daemon = True
+                timer.start()
+            else:
+                self.close()
+
+    def _authenticate(self, msg: codec.Message) -> None:
+        request_id = msg.header.get("id")
+        try:
+            client_nonce = bytes.fromhex(str(msg.header.get("nonce")))
+        except ValueError:
+            client_nonce = b""
+        verified = (self.server.secrets.verify(msg.header.get("proof"), self.nonce, client_nonce)
+                    if len(client_nonce) == auth.NONCE_BYTES else None)
+        if verified is None:
+            log.warning("client %s: authentication failed; disconnecting", self.stats.address)
+            self._reply(request_id, ok=False, error="authentication failed (wrong secret?)")
+            self.close_after_flush()
+            return
+        role, secret = verified
+        self.role = self.stats.role = role
+        with self._cond:
+            self.topics = set(wire.TOPICS)
+        log.info("client %s authenticated as %s", self.stats.address, role)
+        self._reply(request_id, ok=True, result={
+            "role": role, "proof": auth.proof(secret, "server", self.nonce, client_nonce), **self.server.hello()})
 
     def _handle(self, msg: codec.Message) -> None:
+        if self.role is None:
+            if msg.kind == wire.AUTH:
+                self._authenticate(msg)
+            else:
+                self._reply(msg.header.get("id"), ok=False, error="authenticate first: this gateway requires a secret")
+                self.close_after_flush()
+            return
         if msg.kind == wire.SUBSCRIBE:
             topics = msg.header.get("topics")
-            unknown = set(topics or ()) - set(wire.TOPICS)
-            if not isinstance(topics, list) or unknown:
-                self._reply(msg.header.get("id"), ok=False, error=f"unknown topics {sorted(unknown)}; valid: {list(wire.TOPICS)}")
+            unknown = set(topics) - set(wire.TOPICS) if isinstance(topics, list) else set()
+            if not isinstance(topics, list) or unknown or not all(isinstance(t, str) for t in topics):
+                self._reply(msg.header.get("id"), ok=False,
+                            error=f"unknown topics {sorted(map(str, unknown))}; valid: {list(wire.TOPICS)}")
                 return
             with self._cond:
                 self.topics = set(topics)
@@ -135,8 +195,14 @@ class _ClientSession:
             if not isinstance(action, str) or not isinstance(args, dict):
                 self._reply(request_id, ok=False, error="request needs a string 'action' and an object 'args'")
                 return
+            needed = auth.required_role(action, args)
+            if not auth.permits(self.role, needed):
+                log.warning("client %s (%s) refused %r", self.stats.address, self.role, action)
+                self._reply(request_id, ok=False, error=f"{action!r} needs the {needed} role; this connection is "
+                            f"a {self.role}")
+                return
             try:
-                result = self.server.handler(action, args)
+                result = self.server.handler(action, args, self.role)
             except RequestError as exc:
                 self._reply(request_id, ok=False, error=str(exc))
             except Exception as exc:  # a handler bug must not kill the session; report it to the caller
@@ -145,7 +211,7 @@ class _ClientSession:
             else:
                 self._reply(request_id, ok=True, result=result)
         else:
-            self._reply(msg.header.get("id"), ok=False, error=f"unknown message kind {msg.kind!r}")
+            self._reply(msg.header.get("id"), ok=False, error=f"unknown message kind {msg.kind!r}"[:200])
 
     def _reply(self, request_id: Any, ok: bool, result: Any = None, error: str | None = None) -> None:
         header: dict[str, Any] = {"id": request_id, "ok": ok}
@@ -154,6 +220,12 @@ class _ClientSession:
         else:
             header["error"] = error
         self.push(wire.pack(wire.REPLY, header), droppable=False)
+
+    def close_after_flush(self) -> None:
+        """Stop reading; the writer sends what is queued (the refusal) and then closes."""
+        with self._cond:
+            self._closing = True
+            self._cond.notify_all()
 
     def close(self) -> None:
         with self._cond:
@@ -176,8 +248,11 @@ class _ClientSession:
 class StreamServer:
     """Accepts clients on ``host:port`` and fans published messages out to them.
 
-    ``handler(action, args) -> result`` serves control requests (it runs on the requesting client's reader
-    thread; raise `RequestError` for a clean refusal). ``hello()`` returns the greeting header sent on connect.
+    ``handler(action, args, role) -> result`` serves control requests (it runs on the requesting client's reader
+    thread, after the server has checked the client's role may make that request; raise `RequestError` for a
+    clean refusal). ``hello()`` returns the greeting fields for an authenticated (or loopback, unauthenticated)
+    client. With ``secrets.required`` every connection must answer the challenge in its hello within
+    ``handshake_timeout_s`` before it may do or receive anything (gateway.auth).
     """
 
     def __init__(
@@ -188,10 +263,24 @@ class StreamServer:
         hello: Callable[[], dict[str, Any]] | None = None,
         display_queue_frames: int = 512,
         reliable_queue_limit: int = 10_000,
+        *,
+        secrets: auth.Secrets = auth.Secrets(),
+        max_clients: int = 32,
+        handshake_timeout_s: float = 5.0,
+        max_request_bytes: int = wire.MAX_REQUEST_BYTES,
+        name: str = "courtside-gateway",
+        tls: ssl.SSLContext | None = None,
     ):
         self.handler = handler
+        self.tls = tls
         self.display_queue_frames = display_queue_frames
         self.reliable_queue_limit = reliable_queue_limit
+        self.secrets = secrets
+        self.max_clients = max_clients
+        self.handshake_timeout_s = handshake_timeout_s
+        self.max_request_bytes = max_request_bytes
+        self.name = name
+        self.refused_connections = 0
         self._hello = hello or (lambda: {})
         self._sessions: list[_ClientSession] = []
         self._lock = threading.Lock()
@@ -211,6 +300,10 @@ class StreamServer:
         self._accept_thread.start()
         return self
 
+    def hello(self) -> dict[str, Any]:
+        """Greeting fields for a client that may see the gateway's state."""
+        return {"protocol": wire.PROTOCOL_VERSION, "topics": list(wire.TOPICS), "gateway": self.name, **self._hello()}
+
     def _accept_loop(self) -> None:
         while self._running.is_set():
             try:
@@ -219,14 +312,42 @@ class StreamServer:
                 continue
             except OSError:
                 return
+            address = f"{addr[0]}:{addr[1]}"
+            with self._lock:
+                full = len(self._sessions) >= self.max_clients
+            if full:
+                self.refused_connections += 1
+                log.warning("refused client %s: %d clients connected (limit %d)", address, self.max_clients,
+                            self.max_clients)
+                if self.tls is None:
+                    self._refuse(sock, f"gateway busy: {self.max_clients} clients connected (limit)")
+                else:
+                    sock.close()  # a TLS client could not read a plain refusal
+                continue
             sock.settimeout(None)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            session = _ClientSession(self, sock, f"{addr[0]}:{addr[1]}")
+            channel = sock if self.tls is None else TlsChannel(sock, self.tls, server_side=True)
+            session = _ClientSession(self, channel, address)
             with self._lock:
                 self._sessions.append(session)
-            hello = {"protocol": wire.PROTOCOL_VERSION, "topics": list(wire.TOPICS), **self._hello()}
+            if session.role is None:
+                hello = {"protocol": wire.PROTOCOL_VERSION, "gateway": self.name,
+                         "auth": {"challenge": session.nonce.hex(), "method": "hmac-sha256"}}
+            else:
+                hello = {**self.hello(), "role": session.role}
             session.start(wire.pack(wire.SERVER_HELLO, hello))
             log.info("client connected from %s", session.stats.address)
+
+    @staticmethod
+    def _refuse(sock: socket.socket, reason: str) -> None:
+        """Tell a client we cannot take why (one small frame, never blocking the accept loop), then close."""
+        try:
+            sock.setblocking(False)
+            sock.send(wire.pack(wire.REPLY, {"id": None, "ok": False, "error": reason}))
+        except OSError:
+            pass
+        finally:
+            sock.close()
 
     def _forget(self, session: _ClientSession) -> None:
         with self._lock:
@@ -234,18 +355,21 @@ class StreamServer:
                 self._sessions.remove(session)
                 log.info("client %s disconnected", session.stats.address)
 
-    def publish(self, kind: str, header: dict[str, Any] | None = None, arrays: dict[str, np.ndarray] | None = None) -> int:
+    def publish(self, kind: str, header: dict[str, Any] | None = None, arrays: dict[str, np.ndarray] | None = None,
+                viewer_header: dict[str, Any] | None = None) -> int:
         """Send one message to every client subscribed to ``kind``; returns how many clients it was queued for.
 
-        Encodes once and only if someone listens, so an idle gateway spends nothing on display traffic."""
+        Encodes once (twice with ``viewer_header``: what viewers get instead, e.g. status without other clients'
+        addresses) and only if someone listens, so an idle gateway spends nothing on display traffic."""
         with self._lock:
-            targets = [s for s in self._sessions if kind in s.topics and not s.closed]
+            targets = [s for s in self._sessions if kind in s.topics and not s.closed and s.role is not None]
         if not targets:
             return 0
         data = wire.pack(kind, header, arrays)
+        viewer_data = wire.pack(kind, viewer_header, arrays) if viewer_header is not None else data
         droppable = kind in DROPPABLE_KINDS
         for session in targets:
-            session.push(data, droppable)
+            session.push(viewer_data if session.role == auth.VIEWER else data, droppable)
         return len(targets)
 
     def client_stats(self) -> list[ClientStats]:

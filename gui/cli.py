@@ -31,8 +31,10 @@ def _console_parser() -> argparse.ArgumentParser:
     p.add_argument("--connect", type=_host_port, default=("127.0.0.1", 7766), metavar="HOST:PORT",
                    help="gateway to connect to (default 127.0.0.1:7766)")
     p.add_argument("--secret-file", type=Path, default=None, metavar="FILE",
-                   help="shared secret for a gateway that requires authentication (default: $COURTSIDE_SECRET_FILE "
-                        "or $COURTSIDE_SECRET); never on the command line")
+                   help="secret for a gateway that requires authentication (default: $COURTSIDE_SECRET_FILE, "
+                        "or the secret itself in $COURTSIDE_SECRET); never give the secret itself here")
+    p.add_argument("--tls-ca", type=Path, default=None, metavar="CERT",
+                   help="connect with TLS, trusting this certificate (the gateway's cert.pem or its CA)")
     p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
     p.add_argument("--engine", choices=ENGINE_NAMES, default=None,
                    help="synthesis engine (default: motion-graph with --graph, olng with --kb, else by the number "
@@ -121,7 +123,7 @@ def _console(args: argparse.Namespace) -> int:
         log.warning("calibration %s: sensors on %s did not pass the wizard's checks (used anyway)",
                     args.calibration, ", ".join(calibration.failed))
     application()
-    client = playback = None
+    client = playback = make_client = None
     held_out: list[str] = []
     truth_for_take = None
     if args.playback is not None:
@@ -138,16 +140,20 @@ def _console(args: argparse.Namespace) -> int:
 
             truth_for_take = truth_from_events
     else:
-        client = _connect(args)
-        if client is None:
+        make_client = _client_factory(args)
+        try:
+            client = make_client(*args.connect).connect()
+        except OSError as exc:
+            print(f"courtside console: cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})",
+                  file=sys.stderr)
             return 2
-        stations = client.list_stations()
+        stations = _stations_with_sensors(client)
     try:
         synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out,
                                                    client.list_stations if client is not None else None)
         window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton_parents, sensor_segments=worn,
                                sensor_joints=sensor_joints_or_none(worn), truth_for_take=truth_for_take,
-                               keep_poses=args.save_poses is not None)
+                               keep_poses=args.save_poses is not None, make_client=make_client)
     except BaseException:
         if client is not None:
             client.close()
@@ -175,24 +181,16 @@ def _console(args: argparse.Namespace) -> int:
     return code
 
 
-def _connect(args: argparse.Namespace):
-    """A connected GatewayClient (authenticating with the secret from --secret-file or the environment), or
-    None after printing why not."""
+def _client_factory(args: argparse.Namespace):
+    """``(host, port) -> GatewayClient`` with the secret (--secret-file or the environment) and TLS options, for
+    the first connection and every reconnect."""
+    import functools
+
+    from gateway.auth import client_secret, client_tls_context
     from gateway.client import GatewayClient
 
-    kwargs = {}
-    try:
-        from gateway import auth
-    except ImportError:  # a gateway without authentication support
-        auth = None
-    if auth is not None:
-        kwargs["secret"] = auth.client_secret(args.secret_file)
-    try:
-        return GatewayClient(*args.connect, **kwargs).connect()
-    except OSError as exc:
-        print(f"courtside console: cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})",
-              file=sys.stderr)
-        return None
+    tls = client_tls_context(args.tls_ca) if args.tls_ca is not None else None
+    return functools.partial(GatewayClient, secret=client_secret(args.secret_file), tls=tls)
 
 
 def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held_out: list[str], refresh=None):
@@ -223,6 +221,19 @@ def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held
     _check_when_streaming(spec, keys, stations, calibration, refresh)
     synth = synthesis_setup(spec, keys, args.lag)
     return synth, dict(zip(synth.sensors, spec.sensor_names)), spec.parents
+
+
+def _stations_with_sensors(client, wait_s: float = 5.0) -> list[dict]:
+    """The gateway's station list once its stations have reported sensors (a gateway that has just started lists
+    stations before their first samples; the engine default depends on how many sensors are worn)."""
+    import time
+
+    deadline = time.monotonic() + wait_s
+    while True:
+        stations = client.list_stations()
+        if any(s.get("sensors") for s in stations) or time.monotonic() > deadline:
+            return stations
+        time.sleep(0.2)
 
 
 def _check_when_streaming(spec, keys, stations, calibration, refresh, wait_s: float = 5.0) -> None:

@@ -79,7 +79,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                  truth: TruthProvider | None = None, truth_parents: np.ndarray | None = None,
                  sensor_segments: dict[SensorKey, str] | None = None,
                  sensor_joints: dict[SensorKey, int] | None = None, truth_for_take: TruthForTake | None = None,
-                 keep_poses: bool = False, title: str = "Courtside console") -> None:
+                 keep_poses: bool = False, make_client: Callable[[str, int], Any] | None = None,
+                 title: str = "Courtside console") -> None:
         super().__init__()
         self.setWindowTitle(title)
         self.client = client
@@ -89,6 +90,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.requests.done.connect(self._request_done)
         self.truth = truth
         self.truth_for_take = truth_for_take
+        self.make_client = make_client  # (host, port) -> unconnected client with our credentials (reconnects)
         self.sensor_joints = sensor_joints or {}
         self.playback: Playback | None = None
         self.playing = False
@@ -218,7 +220,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         """Worker thread: a fresh client, subscribed through the bridge, and its clock offset."""
         from gateway.client import GatewayClient
 
-        client = GatewayClient(host, port).connect(timeout_s=1.0)
+        client = (self.make_client or GatewayClient)(host, port).connect(timeout_s=1.0)
         try:
             self.bridge.detach()
             self.bridge.attach(client)

@@ -4,6 +4,10 @@ Contract (docs/gateway.md "Hooks"): ``handle(action, args) -> result``, ``state(
 ``on_samples(station, sensor, t_host_s, acc_g)``. Sensor ids in the wizard are ``"<station>/<sensor>"``.
 Reader threads push samples while client threads send actions, so one lock serialises both.
 
+``save`` writes ``<records_dir>/<name>.calibration.json`` (+ ``.npz``) and nothing else: the client names the
+record, never the path (issue 12: a client-chosen path overwrote an arbitrary file). Names are checked by
+`gateway.names.check_name`; an existing record is never overwritten.
+
 Actions (``GatewayClient.calibration(action, **args)``):
 
 =========  =====================================  ==============================================
@@ -14,7 +18,7 @@ assign     ``sensor`` (id), ``segment``           the snapshot
 unassign   ``sensor``                             the snapshot
 confirm    -                                      ``{"accepted": bool, "state": snapshot}``
 redo       ``step``                               the snapshot
-save       ``path``, ``subject``, ``take``        ``{"json": path, "npz": path, "quality": {...}}``
+save       ``name``, ``subject``, ``take``        ``{"json": path, "npz": path, "quality": {...}}``
 reset      -                                      the snapshot of a fresh wizard (same segments)
 =========  =====================================  ==============================================
 """
@@ -28,14 +32,18 @@ import numpy as np
 
 from gateway.calibration.pose import pose_rotations
 from gateway.calibration.wizard import CalibrationWizard, SegmentSpec, WizardConfig, segment_specs_from_placements
+from gateway.names import BadNameError, check_name
 from gateway.server import RequestError
+
+RECORD_SUFFIX = ".calibration.json"
 
 
 class CalibrationService:
     """Thread-safe wrapper of a wizard for the gateway."""
 
     def __init__(self, segments: dict[str, SegmentSpec], config: WizardConfig = WizardConfig(),
-                 pose: str | None = None) -> None:
+                 pose: str | None = None, records_dir: str | Path | None = None) -> None:
+        self.records_dir = Path(records_dir) if records_dir is not None else None
         self._segments = segments
         self._config = config
         self._pose = pose
@@ -44,7 +52,7 @@ class CalibrationService:
 
     @classmethod
     def standard(cls, sensor_names: tuple[str, ...] | None = None, config: WizardConfig = WizardConfig(),
-                 pose: str = "npose") -> "CalibrationService":
+                 pose: str = "npose", records_dir: str | Path | None = None) -> "CalibrationService":
         """Segments = the engine's standard sensor placements (default: the six seed-000 sensors) on the
         shipped CMU skeleton, i.e. exactly the mounting the engine's virtual sensors assume, calibrated in
         ``pose``: ``"npose"`` (default: the reference N-pose of ``gateway.calibration.pose.reference_npose``,
@@ -54,7 +62,7 @@ class CalibrationService:
         skeleton = load_clip(sample_clips()["16_01"]).skeleton
         placements = standard_placements(skeleton, sensor_names or SEED000_SENSORS)
         specs = segment_specs_from_placements(placements, pose_rotations=pose_rotations(skeleton, pose))
-        return cls(specs, config, pose)
+        return cls(specs, config, pose, records_dir)
 
     def on_samples(self, station: str, sensor: int | str, t_host_s: np.ndarray, acc_g: np.ndarray) -> None:
         with self._lock:
@@ -64,12 +72,26 @@ class CalibrationService:
         with self._lock:
             return self.wizard.snapshot()
 
+    def _record_path(self, args: dict[str, Any]) -> Path:
+        """``<records_dir>/<name>.calibration.json``, refusing client paths, bad names and existing records."""
+        if "path" in args:
+            raise ValueError("save takes a record 'name', not a path: records go to the gateway's records directory")
+        if self.records_dir is None:
+            raise ValueError("this gateway has no calibration records directory configured")
+        name = check_name(args["name"], "record name")
+        path = self.records_dir / f"{name}{RECORD_SUFFIX}"
+        if path.exists() or path.with_suffix(".npz").exists():
+            raise ValueError(f"record {name!r} already exists in {self.records_dir}; choose another name")
+        return path
+
     def handle(self, action: str, args: dict[str, Any]) -> Any:
         """Run one action; operator mistakes come back to the client as a clean ``RequestError``."""
         try:
             return self._handle(action, args)
         except KeyError as exc:
             raise RequestError(f"calibration {action!r} needs argument {exc.args[0]!r}") from None
+        except BadNameError as exc:
+            raise RequestError(f"calibration {action!r}: {exc}") from None
         except (ValueError, RuntimeError, OSError) as exc:
             raise RequestError(f"calibration {action!r}: {exc}") from None
 
@@ -88,8 +110,9 @@ class CalibrationService:
             elif action == "redo":
                 wiz.redo(str(args["step"]))
             elif action == "save":
-                path = Path(args["path"])
+                path = self._record_path(args)
                 record = wiz.record(subject=str(args.get("subject", "")), take=str(args.get("take", "")))
+                path.parent.mkdir(parents=True, exist_ok=True)
                 npz = record.save(path)
                 return {"json": str(path), "npz": str(npz), "quality": wiz.quality()}
             elif action == "reset":
@@ -98,3 +121,15 @@ class CalibrationService:
                 raise ValueError(f"unknown calibration action {action!r}; known: state, assign, unassign, "
                                  "confirm, redo, save, reset")
             return self.wizard.snapshot()
+
+    def _record_path(self, args: dict[str, Any]) -> Path:
+        """``<records_dir>/<name>.calibration.json``, refusing client paths, bad names and existing records."""
+        if "path" in args:
+            raise ValueError("save takes a record 'name', not a path: records go to the gateway's records directory")
+        if self.records_dir is None:
+            raise ValueError("this gateway has no calibration records directory configured")
+        name = check_name(args["name"], "record name")
+        path = self.records_dir / f"{name}{RECORD_SUFFIX}"
+        if path.exists() or path.with_suffix(".npz").exists():
+            raise ValueError(f"record {name!r} already exists in {self.records_dir}; choose another name")
+        return path

@@ -11,6 +11,7 @@ data. JPEG encoding every frame would cost more CPU than tracking on a small boa
 """
 from __future__ import annotations
 
+import collections
 import logging
 import threading
 import time
@@ -52,8 +53,11 @@ class CameraService:
     """
 
     def __init__(self, source: FrameSource, tracker: PlayerTracker, *, realtime: bool = False,
-                 thumbnail_every: int = 10, thumbnail_width_px: int = 320, jpeg_quality: int = 70) -> None:
+                 thumbnail_every: int = 10, thumbnail_width_px: int = 320, jpeg_quality: int = 70,
+                 loop: bool = False, label: str = "") -> None:
         self.source = source
+        self.loop = loop
+        self.label = label or type(source).__name__
         self.tracker = tracker
         self.realtime = realtime
         self.thumbnail_every = thumbnail_every
@@ -64,6 +68,13 @@ class CameraService:
         self._court_to_image = np.diag([self._scale, self._scale, 1.0]) @ tracker.calibration.homography
         self.frames = 0
         self.tracked = 0
+        self.dropped = 0  # frames the source skipped (gaps in Frame.index)
+        self.loops = 0
+        self.state = "starting"  # -> running -> ended (end of a file) / failed (error) / stopped
+        self.error: str | None = None
+        self._last_index: int | None = None
+        self._last_confidence: float | None = None
+        self._recent_s: collections.deque[float] = collections.deque(maxlen=256)  # arrival times (monotonic)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -109,6 +120,26 @@ class CameraService:
     def running(self) -> bool:
         return self._thread is not None and self._thread.is_alive()
 
+    def health(self, window_s: float = 2.0) -> dict[str, Any]:
+        """What the gateway's status reports about the camera: state, measured fps over the last ``window_s``,
+        frames, dropped frames, frames with a track, and the newest track confidence (None while not tracking)."""
+        now = time.monotonic()
+        recent = [t for t in list(self._recent_s) if now - t <= window_s]
+        fps = (len(recent) - 1) / (recent[-1] - recent[0]) if len(recent) > 2 and recent[-1] > recent[0] else 0.0
+        return {"source": self.label, "state": self.state, "fps": round(fps, 2),
+                "nominal_fps": float(self.source.nominal_fps), "frames": self.frames, "dropped": self.dropped,
+                "tracked": self.tracked, "tracking": self._last_confidence is not None,
+                "confidence": self._last_confidence, "loops": self.loops, "error": self.error}
+
+    def _count(self, frame: Frame, record: TrackRecord | None) -> None:
+        if self._last_index is not None and frame.index > self._last_index + 1:
+            self.dropped += frame.index - self._last_index - 1
+        self._last_index = frame.index
+        self.frames += 1
+        self.tracked += record is not None
+        self._last_confidence = None if record is None else float(record.confidence)
+        self._recent_s.append(time.monotonic())
+
     def _thumbnail(self, frame: Frame) -> bytes | None:
         if not self.thumbnail_every or frame.index % self.thumbnail_every:
             return None
@@ -118,22 +149,39 @@ class CameraService:
         ok, data = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
         return data.tobytes() if ok else None
 
+    def _next_frame(self) -> Frame | None:
+        frame = self.source.read()
+        rewind = getattr(self.source, "rewind", None)
+        if frame is None and self.loop and rewind is not None and self.frames:
+            rewind()  # a looping demo court: play the file again
+            self.loops += 1
+            self._last_index = None
+            frame = self.source.read()
+        return frame
+
     def _run(self, sink: Sink) -> None:
         offset_s: float | None = None
+        last_t_s = -np.inf
         try:
+            self.state = "running"
             while not self._stop.is_set():
-                frame = self.source.read()
+                frame = self._next_frame()
                 if frame is None:
+                    self.state = "ended"
+                    log.warning("camera %s: end of stream after %d frames", self.label, self.frames)
                     break
                 if self.realtime:
-                    if offset_s is None:
+                    if offset_s is None or frame.t_host_s + offset_s <= last_t_s:  # start, or a loop restarted
                         offset_s = time.monotonic() - frame.t_host_s
                     frame = replace(frame, t_host_s=frame.t_host_s + offset_s)
                     if self._stop.wait(max(0.0, frame.t_host_s - time.monotonic())):
                         break
+                last_t_s = frame.t_host_s
                 record = self.tracker.update(frame)
-                self.frames += 1
-                self.tracked += record is not None
+                self._count(frame, record)
                 sink(observation(frame, record, self._court_to_image, self._scale), self._thumbnail(frame))
-        except Exception:  # a camera failure must not take the gateway down; it is logged and the thread ends
+            if self._stop.is_set():
+                self.state = "stopped"
+        except Exception as exc:  # a camera failure must not take the gateway down; it is logged and the thread ends
+            self.state, self.error = "failed", f"{type(exc).__name__}: {exc}"
             log.exception("camera thread failed")

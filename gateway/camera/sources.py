@@ -90,6 +90,12 @@ class VideoFileSource(_IterableSource):
         self._index += 1
         return frame
 
+    def rewind(self) -> None:
+        """Back to the first frame (a looping demo court); indices and times start again from 0."""
+        self._cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
+        self._index = 0
+        self._last_pts_s = -1.0
+
     def close(self) -> None:
         self._cap.release()
 

@@ -14,13 +14,17 @@ import time
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from firmware_protocol.emulator import StationConfig, TraceSource
 from gateway.emulated import EmulatedStation, start_emulated_station
 
-from gui.demo.performance import STATION_SENSORS, Performance, build_performance, placements_for_demo
+from gui.demo.performance import STATION_SENSORS, Performance, build_performance
+
+if TYPE_CHECKING:
+    from gateway.court_config import CourtConfig
 
 log = logging.getLogger("courtside.demo")
 
@@ -119,14 +123,25 @@ class DemoCamera:
             self.frames_published += 1
 
 
+def demo_court_config(listen: tuple[str, int], record_dir: Path) -> "CourtConfig":
+    """The demo's court as a court config: emulated stations (replaced by the performance-driven ones), the
+    calibration wizard over every worn site, fast status and clock warm-up for a short demo."""
+    from gateway.court_config import CalibrationConfig, CourtConfig, StationsConfig
+
+    return CourtConfig(listen=listen, record_dir=record_dir, name="courtside-demo", status_interval_s=0.5,
+                       clock_lock_after_s=5.0, stations=StationsConfig(emulate=len(STATION_SENSORS)),
+                       calibration=CalibrationConfig(placements=tuple(n for names in STATION_SENSORS.values()
+                                                                      for n in names),
+                                                     pose="npose", records_dir=record_dir / "calibrations"))
+
+
 @contextlib.contextmanager
 def demo_hardware(listen: tuple[str, int], record_dir: Path, camera: bool,
                   duration_s: float | None) -> Iterator[tuple[tuple[str, int], float]]:
-    """Stations + camera + gateway in THIS process; yields (gateway address, performance start time)."""
-    from gateway.calibration.pose import pose_rotations
-    from gateway.calibration.service import CalibrationService
-    from gateway.calibration.wizard import segment_specs_from_placements
-    from gateway.daemon import Gateway
+    """Stations + camera + gateway in THIS process; yields (gateway address, performance start time). The
+    gateway is built by the same loader as `courtside gateway --config` (gateway.assembly); only the emulated
+    stations and the camera are the demo's own (they replay the performance)."""
+    from gateway.assembly import build_court
 
     perf = build_performance()
     with contextlib.ExitStack() as stack:
@@ -135,18 +150,12 @@ def demo_hardware(listen: tuple[str, int], record_dir: Path, camera: bool,
             stack.callback(st.stop)
         t0 = stations[0].wall0_s
         cam = DemoCamera(perf, t0, (duration_s or 3600.0) + 5.0) if camera else None
-        # the wizard expects the standard reference N-pose (arms down), as CalibrationService.standard() does
-        specs = segment_specs_from_placements(placements_for_demo(perf),
-                                              pose_rotations=pose_rotations(perf.skeleton, "npose"))
-        gateway = Gateway([st.path for st in stations], listen=listen, record_dir=record_dir, camera=cam,
-                          calibration=CalibrationService(specs, pose="npose"), status_interval_s=0.5, lock_after_s=5.0,
-                          name="courtside-demo")
-        gateway.start()
-        stack.callback(gateway.stop)
-        announcer = TruthAnnouncer(gateway, perf.clip_names, t0)
+        court = build_court(demo_court_config(listen, record_dir), camera=cam, emulators=stations)
+        stack.callback(court.gateway.stop)
+        announcer = TruthAnnouncer(court.gateway, perf.clip_names, t0)
         announcer.start()
         stack.callback(announcer.stop)
-        yield gateway.address, t0
+        yield court.address, t0
 
 
 class TruthAnnouncer(threading.Thread):

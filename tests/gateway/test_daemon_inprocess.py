@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import firmware_protocol as fp
+from engine.errors import MalformedFileError
 from gateway.client import GatewayClient, GatewayRequestError
 from gateway.daemon import Gateway, format_status_lines, main
 from gateway.recorder import load_take
@@ -89,7 +90,7 @@ def test_gateway_end_to_end_with_client(tmp_path, station_pty):
 def test_cli_rejects_bad_config(tmp_path, capsys):
     cfg = tmp_path / "gw.toml"
     cfg.write_text('bogus = 1\n')
-    with pytest.raises(SystemExit, match="unknown keys"):
+    with pytest.raises(MalformedFileError, match="line 1: bogus: unknown key"):
         main(["--config", str(cfg)])
 
 
@@ -110,7 +111,7 @@ def test_cli_export_round_trip(tmp_path, station_pty, capsys):
 
 def test_cli_config_file_runs_emulated_stations(tmp_path, capsys):
     cfg = tmp_path / "gw.toml"
-    cfg.write_text(f'emulate = 1\nlisten = "127.0.0.1:0"\nrecord_dir = "{tmp_path / "rec"}"\n')
+    cfg.write_text(f'listen = "127.0.0.1:0"\nrecord_dir = "{tmp_path / "rec"}"\n[stations]\nemulate = 1\n')
     assert main(["--config", str(cfg), "--duration", "2.5", "--record", "cfg-take", "--log-level", "WARNING"]) == 0
     out = capsys.readouterr().out
     assert "gateway listening on 127.0.0.1:" in out and "gateway stopped" in out

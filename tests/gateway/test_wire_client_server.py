@@ -41,7 +41,7 @@ def test_codec_truncated_payload_is_named():
         codec.decode(body[:-5])
 
 
-def _handler(action, args):
+def _handler(action, args, role):
     if action == "echo":
         return {"args": args}
     if action == "refuse":

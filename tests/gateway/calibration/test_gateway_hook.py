@@ -32,7 +32,7 @@ def test_calibration_through_the_gateway(tmp_path, specs, subject):
     motion = StillSource(len(ids), quaternions.from_matrix(world_from_sensor))
     station = start_emulated_station(StationConfig(station_id=1, n_sensors=len(ids), autostart=True, noise_g=0.004),
                                      motion=motion)
-    service = CalibrationService(specs, pose="npose")
+    service = CalibrationService(specs, pose="npose", records_dir=tmp_path / "records")
     try:
         with Gateway([station.path], listen=("127.0.0.1", 0), record_dir=tmp_path, status_interval_s=0.1,
                      calibration=service) as gw, GatewayClient(*gw.address).connect() as client:
@@ -50,22 +50,36 @@ def test_calibration_through_the_gateway(tmp_path, specs, subject):
                 q = np.array(state["sensors"][f"st1/{i}"]["rotation_wxyz"])
                 error = rotation_angle_deg(quaternions.to_matrix(q) @ subject.true_rotation[sid].T)
                 assert error < 2.0, (sid, error)
-            saved = client.calibration("save", path=str(tmp_path / "cal.json"), subject="p1", take="t1")
+            victim = tmp_path / "victim.json"
+            victim.write_text("keep me")
+            # issue 12: a client never names a path, and a name never escapes the records directory
+            with pytest.raises(GatewayRequestError, match="not a path"):
+                client.calibration("save", path=str(victim), subject="p1")
+            for bad in ("../victim", "..", ".hidden", "a/b", "x\n", ""):
+                with pytest.raises(GatewayRequestError, match="record name"):
+                    client.calibration("save", name=bad, subject="p1")
+            assert victim.read_text() == "keep me" and not (tmp_path / "victim.npz").exists()
+            saved = client.calibration("save", name="p1-cal", subject="p1", take="t1")
+            assert saved["json"] == str(tmp_path / "records" / "p1-cal.calibration.json")
             assert CalibrationRecord.load(saved["json"]).subject == "p1"
+            with pytest.raises(GatewayRequestError, match="already exists"):
+                client.calibration("save", name="p1-cal", subject="p1")
+            assert sorted(p.name for p in (tmp_path / "records").iterdir()) == ["p1-cal.calibration.json",
+                                                                                "p1-cal.calibration.npz"]
     finally:
         station.stop()
 
 
-def test_standard_service_uses_engine_placements_and_refuses_cleanly():
+def test_standard_service_uses_engine_placements_and_refuses_cleanly(tmp_path):
     from engine.mocap import SEED000_SENSORS
     from gateway.server import RequestError
 
-    service = CalibrationService.standard()
+    service = CalibrationService.standard(records_dir=tmp_path)
     assert set(service.state()["unassigned_segments"]) == set(SEED000_SENSORS)
     with pytest.raises(RequestError, match="needs argument 'segment'"):
         service.handle("assign", {"sensor": "st1/0"})
     with pytest.raises(RequestError, match="no N-pose captured"):
-        service.handle("save", {"path": "x.json"})
+        service.handle("save", {"name": "x"})
     with pytest.raises(RequestError, match="unknown calibration action 'dance'"):
         service.handle("dance", {})
     service.handle("assign", {"sensor": "st1/0", "segment": "chest"})

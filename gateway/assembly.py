@@ -1,0 +1,154 @@
+"""Build a whole court from one `CourtConfig`: emulated stations, camera + tracker, calibration wizard, secrets
+and the `Gateway` — what `courtside gateway --config` runs and what `courtside demo` builds its gateway with.
+
+Why one builder: before, only the demo wired a camera and a calibration wizard (by hand, in gui/), so a real
+daemon on the court's board had neither (issue 13). Everything that can be refused (secrets, camera, court
+calibration, clips) is opened *before* anything starts, so a bad config stops with one line and no leftovers.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from engine.errors import CourtsideError
+from gateway import auth
+from gateway.court_config import CameraConfig, CourtConfig
+from gateway.daemon import Gateway
+from gateway.emulated import EmulatedStation, start_court_stations
+from gateway.names import free_name
+
+log = logging.getLogger("gateway")
+
+
+@dataclass
+class Court:
+    """A running court. ``stop()`` stops the gateway (recording flushed), then camera and emulators."""
+
+    config: CourtConfig
+    gateway: Gateway
+    emulators: list[EmulatedStation] = field(default_factory=list)
+    take: str | None = None  # the take recording started with (suffixed if ``config.record`` existed)
+
+    @property
+    def address(self) -> tuple[str, int]:
+        return self.gateway.address
+
+    def stop(self) -> None:
+        try:
+            self.gateway.stop()
+        finally:
+            for emulator in self.emulators:
+                emulator.stop()
+
+    def __enter__(self) -> "Court":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def is_video_file(source: int | str) -> bool:
+    """A camera source that is a regular file is a video file (played paced, like a live camera)."""
+    return isinstance(source, str) and Path(source).is_file()
+
+
+def build_camera(config: CameraConfig) -> Any:
+    """Open the configured camera and its court calibration; `CourtsideError` names what failed."""
+    from gateway.camera.court_calibration import CourtCalibration
+    from gateway.camera.errors import CameraError
+    from gateway.camera.service import CameraService
+    from gateway.camera.sources import OpenCVCamera, VideoFileSource
+    from gateway.camera.tracker import PlayerTracker, TrackerConfig
+
+    assert config.source is not None and config.court is not None
+    try:
+        calibration = CourtCalibration.load(config.court)
+        if is_video_file(config.source):
+            source: Any = VideoFileSource(config.source)
+            realtime, label = True, f"file {config.source}"
+        else:
+            source = OpenCVCamera(config.source, fps=config.fps, latency_s=config.latency_s)
+            realtime, label = False, f"camera {config.source}"
+    except CameraError as exc:
+        raise CourtsideError(f"camera: {exc}") from None
+    if tuple(source.image_size) != tuple(calibration.image_size):
+        source.close()
+        raise CourtsideError(f"camera: {label} gives {source.image_size[0]}x{source.image_size[1]} px frames but "
+                             f"the court calibration {config.court} was made for "
+                             f"{calibration.image_size[0]}x{calibration.image_size[1]} px")
+    tracker = PlayerTracker(calibration, TrackerConfig(player_side=config.player_side))
+    return CameraService(source, tracker, realtime=realtime, thumbnail_every=config.thumbnail_every,
+                         loop=config.loop, label=label)
+
+
+def build_calibration(config: CourtConfig) -> Any:
+    """The calibration wizard over the configured sensor sites, or None when the config names none."""
+    cal = config.calibration
+    if not cal.placements:
+        return None
+    from gateway.calibration.service import CalibrationService
+
+    return CalibrationService.standard(cal.placements, pose=cal.pose, records_dir=cal.records_dir)
+
+
+def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | None = None, camera: Any = None,
+                calibration: Any = None, emulators: list[EmulatedStation] | None = None,
+                gateway_options: dict[str, Any] | None = None) -> Court:
+    """Start everything ``config`` describes and return the running `Court`.
+
+    ``camera`` / ``calibration`` / ``emulators`` replace what the config would build (the demo passes its
+    performance-driven stations and camera); the gateway itself is always built here."""
+    secrets = auth.Secrets.from_files(config.auth.operator_secret_file, config.auth.viewer_secret_file)
+    tls = auth.server_tls_context(config.auth.tls_cert, config.auth.tls_key) if config.auth.tls_cert else None
+    if camera is None and config.camera.source is not None:
+        camera = build_camera(config.camera)
+    if calibration is None:
+        calibration = build_calibration(config)
+    started: list[EmulatedStation] = []
+    if emulators is None and config.stations.emulate:
+        try:
+            started, _ = start_court_stations(config.stations.emulate, config.stations.emulate_motion,
+                                              config.stations.emulate_clips)
+        except Exception:
+            if camera is not None:
+                camera.source.close()
+            raise
+        emulators = started
+    emulators = list(emulators or [])
+    sources = [*config.stations.ports, *config.stations.urls, *(e.path for e in emulators)]
+    if not sources and not config.stations.discover:
+        log.warning("no stations configured (ports, urls, emulate or discover)")
+    options = dict(listen=config.listen, record_dir=config.record_dir, camera=camera, calibration=calibration,
+                   status_interval_s=config.status_interval_s, lock_after_s=config.clock_lock_after_s,
+                   status_line=status_line, discover=config.stations.discover, name=config.name, secrets=secrets,
+                   max_clients=config.max_clients, handshake_timeout_s=config.handshake_timeout_s, tls=tls)
+    options.update(gateway_options or {})
+    try:
+        gateway = Gateway(sources, **options).start()
+    except BaseException:
+        for emulator in started:
+            emulator.stop()
+        if camera is not None and hasattr(camera, "source"):
+            camera.source.close()
+        raise
+    court = Court(config, gateway, emulators)
+    if config.record:
+        try:
+            court.take = start_recording_fresh(gateway, config.record)
+        except BaseException:
+            court.stop()
+            raise
+    return court
+
+
+def start_recording_fresh(gateway: Gateway, take: str) -> str:
+    """Start recording ``take``, or ``take-2``, ``take-3``... if it exists: a daemon restarted by its service
+    manager with the same ``--record`` continues into a new take instead of refusing (issue 13)."""
+    record_dir = Path(gateway.recorder.record_dir)
+    name = free_name(take, lambda candidate: (record_dir / candidate).exists())
+    if name != take:
+        gateway.publish_event("warning", "recorder", f"take {take!r} exists (a restart?); recording {name!r}")
+    gateway.handle_request("start_recording", {"take": name})
+    return name

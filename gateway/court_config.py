@@ -1,0 +1,360 @@
+"""One court config: everything `courtside gateway` runs (stations, camera, calibration, recording, network,
+authentication), read from a TOML file into frozen dataclasses whose field defaults are the only defaults.
+
+Why strict: a service reads this file unattended, so a typo must stop it with one line naming the file, the key
+and the problem, never start something else (issue 12 found ``ports = "/dev/ttyX"`` opening nine readers, one per
+character, and ``discover = "no"`` meaning *on*). Every key is checked for its exact TOML type and range; unknown
+keys and tables are refused. Command-line flags go through the same checks (`with_overrides`), naming the flag.
+
+Relative paths in the file are resolved against the file's directory (a service's working directory is not the
+operator's); relative paths given as flags against the current directory. Every key: docs/gateway.md "Config file".
+"""
+from __future__ import annotations
+
+import ipaddress
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any, Callable
+
+from engine.errors import CourtsideError, MalformedFileError
+from gateway.names import BadNameError, check_name
+
+LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+EMULATE_MOTIONS = ("mocap", "none")
+PLAYER_SIDES = ("near", "far")
+POSES = ("npose", "tpose")
+MAX_EMULATED_STATIONS = 16
+
+
+@dataclass(frozen=True)
+class StationsConfig:
+    """Base stations: explicit ports/URLs, USB discovery, and emulated stations (tests, demos, no hardware)."""
+
+    ports: tuple[str, ...] = ()  # serial paths, or hid:<path> / hid:VVVV:PPPP[:serial]
+    urls: tuple[str, ...] = ()  # pyserial URLs (emu://..., socket://...)
+    discover: bool = False  # find stations by USB VID:PID 1209:C0DE, hot-plug included
+    emulate: int = 0  # number of emulated stations on ptys
+    emulate_motion: str = "mocap"  # what emulated sensors feel: "mocap" (clips below) or "none" (still + noise)
+    emulate_clips: tuple[str, ...] = ()  # shipped clip names or .bvh/.amc paths; () = every shipped clip
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The overhead camera; no ``source`` = no camera."""
+
+    source: int | str | None = None  # V4L2 index, a device path (/dev/video0) or a video file
+    court: Path | None = None  # court calibration JSON (`courtside camera calibrate --out court.json`)
+    player_side: str | None = None  # half where the instrumented player starts: "near" / "far" / None = any
+    fps: float | None = None  # frame rate asked of a live camera (files play at their own rate)
+    latency_s: float = 0.0  # exposure + transfer delay subtracted from live frame times
+    loop: bool = False  # video files: start again at the end (a demo court) instead of ending
+    thumbnail_every: int = 10  # JPEG thumbnail for the console every N frames (0 = none)
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """The sensor-calibration wizard; attached when ``placements`` names the worn sensors."""
+
+    placements: tuple[str, ...] = ()  # standard sensor sites (engine.mocap.STANDARD_SENSORS), the segment table
+    pose: str = "npose"  # the pose the subject holds: "npose" (arms down) or "tpose"
+    records_dir: Path = Path("calibrations")  # the only place saved records go
+
+
+@dataclass(frozen=True)
+class AuthConfig:
+    """Who may connect. With an operator secret every client authenticates (HMAC challenge-response); without
+    one the gateway listens on loopback only and every local client is an operator."""
+
+    operator_secret_file: Path | None = None  # may record, command stations, calibrate
+    viewer_secret_file: Path | None = None  # may only watch (streams, status)
+    tls_cert: Path | None = None  # PEM certificate chain: serve TLS (needs tls_key)
+    tls_key: Path | None = None  # PEM private key
+
+
+@dataclass(frozen=True)
+class CourtConfig:
+    """Everything one gateway runs. Build with `load_court_config` / `CourtConfig()` + `with_overrides`."""
+
+    listen: tuple[str, int] = ("127.0.0.1", 7766)
+    record_dir: Path = Path("recordings")
+    record: str | None = None  # start recording this take at once (a new suffixed take if it exists)
+    log_level: str = "INFO"
+    name: str = "courtside-gateway"
+    max_clients: int = 32
+    handshake_timeout_s: float = 5.0  # a client must authenticate (and finish any frame it starts) this fast
+    status_interval_s: float = 1.0
+    clock_lock_after_s: float = 30.0  # clock warm-up before samples are flagged locked
+    stations: StationsConfig = field(default_factory=StationsConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
+    auth: AuthConfig = field(default_factory=AuthConfig)
+
+    @property
+    def authenticated(self) -> bool:
+        return self.auth.operator_secret_file is not None
+
+
+# -- value checks: each returns the converted value or raises _Bad(problem) -------------------------------------
+class _Bad(Exception):
+    pass
+
+
+def _describe(value: Any) -> str:
+    kind = {str: "a string", bool: "a boolean", int: "an integer", float: "a number", list: "a list",
+            dict: "a table"}.get(type(value), type(value).__name__)
+    shown = repr(value) if not isinstance(value, (list, dict)) else ""
+    return f"{kind} {shown}".strip() if len(shown) < 60 else kind
+
+
+def _string(value: Any) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise _Bad(f"expected a non-empty string, got {_describe(value)}")
+    return value
+
+
+def _bool(value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise _Bad(f"expected true or false, got {_describe(value)}")
+    return value
+
+
+def _int(lo: int, hi: int) -> Callable[[Any], int]:
+    def check(value: Any) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise _Bad(f"expected an integer {lo}..{hi}, got {_describe(value)}")
+        if not lo <= value <= hi:
+            raise _Bad(f"{value} is out of range {lo}..{hi}")
+        return value
+    return check
+
+
+def _number(lo: float, hi: float, lo_open: bool = False) -> Callable[[Any], float]:
+    low = f"{'>' if lo_open else '>='} {lo:g}"
+
+    def check(value: Any) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise _Bad(f"expected a number {low} and <= {hi:g}, got {_describe(value)}")
+        value = float(value)
+        if not math.isfinite(value) or value < lo or (lo_open and value == lo) or value > hi:
+            raise _Bad(f"{value:g} is out of range ({low}, <= {hi:g})")
+        return value
+    return check
+
+
+def _choice(options: tuple[str, ...]) -> Callable[[Any], str]:
+    def check(value: Any) -> str:
+        if not isinstance(value, str) or value not in options:
+            raise _Bad(f"expected one of {', '.join(repr(o) for o in options)}, got {_describe(value)}")
+        return value
+    return check
+
+
+def _upper_choice(options: tuple[str, ...]) -> Callable[[Any], str]:
+    inner = _choice(options)
+    return lambda value: inner(value.upper() if isinstance(value, str) else value)
+
+
+def _strings(value: Any) -> tuple[str, ...]:
+    if not isinstance(value, list):
+        raise _Bad(f"expected a list of strings (e.g. [\"a\", \"b\"]), got {_describe(value)}")
+    for i, item in enumerate(value):
+        if not isinstance(item, str) or not item.strip():
+            raise _Bad(f"item {i} is {_describe(item)}, expected a non-empty string")
+    return tuple(value)
+
+
+def _listen(value: Any) -> tuple[str, int]:
+    if isinstance(value, tuple):  # already parsed (a default, or an override from code)
+        value = f"{value[0]}:{value[1]}"
+    text = _string(value)
+    host, sep, port = text.rpartition(":")
+    host = host.strip("[]")
+    if not sep or not host or not re.fullmatch(r"\d{1,5}", port):
+        raise _Bad(f"expected \"host:port\" (e.g. \"127.0.0.1:7766\"), got {text!r}")
+    if int(port) > 65535:
+        raise _Bad(f"port {port} is out of range 0..65535")
+    return host, int(port)
+
+
+def _camera_source(value: Any) -> int | str:
+    if isinstance(value, str) and value.isdigit():
+        value = int(value)  # "--camera 0" from the command line
+    if isinstance(value, int) and not isinstance(value, bool):
+        return _int(0, 63)(value)
+    return _string(value)
+
+
+def _placements(value: Any) -> tuple[str, ...]:
+    from engine.mocap.sensors import STANDARD_SENSORS  # lazy: only configs with calibration pay for the engine
+
+    names = _strings(value)
+    unknown = [n for n in names if n not in STANDARD_SENSORS]
+    if unknown:
+        raise _Bad(f"unknown sensor site(s) {unknown}; known: {', '.join(STANDARD_SENSORS)}")
+    if len(set(names)) != len(names):
+        raise _Bad("a sensor site is listed twice")
+    return names
+
+
+def _take(value: Any) -> str:
+    try:
+        return check_name(value, "take name")
+    except BadNameError as exc:
+        raise _Bad(str(exc)) from None
+
+
+_PATH = object()  # marker: a path, resolved against the config file's directory
+Check = Callable[[Any], Any] | object
+
+_TOP: dict[str, Check] = {
+    "listen": _listen, "record_dir": _PATH, "record": _take, "log_level": _upper_choice(LOG_LEVELS),
+    "name": _string, "max_clients": _int(1, 1024), "handshake_timeout_s": _number(0.0, 600.0, lo_open=True),
+    "status_interval_s": _number(0.0, 60.0, lo_open=True), "clock_lock_after_s": _number(0.0, 3600.0),
+}
+_SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
+    "stations": (StationsConfig, {
+        "ports": _strings, "urls": _strings, "discover": _bool, "emulate": _int(0, MAX_EMULATED_STATIONS),
+        "emulate_motion": _choice(EMULATE_MOTIONS), "emulate_clips": _strings}),
+    "camera": (CameraConfig, {
+        "source": _camera_source, "court": _PATH, "player_side": _choice(PLAYER_SIDES),
+        "fps": _number(0.0, 1000.0, lo_open=True), "latency_s": _number(0.0, 5.0), "loop": _bool,
+        "thumbnail_every": _int(0, 10_000)}),
+    "calibration": (CalibrationConfig, {"placements": _placements, "pose": _choice(POSES), "records_dir": _PATH}),
+    "auth": (AuthConfig, {"operator_secret_file": _PATH, "viewer_secret_file": _PATH, "tls_cert": _PATH,
+                          "tls_key": _PATH}),
+}
+_MOVED = {"ports": "stations", "urls": "stations", "discover": "stations", "emulate": "stations"}
+
+
+def _convert(check: Check, value: Any, base_dir: Path | None) -> Any:
+    if check is _PATH:
+        path = Path(_string(value) if not isinstance(value, Path) else value).expanduser()
+        return path if path.is_absolute() or base_dir is None else base_dir / path
+    return check(value)  # type: ignore[operator]
+
+
+def _line_of(text: str, section: str | None, key: str) -> int | None:
+    """1-based line of ``key =`` in ``[section]`` (None = top level), for the error message; None if not found."""
+    current = None
+    for number, line in enumerate(text.splitlines(), 1):
+        stripped = line.strip()
+        if header := re.fullmatch(r"\[\s*([A-Za-z0-9_.-]+)\s*\]\s*(#.*)?", stripped):
+            current = header[1]
+            if section is None and current == key:  # a table where a value belongs: point at its header
+                return number
+        elif current == section and re.match(rf"{re.escape(key)}\s*=", stripped):
+            return number
+    return None
+
+
+def load_court_config(path: str | Path, check: bool = True) -> CourtConfig:
+    """Read and check a court config file; `MalformedFileError` names the file, line, key and problem.
+    ``check=False`` leaves the rules across keys to `with_overrides` (command-line flags may complete them)."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+        data = tomllib.loads(text)
+    except OSError as exc:
+        raise MalformedFileError(path, None, f"cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise MalformedFileError(path, None, "not a text (UTF-8 TOML) file") from None
+    except tomllib.TOMLDecodeError as exc:
+        where = re.search(r"\(at line (\d+), column \d+\)", str(exc))  # Python 3.11 has no exc.lineno
+        problem = str(exc).replace(where[0], f"(column {where[0].split()[-1]}" if where else "").strip()
+        raise MalformedFileError(path, int(where[1]) if where else None, f"not valid TOML: {problem}") from None
+    base_dir = path.resolve().parent
+
+    def fail(section: str | None, key: str, problem: str) -> MalformedFileError:
+        name = f"{section}.{key}" if section else key
+        return MalformedFileError(path, _line_of(text, section, key), f"{name}: {problem}")
+
+    top: dict[str, Any] = {}
+    sections: dict[str, Any] = {}
+    for key, value in data.items():
+        if key in _SECTIONS:
+            if not isinstance(value, dict):
+                raise fail(None, key, f"expected a [{key}] table, got {_describe(value)}")
+            cls, checks = _SECTIONS[key]
+            values = {}
+            for sub, sub_value in value.items():
+                if sub not in checks:
+                    raise fail(key, sub, f"unknown key; [{key}] takes {', '.join(checks)}")
+                try:
+                    values[sub] = _convert(checks[sub], sub_value, base_dir)
+                except _Bad as exc:
+                    raise fail(key, sub, str(exc)) from None
+            sections[key] = cls(**values)
+        elif key in _TOP:
+            try:
+                top[key] = _convert(_TOP[key], value, base_dir)
+            except _Bad as exc:
+                raise fail(None, key, str(exc)) from None
+        else:
+            hint = f" (it belongs in the [{_MOVED[key]}] table)" if key in _MOVED else ""
+            valid = ", ".join([*_TOP, *(f"[{s}]" for s in _SECTIONS)])
+            raise fail(None, key, f"unknown key{hint}; valid: {valid}")
+    config = CourtConfig(**top, **sections)
+    try:
+        if check:
+            check_consistent(config)
+    except CourtsideError as exc:
+        raise MalformedFileError(path, None, str(exc)) from None
+    return config
+
+
+def with_overrides(config: CourtConfig, overrides: dict[str, Any], flags: dict[str, str] | None = None) -> CourtConfig:
+    """Apply command-line values (``{"listen": "0.0.0.0:7766", "camera.source": "clip.mp4", ...}``; None =
+    not given) through the same checks as the file; a bad one raises `CourtsideError` naming the flag
+    (``flags[dotted key]``, default ``--key``)."""
+    top: dict[str, Any] = {}
+    per_section: dict[str, dict[str, Any]] = {}
+    for dotted, value in overrides.items():
+        if value is None:
+            continue
+        section, _, key = dotted.rpartition(".")
+        checks = _SECTIONS[section][1] if section else _TOP
+        if key not in checks:
+            raise KeyError(f"no config key {dotted!r}")  # a programming error, not user input
+        flag = (flags or {}).get(dotted) or "--" + key.replace("_", "-")
+        try:
+            converted = _convert(checks[key], list(value) if isinstance(value, tuple) else value, None)
+        except _Bad as exc:
+            raise CourtsideError(f"{flag}: {exc}") from None
+        (per_section.setdefault(section, {}) if section else top)[key] = converted
+    config = replace(config, **top, **{s: replace(getattr(config, s), **v) for s, v in per_section.items()})
+    check_consistent(config)
+    return config
+
+
+def is_loopback(host: str) -> bool:
+    """True for 127.0.0.0/8, ::1 and "localhost": addresses no other machine can reach."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def check_consistent(config: CourtConfig) -> None:
+    """Rules across keys (checked after flags are applied, so a flag can fix what the file lacks)."""
+    auth = config.auth
+    if not is_loopback(config.listen[0]) and auth.operator_secret_file is None:
+        raise CourtsideError(
+            f"listening on {config.listen[0]}:{config.listen[1]} (beyond loopback) needs authentication: set "
+            "[auth] operator_secret_file (or --secret-file); see docs/gateway.md \"Two machines\"")
+    if auth.viewer_secret_file is not None and auth.operator_secret_file is None:
+        raise CourtsideError("auth.viewer_secret_file needs auth.operator_secret_file too")
+    if (auth.tls_cert is None) != (auth.tls_key is None):
+        raise CourtsideError("TLS needs both auth.tls_cert and auth.tls_key")
+    if config.camera.source is not None and config.camera.court is None:
+        raise CourtsideError("camera.source is set but camera.court is not: give the court calibration file "
+                             "(`courtside camera calibrate ... --out court.json`)")
+
+
+def section_fields(section: str) -> list[str]:
+    """Key names of one table (docs and tests iterate over them)."""
+    return [f.name for f in fields(_SECTIONS[section][0])]

@@ -1,0 +1,177 @@
+"""The court config loader: every key read into the dataclass, every wrong type/range/unknown key refused naming
+the file, line and key (issue 12's misreads each included), flags checked the same way, and the CLI turning a
+refusal into one line and exit 2 (real subprocess)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from engine.errors import CourtsideError, MalformedFileError
+from gateway.court_config import CourtConfig, load_court_config, with_overrides
+
+FULL = """\
+listen = "127.0.0.2:7800"
+record_dir = "takes"
+record = "rally-01"
+log_level = "debug"
+name = "court-3"
+max_clients = 4
+handshake_timeout_s = 2.5
+status_interval_s = 0.5
+clock_lock_after_s = 10
+
+[stations]
+ports = ["/dev/ttyACM0", "hid:1209:c0de"]
+urls = ["emu://a?sensors=6"]
+discover = true
+emulate = 2
+emulate_motion = "none"
+emulate_clips = ["16_01", "16_05"]
+
+[camera]
+source = 0
+court = "court.json"
+player_side = "far"
+fps = 30
+latency_s = 0.04
+loop = true
+thumbnail_every = 5
+
+[calibration]
+placements = ["left_forearm", "chest"]
+pose = "tpose"
+records_dir = "/var/lib/courtside/calibrations"
+
+[auth]
+operator_secret_file = "secrets/operator"
+viewer_secret_file = "secrets/viewer"
+tls_cert = "tls/cert.pem"
+tls_key = "tls/key.pem"
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "court.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_every_key_is_read_and_relative_paths_follow_the_file(tmp_path):
+    config = load_court_config(write(tmp_path, FULL))
+    assert config.listen == ("127.0.0.2", 7800) and config.record == "rally-01" and config.log_level == "DEBUG"
+    assert config.record_dir == tmp_path / "takes"  # relative to the config file, not the cwd
+    assert (config.name, config.max_clients, config.handshake_timeout_s) == ("court-3", 4, 2.5)
+    assert config.status_interval_s == 0.5 and config.clock_lock_after_s == 10.0
+    st = config.stations
+    assert st.ports == ("/dev/ttyACM0", "hid:1209:c0de") and st.urls == ("emu://a?sensors=6",)
+    assert st.discover is True and st.emulate == 2 and st.emulate_motion == "none"
+    assert st.emulate_clips == ("16_01", "16_05")
+    cam = config.camera
+    assert cam.source == 0 and cam.court == tmp_path / "court.json" and cam.player_side == "far"
+    assert (cam.fps, cam.latency_s, cam.loop, cam.thumbnail_every) == (30.0, 0.04, True, 5)
+    cal = config.calibration
+    assert cal.placements == ("left_forearm", "chest") and cal.pose == "tpose"
+    assert cal.records_dir == Path("/var/lib/courtside/calibrations")
+    assert config.auth.operator_secret_file == tmp_path / "secrets/operator"
+    assert config.auth.tls_key == tmp_path / "tls/key.pem"
+    assert config.authenticated
+
+
+def test_an_empty_file_gives_the_defaults(tmp_path):
+    assert load_court_config(write(tmp_path, "")) == CourtConfig()
+    assert CourtConfig().listen == ("127.0.0.1", 7766) and not CourtConfig().authenticated
+
+
+@pytest.mark.parametrize("text, line, fragment", [
+    # issue 12's silent misreads and tracebacks
+    ('[stations]\nports = "/dev/ttyX"\n', 2, "stations.ports: expected a list of strings"),
+    ('[stations]\ndiscover = "no"\n', 2, "stations.discover: expected true or false"),
+    ('[stations]\nemulate = -1\n', 2, "stations.emulate: -1 is out of range 0..16"),
+    ('[stations]\nemulate = "two"\n', 2, "stations.emulate: expected an integer"),
+    ('[stations]\nemulate = true\n', 2, "stations.emulate: expected an integer"),
+    ('listen = 12\n', 1, "listen: expected a non-empty string"),
+    ('listen = "127.0.0.1:99999"\n', 1, "port 99999 is out of range"),
+    ('listen = "localhost"\n', 1, "expected \"host:port\""),
+    ('record_dir = 5\n', 1, "record_dir: expected a non-empty string"),
+    ('[ports]\na = 1\n', 1, "ports: unknown key (it belongs in the [stations] table)"),
+    ('ports = ["/dev/ttyACM0"]\n', 1, "it belongs in the [stations] table"),
+    ('stations = 3\n', 1, "stations: expected a [stations] table"),
+    ('[stations]\nport = ["/dev/x"]\n', 2, "stations.port: unknown key"),
+    ('[stations]\nports = ["ok", 3]\n', 2, "item 1 is an integer 3"),
+    ('colour = "red"\n', 1, "colour: unknown key"),
+    ('log_level = "loud"\n', 1, "log_level: expected one of"),
+    ('record = "../escape"\n', 1, "record: take name '../escape' contains a path separator"),
+    ('record = ".."\n', 1, "starts with a dot"),
+    ('max_clients = 0\n', 1, "max_clients: 0 is out of range 1..1024"),
+    ('handshake_timeout_s = 0\n', 1, "handshake_timeout_s: 0 is out of range"),
+    ('status_interval_s = nan\n', 1, "status_interval_s: nan is out of range"),
+    ('[camera]\nsource = -2\ncourt = "c.json"\n', 2, "camera.source: -2 is out of range 0..63"),
+    ('[camera]\nsource = "x.mp4"\ncourt = "c.json"\nplayer_side = "left"\n', 4, "camera.player_side: expected one of"),
+    ('[camera]\nfps = "30"\n', 2, "camera.fps: expected a number"),
+    ('[camera]\nloop = 1\n', 2, "camera.loop: expected true or false"),
+    ('[calibration]\nplacements = ["left_forearm", "tail"]\n', 2, "unknown sensor site(s) ['tail']"),
+    ('[calibration]\nplacements = ["chest", "chest"]\n', 2, "listed twice"),
+    ('[calibration]\npose = "apose"\n', 2, "calibration.pose: expected one of"),
+    ('[auth]\npassword = "hunter2"\n', 2, "auth.password: unknown key"),
+    ('listen = "127.0.0.1:7766\n', 1, "not valid TOML"),
+])
+def test_refusals_name_the_file_line_and_key(tmp_path, text, line, fragment):
+    path = write(tmp_path, text)
+    with pytest.raises(MalformedFileError) as info:
+        load_court_config(path)
+    assert info.value.path == str(path) and info.value.line == line, str(info.value)
+    assert fragment in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ('listen = "0.0.0.0:7766"\n', r"beyond loopback\) needs authentication"),
+    ('listen = "192.168.1.20:7766"\n', r"beyond loopback\) needs authentication"),
+    ('[camera]\nsource = "clip.mp4"\n', "camera.court is not"),
+    ('[auth]\nviewer_secret_file = "v"\n', "needs auth.operator_secret_file"),
+    ('[auth]\noperator_secret_file = "o"\ntls_cert = "c.pem"\n', "TLS needs both"),
+])
+def test_rules_across_keys(tmp_path, text, fragment):
+    with pytest.raises(MalformedFileError, match=fragment):
+        load_court_config(write(tmp_path, text))
+
+
+def test_a_binary_or_missing_file_is_refused_by_name(tmp_path):
+    binary = tmp_path / "court.toml"
+    binary.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(MalformedFileError, match="not a text"):
+        load_court_config(binary)
+    with pytest.raises(MalformedFileError, match="cannot read"):
+        load_court_config(tmp_path / "absent.toml")
+
+
+def test_flags_override_the_file_and_are_checked_the_same_way(tmp_path):
+    config = load_court_config(write(tmp_path, '[stations]\nemulate = 2\nports = ["/dev/a"]\n'))
+    config = with_overrides(config, {"stations.emulate": 1, "stations.ports": ["/dev/b", "/dev/c"],
+                                     "camera.source": "7", "camera.court": "c.json", "listen": None})
+    assert config.stations.emulate == 1 and config.stations.ports == ("/dev/b", "/dev/c")
+    assert config.camera.source == 7 and config.camera.court == Path("c.json") and config.listen[1] == 7766
+    with pytest.raises(CourtsideError, match="--emulate: -1 is out of range"):
+        with_overrides(config, {"stations.emulate": -1}, {"stations.emulate": "--emulate"})
+    with pytest.raises(CourtsideError, match="beyond loopback"):
+        with_overrides(config, {"listen": "0.0.0.0:7766"})
+    # a flag can complete what the file lacks: the secret for a non-loopback listen address
+    file_only = load_court_config(write(tmp_path, 'listen = "0.0.0.0:7766"\n', "open.toml"), check=False)
+    assert with_overrides(file_only, {"auth.operator_secret_file": "s"}).authenticated
+
+
+def _gateway_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "gateway.cli", "gateway", *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=60)
+
+
+def test_cli_refuses_a_bad_config_with_one_line_and_exit_2(tmp_path):
+    path = write(tmp_path, '[stations]\nports = "/dev/ttyX"\n')
+    result = _gateway_cli("--config", str(path), cwd=tmp_path)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert result.stderr.strip().count("\n") == 0, result.stderr
+    assert str(path) in result.stderr and "stations.ports" in result.stderr
+    result = _gateway_cli("--listen", "0.0.0.0:7766", cwd=tmp_path)
+    assert result.returncode == 2 and "needs authentication" in result.stderr and "Traceback" not in result.stderr
