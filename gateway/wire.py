@@ -68,11 +68,13 @@ class UndecodableFrame(WireError):
 
 
 def _wait_readable(sock: socket.socket, deadline: float | None) -> None:
-    """Block until ``sock`` has bytes (or EOF) to read; `WireTimeout` once ``deadline`` (monotonic) passes."""
-    if deadline is None:
-        return
+    """Block until ``sock`` has bytes (or EOF) to read; `WireTimeout` once ``deadline`` (monotonic) passes.
+    ``deadline`` None waits for ever: an authenticated client may stay quiet as long as it likes."""
     pending = getattr(sock, "pending", None)  # a TLS channel may hold decrypted bytes already
     if pending is not None and pending():
+        return
+    if deadline is None:
+        select.select([sock], [], [])
         return
     remaining = deadline - time.monotonic()
     if remaining <= 0 or not select.select([sock], [], [], remaining)[0]:
