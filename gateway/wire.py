@@ -74,7 +74,10 @@ def _wait_readable(sock: socket.socket, deadline: float | None) -> None:
     if pending is not None and pending():
         return
     if deadline is None:
-        select.select([sock], [], [])
+        try:
+            select.select([sock], [], [])
+        except ValueError:  # closed by another thread meanwhile (fileno -1): as recv on a closed socket would
+            raise OSError("socket closed") from None
         return
     remaining = deadline - time.monotonic()
     if remaining <= 0 or not select.select([sock], [], [], remaining)[0]:

@@ -132,5 +132,6 @@ class ScriptedRun(QtCore.QObject):
             self._request("script:save-calibration", client.calibration, "save", **self.save_args())
 
     def save_args(self) -> dict[str, Any]:
-        """Arguments of the gateway's calibration ``save`` (the record lands in its records directory)."""
-        return {"subject": "", "take": self.take or ""}
+        """Arguments of the gateway's calibration ``save``: a record name (the gateway writes
+        ``<records_dir>/<name>.calibration.json``; clients never name paths) — the take's, if any."""
+        return {"name": self.take or time.strftime("console-%Y%m%d-%H%M%S"), "subject": "", "take": self.take or ""}
