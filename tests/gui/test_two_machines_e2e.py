@@ -6,7 +6,8 @@ Everything is real: `courtside gateway --config court.toml` (emulated stations o
 N-pose lead-in so the wizard can capture, then held-out CMU walk and run —, the camera reading a rendered court
 video whose calibration `courtside camera calibrate` wrote, the calibration wizard, operator/viewer secrets) on
 127.0.0.2; `courtside console --calibrate --record --save-poses` offscreen as a second process authenticating
-with the operator secret file; `courtside gateway export` and `courtside synthesize` as further processes."""
+with the operator secret file (the wizard waits for the still phase of the replay loop, the 15 s take then holds
+motion); `courtside gateway export` and `courtside synthesize` as further processes."""
 from __future__ import annotations
 
 import json
@@ -26,7 +27,8 @@ from gateway.client import GatewayClient, GatewayRequestError
 
 HOST = "127.0.0.2"
 SIZE = (480, 270)
-HELD_OUT = ("16_32", "16_36")  # what the stations replay; not in the console's graph
+HELD_OUT = ("16_32", "16_36", "16_05")  # walk, run, jump: what the stations replay; not in the console's graph
+STILL_S = 12.0  # each replay loop: the N-pose held this long, then ~13 s of motion
 LAG_S = 0.5
 
 
@@ -68,9 +70,9 @@ def court(tmp_path):
               "--focal-px", str(camera.camera_matrix[0, 0]), "--out", "court.json", cwd=tmp_path)
     for name in ("operator.secret", "viewer.secret"):
         auth.write_secret_file(tmp_path / name)
-    write_still_npose_clip(tmp_path / "still.bvh", 40.0)
+    write_still_npose_clip(tmp_path / "still.bvh", STILL_S)
     placements = ", ".join(f'"{s}"' for s in SEED000_SENSORS)
-    clips = ", ".join(f'"{c}"' for c in ("still.bvh",) + HELD_OUT)
+    clips = ", ".join(f'"{c}"' for c in ("still.bvh",) + HELD_OUT + HELD_OUT[:1])
     (tmp_path / "court.toml").write_text(f"""
 listen = "{HOST}:0"
 record_dir = "takes"
@@ -132,7 +134,7 @@ def test_gateway_and_console_as_two_processes_live_equals_offline(court):
         env.pop("COURTSIDE_SECRET", None)
         console = courtside("console", "--connect", f"{HOST}:{port}", "--secret-file", "operator.secret",
                             "--graph", "g.npz", "--lag", str(LAG_S), "--calibrate", "--record", "e2e",
-                            "--duration", "10", "--save-poses", "live.npz", cwd=court, env=env, timeout_s=400)
+                            "--duration", "15", "--save-poses", "live.npz", cwd=court, env=env, timeout_s=400)
         assert "calibration record saved" in console.stderr
         status = GatewayClient(HOST, port, secret=auth.read_secret_file(court / "operator.secret")).connect()
         with status:
@@ -147,6 +149,8 @@ def test_gateway_and_console_as_two_processes_live_equals_offline(court):
     record = json.loads((court / "calibrations" / "e2e.calibration.json").read_text())
     assert set(SEED000_SENSORS) <= {s["segment"] for s in record["sensors"].values()}
     courtside("gateway", "export", "takes/e2e", "--npz", "take.npz", cwd=court)
+    with np.load(court / "take.npz") as take:  # the take holds motion, not only the calibration pose
+        assert np.linalg.norm(take["st1/0/acc_g"], axis=1).std() > 0.1
     live = load_poses(court / "live.npz")
     assert live.meta["take"] == "e2e" and live.meta["database"] == "g.npz"
     sensor_map = [f"{s['stream']}={s['placement']}" for s in live.meta["sensors"]]
