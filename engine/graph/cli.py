@@ -18,7 +18,9 @@ from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load
 from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
+from .report import coverage_warning, format_report, graph_report, motion_range
 from .viterbi import SearchWeights
+from .warp import RootWarp, default_weights
 
 _BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+")
 
@@ -78,11 +80,15 @@ def build_graph_main(argv: list[str]) -> int:
     p.add_argument("-o", "--output", required=True, help="graph .npz (a .json summary is written beside it)")
     p.add_argument("--msv", action="store_true", help="add motion speed variations")
     p.add_argument("--interp", action="store_true", help="add interpolated motions")
+    p.add_argument("--no-connect", action="store_true",
+                   help="keep the graph as built: no relaxed transitions for poorly connected clips and no pruning "
+                        "to the largest strongly connected component (default: connect and prune)")
     p.add_argument("--calibration", metavar="RECORD",
                    help="sensor-calibration record (.calibration.json from the gateway's calibration workflow): "
                         "virtual sensors use its measured sensor-to-segment rotations")
     args = p.parse_args(argv)
-    config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold)
+    config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold,
+                         connect=not args.no_connect)
     t0 = time.perf_counter()
     try:
         motions, clips, sensor_model = load_clips(args, config)
@@ -98,8 +104,26 @@ def build_graph_main(argv: list[str]) -> int:
                "build_s": round(t2 - t1, 2), "frames": int(sum(c.n_frames for c in clips))}
     if args.calibration:
         summary["calibration"] = {"record": str(args.calibration), "sensors": args.calibrated_sensors}
+    if graph.build_report:
+        summary.update(graph.build_report)
+        c = graph.build_report["component"]
+        print(f"component step: largest strongly connected component held {100 * c['share_before']:.1f} % of "
+              f"{c['frames']} frames; {c['relaxed_transitions']} relaxed transitions (thresholds "
+              f"{c['thresholds_used_m']} m) -> {100 * c['share_connected']:.1f} %; pruned {c['pruned_nodes']} nodes "
+              f"({c['pruned_frames']} database frames), {c['pruned_edges']} edges; {c['clips_kept']} of "
+              f"{c['clips_total']} clips kept", file=sys.stderr)
     Path(args.output).with_suffix(".json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(summary))
+    print(format_report(graph_report(graph)))
+    return 0
+
+
+def graph_info_main(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="courtside graph-info",
+                                description="What a motion graph can do: size, strongly connected components, "
+                                            "dead ends, clips reachable, turn rates and speeds covered.")
+    p.add_argument("graph", help="graph .npz from build-graph")
+    print(format_report(graph_report(MotionGraph.load(p.parse_args(argv).graph))))
     return 0
 
 
@@ -122,7 +146,12 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--graph", required=True, help="graph .npz from build-graph")
     p.add_argument("--input", required=True, help="take .npz (synthesis input format or a gateway export)")
     p.add_argument("-o", "--output", required=True, help="output .bvh")
-    p.add_argument("--weights", nargs=3, type=float, default=[0.5, 1.0, 1.0], metavar=("W_A", "W_P", "W_O"))
+    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
+                   help="search weights (default: 0.5 10 3 with root warping, the paper's 0.5 1 1 without)")
+    p.add_argument("--root-warp", nargs=2, type=float, default=[RootWarp().position_gain, RootWarp().heading_gain],
+                   metavar=("GAIN_P", "GAIN_O"),
+                   help="pull the root towards the camera by these gains per sample, bounded to human speeds "
+                        "(engine/graph/warp.py); 0 0 = seed 000's search")
     p.add_argument("--lag", type=float, default=None,
                    help="fixed-lag online decoding with this latency (s); on a gateway export this is the console's "
                         "live path itself, so the same lag gives the poses the console showed")
@@ -156,7 +185,12 @@ def synthesize_main(argv: list[str]) -> int:
     if graph.skeleton is None:
         print(f"error: {args.graph}: graph holds no skeleton (rebuild it with build-graph)", file=sys.stderr)
         return 1
-    weights = _weights(args.weights)
+    warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
+    warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
+    if warning:
+        print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"
+                         if warp.active else ""), file=sys.stderr)
+    weights = _weights(args.weights) if args.weights else default_weights(warp)
     try:
         constraints = [label_constraint(graph, r.rsplit("@", 1)[0], int(round(float(r.rsplit("@", 1)[1])
                                                                                 * graph.config.fps)),
@@ -172,19 +206,23 @@ def synthesize_main(argv: list[str]) -> int:
     fps = graph.config.fps
     counts: dict = {}
     if args.lag is None:
-        res = ViterbiSearch(graph, weights).run(obs, constraints)
+        res = ViterbiSearch(graph, weights, warp=warp).run(obs, constraints)
         nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
         broken = res.broken_constraints
         joints = world_joint_positions(graph, nodes, ground, heading)
         poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
     else:
-        make = lambda: FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices)  # noqa: E731
+        made = []
+        make = lambda: made.append(FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices,  # noqa: E731
+                                                       warp=warp)) or made[-1]
         if take.streams is not None:  # a gateway take: the live path, sample by sample
             poses, session = synthesize_streams(make, take.streams, take.stream_keys, fps, start_s=args.start,
                                                 use_camera_heading=args.camera_heading)
             counts = vars(session.stats)
         else:
             poses = _fixed_lag_over_frames(make(), take)
+        counts.update(confidence_mean=round(float(np.mean([q.confidence for q in poses])), 3) if poses else None,
+                      reanchors=len(made[-1].reanchors))
         emitted = [q.source for q in poses]
         nodes = np.array([q.node for q in emitted])
         ground = np.array([q.ground_m for q in emitted])
@@ -205,7 +243,8 @@ def synthesize_main(argv: list[str]) -> int:
                     "start_frame": int(poses[0].frame) if poses else None, "input": str(args.input),
                     "use_camera_heading": args.camera_heading, **counts})
     print(json.dumps({"samples": int(obs.n_samples), "first_frame": int(take.frame[0]), "search_s": round(elapsed, 3),
-                      "output": args.output, "broken_constraints": broken}))
+                      "output": args.output, "broken_constraints": broken,
+                      **{k: counts[k] for k in ("confidence_mean", "reanchors") if k in counts}}))
     return 0
 
 

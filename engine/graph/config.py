@@ -17,6 +17,12 @@ class GraphConfig:
     max_transitions_per_frame: keep only this many closest transitions leaving one frame (0 = no cap).
     msv / interp: add motion speed variations / interpolated motions (seed 000 sections 4.1 / 4.2).
     interp_threshold_m, interp_min_length_s: the similarity threshold t_i and the minimum blended length.
+    connect: make the graph one strongly connected component (engine/graph/components.py): candidates every
+        `idle_spacing_frames` inside long single-contact-state runs, transitions at the relaxed
+        `connect_thresholds_m` (tried in turn) for frames outside the largest component until it holds
+        `min_component_share` of the frames (at most `connect_max_per_frame` relaxed transitions leave one
+        frame), then everything outside it pruned. Off in the library (exact-answer
+        tests build small graphs with dead ends on purpose); `courtside build-graph` turns it on.
     """
 
     fps: float = 30.0
@@ -30,6 +36,11 @@ class GraphConfig:
     interp_threshold_m: float = 0.05
     interp_min_length_s: float = 0.5
     sensor_names: list[str] = field(default_factory=list)
+    connect: bool = False
+    idle_spacing_frames: int = 15
+    connect_thresholds_m: list[float] = field(default_factory=lambda: [0.09, 0.12, 0.18, 0.25])
+    min_component_share: float = 0.9
+    connect_max_per_frame: int = 2
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)

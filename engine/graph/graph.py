@@ -19,6 +19,7 @@ from engine.errors import MalformedFileError
 from engine.mocap.skeleton import Skeleton
 
 from .clips import ClipData
+from .components import ComponentReport, component_labels, largest_component
 from .config import GraphConfig
 from .metadata import step_offsets
 from .transitions import find_transitions
@@ -27,7 +28,7 @@ NODE_ORIGINAL, NODE_SLOW, NODE_INTERP = 0, 1, 2
 EDGE_NATURAL, EDGE_TRANSITION, EDGE_SPEEDUP, EDGE_SLOWDOWN, EDGE_INTERP = 0, 1, 2, 3, 4
 EDGE_KIND_NAMES = ("natural", "transition", "speed-up", "slow-down", "interpolated")
 FORMAT_VERSION = 1
-_NON_ARRAYS = {"config", "clip_names", "label_names", "skeleton"}
+_NON_ARRAYS = {"config", "clip_names", "label_names", "skeleton", "build_report"}
 
 
 @dataclass
@@ -93,6 +94,7 @@ class MotionGraph:
     node_rotations: np.ndarray | None = None  # (N, J, 4) local joint rotations (w, x, y, z)
     node_root_m: np.ndarray | None = None  # (N, 3) root position in the source clip's frame
     skeleton: Skeleton | None = None  # the database skeleton, so a synthesis can be written as BVH
+    build_report: dict | None = None  # what the builder's component step did (components.ComponentReport)
 
     # ----- sizes and search helpers -------------------------------------------------------------
     @property
@@ -140,6 +142,15 @@ class MotionGraph:
         """A copy without every node derived from the given clips (incl. interpolated nodes that used them)."""
         drop = np.isin(self.node_clip, clip_ids) | np.isin(self.node_clip2, clip_ids)
         keep = ~drop
+        if self.config.connect:  # a connected graph stays connected: what the removal cut off is pruned too
+            sub = keep[self.edge_src] & keep[self.edge_dst]
+            keep &= largest_component(self.edge_src[sub], self.edge_dst[sub], self.n_nodes)
+        return self.subgraph(keep)
+
+    def subgraph(self, keep: np.ndarray) -> "MotionGraph":
+        """A copy with only the nodes where `keep` (N,) is True and the edges between them (ids renumbered in
+        order, so edges stay sorted by (dst, src))."""
+        keep = np.asarray(keep, dtype=bool)
         new_id = np.cumsum(keep) - 1
         ekeep = keep[self.edge_src] & keep[self.edge_dst]
         node_arrays = {f.name: getattr(self, f.name) for f in fields(self) if f.name.startswith("node_")}
@@ -147,7 +158,7 @@ class MotionGraph:
         # metadata rows stay as they are (rows of dropped nodes are simply no longer referenced)
         return MotionGraph(
             config=self.config, clip_names=self.clip_names, label_names=self.label_names, skeleton=self.skeleton,
-            **kwargs,
+            build_report=self.build_report, **kwargs,
             edge_src=new_id[self.edge_src[ekeep]].astype(np.int32),
             edge_dst=new_id[self.edge_dst[ekeep]].astype(np.int32),
             edge_kind=self.edge_kind[ekeep], edge_meta=self.edge_meta[ekeep],
@@ -158,7 +169,8 @@ class MotionGraph:
         """One .npz holding the arrays plus a JSON header (config, clip and label names)."""
         header = {"format_version": FORMAT_VERSION, "config": json.loads(self.config.to_json()),
                   "clip_names": self.clip_names, "label_names": self.label_names,
-                  "skeleton_names": list(self.skeleton.names) if self.skeleton is not None else None}
+                  "skeleton_names": list(self.skeleton.names) if self.skeleton is not None else None,
+                  "build_report": self.build_report}
         arrays = {f.name: getattr(self, f.name) for f in fields(self)
                   if f.name not in _NON_ARRAYS and getattr(self, f.name) is not None}
         if self.skeleton is not None:
@@ -190,7 +202,8 @@ class MotionGraph:
                 skeleton = Skeleton(tuple(header["skeleton_names"]), data["skeleton_parents"],
                                     data["skeleton_offsets_m"], data["skeleton_end_site"])
         graph = cls(config=GraphConfig(**header["config"]), clip_names=header["clip_names"],
-                    label_names=header["label_names"], skeleton=skeleton, **arrays)
+                    label_names=header["label_names"], skeleton=skeleton, build_report=header.get("build_report"),
+                    **arrays)
         problem = graph.inconsistency()
         if problem:
             raise MalformedFileError(path, None, problem)
@@ -278,10 +291,12 @@ def build_from_clips(clips: list[ClipData], config: GraphConfig,
     label_names = sorted({c.label for c in clips})
     parts = GraphParts()
     offsets = _original_nodes(parts, clips, label_names)
+    idle = config.idle_spacing_frames if config.connect else 0
     tr = find_transitions(clips, config.window_frames, joint_weights, config.transition_threshold_m,
-                          config.min_jump_frames, config.max_transitions_per_frame)
+                          config.min_jump_frames, config.max_transitions_per_frame, idle_spacing_frames=idle)
     arrival = np.concatenate(parts.node["node_arrival"])
     parts.add_edges(tr.src_frame - 1, tr.dst_frame, EDGE_TRANSITION, arrival[tr.dst_frame])
+    report = _connect(parts, clips, config, joint_weights, arrival) if config.connect else None
     if config.msv:
         from .msv import add_speed_variations
 
@@ -290,7 +305,44 @@ def build_from_clips(clips: list[ClipData], config: GraphConfig,
         from .interpolate import add_interpolated_motions
 
         add_interpolated_motions(parts, clips, offsets, config, joint_weights, label_names, sensor_model)
-    return assemble(parts, clips, config, label_names)
+    graph = assemble(parts, clips, config, label_names)
+    if report is None:
+        return graph
+    keep = largest_component(graph.edge_src, graph.edge_dst, graph.n_nodes)
+    report.pruned_nodes = int((~keep).sum())
+    report.pruned_frames = int((~keep & (graph.node_kind == NODE_ORIGINAL)).sum())
+    pruned = graph.subgraph(keep)
+    report.pruned_edges = graph.n_edges - pruned.n_edges
+    report.clips_kept = int(len(np.unique(pruned.node_clip)))
+    report.clips_total = len(clips)
+    pruned.build_report = {"component": report.as_dict()}
+    return pruned
+
+
+def _connect(parts: GraphParts, clips: list[ClipData], config: GraphConfig, joint_weights: np.ndarray,
+             arrival: np.ndarray) -> ComponentReport:
+    """The component step's first half (see engine/graph/components.py): relaxed transitions for the frames
+    outside the largest strongly connected component of the natural + transition edges, threshold by threshold,
+    until the component holds `min_component_share` of the frames."""
+    n = int(sum(c.n_frames for c in clips))
+    src, dst = np.concatenate(parts.edge["src"]), np.concatenate(parts.edge["dst"])
+    labels = component_labels(src, dst, n)
+    report = ComponentReport(frames=n, share_before=float(np.mean(labels == 0)))
+    used = []
+    for threshold in config.connect_thresholds_m:
+        if np.mean(labels == 0) >= config.min_component_share:
+            break
+        tr = find_transitions(clips, config.window_frames, joint_weights, threshold, config.min_jump_frames,
+                              config.connect_max_per_frame, idle_spacing_frames=config.idle_spacing_frames,
+                              components=labels)
+        parts.add_edges(tr.src_frame - 1, tr.dst_frame, EDGE_TRANSITION, arrival[tr.dst_frame])
+        report.relaxed_transitions += len(tr.src_frame)
+        used.append(float(threshold))
+        src, dst = np.r_[src, tr.src_frame - 1], np.r_[dst, tr.dst_frame]
+        labels = component_labels(src, dst, n)
+    report.share_connected = float(np.mean(labels == 0))
+    report.thresholds_used_m = tuple(used)
+    return report
 
 
 def assemble(parts: GraphParts, clips: list[ClipData], config: GraphConfig, label_names: list[str]) -> MotionGraph:

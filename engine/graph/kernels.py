@@ -206,3 +206,22 @@ def survivor_column(col_nodes, col_edges, full, alive, src, mark):
     for i in range(m):
         mark[found[i]] = False
     return kept, np.sort(found[:m])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def warp_state(Px, Pz, O, mx, mz, mh, gp, maxp, gh, maxh):
+    """Root warping (engine/graph/warp.py), in place for every node: move the path's ground position towards the
+    camera fix (mx, mz) by gp x the distance, at most maxp metres, and turn its heading towards mh by gh x the
+    wrapped difference, at most maxh radians. gp = 0 / gh = 0 leave a component untouched. float32, in the order
+    of viterbi._warp_numpy."""
+    for i in range(len(Px)):
+        ex = mx - Px[i]
+        ez = mz - Pz[i]
+        d = np.sqrt(ex * ex + ez * ez)
+        s = min(d * gp, maxp)
+        k = s / d if d > np.float32(0.0) else np.float32(0.0)
+        Px[i] = Px[i] + ex * k
+        Pz[i] = Pz[i] + ez * k
+        c = _wrap(mh - O[i]) * gh
+        c = max(-maxh, min(c, maxh))
+        O[i] = _wrap(O[i] + c)

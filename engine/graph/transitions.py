@@ -32,6 +32,24 @@ def contact_change_frames(contacts: np.ndarray, window_frames: int) -> np.ndarra
     return change[(change - half >= 0) & (change + (window_frames - half) <= n)]
 
 
+def idle_frames(contacts: np.ndarray, window_frames: int, spacing_frames: int) -> np.ndarray:
+    """Extra candidates inside long runs of one contact state (standing, gesturing, a clip's idle start and end):
+    every `spacing_frames` frames of a run at least 2 x spacing long, plus the run's last frame whose window
+    fits (so a clip's idle end can be left). A clip that never changes contact state (a bow, a punch from a planted stance) otherwise has
+    no candidate at all and can never be entered or left; nothing changes for gait, whose runs are short."""
+    if spacing_frames <= 0:
+        return np.zeros(0, dtype=np.int64)
+    n = contacts.shape[0]
+    change = np.flatnonzero(np.any(contacts[1:] != contacts[:-1], axis=1)) + 1
+    bounds = np.r_[0, change, n]
+    half = window_frames // 2
+    lo, hi = max(half, 1), n - (window_frames - half)  # first / last frame whose window fits (and has a frame before)
+    out = [np.r_[np.arange(max(a, lo), min(b, hi + 1), spacing_frames), min(b - 1, hi)]
+           for a, b in zip(bounds[:-1], bounds[1:]) if b - a >= 2 * spacing_frames]
+    frames = np.unique(np.concatenate(out)) if out else np.zeros(0, dtype=np.int64)
+    return frames[(frames >= lo) & (frames <= hi)]
+
+
 def contact_code(contacts: np.ndarray) -> np.ndarray:
     """Contact state as one small integer per frame (left + 2 * right), for equality tests."""
     return contacts[..., 0].astype(np.int8) + 2 * contacts[..., 1].astype(np.int8)
@@ -39,18 +57,23 @@ def contact_code(contacts: np.ndarray) -> np.ndarray:
 
 def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: np.ndarray,
                      threshold_m: float, min_jump_frames: int, max_per_frame: int = 0,
-                     block_rows: int = 1024) -> Transitions:
+                     block_rows: int = 1024, idle_spacing_frames: int = 0,
+                     components: np.ndarray | None = None) -> Transitions:
     """All transitions between contact-change frames of `clips` (including within one clip).
 
     A pair is kept when both frames have the same contact state, the distance is below `threshold_m`, and the
     distance is a local minimum of the candidate-by-candidate matrix (4-neighbourhood, neighbours taken only
     within the same clip, as Kovar keeps local minima of the frame-by-frame matrix). With `max_per_frame` > 0
     only that many of the closest transitions leave each frame (repetitive locomotion otherwise links every
-    step to nearly every similar step of every other clip)."""
+    step to nearly every similar step of every other clip). `idle_spacing_frames` > 0 adds `idle_frames`
+    candidates. `components` (strongly connected component label per global frame, the largest labelled 0):
+    keep only transitions i ~ j that join two different components, one of them not the largest -- the component
+    step uses it to connect what lies outside the largest component, and nothing else."""
     offsets = np.concatenate([[0], np.cumsum([c.n_frames for c in clips])])
     feats, glob, clip_id, code = [], [], [], []
     for ci, clip in enumerate(clips):
-        cand = contact_change_frames(clip.contacts, window_frames)
+        cand = np.union1d(contact_change_frames(clip.contacts, window_frames),
+                          idle_frames(clip.contacts, window_frames, idle_spacing_frames))
         if len(cand) == 0:
             continue
         feats.append(window_features(clip.positions_m, cand, window_frames, joint_weights))
@@ -91,6 +114,9 @@ def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: n
         keep &= (masked <= left) & (masked <= right) & (masked <= up) & (masked <= down)
         keep[: r0 - lo] = False  # halo rows belong to the neighbouring blocks
         keep[keep.shape[0] - (hi - r1):] = False
+        if components is not None:
+            a, b = components[glob_idx[rows] - 1][:, None], components[glob_idx][None, :]
+            keep &= (a != b) & ((a != 0) | (b != 0))
         r, c = np.nonzero(keep)
         if max_per_frame > 0 and len(r):
             order = np.lexsort((dist[r, c], r))  # by row, then distance

@@ -32,6 +32,7 @@ from .edge_runs import EdgeRuns
 from .geometry import wrap_angle
 from .graph import MotionGraph
 from .trig32 import cos_sin
+from .warp import RootWarp, follow_camera
 
 KERNELS = ("numba", "numpy")
 DEFAULT_KERNEL = "numba" if kernels is not None else "numpy"  # identical results; numba is several times faster
@@ -49,6 +50,21 @@ def _wrap32(h: np.ndarray) -> np.ndarray:
     return np.where(h < -PI32, h + TWO_PI32, h)
 
 
+def _warp_numpy(Px, Pz, O, mx, mz, mh, gp, maxp, gh, maxh) -> None:
+    """Reference of kernels.warp_state (same float32 operations in the same order), in place."""
+    ex = mx - Px
+    ez = mz - Pz
+    d = np.sqrt(ex * ex + ez * ez)
+    step = np.minimum(d * gp, maxp)
+    k = np.zeros_like(d)
+    np.divide(step, d, out=k, where=d > np.float32(0.0))
+    Px[:] = Px + ex * k
+    Pz[:] = Pz + ez * k
+    c = _wrap32(mh - O) * gh
+    c = np.maximum(-maxh, np.minimum(c, maxh))
+    O[:] = _wrap32(O + c)
+
+
 @dataclass(frozen=True)
 class SearchWeights:
     """Weights of eq. 6 (cost units: g^2, metres, radians). Paper's best tennis setting: 0.5 / 1 / 1."""
@@ -56,6 +72,15 @@ class SearchWeights:
     acc: float = 0.5
     position: float = 1.0
     heading: float = 1.0
+
+    @classmethod
+    def camera_following(cls) -> "SearchWeights":
+        """Weights for a search with root warping (warp.RootWarp): 0.5 / 10 / 3. The warped state sits within a
+        few cm / degrees of the camera, so the position and heading terms see residuals of ~5 cm and ~0.1 rad;
+        at the paper's 1 / 1 they would add ~0.15 per sample beside an accelerometer term of ~0.8 (the 1.6 g^2
+        real-vs-virtual gap at W_A 0.5) and decide nothing. 10 per metre and 3 per radian put a 10 cm / 10 deg
+        mismatch on the scale of that gap (measured: docs/engine-graph.md)."""
+        return cls(0.5, 10.0, 3.0)
 
 
 @dataclass(frozen=True)
@@ -120,7 +145,7 @@ class ViterbiLattice:
 
     def __init__(self, graph: MotionGraph, weights: SearchWeights = SearchWeights(),
                  sensor_indices: tuple[int, ...] | None = None, prune_every: int = PRUNE_EVERY,
-                 kernel: str = DEFAULT_KERNEL) -> None:
+                 kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> None:
         if kernel not in KERNELS:
             raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
         if kernel == "numba" and kernels is None:
@@ -132,6 +157,9 @@ class ViterbiLattice:
         # Without position/heading costs the search is Markov and needs no per-path global state: positions
         # along the chosen path are integrated afterwards.
         self.track_global = weights.position != 0 or weights.heading != 0
+        self.warp = warp  # root warping towards the camera (warp.py); off = seed 000's search exactly
+        self._fixes: list[tuple[complex | None, float | None, bool]] = []  # per sample, for the output replay
+        self.first_fix_time = 0  # time of _fixes[0]
         sel = list(range(graph.n_sensors)) if sensor_indices is None else list(sensor_indices)
         self.n_sensors = len(sel)
         m = len(graph.meta_acc_g)
@@ -243,6 +271,8 @@ class ViterbiLattice:
         self._Gr = np.zeros(n) if penalty is None else np.asarray(penalty, float)
         self.constrained = penalty is not None
         self.t = 0
+        if self.warp.active:
+            self._record_fix(position_m, heading_rad, False)
 
     def _late_start(self, position_m, heading_rad) -> tuple[bool, bool]:
         """Is this sample the first camera fix of a take that started without one? (position, heading)"""
@@ -259,12 +289,14 @@ class ViterbiLattice:
         if self.t < 0:
             self.start(acc_g, position_m, heading_rad, penalty)
             return
-        first_pos, first_head = self._late_start(position_m, heading_rad) if self.track_global else (False, False)
+        first_pos, first_head = self._late_start(position_m, heading_rad) \
+            if self.track_global or self.warp.active else (False, False)
         w = self.weights
-        use_pos = (self.track_global and not first_pos and position_m is not None
-                   and not np.any(np.isnan(position_m)) and w.position != 0)
-        use_head = (self.track_global and not first_head and heading_rad is not None
-                    and not np.isnan(heading_rad) and w.heading != 0)
+        fix_pos = (self.track_global and not first_pos and position_m is not None
+                   and not np.any(np.isnan(position_m)))
+        fix_head = self.track_global and not first_head and heading_rad is not None and not np.isnan(heading_rad)
+        use_pos = fix_pos and w.position != 0
+        use_head = fix_head and w.heading != 0
         self.constrained |= penalty is not None
         rows = self._acc_rows(acc_g) if rows is None else rows
         rows = self._zero_rows if rows is None else rows
@@ -289,6 +321,8 @@ class ViterbiLattice:
             if self.kernel == "numpy":
                 self._advance_numpy(win, self._spare_state)
             self._state, self._spare_state = self._spare_state, self._state
+            if self.warp.active and (fix_pos or fix_head):
+                self._warp(position_m if fix_pos else None, heading_rad if fix_head else None)
         low = best.min()
         if np.isfinite(low):
             best -= low
@@ -300,6 +334,8 @@ class ViterbiLattice:
             Gr[~np.isfinite(best)] = np.inf
             self._Gr = Gr
         self._spare_G, self._G = self._G, best
+        if self.warp.active:
+            self._record_fix(position_m, heading_rad, first_pos or first_head)
         if first_pos or first_head:  # a take that started without a camera fix: the first fix sets every path
             self._set_first_fix(position_m if first_pos else None, heading_rad if first_head else None)
         self.columns.append(_Column(None, win.copy()))
@@ -310,13 +346,33 @@ class ViterbiLattice:
 
     def _set_first_fix(self, position_m: np.ndarray | None, heading_rad: float | None) -> None:
         """Eq. 5's initial state from the first camera fix, for whichever of position / heading it brings."""
-        Px, Pz, O = self._state
         if position_m is not None:
-            Px[:], Pz[:] = position_m[0], position_m[1]
+            if self.track_global:
+                self._state[0][:], self._state[1][:] = position_m[0], position_m[1]
             self._pos_known = True
         if heading_rad is not None:
-            O[:] = self._global_state(0j, heading_rad)[2]
+            if self.track_global:
+                self._state[2][:] = self._global_state(0j, heading_rad)[2]
             self._head_known = True
+
+    def _warp(self, position_m: np.ndarray | None, heading_rad: float | None) -> None:
+        """Pull every path's new root towards this sample's camera fix (warp.py), bounded per sample."""
+        gp, maxp, gh, maxh = self.warp.per_sample(self.graph.config.fps)
+        if position_m is None:
+            gp = maxp = np.float32(0.0)
+        if heading_rad is None:
+            gh = maxh = np.float32(0.0)
+        mpos = np.zeros(2) if position_m is None else np.asarray(position_m, float)
+        mh = np.float32(wrap_angle(heading_rad)) if heading_rad is not None else np.float32(0.0)
+        args = (*self._state, np.float32(mpos[0]), np.float32(mpos[1]), mh, gp, maxp, gh, maxh)
+        (kernels.warp_state if self.kernel == "numba" else _warp_numpy)(*args)
+
+    def _record_fix(self, position_m, heading_rad, reset: bool) -> None:
+        """Keep this sample's camera fix (None where missing) for the output replay; `reset`: the first fix of a
+        take that started without one (every path is set to it)."""
+        pos = None if position_m is None or np.any(np.isnan(position_m)) else complex(position_m[0], position_m[1])
+        head = None if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
+        self._fixes.append((pos, head, reset))
 
     def _node_terms(self, mpos: np.ndarray, mhead: float) -> None:
         """Into `_terms`, per node: C, Sn = cos O, sin O; (ux, uz) = R(-O)(P - M); th = wrap(O - M_h); float32
@@ -383,6 +439,21 @@ class ViterbiLattice:
         nPx[nodes] = Px + (dx * C + dz * Sn)
         nPz[nodes] = Pz + (dz * C - dx * Sn)
         nO[nodes] = _wrap32(O + dh)
+
+    def reanchor(self, position_m: np.ndarray | None, heading_rad: float | None) -> None:
+        """Forget the accumulated costs (every live path starts over at cost 0, so the next samples decide
+        afresh) and, with global state, put every path's root on this sample's camera fix. Paths stay graph
+        paths: back-pointers are kept, only the evidence before now no longer counts. For the online decoder's
+        lost-track recovery (online.FixedLagSynthesizer)."""
+        live = np.isfinite(self._G)
+        self._G[live] = 0.0
+        pos = None if position_m is None or np.any(np.isnan(position_m)) else np.asarray(position_m, float)
+        head = None if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
+        if pos is not None or head is not None:
+            self._set_first_fix(pos, head)
+            if self.warp.active:
+                old = self._fixes[-1]
+                self._fixes[-1] = (old[0] if pos is None else complex(*pos), old[1] if head is None else head, True)
 
     # ----- state by graph node ------------------------------------------------------------------
     def cost_of(self, node: int) -> float:
@@ -466,7 +537,12 @@ class ViterbiLattice:
         `node`'s current state (never stored per sample); vectorised inverse of eq. 5:
         O[i] = O_end - sum_{m>i} dh_m, P[i] = P_end - sum_{m>i} R(O[m-1]) d_m.
         Without them (Markov search) eq. 5 is integrated forward from `start` = (ground x + iz, heading) of
-        the path's first sample (default: the first input sample)."""
+        the path's first sample (default: the first input sample). With root warping the warped recursion is
+        replayed forward from the first input sample (`warped_states`)."""
+        if self.warp.active:
+            if start is not None or len(edges) != self.t + 1:
+                raise ValueError("a warped track from a later sample: call warped_states with its start state")
+            return self.warped_states(edges, 0, self.start_state, None)
         e = np.asarray(edges[1:], dtype=np.intp)
         dh = self._graph_dh[e]
         if self.track_global:
@@ -480,12 +556,32 @@ class ViterbiLattice:
             ground = p0 + np.r_[0.0, np.cumsum(self._graph_d[e] * np.exp(-1j * heading[:-1]))]
         return np.stack([ground.real, ground.imag], axis=1), wrap_angle(heading)
 
+    def warped_states(self, edges: np.ndarray, time0: int, start: tuple[complex, float],
+                      first_row: int | None) -> tuple[np.ndarray, np.ndarray]:
+        """Ground (T, 2) and heading (T,) of a path whose samples time0 .. time0 + T - 1 arrive by `edges`, with
+        root warping replayed (float64) from `start`: the state *before* sample time0 if `first_row` (the metadata
+        row of the step into time0) is given, else the state *at* time0 (the first input sample)."""
+        g = self.graph
+        rows = g.edge_meta[np.maximum(np.asarray(edges), 0)]
+        if first_row is not None:
+            rows[0] = first_row
+        fixes = self._fixes[time0 - self.first_fix_time:time0 - self.first_fix_time + len(edges)]
+        pos = np.array([[np.nan, np.nan] if f[0] is None else [f[0].real, f[0].imag] for f in fixes]).reshape(-1, 2)
+        head = np.array([np.nan if f[1] is None else f[1] for f in fixes])
+        return follow_camera(g.meta_dpos_m[rows], g.meta_dheading_rad[rows], start, pos, head, self.warp,
+                             g.config.fps, reset=np.array([f[2] for f in fixes], dtype=bool),
+                             step_first=first_row is not None)
+
     def drop_before(self, time: int) -> None:
         """Forget columns of samples earlier than `time` (already emitted by a fixed-lag decoder)."""
         n_drop = max(0, min(len(self.columns), time - self.first_column_time))
         if n_drop:
             del self.columns[:n_drop]
             self.first_column_time += n_drop
+        n_fix = max(0, min(len(self._fixes), time - self.first_fix_time))
+        if n_fix:
+            del self._fixes[:n_fix]
+            self.first_fix_time += n_fix
 
 
 def constraint_penalties(constraints: list[Constraint], n_nodes: int, n_samples: int) -> dict[int, np.ndarray]:
@@ -511,14 +607,16 @@ class ViterbiSearch:
     """Batch search: the best path for a whole input sequence."""
 
     def __init__(self, graph: MotionGraph, weights: SearchWeights = SearchWeights(), prune_every: int = PRUNE_EVERY,
-                 kernel: str = DEFAULT_KERNEL) -> None:
+                 kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> None:
         self.graph = graph
         self.weights = weights
         self.prune_every = prune_every
         self.kernel = kernel
+        self.warp = warp
 
     def run(self, obs: Observations, constraints: list[Constraint] | None = None) -> SearchResult:
-        lattice = ViterbiLattice(self.graph, self.weights, obs.sensor_indices, self.prune_every, self.kernel)
+        lattice = ViterbiLattice(self.graph, self.weights, obs.sensor_indices, self.prune_every, self.kernel,
+                                 self.warp)
         penalties = constraint_penalties(constraints or [], self.graph.n_nodes, obs.n_samples)
         batch = lattice.kernel == "numba" and obs.acc_g is not None and lattice.n_sensors and self.weights.acc != 0
         rows = None

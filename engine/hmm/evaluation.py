@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.graph.evaluate import root_local
+from engine.graph.warp import RootWarp, follow_camera
 from engine.hmm.config import HMMConfig
 from engine.hmm.features import align_hemispheres, body_features, decode, imu_features
 from engine.hmm.model import HierarchicalHMM, TrainingClip
@@ -16,7 +17,8 @@ from engine.hmm.reconstructor import HMMReconstructor
 from engine.mocap import (Motion, SensorErrorModel, error_joint_indices, forward_kinematics, joint_roles, resample,
                           root_heading, standard_placements)
 from engine.olng.metrics import ClipErrors, score
-from engine.olng.pose import split_heading
+from engine.mocap import quaternions
+from engine.olng.pose import split_heading, yaw_quat
 
 
 def behaviour_of(motion: Motion) -> str:
@@ -58,13 +60,51 @@ def train_model(motions: list[Motion], imu_names: tuple[str, ...] = ("right_foot
 
 
 def reconstruct(model: HierarchicalHMM, acc_g: np.ndarray, gyro_rps: np.ndarray, joints: int, root0_m: np.ndarray,
-                root_quat0: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
-    """Stream a take; returns (root positions (T, 3), local quaternions (T, J, 4), per-frame HMMFrame list)."""
+                root_quat0: np.ndarray, camera_position_m: np.ndarray | None = None,
+                camera_heading_rad: np.ndarray | None = None, skeleton=None,
+                root_warp: RootWarp = RootWarp()) -> tuple[np.ndarray, np.ndarray, list]:
+    """Stream a take; returns (root positions (T, 3), local quaternions (T, J, 4), per-frame HMMFrame list).
+
+    With the overhead camera's ground position (T, 2) m and/or body heading (T,) rad (NaN = no fix) the
+    integrated root is pulled towards them frame by frame (engine/graph/warp.py; the first fix places it), so
+    the global error is the camera's instead of metres of drift; `skeleton` (needed for the heading) gives the
+    offset between the root's twist and where the hips face."""
     rec = HMMReconstructor(model)
     frames = [rec.push(a, g) for a, g in zip(acc_g, gyro_rps)]
     heading0, _ = split_heading(root_quat0[None])
-    root, quats = decode(np.stack([f.body for f in frames]), joints, root0_m, float(heading0[0]))
-    return root, quats, frames
+    body = np.stack([f.body for f in frames])
+    root, quats = decode(body, joints, root0_m, float(heading0[0]))
+    if camera_position_m is None and camera_heading_rad is None:
+        return root, quats, frames
+    return (*_follow_camera(body, joints, root, quats, float(heading0[0]), camera_position_m, camera_heading_rad,
+                            skeleton, root_warp, model.fps), frames)
+
+
+def _follow_camera(body: np.ndarray, joints: int, root: np.ndarray, quats: np.ndarray, heading0: float,
+                   cam_pos: np.ndarray | None, cam_head: np.ndarray | None, skeleton, warp: RootWarp,
+                   fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The decoded root re-integrated from the same per-frame steps with the camera warp (see `reconstruct`)."""
+    n = len(body)
+    local, dheading = body[:, joints * 4: joints * 4 + 3], np.r_[0.0, body[1:, -1]]
+    integrated = heading0 + np.cumsum(dheading)
+    offset = 0.0
+    if skeleton is not None and cam_head is not None:
+        offset = root_heading(Motion(skeleton, fps, root, quats)) - integrated  # hips' heading minus root twist
+    fixes = np.zeros(n, dtype=bool)
+    known = [np.flatnonzero(np.all(np.isfinite(np.asarray(a, float).reshape(n, -1)), axis=1))
+             for a in (cam_pos, cam_head) if a is not None]
+    first = min((k[0] for k in known if len(k)), default=None)
+    if first is not None:
+        fixes[first] = True
+    ground, heading = follow_camera(local[:, [0, 2]], dheading, (complex(root[0, 0], root[0, 2]), heading0),
+                                    None if cam_pos is None else np.asarray(cam_pos, float),
+                                    None if cam_head is None else np.asarray(cam_head, float), warp, fps,
+                                    reset=fixes, heading_offset_rad=offset)
+    root = root.copy()
+    root[:, 0], root[:, 2] = ground[:, 0], ground[:, 1]
+    quats = quats.copy()
+    quats[:, 0] = quaternions.multiply(yaw_quat(heading - integrated), quats[:, 0])
+    return root, quats
 
 
 def to_motion(skeleton, fps: float, root_m: np.ndarray, quats: np.ndarray, foot_ik: bool = True, name: str = "") -> Motion:

@@ -8,13 +8,14 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from engine.mocap.clips import load_clip, load_database, sample_clips
-from engine.mocap.sensors import (SEED000_SENSORS, SensorErrorModel, mean_squared_error_g2, standard_placements,
-                                  virtual_accelerometers)
+from engine.mocap.sensors import (REAL_GAP_G2, SEED000_SENSORS, SensorErrorModel, mean_squared_error_g2,
+                                  standard_placements, virtual_accelerometers)
 from engine.mocap.skeleton import Motion, forward_kinematics
 
 CALIBRATION_CLIPS = ("16_11", "16_35", "16_01", "135_04")
@@ -31,24 +32,43 @@ def _timed(fn, repeat: int = 3) -> float:
     return best
 
 
+def _calibration_readings() -> list[np.ndarray]:
+    clean = []
+    for name in CALIBRATION_CLIPS:
+        motion = load_clip(sample_clips()[name], fps=30)
+        clean.append(virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS), clip_g=12))
+    return clean
+
+
+def _gap(model: SensorErrorModel, clean: list[np.ndarray], seed: int) -> float:
+    rng = np.random.default_rng(seed)
+    return float(np.mean([mean_squared_error_g2(model.apply(c, 30, rng), c) for c in clean]))
+
+
 def calibrate_seed000_noise(seed: int = 0) -> tuple[float, float]:
     """Solve the white-noise level that brings the seed-000 preset's gap to TARGET_MSE_G2.
 
     Independent zero-mean noise adds 3 sd² to the per-vector MSE, so with every other term fixed
     noise_g = sqrt((target - mse_without_noise) / 3). Returns (noise_g, check_mse_with_that_noise)."""
-    clean = []
-    for name in CALIBRATION_CLIPS:
-        motion = load_clip(sample_clips()[name], fps=30)
-        clean.append(virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS), clip_g=12))
+    clean = _calibration_readings()
     base = SensorErrorModel.seed000()
-
-    def mse(model: SensorErrorModel) -> float:
-        rng = np.random.default_rng(seed)
-        return float(np.mean([mean_squared_error_g2(model.apply(c, 30, rng), c) for c in clean]))
-
-    without = mse(base.with_noise(0.0))
+    without = _gap(base.with_noise(0.0), clean, seed)
     noise = float(np.sqrt(max(TARGET_MSE_G2 - without, 0.0) / 3))
-    return noise, mse(base.with_noise(noise))
+    return noise, _gap(base.with_noise(noise), clean, seed)
+
+
+def calibrate_real_noise(seed: int = 0) -> tuple[float, float]:
+    """Solve `noise_rel` of `SensorErrorModel.measured_real()` for a gap of REAL_GAP_G2: the signal-scaled
+    noise adds 3 E[(noise_g + r |dyn|)²] to the MSE; the quadratic in r is solved on the calibration clips.
+    Returns (noise_rel, check_mse_with_it)."""
+    clean = _calibration_readings()
+    base = SensorErrorModel.measured_real()
+    without = _gap(replace(base, noise_g=0.0, noise_rel=0.0), clean, seed)
+    dyn = np.concatenate([np.linalg.norm(c - c.mean(axis=0), axis=-1).ravel() for c in clean])
+    # 3 (n² + 2 n r E|dyn| + r² E|dyn|²) = target - without
+    a, b, c = 3 * np.mean(dyn ** 2), 6 * base.noise_g * np.mean(dyn), 3 * base.noise_g ** 2 - (REAL_GAP_G2 - without)
+    r = float((-b + np.sqrt(max(b * b - 4 * a * c, 0.0))) / (2 * a))
+    return r, _gap(replace(base, noise_rel=r), clean, seed)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -91,6 +111,9 @@ def main(argv: list[str] | None = None) -> None:
     noise, check = calibrate_seed000_noise()
     print(f"\nseed-000 error model: noise_g solved = {noise:.3f} g (shipped preset uses "
           f"{SensorErrorModel.seed000().noise_g:.3f}); MSE with it = {check:.3f} g^2 (target {TARGET_MSE_G2})")
+    rel, check = calibrate_real_noise()
+    print(f"measured-real error model: noise_rel solved = {rel:.3f} (shipped preset uses "
+          f"{SensorErrorModel.measured_real().noise_rel:.3f}); MSE with it = {check:.3f} g^2 (target {REAL_GAP_G2})")
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ from engine.mocap import (SEED003_SENSORS, Motion, SensorErrorModel, forward_kin
 from engine.olng.config import KnowledgeBaseConfig, OLNGConfig
 from engine.olng.metrics import ClipErrors, score
 from engine.olng.knowledge_base import KnowledgeBase
+from engine.graph.warp import RootWarp
 from engine.olng.mocap_bridge import build_knowledge_base
 from engine.olng.pose import quat_to_matrix, split_heading
 from engine.olng.reconstructor import OLNGReconstructor
@@ -39,12 +40,15 @@ def simulate_readings(motion: Motion, kb: KnowledgeBase, error_model: SensorErro
 
 
 def reconstruct(kb: KnowledgeBase, config: OLNGConfig, acc_g: np.ndarray, root_pos_m: np.ndarray,
-                root_quat: np.ndarray) -> tuple[np.ndarray, np.ndarray, OLNGReconstructor]:
-    """Stream a take; returns world joints (F, J, 3), root rotations (F, 3, 3) and the reconstructor (timings)."""
-    rec = OLNGReconstructor(kb, config)
+                root_quat: np.ndarray, camera: tuple[np.ndarray, np.ndarray] | None = None,
+                root_warp: RootWarp = RootWarp()) -> tuple[np.ndarray, np.ndarray, OLNGReconstructor]:
+    """Stream a take; returns world joints (F, J, 3), root rotations (F, 3, 3) and the reconstructor (timings).
+    `camera` = (ground (F, 2) m, body heading (F,) rad) per frame pulls the root onto the camera track."""
+    rec = OLNGReconstructor(kb, config, root_warp)
     heading, _ = split_heading(root_quat[None])
     rec.reset_root(root_pos_m, float(heading[0]))
-    poses = [rec.push(a) for a in acc_g]
+    cam_pos, cam_head = camera if camera is not None else ([None] * len(acc_g), [None] * len(acc_g))
+    poses = [rec.push(a, cam_pos[t], cam_head[t]) for t, a in enumerate(acc_g)]
     world = np.stack([p.joints_world_m for p in poses])
     root_rot = quat_to_matrix(np.stack([p.local_quats[0] for p in poses]))
     return world, root_rot, rec

@@ -2,7 +2,10 @@
 
 `OLNGReconstructor.push(acc_g)` takes one reading per sensor (S, 3) in g, at the knowledge-base rate, and returns
 the pose for that same frame (no look-ahead, so the console can use it live). Root motion is not sensed: it is
-the Eq. 1-weighted average of the hypotheses' root velocity, yaw rate and height, integrated (spec A2.9).
+the Eq. 1-weighted average of the hypotheses' root velocity, yaw rate and height, integrated (spec A2.9) -- and,
+when the overhead camera's position / heading are passed to `push`, pulled towards them after every frame by the
+motion graph's bounded root warp (engine/graph/warp.py; the first fix places the root), so the global error is the
+camera's, not metres of integrated drift.
 """
 from __future__ import annotations
 
@@ -11,7 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine.mocap import quaternions
+from engine.graph.warp import RootWarp, warp_one
+from engine.mocap import heading_from_positions, joint_roles, quaternions
 
 from engine.olng.config import OLNGConfig
 from engine.olng.energy import FrameProblem, KernelEnergy
@@ -49,8 +53,15 @@ class StepTimings:
 class OLNGReconstructor:
     """Online reconstruction against a KnowledgeBase (see module doc)."""
 
-    def __init__(self, kb: KnowledgeBase, config: OLNGConfig = OLNGConfig()) -> None:
+    def __init__(self, kb: KnowledgeBase, config: OLNGConfig = OLNGConfig(),
+                 root_warp: RootWarp = RootWarp()) -> None:
+        from engine.olng.mocap_bridge import skeleton_from_rig
+
         self.kb = kb
+        self.root_warp = root_warp
+        roles = joint_roles(skeleton_from_rig(kb.rig))
+        self._hips = (roles["left_hip"], roles["right_hip"])
+        self._fixed = False  # has a camera fix placed the root yet?
         self.config = config
         self.graph = OnlineLazyNeighbourhoodGraph(kb.clip_id, config.graph, kb.alpha_g)
         self.energy = KernelEnergy(kb.rig, kb.sensors.tip, config.energy)
@@ -100,8 +111,10 @@ class OLNGReconstructor:
             smooth = 2 * x_t - self._x_hist[-2] + acc * dt**2
         return FrameProblem(weights, pose_targets, motion, smooth, control, start_pose=self._q_prev)
 
-    def push(self, acc_g: np.ndarray) -> ReconstructedPose:
-        """Reconstruct the pose for this input frame. acc_g: (S, 3) readings in g, sensor order of the database."""
+    def push(self, acc_g: np.ndarray, camera_position_m: np.ndarray | None = None,
+             camera_heading_rad: float | None = None) -> ReconstructedPose:
+        """Reconstruct the pose for this input frame. acc_g: (S, 3) readings in g, sensor order of the database;
+        optional camera fix: ground position (x, z) m and body heading rad (NaN / None = no fix this frame)."""
         alpha = np.asarray(acc_g, dtype=float).reshape(-1)
         if alpha.shape != (self.kb.alpha_g.shape[1],):
             raise ValueError(f"expected {self.kb.alpha_g.shape[1] // 3} sensors x 3 axes, got shape {np.shape(acc_g)}")
@@ -127,9 +140,28 @@ class OLNGReconstructor:
         self.timings.frames += 1
         self.timings.subspace_dims.append(self.energy.last_dims)
         self._alpha_prev = alpha.reshape(-1, 3)
-        return self._emit(q, nodes, weights)
+        return self._emit(q, nodes, weights, camera_position_m, camera_heading_rad)
 
-    def _emit(self, q: np.ndarray, nodes: np.ndarray, weights: np.ndarray) -> ReconstructedPose:
+    def _follow_camera(self, joints_untwisted: np.ndarray, position_m, heading_rad) -> None:
+        """Pull the integrated root towards a camera fix (the first one places it). The camera reports where the
+        body faces (hips), the integrated yaw is the root's twist: their offset is read off this frame's pose
+        (`joints_untwisted`: root-relative joints turned by the root's rotation without the integrated yaw)."""
+        pos = None if position_m is None or np.any(np.isnan(position_m)) else complex(position_m[0], position_m[1])
+        head = None if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
+        if pos is None and head is None:
+            return
+        offset = float(heading_from_positions(joints_untwisted[None], *self._hips)[0])
+        ground, body = complex(self._root[0], self._root[2]), self._heading + offset
+        if not self._fixed:
+            ground, body = (pos if pos is not None else ground), (head if head is not None else body)
+            self._fixed = True
+        else:
+            ground, body = warp_one(ground, body, pos, head, self.root_warp, self.kb.fps)
+        self._root[0], self._root[2] = ground.real, ground.imag
+        self._heading = body - offset
+
+    def _emit(self, q: np.ndarray, nodes: np.ndarray, weights: np.ndarray, camera_position_m=None,
+              camera_heading_rad=None) -> ReconstructedPose:
         kb, dt = self.kb, self.kb.dt_s
         pos, _ = fk_root_frame(kb.rig, q[None])
         joints_root = pos[0]
@@ -142,6 +174,7 @@ class OLNGReconstructor:
         self._root[1] = float(weights @ kb.root_height_m[nodes])
         self._heading += dt * float(weights @ kb.yaw_rate_rps[nodes])
         quats = pose_quats(kb.rig, q)
+        self._follow_camera(joints_root @ quat_to_matrix(quats[0]).T, camera_position_m, camera_heading_rad)
         quats[0] = quaternions.multiply(yaw_quat(np.array(self._heading)), quats[0])
         world = self._root + joints_root @ quat_to_matrix(quats[0]).T
         return ReconstructedPose(q=q, local_quats=quats, root_pos_m=self._root.copy(), heading_rad=self._heading,

@@ -63,9 +63,15 @@ def default_engine(n_worn: int) -> str:
     return {4: "olng", 1: "hmm"}.get(n_worn, "motion-graph")
 
 
-def motion_graph_spec(graph: Any, database: str | Path, parents: np.ndarray | None = None) -> EngineSpec:
-    """Fixed-lag Viterbi over a `engine.graph.MotionGraph` (from `courtside build-graph` or the console's cache)."""
+def motion_graph_spec(graph: Any, database: str | Path, parents: np.ndarray | None = None,
+                      warp: Any = None) -> EngineSpec:
+    """Fixed-lag Viterbi over a `engine.graph.MotionGraph` (from `courtside build-graph` or the console's cache),
+    with `courtside synthesize`'s defaults: root warping towards the camera (``warp``, default
+    `engine.graph.warp.RootWarp()`) and the weights that go with it. The confidence reference (the cost per sample
+    of the graph's own clips) is measured once here, not at every engine restart."""
+    from engine.graph.confidence import reference_cost_per_sample
     from engine.graph.online import FixedLagSynthesizer
+    from engine.graph.warp import RootWarp, default_weights
 
     if parents is None:
         if graph.skeleton is None:
@@ -74,14 +80,18 @@ def motion_graph_spec(graph: Any, database: str | Path, parents: np.ndarray | No
     names = tuple(graph.config.sensor_names)
     if len(names) != graph.n_sensors:
         raise EngineMismatchError(f"{database}: graph has {graph.n_sensors} sensor columns but names {list(names)}")
+    warp = RootWarp() if warp is None else warp
+    weights = default_weights(warp)
+    reference = reference_cost_per_sample(graph, weights, warp)
     return EngineSpec("motion-graph", str(database), names, float(graph.config.fps), np.asarray(parents),
-                      lambda lag_s: FixedLagSynthesizer(graph, lag_s))
+                      lambda lag_s: FixedLagSynthesizer(graph, lag_s, weights, warp=warp,
+                                                        confidence_reference=reference))
 
 
 class OLNGEngine:
-    """`engine.olng.OLNGReconstructor` in the `OnlineEngine` protocol. It decides each frame at once (no lag)
-    and does not use the camera; a dropout frame holds the last reading (the reconstructor's own rule), and
-    nothing is emitted until the first complete reading."""
+    """`engine.olng.OLNGReconstructor` in the `OnlineEngine` protocol. It decides each frame at once (no lag), its
+    integrated root follows the camera fix when there is one; a dropout frame holds the last reading (the
+    reconstructor's own rule), and nothing is emitted until the first complete reading."""
 
     def __init__(self, kb: Any) -> None:
         from engine.olng.reconstructor import OLNGReconstructor
@@ -97,7 +107,7 @@ class OLNGEngine:
             return []
         self.started = True
         reading = np.full((self.n_sensors, 3), np.nan) if acc_g is None else acc_g
-        return [EnginePose(self.t, self.rec.push(reading).joints_world_m)]
+        return [EnginePose(self.t, self.rec.push(reading, pos_m, heading_rad).joints_world_m)]
 
     def flush(self) -> list[EnginePose]:
         return []

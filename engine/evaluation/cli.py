@@ -1,0 +1,169 @@
+"""`courtside evaluate`: the seed-000 leave-one-out (default, `--protocol loo`, engine.graph.cli) or the
+protocols of issue 11:
+
+    courtside evaluate --protocol chained --mocap-dir /work/shared/mocap --graph g.npz --takes 3 --take-seconds 60
+    courtside evaluate --protocol loco --mocap-dir /work/shared/mocap --graph g.npz --groups walk-left,walk-right
+    courtside evaluate --protocol loso ...   (leave one style out; the Bandai sets name no performers)
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+
+from engine.errors import CourtsideError
+from engine.graph.cli import _add_database_args, database_paths, evaluate_main as leave_one_out_main, load_clips
+from engine.graph.config import GraphConfig
+from engine.graph.graph import MotionGraph, build_from_clips
+from engine.graph.viterbi import SearchWeights
+from engine.graph.warp import RootWarp
+from engine.mocap import SensorErrorModel
+
+from . import protocols, table
+from .labels import clip_label
+from .simulate import CameraModel
+from .takes import plan_chained_takes
+
+PROTOCOLS = ("loo", "chained", "loco", "loso")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="courtside evaluate", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
+    _add_database_args(p)
+    p.add_argument("--protocol", choices=PROTOCOLS, default="loo")
+    p.add_argument("--graph", help="motion graph .npz from `courtside build-graph` over the same clips "
+                                   "(default: build one here, see --variant)")
+    p.add_argument("--variant", default="msv", choices=["plain", "msv", "interp", "msv+interp"],
+                   help="graph to build when no --graph is given")
+    p.add_argument("--engines", default=",".join(protocols.ENGINES),
+                   help=f"comma list of {', '.join(protocols.ENGINES)}")
+    p.add_argument("--sensor-sets", default="6,4,2,1", help="worn-sensor counts for the graph and the NN")
+    p.add_argument("--takes", type=int, default=3, help="chained: number of takes")
+    p.add_argument("--take-seconds", type=float, default=60.0, help="chained: minimum take length (s)")
+    p.add_argument("--first-content", default="walk", help="chained: content each take starts with, if present")
+    p.add_argument("--max-clip-seconds", type=float, default=15.0,
+                   help="chained: a longer held-out clip contributes only its first this many seconds")
+    p.add_argument("--groups", default="walk-left,walk-right", help="loco/loso: contents (styles) to leave out")
+    p.add_argument("--test-clips", type=int, default=5, help="loco/loso: clips scored per group (0 = all); "
+                                                             "loo: as in the leave-one-out")
+    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
+                   help="motion-graph weights (default 0.5 10 3 with root warping, 0.5 1 1 without)")
+    p.add_argument("--root-warp", nargs=2, type=float, default=[0.5, 0.25], metavar=("GAIN_P", "GAIN_O"),
+                   help="root warping towards the camera for all engines (0 0 = off; engine/graph/warp.py)")
+    p.add_argument("--camera-noise-m", type=float, default=0.05)
+    p.add_argument("--camera-noise-deg", type=float, default=10.0)
+    p.add_argument("--camera-hz", type=float, default=30.0)
+    p.add_argument("--sensor-noise", choices=["seed000", "clean"], default="seed000")
+    p.add_argument("--json", help="write every row's summary and per-second traces here")
+    p.add_argument("--seed", type=int, default=0)
+    return p
+
+
+def _config(args: argparse.Namespace) -> protocols.EvalConfig:
+    engines = tuple(e for e in args.engines.split(",") if e)
+    unknown = sorted(set(engines) - set(protocols.ENGINES))
+    if unknown:
+        raise CourtsideError(f"--engines: unknown {', '.join(unknown)} (known: {', '.join(protocols.ENGINES)})")
+    try:
+        sets = tuple(int(s) for s in args.sensor_sets.split(",") if s)
+    except ValueError:
+        raise CourtsideError(f"--sensor-sets: expected counts like 6,4,2,1, got {args.sensor_sets!r}") from None
+    bad = [s for s in sets if s not in protocols.SENSOR_SETS]
+    if bad:
+        raise CourtsideError(f"--sensor-sets: {bad} not among {sorted(protocols.SENSOR_SETS)}")
+    return protocols.EvalConfig(
+        sensor_sets=sets, engines=engines,
+        camera=CameraModel(args.camera_noise_m, float(np.radians(args.camera_noise_deg)), args.camera_hz),
+        error_model=SensorErrorModel.seed000() if args.sensor_noise == "seed000" else None,
+        weights=SearchWeights(*args.weights) if args.weights else (
+            SearchWeights.camera_following() if any(args.root_warp) else SearchWeights()),
+        warp=RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off(), seed=args.seed)
+
+
+def _database(args: argparse.Namespace) -> protocols.Database:
+    config = GraphConfig(msv="msv" in args.variant, interp="interp" in args.variant,
+                         transition_threshold_m=args.threshold)
+    motions, clips, sensor_model = load_clips(args, config)
+    labels = [clip_label(p) for p in database_paths(args)]
+    if args.graph:
+        graph = MotionGraph.load(args.graph)
+        if graph.clip_names != [c.name for c in clips]:
+            raise CourtsideError(f"{args.graph}: built from other clips than the database given here "
+                                 f"({len(graph.clip_names)} vs {len(clips)} clips); build it with the same "
+                                 "--mocap-dir/--pattern")
+    else:
+        graph = build_from_clips(clips, config, sensor_model)
+        graph.skeleton = motions[0].skeleton
+    return protocols.Database(motions, labels, clips, graph)
+
+
+def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.RowScores]], fps: float,
+                 extra: dict) -> None:
+    from .metrics import summary
+
+    out = {**extra, "groups": {}}
+    for group, results in per_group.items():
+        out["groups"][group] = [{"engine": r.engine, "sensors": r.sensors, "camera": r.camera,
+                                 **summary(s.errors), "clips_used": s.clips_used, "longest_run_s": s.longest_run_s,
+                                 "seconds": s.seconds, "per_second": protocols.traces(s, fps)}
+                                for r, s in results.items()]
+    with open(path, "w") as fh:
+        json.dump(out, fh, indent=1)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    first = argparse.ArgumentParser(add_help=False)
+    first.add_argument("--protocol", choices=PROTOCOLS, default="loo")
+    known, rest = first.parse_known_args(argv)
+    if known.protocol == "loo" and not {"-h", "--help"} & set(argv):
+        return leave_one_out_main(rest)  # seed 000 Tables 2/3, with its own options (--variants ...)
+    args = build_parser().parse_args(argv)
+    if not (args.clips or args.sample or args.mocap_dir):
+        args.sample = True
+    cfg = _config(args)
+    t0 = time.perf_counter()
+    db = _database(args)
+    fps = db.graph.config.fps
+    print(f"database: {len(db.motions)} clips, {sum(c.n_frames for c in db.clips)} frames at {fps:g} Hz; graph "
+          f"{db.graph.n_nodes} nodes, {db.graph.n_edges} edges ({args.graph or 'built: ' + args.variant}); "
+          f"sensor noise: {args.sensor_noise}; camera: {args.camera_noise_m * 100:g} cm / "
+          f"{args.camera_noise_deg:g} deg at {args.camera_hz:g} Hz; seed {args.seed}")
+    if args.protocol == "chained":
+        contents = [lab.content for lab in db.labels]
+        plan = plan_chained_takes(contents, [c.n_frames / fps for c in db.clips], args.takes, args.take_seconds,
+                                  args.seed, args.first_content, args.max_clip_seconds)
+        results, takes = protocols.chained_takes(db, plan, cfg, args.max_clip_seconds)
+        for k, take in enumerate(takes):
+            print(f"take {k + 1}: {take.duration_s:.1f} s from {len(take.segments)} held-out clips: "
+                  + " > ".join(s.label for s in take.segments))
+        print(table.format_table(results, fps))
+        key = protocols.Row("motion graph", str(max(cfg.sensor_sets)), protocols.CAMERA_ON)
+        if key in results:
+            print(f"per-second global joint error (cm), motion graph, {key.sensors} sensors + camera:")
+            for k, e in enumerate(results[key].errors):
+                from .metrics import per_second
+                print(table.format_trace(f"  take {k + 1}", per_second(e.global_cm, fps)))
+        per_group = {"chained": results}
+        extra = {"takes": [[db.clips[s.clip].name for s in t.segments] for t in takes]}
+    else:
+        key = "content" if args.protocol == "loco" else "style"
+        groups = [g for g in args.groups.split(",") if g]
+        per_group = protocols.group_out(db, key, groups, args.test_clips, cfg)
+        print(f"leave one {key} out: every clip of the {key} removed from every database; "
+              f"up to {args.test_clips or 'all'} of its clips scored, each as its own take")
+        print(table.HEADER)
+        print("-" * len(table.HEADER))
+        for g, results in per_group.items():
+            print(f"[{key} {g}]")
+            print("\n".join(table.format_rows(results, fps)))
+        extra = {}
+    print(f"total {time.perf_counter() - t0:.0f} s")
+    if args.json:
+        _report_json(args.json, per_group, fps, {"protocol": args.protocol, "argv": argv, **extra})
+    return 0

@@ -1,0 +1,86 @@
+"""What the worn sensors and the overhead camera would report on a take, simulated from its truth.
+
+Accelerometers: engine.mocap virtual sensors computed clip by clip (a seam between two clips is a pose jump
+that no body makes, so it must not become a finite-difference spike), concatenated, then perturbed ONCE by a
+`SensorErrorModel` so bias, gain and mounting errors stay constant over the take, as one set of hardware
+would. Camera: root ground position and hips heading with Gaussian noise, one fix every 1/rate_hz seconds;
+samples between fixes are NaN (the motion graph skips the term; `filled_camera` holds the last fix for the
+baselines that need a value every frame).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.errors import CourtsideError
+from engine.mocap import (Motion, SensorErrorModel, resample, standard_placements, virtual_accelerometers,
+                          virtual_gyroscopes)
+
+from .takes import Take
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """The overhead camera as the evaluation simulates it (issue 11: 5 cm / 10° noise)."""
+
+    position_noise_m: float = 0.05
+    heading_noise_rad: float = float(np.radians(10.0))
+    rate_hz: float = 30.0
+
+
+@dataclass
+class CameraTrack:
+    """Camera fixes on the take's frame grid; NaN where the camera gave no fix."""
+
+    position_m: np.ndarray  # (T, 2)
+    heading_rad: np.ndarray  # (T,)
+
+    def filled(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every frame holds the latest fix (frames before the first fix take the first)."""
+        ok = np.isfinite(self.heading_rad) & np.all(np.isfinite(self.position_m), axis=1)
+        if not ok.any():
+            raise CourtsideError("the camera track has no fix")
+        idx = np.maximum.accumulate(np.where(ok, np.arange(len(ok)), -1))
+        idx = np.where(idx < 0, np.flatnonzero(ok)[0], idx)
+        return self.position_m[idx], self.heading_rad[idx]
+
+
+def camera_track(take: Take, model: CameraModel, rng: np.random.Generator) -> CameraTrack:
+    """Noisy fixes at `model.rate_hz` (at most the take rate), the first at t = 0."""
+    if not 0 < model.rate_hz <= take.fps + 1e-9:
+        raise CourtsideError(f"camera rate {model.rate_hz:g} Hz must be in (0, {take.fps:g}] (the take rate)")
+    n = take.n_frames
+    fix = np.unique(np.round(np.arange(0.0, n / take.fps, 1.0 / model.rate_hz) * take.fps).astype(int))
+    fix = fix[fix < n]
+    pos = np.full((n, 2), np.nan)
+    head = np.full(n, np.nan)
+    pos[fix] = take.ground_m[fix] + rng.normal(0.0, model.position_noise_m, (len(fix), 2))
+    head[fix] = take.heading_rad[fix] + rng.normal(0.0, model.heading_noise_rad, len(fix))
+    return CameraTrack(pos, head)
+
+
+def per_segment(take: Take, fps: float, reading: Callable[[Motion], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """`reading` of each segment resampled to `fps`, concatenated, with each output frame's take time (s)."""
+    out, times = [], []
+    for seg in take.segments:
+        m = resample(seg.motion, fps)
+        out.append(reading(m))
+        times.append(seg.start / take.fps + np.arange(m.n_frames) / fps)
+    return np.concatenate(out), np.concatenate(times)
+
+
+def accelerometers(take: Take, sensor_names: tuple[str, ...] | list[str], error_model: SensorErrorModel | None,
+                   rng: np.random.Generator, fps: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(acc (T', S, 3) g, times (T',) s) of the named standard sensors at `fps` (default: the take rate), each
+    segment's sensors placed on its own skeleton (performers differ in size)."""
+    fps = take.fps if fps is None else fps
+    acc, times = per_segment(take, fps, lambda m: virtual_accelerometers(m, standard_placements(m.skeleton, sensor_names)))
+    return (error_model.apply(acc, fps, rng) if error_model is not None else acc), times
+
+
+def gyroscopes(take: Take, sensor_names: tuple[str, ...] | list[str], fps: float | None = None) -> np.ndarray:
+    """(T', S, 3) rad/s, clean (the HMM's IMU feature; no gyro error model exists in engine.mocap yet)."""
+    return per_segment(take, take.fps if fps is None else fps,
+                       lambda m: virtual_gyroscopes(m, standard_placements(m.skeleton, sensor_names)))[0]

@@ -1,0 +1,78 @@
+"""`courtside evaluate --protocol ...` end to end on the shipped clips, through the dispatcher."""
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+
+from gateway.cli import main as courtside
+
+
+def table_rows(out: str) -> dict[tuple[str, str, str], list[float]]:
+    rows = {}
+    for line in out.splitlines():
+        m = re.match(r"(\S.*?)\s{2,}(\S+) (yes|no|start only)\s+([-\d. nan]+?)(\s+-\s+-)?\s+([\d.]+)$", line)
+        if m:
+            rows[(m.group(1).strip(), m.group(2), m.group(3))] = [float(v) for v in m.group(4).split()]
+    return rows
+
+
+def test_chained_takes_with_all_engines_and_baselines(tmp_path, capsys):
+    out_json = tmp_path / "eval.json"
+    assert courtside(["evaluate", "--protocol", "chained", "--sample", "--takes", "1", "--take-seconds", "3",
+                      "--sensor-sets", "6,1", "--json", str(out_json)]) == 0
+    out = capsys.readouterr().out
+    rows = table_rows(out)
+    for key in [("mean pose", "-", "yes"), ("motion graph", "6", "yes"), ("motion graph", "1", "no"),
+                ("camera only (W_A=0)", "0", "yes"), ("nearest neighbour", "6", "yes"),
+                ("olng (wrists+ankles)", "4", "start only"), ("hmm (right_foot)", "1", "start only")]:
+        assert key in rows, (key, out)
+    mean = rows[("mean pose", "-", "yes")]
+    assert mean[2] == 0.0  # skill of the reference is 0 by definition
+    assert 3.0 < mean[3] < 10.0  # root position error of the camera placement ~ 5 cm noise x 1.25
+    data = json.loads(out_json.read_text())
+    graph_row = next(r for r in data["groups"]["chained"] if r["engine"] == "motion graph" and r["camera"] == "yes")
+    take_s = graph_row["frames"] / 30.0
+    assert take_s >= 3.0
+    assert len(graph_row["per_second"][0]["global_cm"]) == int(np.ceil(graph_row["frames"] / 30.0))
+    assert "per-second global joint error" in out
+
+
+def test_leave_one_content_out_holds_out_every_clip_of_the_content(capsys):
+    assert courtside(["evaluate", "--protocol", "loco", "--sample", "--groups", "16_01,16_35",
+                      "--engines", "graph,baselines", "--sensor-sets", "6"]) == 0
+    out = capsys.readouterr().out
+    assert "[content 16_01]" in out and "[content 16_35]" in out
+    assert len(table_rows(out)) == 7  # mean x2, graph x2, camera only, NN x2 (both groups share the keys)
+
+
+def test_held_out_databases_hold_nothing_of_the_held_out_clips(motions):
+    from engine.evaluation.labels import ClipLabel
+    from engine.evaluation.protocols import Database
+    from engine.graph.config import GraphConfig
+    from engine.graph.graph import build_from_clips
+    from engine.graph.mocap_adapter import clips_from_motions
+    from engine.mocap import SEED000_SENSORS, standard_placements
+
+    cfg = GraphConfig(msv=True, sensor_names=list(SEED000_SENSORS))
+    clips = clips_from_motions(motions, standard_placements(motions[0].skeleton), cfg)
+    db = Database(motions, [ClipLabel("walk" if i % 2 else "run", "") for i in range(len(motions))], clips,
+                  build_from_clips(clips, cfg))
+    held = db.held_out([1, 3, 5])
+    assert not np.isin(held.graph.node_clip, [1, 3, 5]).any()
+    assert set(np.unique(held.graph.node_clip)) == {0, 2, 4, 6, 7, 8}
+    assert held.train == [0, 2, 4, 6, 7, 8]  # what OLNG and the HMM are trained on
+
+
+def test_bad_arguments_are_one_line_errors(capsys):
+    assert courtside(["evaluate", "--protocol", "loco", "--sample", "--groups", "no-such"]) == 2
+    err = capsys.readouterr().err
+    assert "no-such" in err and "Traceback" not in err
+    assert courtside(["evaluate", "--protocol", "chained", "--sample", "--takes", "5", "--take-seconds", "60"]) == 2
+    assert "not enough held-out clips" in capsys.readouterr().err
+
+
+def test_old_leave_one_out_still_runs(capsys):
+    assert courtside(["evaluate", "--sample", "--variants", "plain", "--test-clips", "1"]) == 0
+    assert "acc 6 + pos+head" in capsys.readouterr().out
