@@ -47,6 +47,7 @@ def compare_live_and_offline(live_path, offline_path) -> int:
     rows = np.searchsorted(offline.frame, live.frame[comparable])
     assert np.array_equal(offline.frame[rows], live.frame[comparable])
     assert np.array_equal(live.joint_positions_m[comparable], offline.joint_positions_m[rows])
+    assert np.array_equal(live.confidence[comparable], offline.confidence[rows])
     return int(comparable.sum())
 
 

@@ -163,4 +163,5 @@ def test_gateway_and_console_as_two_processes_live_equals_offline(court):
     rows = np.searchsorted(offline.frame, live.frame[mine])
     assert mine.sum() > 150 and np.array_equal(offline.frame[rows], live.frame[mine])
     assert np.array_equal(live.joint_positions_m[mine], offline.joint_positions_m[rows])
+    assert np.array_equal(live.confidence[mine], offline.confidence[rows])  # the engine's confidence too
     assert offline.meta["frames_with_camera"] > 100 and offline.meta["frames_invalid"] == 0
