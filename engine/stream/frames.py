@@ -133,9 +133,12 @@ class FrameResampler:
         out = np.empty((len(index), len(self.sensors), 3))
         valid = np.ones(len(index), bool)
         for k, s in enumerate(self.sensors):
+            # only the samples bracketing and inside these windows (the results depend on nothing else)
             t, v = self._t[s], self._v[s]
-            out[:, k] = box_mean(t, v, lo, hi)
-            valid &= window_covered(t, lo, hi, self.max_gap_s)
+            i0 = max(0, int(np.searchsorted(t, lo[0], side="right")) - 1)
+            i1 = int(np.searchsorted(t, hi[-1], side="left")) + 1
+            out[:, k] = box_mean(t[i0:i1], v[i0:i1], lo, hi)
+            valid &= window_covered(t[i0:i1], lo, hi, self.max_gap_s)
         out[~valid] = np.nan  # never a made-up value across a dropout
         self._next = last + 1
         self._trim((self._next - 0.5) / rate - self.history_s)
