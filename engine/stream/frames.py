@@ -14,9 +14,11 @@ timestamps and values only — never of how they were batched, when they arrived
 * Dropouts are never interpolated across: a frame whose window touches a gap of more than ``max_gap_s`` in any
   sensor is *invalid*; its accelerations are NaN and the caller steps the search without them.
 * Live, a frame is produced once every live sensor has samples past its window (nothing is extrapolated); a
-  sensor more than ``max_gap_s`` behind the newest one stops holding frames back, so a dead sensor degrades
-  synthesis instead of freezing it. Which frames are valid does not depend on that: a frame produced while a
-  sensor was silent is invalid because of the silence, and offline the same silence is a gap > max_gap_s.
+  sensor more than ``wait_s`` behind the newest one stops holding frames back, so a dead sensor stalls synthesis
+  for ``wait_s`` once and then degrades it instead of freezing it. A sensor that is merely late (a loaded
+  gateway, a slow network) is waited for up to ``wait_s`` (>= ``max_gap_s``), so its frames come out exactly as
+  offline; a frame produced without a sensor that then turns out to have been only late (by more than
+  ``wait_s``) is the one case where live and offline differ.
 """
 from __future__ import annotations
 
@@ -69,10 +71,14 @@ class FrameResampler:
     ``history_s`` of samples are kept behind the next frame so `start_at` can move the clock back a little (a
     recording-start notice that arrives late still starts the take's synthesis at its defined frame)."""
 
-    def __init__(self, sensors: Sequence[Hashable], rate_hz: float, max_gap_s: float = 0.25,
+    def __init__(self, sensors: Sequence[Hashable], rate_hz: float, max_gap_s: float = 0.25, wait_s: float = 1.0,
                  history_s: float = 2.0) -> None:
         if max_gap_s < 1.0 / rate_hz:
             raise ValueError(f"max_gap_s {max_gap_s} must be at least one frame period ({1.0 / rate_hz:.4f} s)")
+        if wait_s < max_gap_s:
+            raise ValueError(f"wait_s {wait_s} must be at least max_gap_s {max_gap_s} (or live frames would be "
+                             "marked invalid for gaps offline sees as none)")
+        self.wait_s = wait_s
         self.sensors = list(sensors)
         self.rate_hz = float(rate_hz)
         self.max_gap_s = max_gap_s
@@ -118,7 +124,7 @@ class FrameResampler:
             return FrameBatch.empty(len(self.sensors))
         rate = self.rate_hz
         lasts = np.array([t[-1] for t in self._t.values()])
-        live = lasts >= lasts.max() - self.max_gap_s
+        live = lasts >= lasts.max() - self.wait_s
         # the last frame whose whole window [k - 1/2, k + 1/2] / rate every live sensor has covered
         last = int(math.floor(lasts[live].min() * rate - 0.5 + _EPS))
         if until_s < np.inf:
@@ -161,7 +167,8 @@ def resample_uniform(acc_g: np.ndarray, fps_in: float, rate_hz: float, max_gap_s
     (NaN rows are dropouts: they are removed, so the frames around them come out invalid)."""
     acc_g = np.asarray(acc_g, float)
     t = t0_s + np.arange(len(acc_g)) / fps_in
-    res = FrameResampler(range(acc_g.shape[1]), rate_hz, max(max_gap_s, 1.0 / rate_hz, 1.5 / fps_in))
+    gap = max(max_gap_s, 1.0 / rate_hz, 1.5 / fps_in)
+    res = FrameResampler(range(acc_g.shape[1]), rate_hz, gap, wait_s=gap)
     for k in range(acc_g.shape[1]):
         ok = ~np.isnan(acc_g[:, k]).any(axis=1)
         res.add(k, t[ok], acc_g[ok, k])

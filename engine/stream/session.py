@@ -5,10 +5,11 @@ Why a single object: live and offline synthesis of the same take must give the s
 (live: batch by batch as the gateway streams them; offline: the whole recorded take at once) and every decision
 in it depends on timestamps, never on arrival: frames on the absolute clock (`engine.stream.frames`), the camera
 fix of each frame's own time (`engine.stream.camera`), the engine pushed one frame at a time from a defined first
-frame. Two conditions are physical, not algorithmic, and are stated where they apply: a sensor or the camera
-whose data reach the console more than ``max_gap_s`` late is treated as a dropout live (offline it is not), and
-a client that drops samples (the gateway drops display data for a client that falls behind) sees less than the
-recorder wrote.
+frame. Two conditions are physical, not algorithmic, and are stated where they apply: a sensor whose data reach
+the console more than ``wait_s`` (1 s) behind the others, or a camera more than ``camera_wait_s`` (2 s) behind the
+sensors, is treated as a dropout live (offline it is not) — waiting longer would freeze the display whenever a
+device dies —, and a client that drops samples (the gateway drops display data for a client that falls behind)
+sees less than the recorder wrote.
 
 A take's synthesis starts at a frame fixed by the take itself: ``TAKE_START_MARGIN_S`` after the recorder's
 ``started_t_host_s`` (the recording meta and the live ``recording`` state both carry it). The margin lets every
@@ -69,14 +70,17 @@ class StreamSynthesis:
     sensors cover) fixes the first frame; `restart` starts a fresh engine from a new first frame."""
 
     def __init__(self, make_engine: Callable[[], OnlineEngine], sensors: Sequence[Hashable], rate_hz: float, *,
-                 start_s: float | None = None, max_gap_s: float = 0.25, camera_max_gap_s: float = 0.5,
-                 use_camera_heading: bool = False) -> None:
+                 start_s: float | None = None, max_gap_s: float = 0.25, wait_s: float = 1.0,
+                 camera_max_gap_s: float = 0.5, camera_wait_s: float = 2.0, use_camera_heading: bool = False) -> None:
+        if camera_wait_s < camera_max_gap_s:
+            raise ValueError(f"camera_wait_s {camera_wait_s} must be at least camera_max_gap_s {camera_max_gap_s}")
         self._make = make_engine
         self.rate_hz = float(rate_hz)
         self.sensors = list(sensors)
         self.use_camera_heading = use_camera_heading
-        self.resampler = FrameResampler(self.sensors, rate_hz, max_gap_s)
+        self.resampler = FrameResampler(self.sensors, rate_hz, max_gap_s, wait_s)
         self.camera = CameraTrack(camera_max_gap_s)
+        self.camera_wait_s = camera_wait_s
         self.engine: OnlineEngine | None = None
         self.first_frame: int | None = None  # frame of the engine's push index 0
         self.stats = StreamStats()
@@ -102,7 +106,7 @@ class StreamSynthesis:
     def step(self) -> list[FramePose]:
         """Push every frame that is complete now; returns the poses the engine decided."""
         until = np.inf
-        if not self.camera.empty and self.camera.newest_s >= self.resampler.newest_s - self.camera.max_gap_s:
+        if not self.camera.empty and self.camera.newest_s >= self.resampler.newest_s - self.camera_wait_s:
             until = self.camera.newest_s  # a live camera holds frames back until the fix after them is in
         return self.push_frames(self.resampler.frames(until))
 

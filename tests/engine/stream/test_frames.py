@@ -71,20 +71,22 @@ def test_no_frame_until_every_sensor_has_data_and_duplicates_ignored():
 
 
 def test_a_silent_sensor_does_not_freeze_frames_and_its_gap_is_marked_invalid():
-    """b stops at 1.0 s and resumes at 2.0 s while a streams on: frames keep coming (a is live), frames whose
-    window touches b's silence are invalid with NaN accelerations, frames on either side are valid and exact —
-    and offline (all samples at once) marks exactly the same frames."""
+    """b stops at 1.0 s and resumes at 2.0 s while a streams on: after waiting ``wait_s`` for b, frames keep coming
+    (a is live), frames whose window touches b's silence are invalid with NaN accelerations, frames on either
+    side are valid and exact — and offline (all samples at once) marks exactly the same frames."""
     ta = np.arange(0, 301) / 100.0
     tb = np.r_[np.arange(0, 101), np.arange(200, 301)] / 100.0
-    res = FrameResampler(["a", "b"], rate_hz=10.0, max_gap_s=0.25)
+    res = FrameResampler(["a", "b"], rate_hz=10.0, max_gap_s=0.25, wait_s=0.5)
     got = []
     for t_end in np.arange(0.1, 3.01, 0.1):  # deliver in 100 ms slices, like the gateway does
         for name, t in (("a", ta), ("b", tb)):
             sl = t[(t > t_end - 0.1 + 1e-9) & (t <= t_end + 1e-9)]
             res.add(name, sl, np.c_[sl, sl, sl])
         got.append(res.frames())
-        if 1.5 <= t_end < 2.0:
-            assert FrameBatch.concatenate(got, 2).t_s[-1] > 1.2  # not frozen at b's 1.0 s
+        if 1.4 < t_end < 1.5:
+            assert FrameBatch.concatenate(got, 2).t_s[-1] < 1.0  # still waiting for b (0.5 s)
+        if 1.6 <= t_end < 2.0:
+            assert FrameBatch.concatenate(got, 2).t_s[-1] > 1.2  # then not frozen at b's 1.0 s
     live = FrameBatch.concatenate(got, 2)
     gap = (live.t_s > 0.95 + 1e-9) & (live.t_s < 2.05 - 1e-9)  # frames whose +-0.05 s window touches the silence
     assert not live.valid[gap].any() and live.valid[~gap].all()
@@ -98,6 +100,22 @@ def test_a_silent_sensor_does_not_freeze_frames_and_its_gap_is_marked_invalid():
     off = offline.frames()
     common = np.isin(off.index, live.index)
     assert np.array_equal(off.valid[common], live.valid)
+
+
+def test_a_late_sensor_is_waited_for_so_live_frames_equal_offline():
+    """b's samples arrive 0.8 s after a's (a loaded gateway): within wait_s nothing is marked invalid."""
+    t = np.arange(0, 300) / 100.0
+    res = FrameResampler(["a", "b"], rate_hz=30.0)  # wait 1 s
+    got = []
+    for t_end in np.arange(0.1, 3.91, 0.1):
+        for name, lag in (("a", 0.0), ("b", 0.8)):
+            sl = t[(t > t_end - 0.1 - lag + 1e-9) & (t <= t_end - lag + 1e-9)]
+            res.add(name, sl, np.c_[sl, sl, sl])
+        got.append(res.frames())
+    live = FrameBatch.concatenate(got, 2)
+    assert live.valid.all() and len(live) > 80
+    with pytest.raises(ValueError, match="wait_s"):
+        FrameResampler(["a"], 30.0, max_gap_s=0.5, wait_s=0.25)
 
 
 def test_start_at_rewinds_within_history_and_until_holds_frames_back():
