@@ -36,6 +36,17 @@ def gateway_clock_offset_s(client: Any, pings: int = 3) -> float:
     return best[1]
 
 
+def client_local_address(client: Any) -> str | None:
+    """``host:port`` of the client's end of the connection, as the gateway names it in ``status["clients"]``."""
+    sock = getattr(client, "_sock", None)
+    sock = getattr(sock, "sock", sock)  # a gateway.tls.TlsChannel wraps the socket
+    try:
+        host, port = sock.getsockname()[:2]
+    except (AttributeError, OSError):
+        return None
+    return f"{host}:{port}"
+
+
 class CameraRate:
     """Camera frame rate (EMA over observation times) and dropped frames (gaps in ``frame_index``), counted on
     every camera message as it arrives — the GUI only ever sees the latest one."""
@@ -75,6 +86,8 @@ class GatewayBridge:
         self.camera_sinks: list[CameraSink] = []  # every camera observation, in stream order (synthesis)
         self.recording_sinks: list[Callable[[float], None]] = []  # started_t_host_s of each new take
         self._take_started_s: float | None = None
+        self._local_address: str | None = None
+        self.display_dropped: dict[str, int] = {}  # our connection(s) -> display frames the gateway dropped for us
         self.camera_rate = CameraRate()
         self.samples_received = 0
         self.sensors_seen: dict[SensorKey, float] = {}  # sensor -> nominal rate (Hz)
@@ -85,6 +98,7 @@ class GatewayBridge:
                                                                "recording", "event")) -> None:
         """Register listeners on a connected GatewayClient and subscribe to ``topics``."""
         self.client = client
+        self._local_address = client_local_address(client)
         client.add_listener("samples", self.on_samples)
         for kind in ("status", "calibration", "recording"):
             client.add_listener(kind, self._on_latest)
@@ -120,6 +134,19 @@ class GatewayBridge:
         self.set_latest(msg.kind, msg.header)
         if msg.kind == "recording":
             self.note_recording(msg.header)
+        elif msg.kind == "status":
+            self._note_drops(msg.header)
+
+    def _note_drops(self, status: dict[str, Any]) -> None:
+        """Display frames the gateway dropped for this console (it drops oldest-first for a client that falls
+        behind): live synthesis then saw less than the recorder wrote, so live and offline poses may differ."""
+        for entry in status.get("clients") or []:
+            if entry.get("address") == self._local_address and self._local_address is not None:
+                self.display_dropped[self._local_address] = int(entry.get("dropped", 0))
+
+    @property
+    def dropped_total(self) -> int:
+        return sum(self.display_dropped.values())
 
     def note_recording(self, state: dict[str, Any]) -> None:
         """A recording state (broadcast or request reply): tell the recording sinks once per new take."""

@@ -179,6 +179,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
 
         self._clock_offset_s = 0.0
         self._reconnecting = False
+        self.reconnects = 0
         self._owns_client = False
         self._status_alarms: list[Alarm] = []
         if client is not None:
@@ -306,7 +307,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
     def _update_statusbar(self) -> None:
         latest = self.store.latest_time()
         age = (self.gateway_now_s() - latest) * 1e3 if latest is not None else float("nan")
-        parts = [f"gateway t {self.gateway_now_s():.2f} s", f"samples {self.bridge.samples_received}",
+        parts = [f"gateway t {self.gateway_now_s():.2f} s", f"samples {self.bridge.samples_received}"
+                 + (f" ({self.bridge.dropped_total} display frames dropped by the gateway)"
+                    if self.bridge.dropped_total else ""),
                  f"newest sample age {age:.0f} ms",
                  f"GUI {self.stats.fps:.0f} fps, tick {self.stats.tick_ms:.1f} ms (max {self.stats.max_tick_ms:.0f})"]
         if self.worker is not None:
@@ -317,6 +320,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             parts.append(f"{self.synthesis.engine.label}: {lag}{s.frames_per_s:.0f} frames/s, "
                          f"{s.push_ms:.1f} ms/frame{conf}"
                          + (f", {s.frames_invalid} frames without a sensor" if s.frames_invalid else "")
+                         + (f", {s.late_samples} samples / {s.late_fixes} camera fixes came after their frames"
+                            if s.late_samples or s.late_fixes else "")
                          + (f" ERROR {s.error}" if s.error else ""))
         if self.playback is not None:
             parts.insert(0, f"PLAYBACK {self.playback.path.name}")
@@ -340,6 +345,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self._reconnecting = False
             if not error:
                 self._connected(*result)
+                self.reconnects += 1
                 self._owns_client = True  # made by us: closed by `shutdown`
             return  # failures retry on the next link check; the banner already says so
         if error:
@@ -435,6 +441,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                 "use_camera_heading": self.synthesis.use_camera_heading,
                 "frames_in": self.worker.stats.frames_in, "frames_invalid": self.worker.stats.frames_invalid,
                 "frames_with_camera": self.worker.stats.frames_with_camera,
+                # live = offline needs the console to have seen every recorded sample: count what it missed
+                "display_frames_dropped": self.bridge.dropped_total, "reconnects": self.reconnects,
+                "late_samples": self.worker.stats.late_samples, "late_fixes": self.worker.stats.late_fixes,
                 "sensors": [{"stream": f"{st}/{i}", "placement": name}
                             for (st, i), name in zip(self.synthesis.sensors, spec.sensor_names)]}
         return save_poses(path, poses, spec.parents, meta)

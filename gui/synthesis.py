@@ -49,6 +49,8 @@ class SynthesisStats:
     push_ms: float = 0.0           # mean engine cost per frame (recent)
     frames_invalid: int = 0        # frames stepped without accelerations (a sensor dropped out)
     frames_with_camera: int = 0
+    late_samples: int = 0           # data that arrived after its frames were pushed (see engine.stream.StreamStats)
+    late_fixes: int = 0
     start_frame: int | None = None  # first frame of the current session (engine restart)
     error: str = ""
 
@@ -173,6 +175,7 @@ class SynthesisWorker(threading.Thread):
             s = session.stats
             self.stats.frames_in, self.stats.frames_invalid = s.frames_in, s.frames_invalid
             self.stats.frames_with_camera, self.stats.poses_out = s.frames_with_camera, s.poses_out
+            self.stats.late_samples, self.stats.late_fixes = s.late_samples, s.late_fixes
             self.stats.start_frame = session.first_frame
             if poses:
                 with self._lock:

@@ -86,8 +86,12 @@ class FrameResampler:
         self._t: dict[Hashable, np.ndarray] = {s: np.zeros(0) for s in self.sensors}
         self._v: dict[Hashable, np.ndarray] = {s: np.zeros((0, 3)) for s in self.sensors}
         self._next: int | None = None  # index of the next frame to produce
+        self._hi_last = -np.inf  # end of the last produced frame's window
         self.frames_out = 0
         self.frames_invalid = 0
+        # samples that arrived after frames spanning their time were produced (a sensor later than wait_s): the
+        # frames they belong to were decided without them, so live may differ from offline there
+        self.late_samples = 0
 
     # -- input ----------------------------------------------------------------------------------------------------
     def add(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
@@ -97,6 +101,7 @@ class FrameResampler:
             return
         t_s = np.asarray(t_s, float).reshape(-1)
         keep = t_s > (self._t[sensor][-1] if len(self._t[sensor]) else -np.inf)
+        self.late_samples += int((t_s[keep] < self._hi_last).sum())
         if keep.any():
             self._t[sensor] = np.concatenate([self._t[sensor], t_s[keep]])
             self._v[sensor] = np.concatenate([self._v[sensor], np.asarray(acc_g, float).reshape(-1, 3)[keep]])
@@ -105,6 +110,7 @@ class FrameResampler:
         """Produce frames from the first frame at or after ``t_s`` on (None: from the first frame every sensor's
         data covers)."""
         self._next = None if t_s is None else frame_at_or_after(t_s, self.rate_hz)
+        self._hi_last, self.late_samples = -np.inf, 0  # the frames from here on are produced afresh
 
     # -- state ----------------------------------------------------------------------------------------------------
     @property
@@ -147,6 +153,7 @@ class FrameResampler:
             valid &= window_covered(t[i0:i1], lo, hi, self.max_gap_s)
         out[~valid] = np.nan  # never a made-up value across a dropout
         self._next = last + 1
+        self._hi_last = float(hi[-1])
         self._trim((self._next - 0.5) / rate - self.history_s)
         self.frames_out += len(index)
         self.frames_invalid += int((~valid).sum())

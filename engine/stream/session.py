@@ -56,6 +56,14 @@ class StreamStats:
     frames_invalid: int = 0     # ... of which without accelerations (a sensor dropout)
     frames_with_camera: int = 0  # ... of which with a camera position
     poses_out: int = 0
+    # data that arrived after the frames it belongs to were pushed (later than the waits): while both are 0 (and
+    # the gateway dropped nothing for this client), these poses are exactly what offline synthesis of the take gives
+    late_samples: int = 0
+    late_fixes: int = 0
+
+    @property
+    def reproducible(self) -> bool:
+        return self.late_samples == 0 and self.late_fixes == 0
 
 
 def take_start_s(started_t_host_s: float) -> float:
@@ -83,14 +91,17 @@ class StreamSynthesis:
         self.camera_wait_s = camera_wait_s
         self.engine: OnlineEngine | None = None
         self.first_frame: int | None = None  # frame of the engine's push index 0
+        self._t_pushed = -np.inf  # time of the last frame pushed
         self.stats = StreamStats()
         self.restart(start_s)
 
     # -- input ----------------------------------------------------------------------------------------------------
     def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
         self.resampler.add(sensor, t_s, acc_g)
+        self.stats.late_samples = self.resampler.late_samples
 
     def add_camera(self, t_s: float, position_m: Any, heading_rad: float | None = None) -> None:
+        self.stats.late_fixes += int(t_s < self._t_pushed)
         self.camera.add(t_s, position_m, heading_rad)
 
     def restart(self, start_s: float | None = None) -> None:
@@ -101,6 +112,7 @@ class StreamSynthesis:
         self.stats = StreamStats()
         if start_s is not None:
             self.resampler.start_at(start_s)
+            self._t_pushed = -np.inf
 
     # -- output ---------------------------------------------------------------------------------------------------
     def step(self) -> list[FramePose]:
@@ -129,7 +141,8 @@ class StreamSynthesis:
             self.stats.frames_in += 1
             self.stats.frames_invalid += int(not batch.valid[k])
             self.stats.frames_with_camera += int(p is not None)
-        self.camera.trim_before(float(batch.t_s[-1]))
+        self._t_pushed = float(batch.t_s[-1])
+        self.camera.trim_before(self._t_pushed)
         return poses
 
     def _poses(self, emitted: list[Any]) -> list[FramePose]:

@@ -38,15 +38,25 @@ def compare_live_and_offline(live_path, offline_path) -> int:
     """Assert every live pose the offline run could reproduce is identical; returns how many were compared.
 
     Live poses of frames within one lag of the take's last frame were decided from samples after the take
-    stopped (the console kept streaming), and offline they come from the end-of-take flush: not comparable."""
+    stopped (the console kept streaming), and offline they come from the end-of-take flush: not comparable.
+    The guarantee presumes the console saw every recorded sample in time: when the gateway dropped display frames
+    for it, it had to reconnect, or data reached it later than the waits (an overloaded machine: the console counts
+    each case and says so in its poses file), the run is skipped with the counts, not failed."""
     live, offline = load_poses(live_path), load_poses(offline_path)
+    lost = {k: live.meta.get(k) for k in ("display_frames_dropped", "reconnects", "late_samples", "late_fixes")
+            if live.meta.get(k)}
+    if lost:
+        pytest.skip(f"the console did not see every recorded sample in time ({lost}): live and offline may differ")
     assert live.meta["start_frame"] == offline.meta["start_frame"]
     lag_frames = int(round(LAG_S * live.meta["rate_hz"]))
     last_decided = offline.frame.max() - lag_frames
     comparable = live.frame <= last_decided
     rows = np.searchsorted(offline.frame, live.frame[comparable])
     assert np.array_equal(offline.frame[rows], live.frame[comparable])
-    assert np.array_equal(live.joint_positions_m[comparable], offline.joint_positions_m[rows])
+    same = np.all(live.joint_positions_m[comparable] == offline.joint_positions_m[rows], axis=(1, 2))
+    counters = ("frames_in", "frames_invalid", "frames_with_camera")
+    assert same.all(), (f"first differing frame: {int(np.argmin(same))} of {len(same)}; live "
+                        f"{[live.meta.get(k) for k in counters]}, offline {[offline.meta.get(k) for k in counters]}")
     assert np.array_equal(live.confidence[comparable], offline.confidence[rows])
     return int(comparable.sum())
 

@@ -107,6 +107,7 @@ def test_live_worker_equals_offline_synthesis_of_the_take_bit_for_bit(graph_and_
     start, live = worker.poses()
     assert worker.stats.error == "" and start == int(np.ceil(take_start_s(started) * GRAPH_FPS - 1e-9))
     assert worker.stats.frames_invalid > 0 and worker.stats.frames_with_camera > 0
+    assert worker.stats.late_samples == worker.stats.late_fixes == 0
     # the recorder holds what arrived after the start (and a little before the first frame's window)
     recorded = RecordedStreams({k: (t[t >= started], a[t >= started]) for k, (t, a) in streams.items()},
                                [c for c in camera if c[0] >= started], started)

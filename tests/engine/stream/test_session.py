@@ -59,6 +59,7 @@ def test_live_pushes_equal_offline_despite_late_camera_late_sensor_and_late_noti
     assert live.first_frame == int(np.ceil(take_start_s(50.4) * 30.0 - 1e-9))
     _, offline = synthesize_streams(make, rec, [0, 1, 2], 30.0)
     offline_log = logs[-1].pushed
+    assert live.stats.reproducible and live.stats.late_samples == live.stats.late_fixes == 0
     assert offline.first_frame == live.first_frame and len(live_log) > 100
     for (a1, p1, _), (a2, p2, _) in zip(live_log, offline_log):
         assert (a1 is None) == (a2 is None) and (p1 is None) == (p2 is None)
@@ -66,3 +67,20 @@ def test_live_pushes_equal_offline_despite_late_camera_late_sensor_and_late_noti
         assert p1 is None or np.array_equal(p1, p2)
     assert sum(a is None for a, _, _ in live_log) > 10  # the dropout was stepped without accelerations
     assert sum(p is None for _, p, _ in live_log) > 5   # and the lost player without a position
+
+
+@pytest.mark.parametrize("sensor_lag_s, camera_lag_s", [(1.5, 0.0), (0.0, 3.0)])
+def test_data_later_than_the_waits_is_counted_and_the_session_says_it_is_not_reproducible(sensor_lag_s,
+                                                                                        camera_lag_s):
+    rec = recorded()
+    live = StreamSynthesis(InputLog, [0, 1, 2], 30.0)
+    for t_end in np.arange(50.1, 57.6, 0.1):
+        for k, (t, a) in rec.samples.items():
+            lag = sensor_lag_s if k == 2 else 0.0
+            sl = (t > t_end - 0.1 - lag) & (t <= t_end - lag)
+            live.add_samples(k, t[sl], a[sl])
+        for fix in [c for c in rec.camera if t_end - 0.1 - camera_lag_s < c[0] <= t_end - camera_lag_s]:
+            live.add_camera(*fix)
+        live.step()
+    assert not live.stats.reproducible
+    assert (live.stats.late_samples > 0) == (sensor_lag_s > 0) and (live.stats.late_fixes > 0) == (camera_lag_s > 0)
