@@ -123,9 +123,12 @@ class StreamSynthesis:
         return self.push_frames(self.resampler.frames(until))
 
     def finish(self) -> list[FramePose]:
-        """End of input (offline): push what remains, then let the engine decide its pending frames."""
-        poses = self.push_frames(self.resampler.frames())  # no camera to wait for any more
-        return poses + self._poses(self.engine.flush())
+        """End of input (offline): push what remains, then let the engine decide its pending frames.
+
+        The take ends where all its streams end: a camera that was running at the end still holds back the
+        frames after its last recorded fix (the recorder stops before the fixes of the last camera latency are
+        published), exactly as live, where those frames got fixes the take does not have."""
+        return self.step() + self._poses(self.engine.flush())
 
     def push_frames(self, batch: FrameBatch) -> list[FramePose]:
         if not len(batch):

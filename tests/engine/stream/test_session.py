@@ -84,3 +84,30 @@ def test_data_later_than_the_waits_is_counted_and_the_session_says_it_is_not_rep
         live.step()
     assert not live.stats.reproducible
     assert (live.stats.late_samples > 0) == (sensor_lag_s > 0) and (live.stats.late_fixes > 0) == (camera_lag_s > 0)
+
+
+def test_a_take_whose_camera_track_ends_before_its_samples_ends_there_as_live_did():
+    """The recorder stops before the fixes of the last camera latency are published: the take's camera track ends
+    0.4 s before its samples. Offline must not push those last frames without a position, which live pushed with
+    fixes the take does not have."""
+    full = recorded()
+    stop = 55.0
+    take = RecordedStreams({k: (t[t <= stop], a[t <= stop]) for k, (t, a) in full.samples.items()},
+                           [c for c in full.camera if c[0] <= stop - 0.4], full.started_t_host_s)
+    logs = []
+    make = lambda: logs.append(InputLog()) or logs[-1]  # noqa: E731
+    live = StreamSynthesis(make, [0, 1, 2], 30.0, start_s=take_start_s(full.started_t_host_s))
+    for t_end in np.arange(50.1, 56.1, 0.1):
+        for k, (t, a) in full.samples.items():
+            sl = (t > t_end - 0.1) & (t <= t_end)
+            live.add_samples(k, t[sl], a[sl])
+        for fix in [c for c in full.camera if t_end - 0.1 < c[0] <= t_end]:
+            live.add_camera(*fix)
+        live.step()
+    live_log = logs[-1].pushed
+    _, offline = synthesize_streams(make, take, [0, 1, 2], 30.0)
+    offline_log = logs[-1].pushed
+    assert offline.camera.newest_s <= stop - 0.4 and len(offline_log) < len(live_log)
+    assert (len(offline_log) + offline.first_frame) / 30.0 <= stop - 0.4 + 1 / 30
+    for (a1, p1, _), (a2, p2, _) in zip(live_log, offline_log):
+        assert np.array_equal(a1, a2) and (p1 is None) == (p2 is None) and (p1 is None or np.array_equal(p1, p2))
