@@ -77,6 +77,9 @@ def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: 
         raise MalformedFileError(path, None, "missing 'fps' (sample rate of the streams, Hz)")
     fps = float(data["fps"])
     names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else graph_sensors[:acc.shape[1]]
+    if len(names) == acc.shape[1] and any(n in graph_sensors for n in names):  # drop sensors the graph lacks
+        used = [k for k, n in enumerate(names) if n in graph_sensors]
+        acc, names = acc[:, used], [names[k] for k in used]
     unknown = [n for n in names if n not in graph_sensors]
     if unknown or len(names) != acc.shape[1]:
         raise MalformedFileError(path, None, f"sensor names {names} do not match the acc_g columns / graph "
@@ -163,7 +166,9 @@ def read_take(path: str | Path, graph_sensors: list[str], fps_graph: float, sens
     try:
         data = np.load(path, allow_pickle=False)
     except (OSError, ValueError) as exc:
-        raise MalformedFileError(path, None, f"not a readable .npz ({exc})") from exc
+        hint = ("; a device recording (CSV/TSV, Xsens, x-IMU3) becomes a take with `courtside import-imu`"
+                if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx") else "")
+        raise MalformedFileError(path, None, f"not a readable .npz ({exc}){hint}") from exc
     with data:
         if "acc_g" in data.files:
             return _from_synthesis_file(path, data, graph_sensors, fps_graph)
