@@ -30,10 +30,10 @@ import firmware_protocol as fp
 from firmware_protocol.emulator import BaseStation, StationConfig
 from gateway.client import GatewayClient
 from gateway.daemon import Gateway
-from gateway.emulated import demo_config, start_emulated_station
+from gateway.emulation.stations import demo_config, start_emulated_station
 from gateway.recorder import load_take, realign_take
 from gateway.station import StationReader
-from gateway.virtual_time import run_virtual_station
+from gateway.emulation.virtual_time import run_virtual_station
 
 
 def _cpu_s() -> float:

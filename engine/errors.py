@@ -7,7 +7,10 @@ location when known, and the problem. `engine` is pure numpy/scipy, so gateway a
 module without pulling in anything heavy."""
 from __future__ import annotations
 
+import functools
+import sys
 from pathlib import Path
+from typing import Callable
 
 
 class CourtsideError(Exception):
@@ -26,3 +29,41 @@ class MalformedFileError(CourtsideError, ValueError):
         self.problem = problem
         where = f"{self.path}, line {line}" if line is not None else self.path
         super().__init__(f"{where}: {problem}")
+
+
+def check_output_dir(path: str | Path) -> None:
+    """Refuse an output whose directory does not exist, before any work is done (so nothing is half-written)."""
+    parent = Path(path).resolve().parent
+    if not parent.is_dir():
+        raise CourtsideError(f"{path}: output directory {parent} does not exist")
+
+
+def one_line(exc: BaseException) -> str:
+    """The error's message on one line (parser messages may quote multi-line input)."""
+    return " ".join(str(exc).split())
+
+
+def report_errors(prog: str, command: Callable[[list[str]], int | None], argv: list[str]) -> int:
+    """Run ``command(argv)``; a `CourtsideError` becomes one line ``prog: message`` on stderr and exit status 2.
+
+    Why one function: every CLI (the `courtside` dispatcher, each subcommand called directly, the ``python -m``
+    tools) must report a bad file or argument the same way, and anything else escaping is a bug whose traceback
+    should be seen."""
+    try:
+        return int(command(argv) or 0)
+    except CourtsideError as exc:
+        print(f"{prog}: {one_line(exc)}", file=sys.stderr)
+        return 2
+
+
+def cli_command(prog: str) -> Callable[[Callable[[list[str]], int | None]], Callable[[list[str]], int]]:
+    """Decorator form of `report_errors` for a subcommand's ``main(argv)``."""
+
+    def wrap(command: Callable[[list[str]], int | None]) -> Callable[[list[str]], int]:
+        @functools.wraps(command)
+        def main(argv: list[str] | None = None) -> int:
+            return report_errors(prog, command, list(sys.argv[1:] if argv is None else argv))
+
+        return main
+
+    return wrap

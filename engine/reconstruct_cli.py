@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import MalformedFileError
+from engine.errors import MalformedFileError, cli_command
 
 SAMPLE_PREFIX = "16_"
 
@@ -226,20 +226,17 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
-    try:
-        if args.evaluate:
-            return _evaluate(args)
-        if not args.input or not args.output:
-            print("courtside reconstruct: --input and -o are required (or use --evaluate)", file=sys.stderr)
-            return 2
-        if args.method == "motion-graph":
-            return _reconstruct_motion_graph(args)
-        summary = _reconstruct_olng(args) if args.method == "olng" else _reconstruct_hmm(args)
-    except MalformedFileError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+@cli_command("courtside reconstruct")
+def main(argv: list[str]) -> int:
+    args = build_parser().parse_args(argv)
+    if args.evaluate:
+        return _evaluate(args)
+    if not args.input or not args.output:
+        print("courtside reconstruct: --input and -o are required (or use --evaluate)", file=sys.stderr)
+        return 2
+    if args.method == "motion-graph":
+        return _reconstruct_motion_graph(args)
+    summary = _reconstruct_olng(args) if args.method == "olng" else _reconstruct_hmm(args)
     print(json.dumps({"method": args.method, "output": args.output, **summary}))
     return 0
 

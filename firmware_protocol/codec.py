@@ -10,6 +10,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from engine.errors import CourtsideError
+
 from .messages import (
     Ack,
     ClockSync,
@@ -44,7 +46,7 @@ _INT16_LE = np.dtype("<i2")
 _XYZ_INT16_LE = np.dtype(("<i2", (3,)))          # one sample; frombuffer with it yields (N, 3) directly
 
 
-class PayloadError(ValueError):
+class PayloadError(CourtsideError, ValueError):
     """A payload whose bytes do not match its layout (raised by unpack_*, counted by the decoder)."""
 
 

@@ -16,7 +16,7 @@ from typing import NamedTuple
 from cobs.cobs import DecodeError as CobsDecodeError
 from cobs.cobs import decode as cobs_decode
 
-from .codec import UNPACKERS, PayloadError
+from .codec import MAX_PAYLOAD_BYTES, UNPACKERS, PayloadError
 from .framing import CRC, HEADER, MAX_ENCODED_FRAME_BYTES, MIN_BODY_BYTES, SEQ_MODULUS
 from .messages import PROTOCOL_VERSION, Message, MessageType
 
@@ -41,7 +41,7 @@ class DecoderStats:
     bytes_discarded: int = 0           # bytes of every rejected frame (delimiters not counted)
     frames_ok: int = 0                 # decoded and returned
     cobs_errors: int = 0
-    length_errors: int = 0             # too short, header length != actual, or longer than any legal frame
+    length_errors: int = 0             # too short, header length != actual or > 4096, or longer than any legal frame
     crc_errors: int = 0
     unsupported_version: int = 0       # CRC fine, version byte unknown: not returned, not seq-tracked
     unknown_types: int = 0             # CRC fine, message type unknown: skipped (seq still tracked)
@@ -111,7 +111,7 @@ class StreamDecoder:
                 stats.bytes_discarded += len(part)
                 continue
             version, msg_type, station_id, seq, length = unpack_header(body, 0)
-            if length != n - MIN_BODY_BYTES:
+            if length != n - MIN_BODY_BYTES or length > MAX_PAYLOAD_BYTES:  # zero-rich bodies encode compactly
                 stats.length_errors += 1
                 stats.bytes_discarded += len(part)
                 continue

@@ -21,7 +21,10 @@ HEADER = struct.Struct("<BBHIH")        # version, message type, station id, lin
 CRC = struct.Struct("<I")
 MIN_BODY_BYTES = HEADER.size + CRC.size
 MAX_BODY_BYTES = MIN_BODY_BYTES + MAX_PAYLOAD_BYTES
-MAX_ENCODED_FRAME_BYTES = MAX_BODY_BYTES + MAX_BODY_BYTES // 254 + 2
+# COBS adds one code byte per started 254-byte block: 4110-byte body -> at most 4127 encoded bytes (delimiter not
+# included; 4128 on the wire with it). A longer run between delimiters cannot be a legal frame.
+MAX_ENCODED_FRAME_BYTES = MAX_BODY_BYTES + (MAX_BODY_BYTES + 253) // 254
+MAX_WIRE_FRAME_BYTES = MAX_ENCODED_FRAME_BYTES + len(DELIMITER)
 SEQ_MODULUS = 1 << 32
 
 

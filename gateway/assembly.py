@@ -10,16 +10,25 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from engine.errors import CourtsideError
 from gateway import auth
-from gateway.court_config import CameraConfig, CourtConfig
+from gateway.court_config import CameraConfig, CourtConfig, check_consistent
 from gateway.daemon import Gateway
-from gateway.emulated import EmulatedStation, start_court_stations
 from gateway.names import free_name
+from gateway.server import RequestError
+
+if TYPE_CHECKING:
+    from gateway.emulation.stations import EmulatedStation
 
 log = logging.getLogger("gateway")
+
+
+class StartError(CourtsideError, OSError):
+    """Something the config rightly asks for cannot be done now: a live camera unplugged, busy or not ready, the
+    first take not startable (disk full). Unlike a bad config, a restart may fix it, so the CLI exits 1
+    (docs/gateway.md "Exit codes")."""
 
 
 @dataclass
@@ -69,7 +78,10 @@ def build_camera(config: CameraConfig) -> Any:
             source: Any = VideoFileSource(config.source)
             realtime, label = True, f"file {config.source}"
         else:
-            source = OpenCVCamera(config.source, fps=config.fps, latency_s=config.latency_s)
+            try:
+                source = OpenCVCamera(config.source, fps=config.fps, latency_s=config.latency_s)
+            except CameraError as exc:
+                raise StartError(f"camera: {exc}") from None
             realtime, label = False, f"camera {config.source}"
     except CameraError as exc:
         raise CourtsideError(f"camera: {exc}") from None
@@ -99,7 +111,9 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
     """Start everything ``config`` describes and return the running `Court`.
 
     ``camera`` / ``calibration`` / ``emulators`` replace what the config would build (the demo passes its
-    performance-driven stations and camera); the gateway itself is always built here."""
+    performance-driven stations and camera); the gateway itself is always built here. The rules across keys
+    are checked here too, so a config built in code (the demo's) cannot listen beyond loopback unauthenticated."""
+    check_consistent(config)
     secrets = auth.Secrets.from_files(config.auth.operator_secret_file, config.auth.viewer_secret_file)
     tls = auth.server_tls_context(config.auth.tls_cert, config.auth.tls_key) if config.auth.tls_cert else None
     if camera is None and config.camera.source is not None:
@@ -108,6 +122,8 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
         calibration = build_calibration(config)
     started: list[EmulatedStation] = []
     if emulators is None and config.stations.emulate:
+        from gateway.emulation.stations import start_court_stations  # the emulator only when asked for
+
         try:
             started, _ = start_court_stations(config.stations.emulate, config.stations.emulate_motion,
                                               config.stations.emulate_clips)
@@ -137,6 +153,9 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
     if config.record:
         try:
             court.take = start_recording_fresh(gateway, config.record)
+        except RequestError as exc:
+            court.stop()
+            raise StartError(f"cannot start recording: {exc}") from None
         except BaseException:
             court.stop()
             raise

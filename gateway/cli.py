@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 from importlib.metadata import EntryPoint, entry_points
 
-from engine.errors import CourtsideError
+from engine.errors import report_errors
 
 ENTRY_POINT_GROUP = "courtside.commands"
 
@@ -43,11 +43,7 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    try:
-        return int(command(rest) or 0)
-    except CourtsideError as exc:
-        print(f"courtside {name}: {exc}", file=sys.stderr)
-        return 2
+    return report_errors(f"courtside {name}", command, rest)
 
 
 if __name__ == "__main__":

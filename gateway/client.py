@@ -26,6 +26,7 @@ import threading
 import time
 from typing import Any, Callable, Iterable
 
+from engine.errors import CourtsideError
 from gateway import auth, wire
 from gateway.codec import Message
 from gateway.tls import TlsChannel
@@ -35,7 +36,7 @@ log = logging.getLogger(__name__)
 Listener = Callable[[Message], None]
 
 
-class GatewayRequestError(RuntimeError):
+class GatewayRequestError(CourtsideError, RuntimeError):
     """The gateway answered a request with ``ok: false`` (message = the gateway's reason)."""
 
 
@@ -91,6 +92,7 @@ class GatewayClient:
                 sock.close()
                 raise
         self._sock = sock
+        self.server_hello, self._refusal, self.role = {}, None, None  # a reconnect starts from scratch
         self._closed.clear()
         self._hello_event.clear()
         self._reader = threading.Thread(target=self._read_loop, name="gw-client-reader", daemon=True)
@@ -117,7 +119,10 @@ class GatewayClient:
             raise auth.AuthenticationError(
                 f"{where} requires authentication: give the secret file (--secret-file, or "
                 f"${auth.SECRET_FILE_ENV})")
-        server_nonce = bytes.fromhex(challenge_hex)
+        try:
+            server_nonce = bytes.fromhex(challenge_hex)
+        except ValueError:
+            raise auth.AuthenticationError(f"{where} sent a malformed challenge") from None
         client_nonce = secrets.token_bytes(auth.NONCE_BYTES)
         try:
             result = self._send(wire.AUTH, {"nonce": client_nonce.hex(),

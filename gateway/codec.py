@@ -21,11 +21,13 @@ from typing import Any
 
 import numpy as np
 
+from engine.errors import CourtsideError
+
 _U32 = struct.Struct(">I")
 MAX_HEADER_BYTES = 1 << 20
 
 
-class CodecError(ValueError):
+class CodecError(CourtsideError, ValueError):
     """A body that cannot be decoded (bad length, bad JSON, array spec that does not match the payload)."""
 
 
@@ -96,6 +98,8 @@ def decode(body: bytes | memoryview) -> Message:
         head = json.loads(bytes(view[4 : 4 + header_len]).decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CodecError(f"header is not UTF-8 JSON: {exc}") from exc
+    except RecursionError:  # [[[[...]]]] 200 000 deep: json's recursion guard, not a reason to die
+        raise CodecError("header JSON is nested too deeply") from None
     if not isinstance(head, dict) or not isinstance(head.get("kind"), str):
         raise CodecError("header must be a JSON object with a string 'kind'")
     arrays: dict[str, np.ndarray] = {}

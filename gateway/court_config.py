@@ -15,7 +15,7 @@ import ipaddress
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -207,7 +207,10 @@ def _take(value: Any) -> str:
 
 
 _PATH = object()  # marker: a path, resolved against the config file's directory
+_CAMERA_SOURCE = object()  # marker: an index/device, or a video file path resolved like _PATH
+_CLIPS = object()  # marker: clip names, or .bvh/.amc paths resolved like _PATH
 Check = Callable[[Any], Any] | object
+CLIP_SUFFIXES = (".bvh", ".amc")
 
 _TOP: dict[str, Check] = {
     "listen": _listen, "record_dir": _PATH, "record": _take, "log_level": _upper_choice(LOG_LEVELS),
@@ -217,9 +220,9 @@ _TOP: dict[str, Check] = {
 _SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
     "stations": (StationsConfig, {
         "ports": _strings, "urls": _strings, "discover": _bool, "emulate": _int(0, MAX_EMULATED_STATIONS),
-        "emulate_motion": _choice(EMULATE_MOTIONS), "emulate_clips": _strings}),
+        "emulate_motion": _choice(EMULATE_MOTIONS), "emulate_clips": _CLIPS}),
     "camera": (CameraConfig, {
-        "source": _camera_source, "court": _PATH, "player_side": _choice(PLAYER_SIDES),
+        "source": _CAMERA_SOURCE, "court": _PATH, "player_side": _choice(PLAYER_SIDES),
         "fps": _number(0.0, 1000.0, lo_open=True), "latency_s": _number(0.0, 5.0), "loop": _bool,
         "thumbnail_every": _int(0, 10_000)}),
     "calibration": (CalibrationConfig, {"placements": _placements, "pose": _choice(POSES), "records_dir": _PATH}),
@@ -229,10 +232,20 @@ _SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
 _MOVED = {"ports": "stations", "urls": "stations", "discover": "stations", "emulate": "stations"}
 
 
+def _resolve(path: Path, base_dir: Path | None) -> Path:
+    path = path.expanduser()
+    return path if path.is_absolute() or base_dir is None else base_dir / path
+
+
 def _convert(check: Check, value: Any, base_dir: Path | None) -> Any:
     if check is _PATH:
-        path = Path(_string(value) if not isinstance(value, Path) else value).expanduser()
-        return path if path.is_absolute() or base_dir is None else base_dir / path
+        return _resolve(Path(_string(value) if not isinstance(value, Path) else value), base_dir)
+    if check is _CAMERA_SOURCE:  # a relative string is a video file next to the config (devices are absolute)
+        source = _camera_source(value)
+        return str(_resolve(Path(source), base_dir)) if isinstance(source, str) else source
+    if check is _CLIPS:
+        return tuple(str(_resolve(Path(c), base_dir)) if c.lower().endswith(CLIP_SUFFIXES) else c
+                     for c in _strings(value))
     return check(value)  # type: ignore[operator]
 
 
@@ -263,7 +276,7 @@ def load_court_config(path: str | Path, check: bool = True) -> CourtConfig:
         raise MalformedFileError(path, None, "not a text (UTF-8 TOML) file") from None
     except tomllib.TOMLDecodeError as exc:
         where = re.search(r"\(at line (\d+), column \d+\)", str(exc))  # Python 3.11 has no exc.lineno
-        problem = str(exc).replace(where[0], f"(column {where[0].split()[-1]}" if where else "").strip()
+        problem = (str(exc).replace(where[0], f"(column {where[0].split()[-1]}") if where else str(exc)).strip()
         raise MalformedFileError(path, int(where[1]) if where else None, f"not valid TOML: {problem}") from None
     base_dir = path.resolve().parent
 
@@ -353,8 +366,3 @@ def check_consistent(config: CourtConfig) -> None:
     if config.camera.source is not None and config.camera.court is None:
         raise CourtsideError("camera.source is set but camera.court is not: give the court calibration file "
                              "(`courtside camera calibrate ... --out court.json`)")
-
-
-def section_fields(section: str) -> list[str]:
-    """Key names of one table (docs and tests iterate over them)."""
-    return [f.name for f in fields(_SECTIONS[section][0])]

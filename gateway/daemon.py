@@ -27,6 +27,7 @@ import numpy as np
 
 import firmware_protocol as fp
 from gateway import auth, wire
+from gateway.device_checks import I32_MAX, I32_MIN, command_int
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
 from gateway.recorder import Recorder, export_csv, export_npz
 from gateway.names import BadNameError, check_name
@@ -84,7 +85,7 @@ class Gateway:
         tls: "ssl.SSLContext | None" = None,
     ):
         self.name = name
-        self.recorder = Recorder(record_dir)
+        self.recorder = Recorder(record_dir, on_event=self._on_recorder_event)
         self.camera = camera
         self.calibration = calibration
         self.status_interval_s = status_interval_s
@@ -135,7 +136,10 @@ class Gateway:
         for reader in readers:
             reader.stop()
         if self.recorder.active:
-            self.recorder.stop()
+            try:
+                self.recorder.stop()
+            except ValueError:  # a disk fault closed the take in between: it is closed either way
+                pass
         if self._status_thread.is_alive():
             self._status_thread.join(timeout=2)
         self.server.close()
@@ -165,15 +169,10 @@ class Gateway:
     # -- data in (reader / camera threads) --------------------------------------------------------------------
     def on_samples(self, block: SampleBlock) -> None:
         self.samples_in += len(block.counter)
+        header, arrays = block.header(), block.arrays()  # one samples message for the recording and clients
         if self.recorder.active:
-            self.recorder.put_samples(block.station, block.sensor, block.arrays(),
-                                      header={"nominal_hz": block.nominal_hz, "epoch": block.epoch})
-        self.server.publish(
-            "samples",
-            {"station": block.station, "sensor": block.sensor, "nominal_hz": block.nominal_hz,
-             "clock_locked": block.clock_locked},
-            {"counter": block.counter, "ticks": block.ticks, "t_host_s": block.t_host_s, "acc_g": block.acc_g},
-        )
+            self.recorder.put_samples(block.station, block.sensor, arrays, header=header)
+        self.server.publish("samples", header, arrays)
         on_samples = getattr(self.calibration, "on_samples", None)
         if on_samples is not None:
             on_samples(block.station, block.sensor, block.t_host_s, block.acc_g)
@@ -189,6 +188,11 @@ class Gateway:
 
     def on_station_event(self, station: str, level: str, message: str, details: dict | None = None) -> None:
         self.publish_event(level, station, message, details)
+
+    def _on_recorder_event(self, level: str, message: str) -> None:
+        """Disk fault or backlog refusal (recorder writer thread): alarm every client, publish the new state."""
+        self.publish_event(level, "recorder", message)
+        self.server.publish("recording", self.recorder.state())
 
     def publish_event(self, level: str, source: str, message: str, details: dict | None = None) -> None:
         header = {"t_host_s": time.monotonic(), "level": level, "source": source, "message": message,
@@ -319,15 +323,18 @@ class Gateway:
         if command not in STATION_COMMANDS:
             raise RequestError(f"unknown station command {command!r}; valid: {sorted(STATION_COMMANDS)}")
         extra = dict(args.get("args") or {})
-        target = int(extra.get("sensor", fp.BROADCAST_SENSOR))
         value = 0
-        if command in COMMAND_VALUE_ARG:
-            key, default = COMMAND_VALUE_ARG[command]
-            value = extra.get(key, default)
-            if value is None:
-                raise RequestError(f"{command} needs '{key}'")
+        try:  # the wire fields are u8 sensor and i32 value: refuse what does not fit, naming the argument
+            target = command_int("sensor", extra.get("sensor", fp.BROADCAST_SENSOR), 0, 255)
+            if command in COMMAND_VALUE_ARG:
+                key, default = COMMAND_VALUE_ARG[command]
+                if extra.get(key, default) is None:
+                    raise RequestError(f"{command} needs '{key}'")
+                value = command_int(key, extra.get(key, default), I32_MIN, I32_MAX)
+        except ValueError as exc:
+            raise RequestError(f"{command}: {exc}") from None
         try:
-            result = reader.command(STATION_COMMANDS[command], target=target, value=int(value))
+            result = reader.command(STATION_COMMANDS[command], target=target, value=value)
         except (LinkError, TimeoutError) as exc:
             raise RequestError(str(exc)) from exc
         return {"station": reader.name, "command": command, **result}
@@ -383,7 +390,7 @@ def format_status_lines(status: dict[str, Any]) -> list[str]:
 # ---------------------------------------------------------------------------------------------------- CLI
 EXIT_OK = 0  # stopped by SIGINT/SIGTERM or --duration: recording flushed and closed
 EXIT_START_FAILED = 1  # could not start at run time (listen address in use, device gone): worth a restart
-EXIT_BAD_CONFIG = 2  # bad config, flag or file: refused before anything started; a restart cannot help
+# exit 2: bad config, flag or file (a CourtsideError, printed as one line by gateway.cli); a restart cannot help
 
 # command-line flag -> court config key (gateway.court_config); flags override the --config file
 FLAG_KEYS = {
@@ -474,17 +481,11 @@ def _export_main(argv: list[str]) -> int:
     if not args.npz and not args.csv_dir:
         print("courtside gateway export: give --npz and/or --csv-dir", file=sys.stderr)
         return 2
-    from gateway.recorder import RecordingError
-
-    try:
-        if args.npz:
-            print(f"wrote {export_npz(args.recording, args.npz)}")
-        if args.csv_dir:
-            for path in export_csv(args.recording, args.csv_dir):
-                print(f"wrote {path}")
-    except RecordingError as exc:
-        print(f"courtside gateway export: {exc}", file=sys.stderr)
-        return 1
+    if args.npz:  # a bad recording raises RecordingError: the courtside dispatcher reports it in one line
+        print(f"wrote {export_npz(args.recording, args.npz)}")
+    if args.csv_dir:
+        for path in export_csv(args.recording, args.csv_dir):
+            print(f"wrote {path}")
     return 0
 
 
@@ -511,7 +512,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     config = load_config(args)  # CourtsideError -> one line, exit 2 (gateway.cli)
     logging.basicConfig(level=config.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    from gateway.assembly import build_court
+    from gateway.assembly import StartError, build_court
 
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -519,6 +520,9 @@ def main(argv: list[str] | None = None) -> int:
     printer = None if args.quiet else (lambda line: print(line, flush=True))
     try:
         court = build_court(config, status_line=printer)
+    except StartError as exc:
+        print(f"courtside gateway: cannot start: {exc}", file=sys.stderr)
+        return EXIT_START_FAILED
     except OSError as exc:
         print(f"courtside gateway: cannot start: {exc.strerror or exc} (listen {config.listen[0]}:"
               f"{config.listen[1]})", file=sys.stderr)

@@ -17,6 +17,8 @@ from typing import Any, Callable, Protocol
 import serial
 from serial.tools import list_ports
 
+from engine.errors import CourtsideError
+
 log = logging.getLogger(__name__)
 
 STATION_VID = 0x1209
@@ -24,7 +26,7 @@ STATION_PID = 0xC0DE
 READ_TIMEOUT_S = 0.05
 
 
-class LinkError(ConnectionError):
+class LinkError(CourtsideError, ConnectionError):
     """The link failed (cannot open, unplugged, I/O error). The message names the source."""
 
 
@@ -79,14 +81,14 @@ _HID_IDS = re.compile(r"^([0-9a-fA-F]{4}):([0-9a-fA-F]{4})(?::(.+))?$")
 class HidLink:
     """A base station on USB HID: ``hid:<hidapi path>`` or ``hid:VVVV:PPPP[:serial]`` (hex VID:PID).
 
-    The 64-byte report framing lives in firmware_protocol (`HidapiTransport`); this class adapts it to `Link`.
+    The 64-byte report framing is defined once in `firmware_protocol.hid` (`HidapiTransport`); this class adapts it to `Link`.
     ``hid_module`` is anything with the hidapi module API (``device()``, ``enumerate()``): the real ``hid``
     (hidapi) by default, `firmware_protocol.emulator.hid_transport.FakeHidBus` in tests."""
 
     transport = "hid"
 
     def __init__(self, source: str, hid_module: Any = None):
-        from firmware_protocol.emulator.hid_transport import HidapiTransport
+        from firmware_protocol.hid import HidapiTransport
 
         self.source = source
         if not source.startswith("hid:"):

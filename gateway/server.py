@@ -20,17 +20,19 @@ from typing import Any, Callable
 
 import numpy as np
 
+from engine.errors import CourtsideError
 from gateway import auth, codec, wire
 from gateway.tls import TlsChannel
 
 log = logging.getLogger(__name__)
 
 DROPPABLE_KINDS = frozenset({"samples", "camera"})
+MAX_BAD_FRAMES = 10  # undecodable frames answered on one connection before it is dropped (no log flood)
 # handler(action, args, role) -> result; the server has already checked that ``role`` may run ``action``
 RequestHandler = Callable[[str, dict[str, Any], str], Any]
 
 
-class RequestError(Exception):
+class RequestError(CourtsideError):
     """Raised by a request handler to send a clean ``ok: false`` reply with this message."""
 
 
@@ -64,6 +66,7 @@ class _ClientSession:
         self._cond = threading.Condition()
         self._closed = False
         self._closing = False  # close once the reliable queue is sent
+        self.bad_frames = 0
         self._writer = threading.Thread(target=self._write_loop, name=f"gw-client-w-{address}", daemon=True)
         self._reader = threading.Thread(target=self._read_loop, name=f"gw-client-r-{address}", daemon=True)
 
@@ -129,6 +132,9 @@ class _ClientSession:
                     msg = wire.recv_message(self.sock, max_frame_bytes=server.max_request_bytes,
                                             frame_timeout_s=server.handshake_timeout_s, idle_deadline=idle_deadline)
                 except wire.UndecodableFrame as exc:
+                    self.bad_frames += 1
+                    if self.bad_frames > MAX_BAD_FRAMES:
+                        raise wire.WireError(f"{self.bad_frames} undecodable frames") from None
                     log.warning("client %s: %s", self.stats.address, exc)
                     self._reply(None, ok=False, error=str(exc))
                     continue
@@ -162,6 +168,10 @@ class _ClientSession:
             self.close_after_flush()
             return
         role, secret = verified
+        if self.server.authenticated_clients() >= self.server.max_clients:
+            self._reply(request_id, ok=False, error=f"gateway busy: {self.server.max_clients} clients connected (limit)")
+            self.close_after_flush()
+            return
         self.role = self.stats.role = role
         with self._cond:
             self.topics = set(wire.TOPICS)
@@ -197,7 +207,7 @@ class _ClientSession:
                 return
             needed = auth.required_role(action, args)
             if not auth.permits(self.role, needed):
-                log.warning("client %s (%s) refused %r", self.stats.address, self.role, action)
+                log.info("client %s (%s) refused %r", self.stats.address, self.role, action)
                 self._reply(request_id, ok=False, error=f"{action!r} needs the {needed} role; this connection is "
                             f"a {self.role}")
                 return
@@ -266,6 +276,7 @@ class StreamServer:
         *,
         secrets: auth.Secrets = auth.Secrets(),
         max_clients: int = 32,
+        max_pending: int = 8,
         handshake_timeout_s: float = 5.0,
         max_request_bytes: int = wire.MAX_REQUEST_BYTES,
         name: str = "courtside-gateway",
@@ -276,11 +287,13 @@ class StreamServer:
         self.display_queue_frames = display_queue_frames
         self.reliable_queue_limit = reliable_queue_limit
         self.secrets = secrets
-        self.max_clients = max_clients
+        self.max_clients = max_clients  # authenticated (or, without a secret, all) connections
+        self.max_pending = max_pending  # connections still owing the challenge's answer
         self.handshake_timeout_s = handshake_timeout_s
         self.max_request_bytes = max_request_bytes
         self.name = name
         self.refused_connections = 0
+        self._last_refusal_log_s = -1e9
         self._hello = hello or (lambda: {})
         self._sessions: list[_ClientSession] = []
         self._lock = threading.Lock()
@@ -314,11 +327,18 @@ class StreamServer:
                 return
             address = f"{addr[0]}:{addr[1]}"
             with self._lock:
-                full = len(self._sessions) >= self.max_clients
+                full = sum(s.role is not None for s in self._sessions) >= self.max_clients
+                pending = [s for s in self._sessions if s.role is None]
+            if len(pending) >= self.max_pending:
+                # handshakes are bounded too: the oldest unfinished one makes room (a real client answers the
+                # challenge in milliseconds, so holding every slot would take a flood faster than that)
+                self._log_limited(f"too many unauthenticated connections (limit {self.max_pending}); dropping "
+                                  f"{pending[0].stats.address}")
+                pending[0].close()
             if full:
                 self.refused_connections += 1
-                log.warning("refused client %s: %d clients connected (limit %d)", address, self.max_clients,
-                            self.max_clients)
+                self._log_limited(f"refused client {address}: {self.max_clients} clients connected (limit); "
+                                  f"{self.refused_connections} refused so far")
                 if self.tls is None:
                     self._refuse(sock, f"gateway busy: {self.max_clients} clients connected (limit)")
                 else:
@@ -337,6 +357,16 @@ class StreamServer:
                 hello = {**self.hello(), "role": session.role}
             session.start(wire.pack(wire.SERVER_HELLO, hello))
             log.info("client connected from %s", session.stats.address)
+
+    def _log_limited(self, message: str) -> None:
+        """A warning at most once a second: a connection flood must not flood the log."""
+        if time.monotonic() - self._last_refusal_log_s >= 1.0:
+            self._last_refusal_log_s = time.monotonic()
+            log.warning("%s", message)
+
+    def authenticated_clients(self) -> int:
+        with self._lock:
+            return sum(s.role is not None for s in self._sessions)
 
     @staticmethod
     def _refuse(sock: socket.socket, reason: str) -> None:

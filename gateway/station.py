@@ -16,12 +16,13 @@ import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
 import firmware_protocol as fp
 from gateway.clock import ClockEstimator, TickUnwrapper
+from gateway.device_checks import batch_problem, hello_problem
 from gateway.links import Link, LinkError, SerialLink
 from gateway.stats import SensorStats
 
@@ -30,6 +31,7 @@ log = logging.getLogger(__name__)
 PRE_HELLO_FRAMES = 5000
 HELLO_RETRY_S = 1.0
 CLOCK_PROBE_INTERVAL_S = 0.1
+REFUSAL_EVENT_INTERVAL_S = 10.0  # at most one event per kind of refused message in this time (counts are exact)
 
 
 @dataclass
@@ -48,8 +50,14 @@ class SampleBlock:
     t_host_s: np.ndarray  # (N,) float64 sample latch time on the gateway clock (online estimate)
     acc_g: np.ndarray  # (N, 3) float32
 
+    def header(self) -> dict[str, Any]:
+        """The ``samples`` message header. With `arrays` this is the one definition of a samples message:
+        clients receive it per batch, the recorder merges batches of it into chunks (docs/gateway.md)."""
+        return {"station": self.station, "sensor": self.sensor, "nominal_hz": self.nominal_hz, "epoch": self.epoch,
+                "clock_locked": self.clock_locked}
+
     def arrays(self) -> dict[str, np.ndarray]:
-        """Everything the recorder keeps per sample (raw ticks + arrival times allow offline re-alignment)."""
+        """Every per-sample array (raw ticks + arrival times allow offline re-alignment)."""
         return {"counter": self.counter, "epoch": np.full(len(self.counter), self.epoch, np.uint32),
                 "raw_ticks": self.raw_ticks, "ticks": self.ticks,
                 "arrival_s": self.arrival_s, "t_host_s": self.t_host_s, "acc_g": self.acc_g}
@@ -107,6 +115,11 @@ class StationReader:
         self.hello: fp.Hello | None = None
         self.reconnects = 0
         self.internal_errors = 0
+        self.invalid_fields = 0  # HELLO / SAMPLE_BATCH messages refused for impossible field values
+        self.last_invalid: str | None = None
+        self._refusal_event_s: dict[str, float] = {}
+        self.link_error: str | None = None  # why the link cannot be opened (None once it is open)
+        self._last_ticks: dict[object, float] = {}  # per sensor (last sample) and "sync": newest unwrapped ticks
         self.connected_at_s: float | None = None
         self.last_data_s: float | None = None
         self.decoder_totals: dict[str, int] = {}
@@ -163,12 +176,16 @@ class StationReader:
         directly with a link whose ``write`` goes to an emulator). False if the link cannot be opened."""
         try:
             link = self._open_link(self.source)
-        except LinkError:
+        except LinkError as exc:
             with self._lock:
                 if self.link_state not in ("lost", "connecting"):
                     self.link_state = "lost"
+                changed, self.link_error = str(exc) != self.link_error, str(exc)
+            if changed:  # once per distinct reason, not every retry; the gateway logs events
+                self.sink.on_station_event(self.name, "alarm", f"cannot open link: {exc}")
             return False
         with self._lock:
+            self.link_error = None
             if self.connected_at_s is not None:
                 self.reconnects += 1
             self._link = link
@@ -261,6 +278,10 @@ class StationReader:
             return
         msg = frame.message
         if isinstance(msg, fp.Hello):
+            problem = hello_problem(msg)
+            if problem is not None:
+                self._refuse("hello", problem)
+                return
             self._on_hello(msg)
             while self._pre_hello:
                 self._handle(*self._pre_hello.popleft())
@@ -271,9 +292,8 @@ class StationReader:
         if isinstance(msg, fp.SampleBatch):
             self._on_batch(msg, arrival_s)
         elif isinstance(msg, fp.ClockSync):
-            ticks, reset = self.unwrapper.unwrap(msg.station_ticks, arrival_s)
-            if reset:
-                self._on_clock_reset("clock sync counter jumped")
+            ticks = self._unwrap("sync", msg.station_ticks, arrival_s, "clock sync counter jumped")
+            self._last_ticks["sync"] = ticks
             self.clock.add(ticks / self.hello.tick_rate_hz, arrival_s)
             on_clock_point = getattr(self.sink, "on_clock_point", None)
             if on_clock_point is not None:
@@ -320,7 +340,35 @@ class StationReader:
                                    f"{hello.tick_rate_hz} ticks/s", {"boot_id": hello.boot_id,
                                                                      "station_serial": hello.station_serial})
 
+    def _refuse(self, kind: str, problem: str) -> None:
+        """Drop a message whose fields are impossible: counted in status, one event per kind per interval."""
+        self.invalid_fields += 1
+        self.last_invalid = problem
+        now = time.monotonic()
+        if now - self._refusal_event_s.get(kind, -float("inf")) >= REFUSAL_EVENT_INTERVAL_S:
+            self._refusal_event_s[kind] = now
+            self.sink.on_station_event(self.name, "warning", f"refused {problem} ({self.invalid_fields} refused "
+                                                             "so far; link kept)")
+
+    def _unwrap(self, stream: object, raw_ticks: int, arrival_s: float, jump_reason: str) -> int:
+        """Unwrap a tick value of one in-order stream (a sensor's batches, or the clock beacons). A far jump is a
+        reset (TickUnwrapper); a step back within its tolerance is one too: a sensor's samples and the beacons
+        are sent in tick order, so a value at or before the stream's last one means the device clock moved."""
+        ticks, reset = self.unwrapper.unwrap(raw_ticks, arrival_s)
+        if reset:
+            self._on_clock_reset(jump_reason)
+            return ticks
+        last = self._last_ticks.get(stream)
+        if last is not None and (ticks < last or (ticks == last and stream != "sync")):
+            back_s = (last - ticks) / self.hello.tick_rate_hz
+            self.unwrapper.restart()
+            ticks, _ = self.unwrapper.unwrap(raw_ticks, arrival_s)
+            where = "clock beacons" if stream == "sync" else f"sensor {stream}"
+            self._on_clock_reset(f"device ticks went back by {back_s:.6f} s ({where})")
+        return ticks
+
     def _on_clock_reset(self, why: str) -> None:
+        self._last_ticks.clear()
         self.clock.restart()
         for stats in self.sensors.values():
             stats.restart_counter()
@@ -330,11 +378,15 @@ class StationReader:
         n = batch.n_samples
         if n == 0:
             return
-        first, reset = self.unwrapper.unwrap(batch.first_sample_ticks, arrival_s)
-        if reset:
-            self._on_clock_reset("sample ticks jumped far from the prediction")
+        problem = batch_problem(batch, self.hello.tick_rate_hz)
+        if problem is not None:
+            self._refuse("batch", problem)
+            return
+        first = self._unwrap(batch.sensor_id, batch.first_sample_ticks, arrival_s,
+                             "sample ticks jumped far from the prediction")
         offsets = np.arange(n) * batch.sample_period_ticks
         ticks = first + offsets
+        self._last_ticks[batch.sensor_id] = float(ticks[-1])
         device_s = ticks / self.hello.tick_rate_hz
         self.clock.add(float(device_s[-1]), arrival_s)  # newest sample: least delivery latency
         stats = self._sensor(batch.sensor_id)
@@ -401,6 +453,7 @@ class StationReader:
                 "station_serial": hello.station_serial if hello else None,
                 "boot_id": hello.boot_id if hello else None, "tick_hz": hello.tick_rate_hz if hello else None,
                 "reconnects": self.reconnects, "internal_errors": self.internal_errors, "battery_pct": self.station_battery_pct,
+                "invalid_fields": self.invalid_fields, "last_invalid": self.last_invalid, "link_error": self.link_error,
                 "buffered_samples": self.station_buffered_samples, **counts,
                 "clock": clock, "sensors": sensors,
             }

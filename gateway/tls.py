@@ -17,8 +17,10 @@ import ssl
 import threading
 import time
 
+from engine.errors import CourtsideError
 
-class TlsError(ConnectionError):
+
+class TlsError(CourtsideError, ConnectionError):
     """The TLS handshake failed or timed out (wrong certificate, not TLS, too slow)."""
 
 
@@ -106,9 +108,6 @@ class TlsChannel:
 
     def fileno(self) -> int:
         return self.sock.fileno()
-
-    def setsockopt(self, *args: object) -> None:
-        self.sock.setsockopt(*args)  # type: ignore[arg-type]
 
     def shutdown(self, how: int) -> None:
         self.sock.shutdown(how)

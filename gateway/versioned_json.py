@@ -25,6 +25,8 @@ def read_versioned_json(path: str | Path, schema: str, version: int, what: str, 
         raise error(path, f"cannot read: {exc.strerror}") from exc
     except json.JSONDecodeError as exc:
         raise error(path, f"not JSON (line {exc.lineno}: {exc.msg})") from exc
+    except UnicodeDecodeError:
+        raise error(path, "not a text file (not UTF-8)") from None
     if not isinstance(doc, dict) or doc.get("schema") != schema:
         raise error(path, f"not {what} (schema must be {schema!r})")
     if doc.get("schema_version") != version:

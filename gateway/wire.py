@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from engine.errors import CourtsideError
 from gateway import codec
 
 PROTOCOL_VERSION = 2  # 2: authentication (hello "auth" + "auth" request), roles
@@ -42,7 +43,7 @@ ACTIONS = (
 )
 
 
-class WireError(ConnectionError):
+class WireError(CourtsideError, ConnectionError):
     """The peer sent something that is not a valid frame (too long, undecodable)."""
 
 

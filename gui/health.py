@@ -23,6 +23,8 @@ SYNC_AMBER_RESIDUAL_S = 0.020
 LOW_BATTERY_PCT = 20  # per-sensor battery %, as the stations report it in STATUS (gateway key battery_pct)
 SENSOR_SILENT_S = 1.0
 LOW_DISK_BYTES = 1 << 30
+CAMERA_SLOW_FRACTION = 0.5  # the gateway's camera delivering under half its nominal rate (CPU starved, USB)
+CAMERA_MIN_FRAMES = 30  # ... once it has run long enough for a rate
 
 
 def sync_status(station: dict[str, Any]) -> Sync:
@@ -76,6 +78,15 @@ def status_alarms(status: dict[str, Any], disk_path: str | None = None, was_lock
             last = sensor.get("last_t_host_s")
             if now is not None and link == "streaming" and (last is None or float(now) - float(last) > SENSOR_SILENT_S):
                 alarms.append(Alarm(f"lost:{name}", "alarm", f"sensor {name}: no data"))
+    camera = status.get("camera")  # the gateway's camera health (docs/gateway.md "Config file")
+    if camera:
+        if camera.get("state") in ("failed", "ended"):
+            alarms.append(Alarm("camera", "alarm", f"camera {camera.get('state')}"
+                                + (f": {camera['error']}" if camera.get("error") else "")))
+        elif camera.get("state") == "running" and camera.get("frames", 0) > CAMERA_MIN_FRAMES and \
+                float(camera.get("fps") or 0.0) < CAMERA_SLOW_FRACTION * float(camera.get("nominal_fps") or 0.0):
+            alarms.append(Alarm("camera", "warning", f"camera at {float(camera['fps']):.1f} fps "
+                                f"(nominal {float(camera['nominal_fps']):.0f})"))
     if disk_path:
         try:
             free = shutil.disk_usage(disk_path).free

@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import MalformedFileError
+from engine.errors import MalformedFileError, cli_command
 from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load_sensor_calibration,
                           placements_from_calibration, sample_clips, standard_placements, write_bvh)
 
 from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
+from .input_checks import check_database, check_lag, check_output, check_path_length, parse_sensor_map
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .report import coverage_warning, format_report, graph_report, motion_range
 from .viterbi import SearchWeights
@@ -59,6 +60,7 @@ def _add_database_args(p: argparse.ArgumentParser) -> None:
 def load_clips(args: argparse.Namespace, config: GraphConfig):
     paths = database_paths(args)
     motions = load_database(paths, fps=config.fps)
+    check_database(paths, motions, config.fps)
     placements = standard_placements(motions[0].skeleton, args.sensors)
     if getattr(args, "calibration", None):
         # measured sensor-to-segment rotations instead of the nominal mounting (ValueError: other joint frames)
@@ -73,6 +75,7 @@ def load_clips(args: argparse.Namespace, config: GraphConfig):
     return motions, clips, mocap_sensor_model(motions[0].skeleton, placements, config.fps)
 
 
+@cli_command("courtside build-graph")
 def build_graph_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="courtside build-graph", description="Build a motion graph from mocap clips.")
     p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
@@ -89,12 +92,9 @@ def build_graph_main(argv: list[str]) -> int:
     args = p.parse_args(argv)
     config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold,
                          connect=not args.no_connect)
+    check_output(args.output)
     t0 = time.perf_counter()
-    try:
-        motions, clips, sensor_model = load_clips(args, config)
-    except (MalformedFileError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+    motions, clips, sensor_model = load_clips(args, config)
     t1 = time.perf_counter()
     graph = build_from_clips(clips, config, sensor_model)
     graph.skeleton = motions[0].skeleton
@@ -131,6 +131,7 @@ def _weights(values: list[float]) -> SearchWeights:
     return SearchWeights(*values)
 
 
+@cli_command("courtside synthesize")
 def synthesize_main(argv: list[str]) -> int:
     from engine.stream import FramePose, synthesize_streams
     from engine.stream.poses_file import save_poses
@@ -173,18 +174,16 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--no-blend", action="store_true")
     p.add_argument("--no-ik", action="store_true")
     args = p.parse_args(argv)
-    try:
-        graph = MotionGraph.load(args.graph)
-        sensor_map = dict(s.split("=", 1) for s in args.sensor_map) if args.sensor_map else None
-        take = read_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map,
-                         use_camera_heading=args.camera_heading, times=args.times, start_s=args.start)
-    except MalformedFileError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+    graph = MotionGraph.load(args.graph)
+    sensor_map = parse_sensor_map(args.sensor_map, graph.config.sensor_names)
+    check_lag(args.lag, graph.config.fps)
+    check_output(args.output)
+    take = read_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map,
+                     use_camera_heading=args.camera_heading, times=args.times, start_s=args.start)
     obs = take.obs
     if graph.skeleton is None:
-        print(f"error: {args.graph}: graph holds no skeleton (rebuild it with build-graph)", file=sys.stderr)
-        return 1
+        raise MalformedFileError(args.graph, None, "graph holds no skeleton (rebuild it with build-graph)")
+    check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, obs.n_samples, graph.config.fps)
     warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
     if warning:
@@ -268,6 +267,7 @@ def _fixed_lag_over_frames(synthesizer, take) -> list:
     return out + frame_poses(synthesizer.flush())
 
 
+@cli_command("courtside evaluate")
 def evaluate_main(argv: list[str]) -> int:
     from .evaluate import Setting, leave_one_out, summarise
 
@@ -284,11 +284,7 @@ def evaluate_main(argv: list[str]) -> int:
     variants = args.variants.split(",")
     full = GraphConfig(msv="msv" in args.variants, interp="interp" in args.variants,
                        transition_threshold_m=args.threshold)
-    try:
-        motions, clips, sensor_model = load_clips(args, full)
-    except MalformedFileError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+    motions, clips, sensor_model = load_clips(args, full)
     idx = {n: args.sensors.index(n) for n in args.sensors}
     all_s = tuple(range(len(args.sensors)))
     two = tuple(idx[n] for n in ("left_forearm", "right_forearm") if n in idx)

@@ -9,6 +9,7 @@ interpolated clips). The first sample of a search is scored against the arrival 
 from __future__ import annotations
 
 import json
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -181,30 +182,39 @@ class MotionGraph:
 
     @classmethod
     def load(cls, path: str | Path) -> "MotionGraph":
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise MalformedFileError(path, None, f"not a readable motion-graph .npz ({exc})") from exc
-        with data:
-            if "header_json" not in data:
-                raise MalformedFileError(path, None, "missing 'header_json': not a motion graph file")
-            header = json.loads(str(data["header_json"]))
-            if header.get("format_version") != FORMAT_VERSION:
-                raise MalformedFileError(path, None, f"unsupported graph format {header.get('format_version')}")
-            names = {f.name for f in fields(cls)} - _NON_ARRAYS
-            optional = {"node_rotations", "node_root_m"}
-            missing = sorted(names - optional - set(data.files))
-            if missing:
-                raise MalformedFileError(path, None, f"missing arrays: {', '.join(missing)}")
-            arrays = {k: data[k] for k in names if k in data.files}
-            skeleton = None
-            if header.get("skeleton_names"):
-                skeleton = Skeleton(tuple(header["skeleton_names"]), data["skeleton_parents"],
-                                    data["skeleton_offsets_m"], data["skeleton_end_site"])
-        graph = cls(config=GraphConfig(**header["config"]), clip_names=header["clip_names"],
-                    label_names=header["label_names"], skeleton=skeleton, build_report=header.get("build_report"),
-                    **arrays)
-        problem = graph.inconsistency()
+        from .input_checks import graph_arrays_problem, open_npz
+
+        with open_npz(Path(path)) as data:
+            try:  # any parse failure of a damaged or foreign file becomes one error naming the file
+                if "header_json" not in data:
+                    raise MalformedFileError(path, None, "missing 'header_json': not a motion graph file")
+                header = json.loads(str(data["header_json"]))
+                if not isinstance(header, dict):
+                    raise MalformedFileError(path, None, "'header_json' is not a JSON object")
+                if header.get("format_version") != FORMAT_VERSION:
+                    raise MalformedFileError(path, None, f"unsupported graph format {header.get('format_version')}")
+                names = {f.name for f in fields(cls)} - _NON_ARRAYS
+                optional = {"node_rotations", "node_root_m"}
+                missing = sorted(names - optional - set(data.files))
+                if missing:
+                    raise MalformedFileError(path, None, f"missing arrays: {', '.join(missing)}")
+                arrays = {k: data[k] for k in names if k in data.files}
+                skeleton = None
+                if header.get("skeleton_names"):
+                    parents = data["skeleton_parents"]
+                    problem = graph_arrays_problem(arrays, len(header["skeleton_names"]), parents)
+                    if problem:
+                        raise MalformedFileError(path, None, problem)
+                    skeleton = Skeleton(tuple(header["skeleton_names"]), parents, data["skeleton_offsets_m"],
+                                        data["skeleton_end_site"])
+                graph = cls(config=GraphConfig(**header["config"]), clip_names=header["clip_names"],
+                            label_names=header["label_names"], skeleton=skeleton,
+                            build_report=header.get("build_report"), **arrays)
+            except (ValueError, TypeError, KeyError, OSError, EOFError, zipfile.BadZipFile) as exc:
+                if isinstance(exc, MalformedFileError):
+                    raise
+                raise MalformedFileError(path, None, f"not a valid motion graph ({type(exc).__name__}: {exc})") from None
+        problem = graph_arrays_problem(arrays, None, None) or graph.inconsistency()
         if problem:
             raise MalformedFileError(path, None, problem)
         return graph

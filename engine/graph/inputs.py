@@ -30,6 +30,7 @@ from engine.errors import MalformedFileError
 from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
 from engine.stream import CameraTrack, FrameBatch, FrameResampler, RecordedStreams, resample_uniform, take_start_s
 
+from .input_checks import check_gateway_export, check_observations, check_sensor_map, check_synthesis_file, open_npz
 from .viterbi import Observations
 
 HEURISTIC_SPEED_MPS = SEED_HEADING_SPEED_MPS
@@ -70,11 +71,8 @@ def _track_at(values_t_s: np.ndarray, positions: np.ndarray | None, headings: np
 
 
 def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: float) -> TakeFrames:
+    check_synthesis_file(path, data, graph_sensors)  # shapes, fps, finite values: past here they are sound
     acc = np.asarray(data["acc_g"], float)
-    if acc.ndim != 3 or acc.shape[2] != 3:
-        raise MalformedFileError(path, None, f"acc_g must have shape (T, S, 3), got {acc.shape}")
-    if "fps" not in data.files:
-        raise MalformedFileError(path, None, "missing 'fps' (sample rate of the streams, Hz)")
     fps = float(data["fps"])
     names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else graph_sensors[:acc.shape[1]]
     if len(names) == acc.shape[1] and any(n in graph_sensors for n in names):  # drop sensors the graph lacks
@@ -109,6 +107,8 @@ def recorded_streams(path: Path, data, graph_sensors: list[str], sensor_map: dic
     keys = sorted({k.rsplit("/", 1)[0] for k in data.files if k.endswith("/acc_g")})
     if not keys:
         raise MalformedFileError(path, None, "no 'acc_g' array and no '<station>/<sensor>/acc_g' arrays")
+    check_gateway_export(path, data, keys)
+    check_sensor_map(path, sensor_map, keys)
     mapping = sensor_map or dict(zip(keys, graph_sensors))
     missing = [k for k in mapping if k not in keys]
     if missing or any(v not in graph_sensors for v in mapping.values()) or len(set(mapping.values())) < len(mapping):
@@ -121,6 +121,8 @@ def recorded_streams(path: Path, data, graph_sensors: list[str], sensor_map: dic
             raise MalformedFileError(path, None, f"sensor {k} has no '{times}' array")
         samples[k] = (np.asarray(data[f"{k}/{times}"], float), np.asarray(data[f"{k}/acc_g"], float))
     meta = _json(path, data, "meta", {})
+    if not isinstance(meta, dict):
+        raise MalformedFileError(path, None, "'meta' must be a JSON object (the recording's header)")
     cams = [m for m in _json(path, data, "messages", []) if m.get("kind") == "camera" and m.get("t_host_s") is not None]
     cams.sort(key=lambda m: float(m["t_host_s"]))
     camera = [(float(m["t_host_s"]), m.get("position_m"), m.get("heading_rad")) for m in cams]
@@ -148,8 +150,9 @@ def _from_gateway_export(path: Path, data, graph_sensors: list[str], fps_graph: 
         resampler.add(k, *streams.samples[k])
     resampler.start_at(start_s)
     frames: FrameBatch = resampler.frames()
-    if not len(frames):
-        raise MalformedFileError(path, None, "the sensors' recordings do not overlap in time (no complete frame)")
+    if not frames.valid.any():
+        raise MalformedFileError(path, None, "the sensors' recordings do not overlap in time (no frame has every "
+                                             "sensor's samples)")
     track = CameraTrack()
     for t, pos, head in streams.camera:
         track.add(t, pos, head)
@@ -164,16 +167,20 @@ def read_take(path: str | Path, graph_sensors: list[str], fps_graph: float, sens
     """A synthesis-input .npz or a gateway export on the frame clock (see the module doc)."""
     path = Path(path)
     try:
-        data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        hint = ("; a device recording (CSV/TSV, Xsens, x-IMU3) becomes a take with `courtside import-imu`"
-                if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx") else "")
-        raise MalformedFileError(path, None, f"not a readable .npz ({exc}){hint}") from exc
+        data = open_npz(path)
+    except MalformedFileError as exc:
+        if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx"):
+            raise MalformedFileError(path, None, f"{exc.problem}; a device recording (CSV/TSV, Xsens, x-IMU3) "
+                                                 "becomes a take with `courtside import-imu`") from None
+        raise
     with data:
         if "acc_g" in data.files:
-            return _from_synthesis_file(path, data, graph_sensors, fps_graph)
-        return _from_gateway_export(path, data, graph_sensors, fps_graph, sensor_map, use_camera_heading, times,
-                                    start_s)
+            take = _from_synthesis_file(path, data, graph_sensors, fps_graph)
+        else:
+            take = _from_gateway_export(path, data, graph_sensors, fps_graph, sensor_map, use_camera_heading, times,
+                                        start_s)
+    check_observations(path, take.obs.acc_g, fps_graph)
+    return take
 
 
 def load_take(path: str | Path, graph_sensors: list[str], fps_graph: float,

@@ -10,12 +10,11 @@ file's own labels, next to the closest-point baseline.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 
 import numpy as np
 
-from engine.errors import MalformedFileError
+from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import MarkerData, read_c3d
 
 from .baseline import ClosestPointTracker, bootstrap_training_labels
@@ -54,6 +53,7 @@ def run(
     return out, labeler, results
 
 
+@cli_command("courtside label")
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="courtside label", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -65,11 +65,13 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--bootstrap", action="store_true",
                         help="trust only the first frame's labels; label the other training frames by closest point")
     args = parser.parse_args(argv)
+    check_output_dir(args.output)
     try:
         data = read_c3d(args.input)
         config = LabelingConfig(train_frames=args.train_frames, recovery=args.recovery)
         if data.n_frames <= config.train_frames:
-            raise ValueError(f"{args.input}: {data.n_frames} frames, not more than --train-frames")
+            raise MalformedFileError(args.input, None, f"{data.n_frames} frames, not more than --train-frames "
+                                                       f"{config.train_frames}")
         subjects = subjects_of(data.labels)
         if args.degrade is not None:
             stream = degrade(data.positions_m, subjects, DegradeConfig(protect_frames=config.train_frames),
@@ -80,9 +82,10 @@ def main(argv: list[str]) -> int:
         out, labeler, results = run(data, config, stream, args.bootstrap)
         elapsed = time.perf_counter() - start
         write_c3d(args.output, MarkerData(data.labels, out, data.fps, data.name))
-    except (MalformedFileError, ValueError) as exc:
-        print(f"courtside label: {exc}", file=sys.stderr)
-        return 1
+    except ValueError as exc:  # the labeler refuses the file's markers (an argument error names itself)
+        if isinstance(exc, CourtsideError):
+            raise
+        raise MalformedFileError(args.input, None, str(exc)) from None
     status = np.array([r.status for r in results])
     n = len(results)
     print(f"{args.input}: {len(data.labels)} labels, {len(set(subjects))} subjects, {len(labeler.bodies)} rigid bodies "

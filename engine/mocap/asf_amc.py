@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.mocap.plausible import check_values
 from engine.mocap import quaternions as quat
 from engine.mocap.skeleton import Motion, Skeleton
 
@@ -56,6 +57,7 @@ def _floats(path: Path, line: int, fields: list[str], count: int, what: str) -> 
         vals = np.array([])
     if vals.size != count:
         raise MalformedFileError(path, line, f"{what}: expected {count} numbers, got {' '.join(fields)!r}")
+    check_values(path, vals, what, line)
     return vals
 
 
@@ -175,6 +177,8 @@ def read_asf(path: str | Path) -> AsfSkeleton:
         for name in fields:
             if name != "root" and name not in bones:
                 raise MalformedFileError(path, number, f"hierarchy names unknown bone {name!r}")
+        if "root" in fields[1:]:
+            raise MalformedFileError(path, number, f"hierarchy cycle: 'root' listed as a child of {fields[0]!r}")
         children.setdefault(fields[0], []).extend(fields[1:])
 
     names, parents, offsets, end_site = ["root"], [-1], [np.zeros(3)], [False]
@@ -256,7 +260,10 @@ def _amc_columns(path: Path, lines: list[str], asf: AsfSkeleton) -> tuple[dict[s
             raise MalformedFileError(path, where, f"bone {name!r} missing from frame {len(values) + 1}")
         try:
             out[name] = np.array(values, dtype=float)
-        except ValueError:
+            check_values(path, out[name], f"bone {name!r}", np.array(rows_lines[name]))
+        except ValueError as exc:
+            if isinstance(exc, MalformedFileError):
+                raise
             for row, number in zip(values, rows_lines[name]):
                 try:
                     [float(v) for v in row]

@@ -24,6 +24,7 @@ import numpy as np
 
 from engine.errors import MalformedFileError
 from engine.mocap import quaternions as quat
+from engine.mocap.plausible import check_values
 from engine.mocap.skeleton import Motion, Skeleton, forward_kinematics
 
 CMU_UNIT_M = 0.0254 / 0.45  # CMU length unit: 0.45 scale on inches -> metres per unit (0.056444)
@@ -100,6 +101,7 @@ def _parse_hierarchy(path: Path, lines: list[str]) -> tuple[list[_Joint], int]:
                 joints[stack[-1]].offset = np.array([float(v) for v, _ in vals])
             except (ValueError, IndexError):
                 raise MalformedFileError(path, line, f"bad OFFSET {' '.join(v for v, _ in vals)!r}") from None
+            check_values(path, joints[stack[-1]].offset, "OFFSET", line)
             i += 4
         elif key == "CHANNELS":
             try:
@@ -130,7 +132,7 @@ def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: in
         frame_time = float(header[1][1].split(":", 1)[1])
     except ValueError:
         raise MalformedFileError(path, motion_line + 2, "bad 'Frames:' or 'Frame Time:' value") from None
-    if n_frames < 1 or not frame_time > 0:
+    if n_frames < 1 or not 0 < frame_time < np.inf:
         raise MalformedFileError(path, motion_line + 2, f"need Frames >= 1 and Frame Time > 0, got {n_frames}, {frame_time}")
     first = motion_line + 3
     body = lines[first:]
@@ -151,7 +153,9 @@ def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: in
             except ValueError:
                 raise MalformedFileError(path, first + k + 1, f"frame {k} holds a non-number") from None
         raise MalformedFileError(path, first + len(body), f"header says {n_frames} frames, file holds {len(body)}")
-    return values.reshape(n_frames, n_channels), frame_time
+    values = values.reshape(n_frames, n_channels)
+    check_values(path, values, "channel value", first + 1 + np.arange(n_frames))
+    return values, frame_time
 
 
 def _guess_scale(skeleton: Skeleton, root_pos: np.ndarray, rotations: np.ndarray) -> float:

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.mocap.c3d_check import check_c3d
 
 _UNIT_M = {"mm": 0.001, "cm": 0.01, "dm": 0.1, "m": 1.0, "in": 0.0254, "inch": 0.0254}
 
@@ -36,6 +37,7 @@ def read_c3d(path: str | Path) -> MarkerData:
     path = Path(path)
     if not path.is_file():
         raise MalformedFileError(path, None, "no such file")
+    check_c3d(path)  # ezc3d crashes on damaged parameters and accepts a cut file
     try:
         c3d = ezc3d.c3d(str(path))
     except Exception as exc:  # ezc3d raises plain RuntimeError/ValueError with terse text

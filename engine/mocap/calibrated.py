@@ -91,6 +91,8 @@ def load_sensor_calibration(path: str | Path) -> SensorCalibrationData:
         raise MalformedFileError(path, None, f"cannot read: {exc.strerror}") from exc
     except json.JSONDecodeError as exc:
         raise MalformedFileError(path, exc.lineno, f"not JSON ({exc.msg})") from exc
+    except UnicodeDecodeError:
+        raise MalformedFileError(path, None, "not a text file (not UTF-8)") from None
     if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
         raise MalformedFileError(path, None, f"not a sensor calibration record (schema must be {SCHEMA!r})")
     if doc.get("schema_version") != SCHEMA_VERSION:
@@ -109,6 +111,9 @@ def load_sensor_calibration(path: str | Path) -> SensorCalibrationData:
             passed = bool(entry["passed"])
         except (KeyError, TypeError, ValueError) as exc:
             raise MalformedFileError(path, None, f"sensor {sid!r}: bad entry ({exc!r})") from None
+        if not (np.all(np.isfinite(rotation)) and np.all(np.isfinite(gravity)) and np.isfinite(norm_error)
+                and np.isfinite(correction)):
+            raise MalformedFileError(path, None, f"sensor {sid!r}: non-finite numbers")
         if not _is_rotation(rotation):
             raise MalformedFileError(path, None, f"sensor {sid!r}: rotation is not a proper 3x3 rotation")
         if segment in out.rotations:
@@ -136,8 +141,8 @@ def placements_from_calibration(placements: list[SensorPlacement], calibration: 
     for seg in used:
         angle = _angle_deg(calibration.rotations[seg] @ nominal[seg].T)
         if abs(angle - calibration.correction_deg[seg]) > frame_tolerance_deg:
-            raise ValueError(
-                f"{calibration.path}: sensor on {seg!r} is {angle:.0f} deg from this skeleton's nominal mounting "
+            raise MalformedFileError(
+                calibration.path, None, f"sensor on {seg!r} is {angle:.0f} deg from this skeleton's nominal mounting "
                 f"but the wizard corrected {calibration.correction_deg[seg]:.0f} deg: the record was made for "
                 "another skeleton's joint frames")
     rotations = {s: calibration.rotations[s] for s in used}

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from engine.errors import CourtsideError
+
 from engine.mocap.skeleton import Skeleton
 
 # role -> joint name, per naming convention; "{L}"/"{l}" expand to the side.
@@ -39,6 +41,10 @@ ERROR_ROLES: tuple[str, ...] = ("pelvis", "lower_back", "upper_back", "neck", "h
     f"{s}_{p}" for s in _SIDES for p in ("hip", "knee", "ankle", "toe", "clavicle", "shoulder", "elbow", "hand"))
 
 
+class UnknownSkeletonError(CourtsideError, ValueError):
+    """The skeleton's joint names match none of the known conventions (so no joint has a role)."""
+
+
 def _role_names(convention: dict[str, str]) -> dict[str, str]:
     out = {r: convention[r] for r in ROLES[:5]}
     for side, fill in _SIDES.items():
@@ -61,7 +67,7 @@ def joint_roles(skeleton: Skeleton) -> dict[str, int]:
             return {role: index[name] for role, name in names.items()}
         if best is None or len(missing) < best[0]:
             best = (len(missing), convention, missing)
-    raise ValueError(f"skeleton matches no known naming convention (closest: {best[1]}, missing joints "
+    raise UnknownSkeletonError(f"skeleton matches no known naming convention (closest: {best[1]}, missing joints "
                      f"{best[2]}; joints: {', '.join(skeleton.names)})")
 
 

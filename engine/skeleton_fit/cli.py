@@ -2,11 +2,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 import numpy as np
 
-from engine.errors import MalformedFileError
+from engine.errors import MalformedFileError, check_output_dir, cli_command
 from engine.mocap import read_c3d, write_bvh
 
 from .gdke import DegenerateFitError, JointFitConfig
@@ -24,6 +23,7 @@ def subject_markers(labels: tuple[str, ...], positions_m: np.ndarray, subject: s
     return {lab.split(":")[-1]: positions_m[:, i] for i, lab in enumerate(labels) if prefixes[i] == chosen}
 
 
+@cli_command("courtside fit-skeleton")
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="courtside fit-skeleton", description=__doc__)
     parser.add_argument("input", help="labelled marker C3D")
@@ -34,6 +34,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--static-std-m", type=float, default=JointFitConfig.static_std, help="static if below")
     parser.add_argument("--max-samples", type=int, default=None, help="frames per joint fit (default: all)")
     args = parser.parse_args(argv)
+    check_output_dir(args.output)
     try:
         data = read_c3d(args.input)
         markers = subject_markers(data.labels, data.positions_m, args.subject)
@@ -43,9 +44,10 @@ def main(argv: list[str]) -> int:
         model = fit_skeleton(markers, marker_set, config)
         motion = to_motion(model, markers, data.fps, name=data.name)
         write_bvh(args.output, motion)
-    except (MalformedFileError, DegenerateFitError, ValueError) as exc:
-        print(f"courtside fit-skeleton: {exc}", file=sys.stderr)
-        return 1
+    except (DegenerateFitError, ValueError) as exc:  # the markers cannot give a skeleton: name the file
+        if isinstance(exc, MalformedFileError):
+            raise
+        raise MalformedFileError(args.input, None, str(exc)) from None
     print(f"{args.input}: marker set {marker_set.name}, {motion.rotations.shape[0]} frames at {data.fps:g} Hz")
     print(f"{'joint':<14}{'parent':<14}{'type':<8}{'kappa':>9}{'radius_m':>10}  centre_in_parent_m")
     for joint in model.joints[1:]:

@@ -18,8 +18,10 @@ from enum import Enum
 
 import numpy as np
 
+from engine.errors import CourtsideError
 
-class DegenerateFitError(ValueError):
+
+class DegenerateFitError(CourtsideError, ValueError):
     """The points cannot define the requested shape (too few, collinear, coplanar, or not moving)."""
 
 

@@ -3,11 +3,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from engine.errors import MalformedFileError
 
-class CalibrationRecordError(Exception):
+
+class CalibrationRecordError(MalformedFileError):
     """A saved sensor-calibration record is unreadable, of an unknown schema version, or inconsistent."""
 
     def __init__(self, path: str | Path, problem: str) -> None:
+        super().__init__(path, None, problem)
         self.path = Path(path)
-        self.problem = problem
-        super().__init__(f"{self.path}: {problem}")

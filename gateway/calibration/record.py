@@ -13,11 +13,9 @@ from typing import Any
 import numpy as np
 
 from engine.mocap import quaternions
+from engine.mocap.calibrated import SCHEMA, SCHEMA_VERSION  # the record's schema id is defined once, engine side
 from gateway.calibration.errors import CalibrationRecordError
 from gateway.versioned_json import read_versioned_json
-
-SCHEMA = "courtside.sensor_calibration"
-SCHEMA_VERSION = 1
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""Camera command line: ``python -m gateway.camera.cli {synth,calibrate,track} ...``.
+"""Camera command line: ``courtside camera {synth,calibrate,track} ...`` (or ``python -m gateway.camera.cli``).
 
 * ``synth``: render a synthetic court clip (scripted rally or a shipped CMU clip) to a video file, with its
   court calibration (JSON, with intrinsics) and the per-frame ground truth (CSV).
@@ -19,7 +19,8 @@ import numpy as np
 
 from gateway.camera.court import COURT_KEYPOINTS_M, keypoints_array
 from gateway.camera.court_calibration import CourtCalibration
-from gateway.camera.errors import CameraError
+from engine.errors import report_errors
+from gateway.camera.errors import CameraError, CourtCalibrationFileError
 from gateway.camera.paths import scripted_rally_path
 from gateway.camera.sources import VideoFileSource
 from gateway.camera.synthetic import SyntheticCourtCamera, default_court_camera
@@ -62,15 +63,38 @@ def synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def read_clicks(path: Path) -> tuple[list[str], np.ndarray]:
+    """Clicked keypoints ``{"court keypoint name": [u, v], ...}`` -> (names, (N, 2) pixels); errors name the file."""
+    try:
+        clicks = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise CourtCalibrationFileError(path, f"cannot read: {exc.strerror}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CourtCalibrationFileError(path, f"not JSON ({exc})") from None
+    if not isinstance(clicks, dict):
+        raise CourtCalibrationFileError(path, 'expected a JSON object {"keypoint name": [u, v], ...}')
+    for name, uv in clicks.items():
+        if name not in COURT_KEYPOINTS_M:
+            raise CourtCalibrationFileError(path, f"unknown court keypoint {name!r}")
+        if not (isinstance(uv, list) and len(uv) == 2 and all(isinstance(v, (int, float)) and np.isfinite(v)
+                                                                for v in uv)):
+            raise CourtCalibrationFileError(path, f"keypoint {name!r}: expected [u, v] pixel numbers, got {uv!r}")
+    if len(clicks) < 4:
+        raise CourtCalibrationFileError(path, f"a court calibration needs at least 4 keypoints, got {len(clicks)}")
+    return list(clicks), np.array(list(clicks.values()), float)
+
+
 def calibrate(args: argparse.Namespace) -> int:
-    clicks = json.loads(Path(args.clicks).read_text())
-    names = list(clicks)
+    names, points = read_clicks(args.clicks)
     width, height = args.image_size
     k = None
     if args.focal_px:
         k = np.array([[args.focal_px, 0, (width - 1) / 2], [0, args.focal_px, (height - 1) / 2], [0, 0, 1]])
-    calib = CourtCalibration.fit(np.array([clicks[n] for n in names], float), names=names, image_size=(width, height),
-                                 camera_matrix=k, ransac_threshold_px=args.ransac_px)
+    try:
+        calib = CourtCalibration.fit(points, names=names, image_size=(width, height), camera_matrix=k,
+                                     ransac_threshold_px=args.ransac_px)
+    except ValueError as exc:  # degenerate clicks (collinear, repeated...)
+        raise CourtCalibrationFileError(args.clicks, f"cannot fit a calibration: {exc}") from None
     calib.save(args.out)
     print(json.dumps({"saved": str(args.out), **calib.summary()}))
     return 0
@@ -101,7 +125,11 @@ def track(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gateway.camera.cli", description=__doc__.split("\n")[0])
+    return report_errors("courtside camera", _main, list(sys.argv[1:] if argv is None else argv))
+
+
+def _main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="courtside camera", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("synth", help="render a synthetic court clip + calibration + ground truth")
     p.add_argument("--out", type=Path, default=Path("court.mp4"))
@@ -135,9 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.run(args)
-    except (CameraError, OSError, ValueError, KeyError) as exc:
-        print(f"gateway.camera: {exc}", file=sys.stderr)
-        return 2
+    except OSError as exc:  # an output that cannot be written (the inputs raise CameraError themselves)
+        raise CameraError(f"{exc.filename or ''}: {exc.strerror or exc}") from None
 
 
 if __name__ == "__main__":

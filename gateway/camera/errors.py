@@ -1,13 +1,15 @@
 """Errors raised by the camera package.
 
-Why our own types: the gateway must report *which* file or device failed and why, without importing the
-engine's error module into the headless capture path."""
+Why our own types: the gateway must report *which* file or device failed and why; they derive from the project's
+error root (`engine.errors`, a dependency-free module) so every CLI reports them the same way."""
 from __future__ import annotations
 
 from pathlib import Path
 
+from engine.errors import CourtsideError, MalformedFileError
 
-class CameraError(Exception):
+
+class CameraError(CourtsideError):
     """Base class for camera-side failures (device, video file, calibration file)."""
 
 
@@ -20,10 +22,9 @@ class FrameSourceError(CameraError):
         super().__init__(f"{source}: {problem}")
 
 
-class CourtCalibrationFileError(CameraError):
+class CourtCalibrationFileError(CameraError, MalformedFileError):
     """A saved court calibration is unreadable or inconsistent (names the file and the problem)."""
 
     def __init__(self, path: str | Path, problem: str) -> None:
+        MalformedFileError.__init__(self, path, None, problem)
         self.path = Path(path)
-        self.problem = problem
-        super().__init__(f"{self.path}: {problem}")

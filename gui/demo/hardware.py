@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from firmware_protocol.emulator import StationConfig, TraceSource
-from gateway.emulated import EmulatedStation, start_emulated_station
+from gateway.emulation.stations import EmulatedStation, start_emulated_station
 
 from gui.demo.performance import STATION_SENSORS, Performance, build_performance
 

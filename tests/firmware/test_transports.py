@@ -9,8 +9,9 @@ import serial
 import firmware_protocol  # noqa: F401  (registers emu://)
 from firmware_protocol import Ack, ClockSync, Command, Hello, Opcode, SampleBatch, StreamDecoder, encode
 from firmware_protocol.emulator import BaseStation, StationConfig
-from firmware_protocol.emulator.hid_transport import (
-    IN_REPORT_ID, OUT_REPORT_ID, FakeHidBus, HidapiTransport, pack_reports, unpack_report,
+from firmware_protocol.emulator.hid_transport import FakeHidBus
+from firmware_protocol.hid import (
+    IN_REPORT_ID, OUT_REPORT_ID, HidapiTransport, pack_reports, unpack_report,
 )
 from firmware_protocol.emulator.link import EmulatorLink
 from firmware_protocol.emulator.protocol_emu import STATIONS

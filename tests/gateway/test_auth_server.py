@@ -18,7 +18,7 @@ import tracemalloc
 import pytest
 
 from engine.errors import MalformedFileError
-from gateway import auth, codec, wire
+from gateway import auth, codec, server, wire
 from gateway.client import GatewayClient, GatewayRequestError
 from gateway.daemon import Gateway
 
@@ -235,6 +235,10 @@ def test_deep_json_and_absurd_shapes_get_an_error_reply_and_one_log_line(open_ga
             assert reply["id"] == 7 and reply["ok"]  # the same connection still works
         server_lines = [r for r in caplog.records if r.name == "gateway.server"]
         assert len(server_lines) == 2 and not any(r.exc_info for r in server_lines)
+        # a flood of garbage frames is cut off instead of flooding the log
+        for _ in range(server.MAX_BAD_FRAMES + 5):
+            sock.sendall(_frame(b"not json"))
+        assert closed_within(sock, 5.0)
     finally:
         sock.close()
 
@@ -312,3 +316,60 @@ def test_tls_with_authentication_full_duplex(tmp_path):
             GatewayClient(*gw.address, secret=operator, tls=auth.client_tls_context(other_cert)).connect()
     finally:
         gw.stop()
+
+
+def test_an_idle_client_is_not_timed_out(open_gateway):
+    """Regression: the frame timeout starts at a frame's first byte, not while a client (a console that only
+    watches) sends nothing. The gateway's timeout here is 1 s; the client idles 2.5 s."""
+    gw = open_gateway
+    with GatewayClient(*gw.address) as client:
+        time.sleep(2.5)
+        assert client.connected and client.request("ping")["t_host_s"] > 0
+        gw.publish_event("info", "test", "still there")
+        event = client.get(timeout_s=3.0, kinds=["event"])
+        assert event is not None and event["message"] == "still there"
+
+
+def test_unanswered_handshakes_cannot_hold_every_slot(tmp_path):
+    """Connections that never authenticate are bounded separately (max_pending): the oldest makes room, so a
+    real client still gets in; authenticated clients are capped by max_clients."""
+    secret = auth.read_secret_file(secret_file(tmp_path, "operator"))
+    gw = Gateway([], listen=(HOST, 0), record_dir=tmp_path / "rec", secrets=auth.Secrets(secret),
+                 handshake_timeout_s=30.0, max_clients=1)
+    gw.server.max_pending = 2
+    gw.start()
+    silent = []
+    try:
+        for _ in range(4):  # a slow flood of connections that never answer
+            sock = raw_connect(gw.address)
+            assert recv(sock).kind == "hello"
+            silent.append(sock)
+        with GatewayClient(*gw.address, secret=secret) as first:
+            assert first.role == auth.OPERATOR
+            assert sum(closed_within(s, 0.5) for s in silent) >= 3  # the oldest ones were dropped
+            with pytest.raises(ConnectionError, match="busy"):
+                GatewayClient(*gw.address, secret=secret).connect()  # max_clients=1 authenticated
+            assert first.request("ping")
+    finally:
+        for sock in silent:
+            sock.close()
+        gw.stop()
+
+
+def test_a_client_object_reconnects_from_scratch(secured):
+    """The console reconnects with the same GatewayClient: the old hello must not satisfy the new connect."""
+    gw, operator_secret, _ = secured
+    client = GatewayClient(*gw.address, secret=operator_secret)
+    client.connect()
+    assert client.role == auth.OPERATOR
+    client.close()
+    client.connect()
+    assert client.role == auth.OPERATOR and client.request("ping")
+    client.close()
+    wrong = GatewayClient(*gw.address, secret=operator_secret)
+    wrong.connect()
+    wrong.close()
+    wrong._secret = b"not-the-secret-0123456789"
+    with pytest.raises(auth.AuthenticationError):
+        wrong.connect()
+    assert wrong.role is None

@@ -29,7 +29,7 @@ urls = ["emu://a?sensors=6"]
 discover = true
 emulate = 2
 emulate_motion = "none"
-emulate_clips = ["16_01", "16_05"]
+emulate_clips = ["16_01", "moves/rally.bvh"]
 
 [camera]
 source = 0
@@ -68,7 +68,7 @@ def test_every_key_is_read_and_relative_paths_follow_the_file(tmp_path):
     st = config.stations
     assert st.ports == ("/dev/ttyACM0", "hid:1209:c0de") and st.urls == ("emu://a?sensors=6",)
     assert st.discover is True and st.emulate == 2 and st.emulate_motion == "none"
-    assert st.emulate_clips == ("16_01", "16_05")
+    assert st.emulate_clips == ("16_01", str(tmp_path / "moves/rally.bvh"))  # files resolve like paths
     cam = config.camera
     assert cam.source == 0 and cam.court == tmp_path / "court.json" and cam.player_side == "far"
     assert (cam.fps, cam.latency_s, cam.loop, cam.thumbnail_every) == (30.0, 0.04, True, 5)
@@ -78,6 +78,13 @@ def test_every_key_is_read_and_relative_paths_follow_the_file(tmp_path):
     assert config.auth.operator_secret_file == tmp_path / "secrets/operator"
     assert config.auth.tls_key == tmp_path / "tls/key.pem"
     assert config.authenticated
+
+
+def test_a_relative_camera_file_is_next_to_the_config(tmp_path):
+    config = load_court_config(write(tmp_path, '[camera]\nsource = "videos/court.mp4"\ncourt = "c.json"\n'))
+    assert config.camera.source == str(tmp_path / "videos/court.mp4")
+    config = load_court_config(write(tmp_path, '[camera]\nsource = "/dev/video2"\ncourt = "c.json"\n'))
+    assert config.camera.source == "/dev/video2"
 
 
 def test_an_empty_file_gives_the_defaults(tmp_path):
@@ -175,3 +182,59 @@ def test_cli_refuses_a_bad_config_with_one_line_and_exit_2(tmp_path):
     assert str(path) in result.stderr and "stations.ports" in result.stderr
     result = _gateway_cli("--listen", "0.0.0.0:7766", cwd=tmp_path)
     assert result.returncode == 2 and "needs authentication" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_shipped_example_config_loads_and_every_key_is_documented():
+    from dataclasses import fields
+
+    from gateway.court_config import AuthConfig, CalibrationConfig, CameraConfig, StationsConfig
+
+    root = Path(__file__).resolve().parents[2]
+    example = root / "docs" / "deploy" / "court.example.toml"
+    config = load_court_config(example)
+    assert config.authenticated and config.camera.source == "/dev/video0" and config.stations.discover
+    text, docs = example.read_text(), (root / "docs" / "gateway.md").read_text()
+    sections = {"": CourtConfig, "[stations] ": StationsConfig, "[camera] ": CameraConfig,
+                "[calibration] ": CalibrationConfig, "[auth] ": AuthConfig}
+    for prefix, cls in sections.items():
+        for f in fields(cls):
+            if f.name in ("stations", "camera", "calibration", "auth"):
+                continue  # the tables themselves
+            assert f"\n{f.name} =" in text, f"{f.name} missing from {example.name}"
+            assert f"`{prefix}{f.name}`" in docs or f"`{prefix}{f.name}`," in docs or f", `{f.name}`" in docs, f.name
+    unit = (root / "docs" / "deploy" / "courtside-gateway.service").read_text()
+    assert "--config /etc/courtside/court.toml" in unit and "RestartPreventExitStatus=2" in unit
+
+
+def test_cli_exit_1_when_it_cannot_start_now(tmp_path):
+    """Exit 1 (a service manager retries): the address is taken, or a live camera is not there (yet)."""
+    import socket
+
+    import numpy as np
+
+    from gateway.camera.court import COURT_KEYPOINTS_M, keypoints_array
+    from gateway.camera.court_calibration import CourtCalibration
+    from gateway.camera.synthetic import default_court_camera
+
+    with socket.create_server(("127.0.0.4", 0)) as taken:
+        result = _gateway_cli("--listen", f"127.0.0.4:{taken.getsockname()[1]}", cwd=tmp_path)
+    assert result.returncode == 1 and "cannot start" in result.stderr and "Traceback" not in result.stderr
+    camera = default_court_camera((320, 180))
+    names = list(COURT_KEYPOINTS_M)
+    clicks = camera.project(np.column_stack([keypoints_array(names), np.zeros(len(names))]))
+    CourtCalibration.fit(clicks, names=names, image_size=camera.image_size).save(tmp_path / "court.json")
+    result = _gateway_cli("--camera", "/dev/video63", "--court", "court.json", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    assert result.returncode == 1 and "/dev/video63" in result.stderr and "Traceback" not in result.stderr
+    result = _gateway_cli("--camera", "/dev/video63", "--court", "absent.json", cwd=tmp_path)
+    assert result.returncode == 2 and "absent.json" in result.stderr
+    (tmp_path / "not-a-dir").write_text("")  # the first take cannot be started (as on a full disk)
+    result = _gateway_cli("--record-dir", "not-a-dir", "--record", "x", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    assert result.returncode == 1 and "cannot start recording" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_a_config_built_in_code_is_checked_too(tmp_path):
+    """The demo builds its CourtConfig in code; build_court still refuses an unauthenticated open listener."""
+    from gateway.assembly import build_court
+
+    with pytest.raises(CourtsideError, match="beyond loopback"):
+        build_court(CourtConfig(listen=("0.0.0.0", 0), record_dir=tmp_path))

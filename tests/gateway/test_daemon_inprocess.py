@@ -105,8 +105,12 @@ def test_cli_export_round_trip(tmp_path, station_pty, capsys):
     assert main(["export", str(tmp_path / "x"), "--npz", str(tmp_path / "x.npz"), "--csv-dir", str(tmp_path / "csv")]) == 0
     assert np.load(tmp_path / "x.npz")["st1/0/counter"].tolist() == list(range(25))
     assert (tmp_path / "csv" / "st1_0.csv").read_text().count("\n") == 26
-    assert main(["export", str(tmp_path / "missing")] + ["--npz", str(tmp_path / "y.npz")]) == 1
-    assert "missing" in capsys.readouterr().err
+    from gateway.cli import main as courtside  # bad input: one line through the dispatcher, exit 2
+
+    capsys.readouterr()
+    assert courtside(["gateway", "export", str(tmp_path / "missing"), "--npz", str(tmp_path / "y.npz")]) == 2
+    err = capsys.readouterr().err
+    assert "missing" in err and len(err.strip().splitlines()) == 1
 
 
 def test_cli_config_file_runs_emulated_stations(tmp_path, capsys):

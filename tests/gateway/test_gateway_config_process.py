@@ -4,12 +4,8 @@ calibration CLI wrote, the calibration wizard, authentication with operator and 
 continues into a suffixed take after a restart (issue 13)."""
 from __future__ import annotations
 
-import json
 import os
 import re
-import signal
-import subprocess
-import sys
 import time
 
 import numpy as np
@@ -17,99 +13,14 @@ import pytest
 
 from engine.mocap import SEED000_SENSORS
 from gateway import auth
-from gateway.camera.court import COURT_KEYPOINTS_M, keypoints_array
-from gateway.camera.synthetic import default_court_camera
 from gateway.client import GatewayClient, GatewayRequestError
 from gateway.recorder import load_take
-
-SIZE = (480, 270)
-
-
-def courtside(*args: str, cwd) -> subprocess.CompletedProcess:
-    result = subprocess.run([sys.executable, "-m", "gateway.cli", *args], cwd=cwd, capture_output=True, text=True,
-                            timeout=120)
-    assert result.returncode == 0, result.stderr
-    return result
-
-
-def start_gateway(cwd, *args: str) -> tuple[subprocess.Popen, int]:
-    proc = subprocess.Popen([sys.executable, "-m", "gateway.cli", "gateway", *args], cwd=cwd,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        line = proc.stdout.readline()
-        assert line, f"gateway exited early ({proc.poll()}): {proc.stderr.read()}"
-        if match := re.match(r"gateway listening on 127\.0\.0\.2:(\d+) \(authentication required", line):
-            return proc, int(match[1])
-    proc.kill()
-    raise AssertionError("gateway did not start")
-
-
-def stop_gateway(proc: subprocess.Popen) -> tuple[str, str]:
-    proc.send_signal(signal.SIGTERM)
-    try:
-        out, err = proc.communicate(timeout=30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert proc.returncode == 0, err
-    assert "Traceback" not in err
-    return out, err
-
-
-def wait_for(predicate, timeout_s: float = 30.0):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.1)
-    raise AssertionError("condition not met in time")
+from tests.gateway.court_setup import make_court, start_gateway, stop_gateway, wait_for
 
 
 @pytest.fixture()
 def court_dir(tmp_path):
-    """A court video rendered from the synthetic camera, its calibration fitted by `courtside camera calibrate`
-    from the projected keypoints (as an operator's clicks), secrets, and the config naming them all."""
-    courtside("camera", "synth", "--out", "court.mp4", "--calibration", "synth_court.json", "--truth", "truth.csv",
-              "--seconds", "10", "--fps", "15", "--width", str(SIZE[0]), "--height", str(SIZE[1]), cwd=tmp_path)
-    camera = default_court_camera(SIZE)
-    names = list(COURT_KEYPOINTS_M)
-    clicks = camera.project(np.column_stack([keypoints_array(names), np.zeros(len(names))]))
-    (tmp_path / "clicks.json").write_text(json.dumps({n: c.tolist() for n, c in zip(names, clicks)}))
-    courtside("camera", "calibrate", "--clicks", "clicks.json", "--image-size", *map(str, SIZE),
-              "--focal-px", str(camera.camera_matrix[0, 0]), "--out", "court.json", cwd=tmp_path)
-    for name in ("operator.secret", "viewer.secret"):
-        auth.write_secret_file(tmp_path / name)
-    placements = ", ".join(f'"{s}"' for s in SEED000_SENSORS)
-    (tmp_path / "court.toml").write_text(f"""
-listen = "127.0.0.2:0"
-record_dir = "takes"
-record = "match"
-log_level = "warning"
-status_interval_s = 0.5
-clock_lock_after_s = 5
-
-[stations]
-emulate = 2
-emulate_clips = ["16_32", "16_36"]
-
-[camera]
-source = "court.mp4"
-court = "court.json"
-player_side = "near"
-thumbnail_every = 5
-
-[calibration]
-placements = [{placements}]
-records_dir = "calibrations"
-
-[auth]
-operator_secret_file = "operator.secret"
-viewer_secret_file = "viewer.secret"
-""")
-    return tmp_path
+    return make_court(tmp_path)
 
 
 def test_gateway_config_runs_a_whole_court(court_dir):

@@ -52,3 +52,27 @@ def test_hid_open_failure_is_a_link_error():
         HidLink("hid:1209:c0de", hid_module=FakeHidBus())
     with pytest.raises(LinkError, match="HID sources look like"):
         HidLink("/dev/ttyACM0", hid_module=FakeHidBus())
+
+
+def test_real_hid_path_does_not_import_the_emulator():
+    """The HID report framing is defined once in firmware_protocol.hid; opening a real HID link must not load
+    the emulator package (issue 13 "Shape")."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from gateway.links import HidLink, LinkError\n"
+        "class Device:\n"
+        "    def open(self, *a): raise OSError('no such device')\n"
+        "class Hid:\n"
+        "    device = Device\n"
+        "try:\n"
+        "    HidLink('hid:1209:c0de', hid_module=Hid())\n"
+        "except LinkError as exc:\n"
+        "    print('refused:', exc)\n"
+        "print(sorted(m for m in sys.modules if m.startswith('firmware_protocol.emulator')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True).stdout
+    assert "refused: hid:1209:c0de: cannot open (no such device)" in out
+    assert out.strip().endswith("[]"), out

@@ -118,7 +118,7 @@ def test_wizard_rejects_a_moving_subject(live_gateway, console, qtbot):
 def test_console_reconnects_when_the_gateway_comes_back(live_gateway, console, qtbot, tmp_path):
     from firmware_protocol.emulator import StationConfig
     from gateway.daemon import Gateway
-    from gateway.emulated import start_emulated_station
+    from gateway.emulation.stations import start_emulated_station
 
     first, _ = live_gateway(StillSource(3), 3)
     host, port = first.address

@@ -38,6 +38,17 @@ def test_alarms_sensor_lost_sync_lost_battery_disk(tmp_path):
                                          None, set()) if a.key.startswith("sync")]
 
 
+def test_camera_health_from_the_gateway_raises_alarms():
+    def camera(**kw):
+        return {"t_host_s": 1.0, "stations": [], "camera": {"state": "running", "fps": 29.5, "nominal_fps": 30.0,
+                                                            "frames": 100, "error": None, **kw}}
+    assert status_alarms(camera(), None) == []
+    assert [a.level for a in status_alarms(camera(state="failed", error="USB gone"), None)] == ["alarm"]
+    assert "USB gone" in status_alarms(camera(state="failed", error="USB gone"), None)[0].message
+    assert [a.level for a in status_alarms(camera(fps=9.0), None)] == ["warning"]
+    assert status_alarms(camera(fps=9.0, frames=5), None) == []  # too early to judge the rate
+
+
 def test_alarm_bar_shows_clears_and_dismisses(qtbot):
     from gui.health import Alarm
 

@@ -12,11 +12,8 @@ from __future__ import annotations
 
 import json
 import os
-import re
-import signal
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -24,18 +21,23 @@ import pytest
 from engine.mocap import SEED000_SENSORS
 from gateway import auth
 from gateway.client import GatewayClient, GatewayRequestError
+from tests.gateway.court_setup import courtside, make_court, start_gateway, stop_gateway
 
 HOST = "127.0.0.2"
-SIZE = (480, 270)
 HELD_OUT = ("16_32", "16_36", "16_05")  # walk, run, jump: what the stations replay; not in the console's graph
 STILL_S = 12.0  # each replay loop: the N-pose held this long, then ~13 s of motion
 LAG_S = 0.5  # the same as tests.gui.test_live_equals_offline.LAG_S (its comparison helper is used here)
 
 
-def courtside(*args: str, cwd, timeout_s: float = 300, env=None) -> subprocess.CompletedProcess:
-    result = subprocess.run([sys.executable, "-m", "gateway.cli", *args], cwd=cwd, capture_output=True, text=True,
-                            timeout=timeout_s, env=env)
-    assert result.returncode == 0, f"courtside {' '.join(args)}: {result.returncode}\n{result.stderr[-3000:]}"
+def console_process(*args: str, cwd) -> subprocess.CompletedProcess:
+    """`courtside console` as its own process, offscreen, with a cache of its own and no secret in the
+    environment (it must read the secret file it is given)."""
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen", COURTSIDE_CACHE_DIR=str(cwd / "cache"))
+    env.pop("COURTSIDE_SECRET", None)
+    env.pop("COURTSIDE_SECRET_FILE", None)
+    result = subprocess.run([sys.executable, "-m", "gateway.cli", "console", *args], cwd=cwd, capture_output=True,
+                            text=True, timeout=400, env=env)
+    assert result.returncode == 0, f"console: exit {result.returncode}\n{result.stderr[-3000:]}"
     return result
 
 
@@ -55,65 +57,21 @@ def write_still_npose_clip(path, seconds: float) -> None:
 
 @pytest.fixture()
 def court(tmp_path):
+    """The daemon's whole-court fixture (tests/gateway/court_setup.py) with the replay loop starting in the
+    N-pose, the console (not the config) starting the take, and the court video looping for the longer session;
+    plus a motion graph without the replayed clips."""
     from engine.graph.cli import build_graph_main
     from engine.mocap import sample_clips
-    from gateway.camera.court import COURT_KEYPOINTS_M, keypoints_array
-    from gateway.camera.synthetic import default_court_camera
 
-    courtside("camera", "synth", "--out", "court.mp4", "--calibration", "synth_court.json", "--truth", "truth.csv",
-              "--seconds", "10", "--fps", "15", "--width", str(SIZE[0]), "--height", str(SIZE[1]), cwd=tmp_path)
-    camera = default_court_camera(SIZE)
-    names = list(COURT_KEYPOINTS_M)
-    clicks = camera.project(np.column_stack([keypoints_array(names), np.zeros(len(names))]))
-    (tmp_path / "clicks.json").write_text(json.dumps({n: c.tolist() for n, c in zip(names, clicks)}))
-    courtside("camera", "calibrate", "--clicks", "clicks.json", "--image-size", *map(str, SIZE),
-              "--focal-px", str(camera.camera_matrix[0, 0]), "--out", "court.json", cwd=tmp_path)
-    for name in ("operator.secret", "viewer.secret"):
-        auth.write_secret_file(tmp_path / name)
     write_still_npose_clip(tmp_path / "still.bvh", STILL_S)
-    placements = ", ".join(f'"{s}"' for s in SEED000_SENSORS)
-    clips = ", ".join(f'"{c}"' for c in ("still.bvh",) + HELD_OUT + HELD_OUT[:1])
-    (tmp_path / "court.toml").write_text(f"""
-listen = "{HOST}:0"
-record_dir = "takes"
-log_level = "info"
-status_interval_s = 0.5
-clock_lock_after_s = 3
-
-[stations]
-emulate = 2
-emulate_clips = [{clips}]
-
-[camera]
-source = "court.mp4"
-court = "court.json"
-player_side = "near"
-loop = true
-
-[calibration]
-placements = [{placements}]
-records_dir = "calibrations"
-
-[auth]
-operator_secret_file = "operator.secret"
-viewer_secret_file = "viewer.secret"
-""")
+    make_court(tmp_path, listen=f"{HOST}:0", clips=("still.bvh",) + HELD_OUT + HELD_OUT[:1])
+    config = (tmp_path / "court.toml").read_text()
+    assert 'record = "match"\n' in config and "thumbnail_every = 5\n" in config
+    (tmp_path / "court.toml").write_text(config.replace('record = "match"\n', "")
+                                         .replace("thumbnail_every = 5\n", "thumbnail_every = 5\nloop = true\n"))
     graph_clips = [str(p) for n, p in sample_clips().items() if n.startswith("16_") and n not in HELD_OUT]
     assert build_graph_main(graph_clips + ["-o", str(tmp_path / "g.npz")]) == 0
     return tmp_path
-
-
-def start_gateway(cwd) -> tuple[subprocess.Popen, int]:
-    proc = subprocess.Popen([sys.executable, "-m", "gateway.cli", "gateway", "--config", "court.toml"], cwd=cwd,
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        line = proc.stdout.readline()
-        assert line, f"gateway exited early ({proc.poll()})"
-        if match := re.match(rf"gateway listening on {re.escape(HOST)}:(\d+) \(authentication required", line):
-            return proc, int(match[1])
-    proc.kill()
-    raise AssertionError("gateway did not start")
 
 
 @pytest.mark.slow
@@ -122,7 +80,7 @@ def test_gateway_and_console_as_two_processes_live_equals_offline(court):
 
     from tests.gui.test_live_equals_offline import compare_live_and_offline
 
-    proc, port = start_gateway(court)
+    proc, port = start_gateway(court, "--config", "court.toml")
     try:
         # an unauthenticated client is refused; a viewer may watch but not control
         with pytest.raises(auth.AuthenticationError):
@@ -132,22 +90,14 @@ def test_gateway_and_console_as_two_processes_live_equals_offline(court):
                 viewer.start_recording("stolen")
             with pytest.raises(GatewayRequestError, match="needs the operator role"):
                 viewer.calibration("assign", sensor="st1/0", segment="chest")
-        env = dict(os.environ, QT_QPA_PLATFORM="offscreen", COURTSIDE_CACHE_DIR=str(court / "cache"))
-        env.pop("COURTSIDE_SECRET", None)
-        console = courtside("console", "--connect", f"{HOST}:{port}", "--secret-file", "operator.secret",
-                            "--graph", "g.npz", "--lag", str(LAG_S), "--calibrate", "--record", "e2e",
-                            "--duration", "15", "--save-poses", "live.npz", cwd=court, env=env, timeout_s=400)
+        console = console_process("--connect", f"{HOST}:{port}", "--secret-file", "operator.secret",
+                                  "--graph", "g.npz", "--lag", str(LAG_S), "--calibrate", "--record", "e2e",
+                                  "--duration", "15", "--save-poses", "live.npz", cwd=court)
         assert "calibration record saved" in console.stderr
-        status = GatewayClient(HOST, port, secret=auth.read_secret_file(court / "operator.secret")).connect()
-        with status:
-            assert not status.status()["recording"]["active"]
+        with GatewayClient(HOST, port, secret=auth.read_secret_file(court / "operator.secret")) as operator:
+            assert not operator.status()["recording"]["active"]
     finally:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(30)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
+        stop_gateway(proc)
     record = json.loads((court / "calibrations" / "e2e.calibration.json").read_text())
     assert set(SEED000_SENSORS) <= {s["segment"] for s in record["sensors"].values()}
     courtside("gateway", "export", "takes/e2e", "--npz", "take.npz", cwd=court)

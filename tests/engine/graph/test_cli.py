@@ -54,7 +54,7 @@ def test_synthesize_reports_bad_input_by_name(built, capsys, tmp_path):
     tmp, _ = built
     bad = tmp_path / "broken.npz"
     np.savez(bad, acc_g=np.zeros((10, 6)))
-    assert synthesize_main(["--graph", str(tmp / "g.npz"), "--input", str(bad), "-o", str(tmp_path / "x.bvh")]) == 1
+    assert synthesize_main(["--graph", str(tmp / "g.npz"), "--input", str(bad), "-o", str(tmp_path / "x.bvh")]) == 2
     assert "broken.npz" in capsys.readouterr().err
 
 

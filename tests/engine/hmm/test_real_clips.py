@@ -118,7 +118,7 @@ def test_cli_hmm_take_to_bvh_and_evaluate_table(tmp_path, motions, capsys):
     assert main(["--method", "hmm", "--input", str(path), "-o", str(out), "--sample"]) == 0
     assert read_bvh(out).n_frames == pytest.approx(take.duration_s * 30, abs=2)
     np.savez(tmp_path / "nogyro.npz", acc_g=acc, fps=60.0, sensor_names=np.array(["right_foot"]))
-    assert main(["--method", "hmm", "--input", str(tmp_path / "nogyro.npz"), "-o", str(out), "--sample"]) == 1
+    assert main(["--method", "hmm", "--input", str(tmp_path / "nogyro.npz"), "-o", str(out), "--sample"]) == 2
     assert "gyro_rps" in capsys.readouterr().err
     assert main(["--evaluate", "--sample", "--methods", "hmm", "--test-clips", "1"]) == 0
     table = capsys.readouterr().out

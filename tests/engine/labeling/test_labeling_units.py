@@ -197,11 +197,11 @@ def test_label_cli_reports_bad_input_naming_the_file(tmp_path, capsys):
     from engine.labeling.cli import main
 
     missing = tmp_path / "nothing.c3d"
-    assert main([str(missing), "-o", str(tmp_path / "out.c3d")]) == 1
+    assert main([str(missing), "-o", str(tmp_path / "out.c3d")]) == 2
     assert "nothing.c3d" in capsys.readouterr().err
     garbage = tmp_path / "garbage.c3d"
     garbage.write_bytes(b"\x00" * 64)
-    assert main([str(garbage), "-o", str(tmp_path / "out.c3d")]) == 1
+    assert main([str(garbage), "-o", str(tmp_path / "out.c3d")]) == 2
     assert "garbage.c3d" in capsys.readouterr().err
 
 

@@ -46,4 +46,4 @@ def test_cli_reconstructs_a_take_to_bvh_and_rejects_missing_sensors(tmp_path, mo
     assert result.n_frames == pytest.approx(take.duration_s * 25, abs=2)
     assert result.skeleton.n_joints == motions[0].skeleton.n_joints
     np.savez(tmp_path / "two.npz", acc_g=acc[:, :2], fps=50.0, sensor_names=np.array(SEED003_SENSORS[:2]))
-    assert main(["--method", "olng", "--input", str(tmp_path / "two.npz"), "-o", str(out), "--sample"]) == 1
+    assert main(["--method", "olng", "--input", str(tmp_path / "two.npz"), "-o", str(out), "--sample"]) == 2

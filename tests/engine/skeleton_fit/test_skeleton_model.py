@@ -161,7 +161,7 @@ def test_pipeline_unlabelled_markers_to_bvh_motion(shared_mocap, tmp_path, capsy
 def test_fit_skeleton_cli_reports_bad_input(tmp_path, capsys):
     bad = tmp_path / "bad.c3d"
     bad.write_bytes(b"not a c3d")
-    assert fit_main([str(bad), "-o", str(tmp_path / "x.bvh")]) == 1
+    assert fit_main([str(bad), "-o", str(tmp_path / "x.bvh")]) == 2
     assert "bad.c3d" in capsys.readouterr().err
 
 

@@ -171,7 +171,7 @@ def test_build_graph_cli_uses_the_record(scenario, tmp_path, capsys):
         entry["rotation"] = (np.diag([1.0, -1.0, -1.0]) @ np.asarray(entry["rotation"])).tolist()
     other = tmp_path / "other.calibration.json"
     other.write_text(json.dumps(doc))
-    assert build_graph_main(["--sample", "--calibration", str(other), "-o", str(tmp_path / "x.npz")]) == 1
+    assert build_graph_main(["--sample", "--calibration", str(other), "-o", str(tmp_path / "x.npz")]) == 2
     assert "another skeleton's joint frames" in capsys.readouterr().err
 
 

@@ -1,0 +1,262 @@
+"""Validation of everything `courtside synthesize` reads: the take (.npz, both layouts), --sensor-map, --lag,
+and whether the graph can explain a take that long at all.
+
+Why a module of its own: the readers in `inputs.py` assume well-formed arrays; every check that turns a bad file
+into one clear `MalformedFileError` (file + field + problem) instead of an IndexError deep in the Viterbi lives
+here, next to the limits it enforces. The limits reject what cannot be a recording, not what is unusual:
+rates of 1 Hz..100 kHz, finite accelerations, tracks of the right shape.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import zipfile
+from pathlib import Path
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from engine.errors import CourtsideError, MalformedFileError, check_output_dir as check_output  # noqa: F401
+
+log = logging.getLogger(__name__)
+
+MIN_FPS, MAX_FPS = 1.0, 100_000.0
+MIN_GRAPH_SAMPLES = 2  # a path needs a start and one step
+PLAUSIBLE_MEDIAN_G = 4.0  # a body's acceleration magnitude is ~1 g most of the time; ~9.8 means m/s^2
+
+
+def open_npz(path: Path) -> np.lib.npyio.NpzFile:
+    """An .npz opened without pickle; anything else (empty, truncated, .npy, a pickle) is a MalformedFileError."""
+    try:
+        data = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise MalformedFileError(path, None, f"not a readable .npz ({exc})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise MalformedFileError(path, None, "not an .npz archive (a single .npy array?)")
+    return data
+
+
+def array(path: Path, data, name: str, ndim: int | None = None, kind: str = "float") -> np.ndarray:
+    """``data[name]`` as a float (or "str") array of ``ndim`` dimensions; a clear error when it is not."""
+    try:
+        value = data[name]
+    except ValueError as exc:  # object arrays need pickle, which is never allowed
+        raise MalformedFileError(path, None, f"'{name}' cannot be read without pickle ({exc})") from None
+    except (OSError, EOFError, zipfile.BadZipFile) as exc:  # a damaged member of the archive
+        raise MalformedFileError(path, None, f"'{name}' is damaged ({exc})") from None
+    if kind == "str":
+        if value.dtype.kind not in "US":
+            raise MalformedFileError(path, None, f"'{name}' must hold text, got dtype {value.dtype}")
+    elif value.dtype.kind not in "iuf":
+        raise MalformedFileError(path, None, f"'{name}' must be real numbers, got dtype {value.dtype}")
+    if ndim is not None and value.ndim != ndim:
+        raise MalformedFileError(path, None, f"'{name}' must have {ndim} dimension(s), got shape {value.shape}")
+    return value.astype(float) if kind == "float" else value
+
+
+def check_fps(path: Path, data) -> float:
+    if "fps" not in data.files:
+        raise MalformedFileError(path, None, "missing 'fps' (sample rate of the streams, Hz)")
+    fps = array(path, data, "fps")
+    if fps.shape != ():
+        raise MalformedFileError(path, None, f"'fps' must be one number, got shape {fps.shape}")
+    fps = float(fps)
+    if not MIN_FPS <= fps <= MAX_FPS:  # also refuses NaN
+        raise MalformedFileError(path, None, f"'fps' = {fps!r} Hz is outside {MIN_FPS:g}..{MAX_FPS:g} Hz")
+    return fps
+
+
+def check_synthesis_file(path: Path, data, graph_sensors: list[str]) -> None:
+    """The synthesis-input layout: acc_g (T, S, 3), fps, optional sensor_names (S,), position_m (T, 2),
+    heading_rad (T,)."""
+    acc = array(path, data, "acc_g", 3)
+    if acc.shape[2] != 3:
+        raise MalformedFileError(path, None, f"acc_g must have shape (T, S, 3), got {acc.shape}")
+    fps = check_fps(path, data)
+    _check_finite(path, "acc_g", acc, fps)
+    if "sensor_names" in data.files:
+        names = [str(n) for n in array(path, data, "sensor_names", 1, kind="str")]
+        if len(set(names)) != len(names):
+            raise MalformedFileError(path, None, f"sensor_names {names} name a sensor twice")
+    n = len(acc)
+    if "position_m" in data.files:
+        pos = array(path, data, "position_m", 2)
+        if pos.shape != (n, 2):
+            raise MalformedFileError(path, None, f"position_m must have shape ({n}, 2) like acc_g's {n} samples, "
+                                                 f"got {pos.shape}")
+    if "heading_rad" in data.files:
+        head = array(path, data, "heading_rad", 1)
+        if head.shape != (n,):
+            raise MalformedFileError(path, None, f"heading_rad must have shape ({n},), got {head.shape}")
+
+
+def check_gateway_export(path: Path, data, keys: list[str]) -> None:
+    """The export layout: per recorded sensor ``<key>/acc_g`` (N, 3) and ``<key>/t_host_s`` (N,) increasing."""
+    for key in keys:
+        if f"{key}/t_host_s" not in data.files:
+            raise MalformedFileError(path, None, f"'{key}/acc_g' has no '{key}/t_host_s' beside it")
+        acc = array(path, data, f"{key}/acc_g", 2)
+        t = array(path, data, f"{key}/t_host_s", 1)
+        if acc.shape[1] != 3 or len(acc) != len(t):
+            raise MalformedFileError(path, None, f"'{key}': acc_g {acc.shape} and t_host_s {t.shape} must be "
+                                                 "(N, 3) and (N,)")
+        if len(t) < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
+            raise MalformedFileError(path, None, f"'{key}/t_host_s' must hold at least 2 finite, increasing times")
+        _check_finite(path, f"{key}/acc_g", acc[:, None], 1.0 / float(np.median(np.diff(t))))
+    if "messages" in data.files:
+        try:
+            messages = json.loads(str(array(path, data, "messages", 0, kind="str")))
+        except json.JSONDecodeError as exc:
+            raise MalformedFileError(path, None, f"'messages' is not JSON ({exc})") from None
+        if not isinstance(messages, list) or not all(isinstance(m, dict) for m in messages):
+            raise MalformedFileError(path, None, "'messages' must be a JSON list of objects")
+        for i, m in enumerate(messages):
+            if m.get("kind") == "camera" and m.get("position_m") is not None:
+                ok = isinstance(m.get("t_host_s"), (int, float)) and isinstance(m["position_m"], list) \
+                     and len(m["position_m"]) >= 2 and all(isinstance(v, (int, float)) for v in m["position_m"][:2])
+                heading = m.get("heading_rad")
+                if not ok or (heading is not None and not isinstance(heading, (int, float))):
+                    raise MalformedFileError(path, None, f"camera message {i} needs a numeric t_host_s, position_m "
+                                                         f"[x, y] and heading_rad, got {json.dumps(m)[:120]}")
+
+
+def _check_finite(path: Path, name: str, acc: np.ndarray, fps: float) -> None:
+    """acc (T, S, 3) must be finite: a NaN would poison every path cost of the search."""
+    bad = ~np.isfinite(acc).all(axis=2)
+    if bad.any():
+        t, s = np.argwhere(bad)[0]
+        raise MalformedFileError(path, None, f"{name} holds {int(bad.sum())} non-finite sample(s) (first at sample "
+                                             f"{t} = {t / fps:.3f} s, sensor column {s})")
+
+
+def check_observations(path: Path, acc_g: np.ndarray | None, fps_graph: float) -> None:
+    """After resampling (the raw values were checked finite): enough samples for a path, and a units plausibility
+    warning."""
+    if acc_g is None:
+        return
+    if len(acc_g) < MIN_GRAPH_SAMPLES:
+        raise MalformedFileError(path, None, f"the take is too short: {len(acc_g)} sample(s) at the graph rate "
+                                             f"{fps_graph:g} Hz (at least {MIN_GRAPH_SAMPLES} needed)")
+    median_g = float(np.median(np.linalg.norm(acc_g, axis=2)))
+    if median_g > PLAUSIBLE_MEDIAN_G:
+        log.warning("warning: %s: acc_g has a median magnitude of %.1f g; a worn sensor reads about 1 g most of "
+                    "the time, so these look like m/s^2 (divide by 9.81)", path, median_g)
+
+
+def parse_sensor_map(items: list[str] | None, graph_sensors: list[str]) -> dict[str, str] | None:
+    """``STATION/SENSOR=NAME`` items -> {recorded key: graph sensor}; errors name --sensor-map and the item."""
+    if not items:
+        return None
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, name = item.partition("=")
+        if not sep or not key or not name:
+            raise CourtsideError(f"--sensor-map {item!r}: expected STATION/SENSOR=NAME")
+        if name not in graph_sensors:
+            raise CourtsideError(f"--sensor-map {item!r}: {name!r} is not a sensor of the graph ({graph_sensors})")
+        out[key] = name
+    return out
+
+
+def check_sensor_map(path: Path, sensor_map: dict[str, str] | None, keys: list[str]) -> None:
+    unknown = sorted(set(sensor_map or {}) - set(keys))
+    if unknown:
+        raise MalformedFileError(path, None, f"--sensor-map names {unknown}, which the recording does not hold "
+                                             f"(it holds {keys})")
+
+
+def check_lag(lag_s: float | None, fps: float) -> None:
+    if lag_s is not None and not (np.isfinite(lag_s) and lag_s >= 0 and lag_s * fps <= 1e6):
+        raise CourtsideError(f"--lag {lag_s!r}: must be a non-negative number of seconds")
+
+
+def longest_path_samples(src: np.ndarray, dst: np.ndarray, n_nodes: int) -> float:
+    """Samples on the longest path of the graph: inf if it has a cycle (a walk can go on for ever)."""
+    if n_nodes == 0:
+        return 0.0
+    if np.any(src == dst):
+        return float("inf")
+    adjacency = coo_matrix((np.ones(len(src)), (src, dst)), shape=(n_nodes, n_nodes)).tocsr()
+    n_components, _ = connected_components(adjacency, directed=True, connection="strong")
+    if n_components < n_nodes:
+        return float("inf")
+    # acyclic: longest path by relaxing edges in topological order (Kahn), vectorised per frontier
+    indegree = np.bincount(dst, minlength=n_nodes)
+    length = np.ones(n_nodes)
+    frontier = np.flatnonzero(indegree == 0)
+    indptr, indices = adjacency.indptr, adjacency.indices
+    while frontier.size:
+        starts, stops = indptr[frontier], indptr[frontier + 1]
+        counts = stops - starts
+        edges = np.concatenate([indices[a:b] for a, b in zip(starts, stops)]) if counts.sum() else np.empty(0, int)
+        from_len = np.repeat(length[frontier], counts)
+        np.maximum.at(length, edges, from_len + 1)
+        np.subtract.at(indegree, edges, 1)
+        frontier = np.unique(edges[indegree[edges] == 0])
+    return float(length.max())
+
+
+def check_path_length(graph_path: Path, src: np.ndarray, dst: np.ndarray, n_nodes: int, n_samples: int,
+                      fps: float) -> None:
+    """A take longer than every path through the graph has no explanation (the search would find none)."""
+    longest = longest_path_samples(np.asarray(src), np.asarray(dst), n_nodes)
+    if longest < n_samples:
+        raise MalformedFileError(graph_path, None, f"the graph's longest path is {int(longest)} samples "
+                                                   f"({longest / fps:.2f} s) but the take has {n_samples} "
+                                                   f"({n_samples / fps:.2f} s): build it from more clips or with "
+                                                   "transitions")
+
+
+_INDEX_ARRAYS = ("edge_src", "edge_dst", "edge_meta", "edge_kind", "node_clip", "node_clip2", "node_kind",
+                 "node_label", "node_arrival")
+_FINITE_ARRAYS = ("node_positions_m", "node_rotations", "node_root_m", "node_ground_m", "node_heading_rad",
+                  "meta_acc_g", "meta_dpos_m", "meta_dheading_rad", "node_frame")
+_TRAILING_SHAPES = {"node_positions_m": (3,), "node_rotations": (4,), "node_root_m": (3,), "node_ground_m": (2,),
+                    "meta_acc_g": (3,), "meta_dpos_m": (2,)}
+
+
+def graph_arrays_problem(arrays: dict[str, np.ndarray], n_joints: int | None, parents: np.ndarray | None) -> str | None:
+    """What makes a motion graph's arrays unusable beyond `MotionGraph.inconsistency` (dtypes, trailing shapes,
+    non-finite values, skeleton links), or None."""
+    for name in _INDEX_ARRAYS:
+        if name in arrays and arrays[name].dtype.kind not in "iu":
+            return f"'{name}' must hold integers, got dtype {arrays[name].dtype}"
+    for name, trailing in _TRAILING_SHAPES.items():
+        value = arrays.get(name)
+        if value is not None and (value.ndim < 2 or value.shape[-1:] != trailing):
+            return f"'{name}' has shape {value.shape}, expected (..., {trailing[0]})"
+    for name in ("node_positions_m", "node_rotations"):
+        value = arrays.get(name)
+        if value is not None and n_joints is not None and (value.ndim != 3 or value.shape[1] != n_joints):
+            return f"'{name}' has shape {value.shape}, expected (nodes, {n_joints} joints, ...)"
+    for name in _FINITE_ARRAYS:
+        value = arrays.get(name)
+        if value is not None and (value.dtype.kind not in "iuf" or not np.all(np.isfinite(value))):
+            return f"'{name}' holds non-finite or non-numeric values"
+    if parents is not None:
+        p = np.asarray(parents)
+        if p.ndim != 1 or p.dtype.kind not in "iu" or len(p) == 0 or p[0] != -1 or \
+                np.any((p[1:] < 0) | (p[1:] >= np.arange(1, len(p)))):
+            return "skeleton_parents must list each joint's parent before it (root -1)"
+    return None
+
+
+MIN_CLIP_FRAMES = 3  # the graph differentiates positions twice
+
+
+def check_database(paths: list[Path], motions: list, fps: float) -> None:
+    """Clips that cannot go into a graph, named by file: too short at the graph rate, or a skeleton whose joint
+    names match no convention (no sensor can be placed on it)."""
+    from engine.mocap.roles import UnknownSkeletonError, joint_roles
+
+    for path, motion in zip(paths, motions):
+        if motion.n_frames < MIN_CLIP_FRAMES:
+            raise MalformedFileError(path, None, f"too short for a graph: {motion.n_frames} frame(s) at {fps:g} Hz "
+                                                 f"(at least {MIN_CLIP_FRAMES})")
+    if motions:
+        try:
+            joint_roles(motions[0].skeleton)
+        except UnknownSkeletonError as exc:
+            raise MalformedFileError(paths[0], None, str(exc)) from None
+
