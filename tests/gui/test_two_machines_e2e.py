@@ -29,15 +29,15 @@ STILL_S = 12.0  # each replay loop: the N-pose held this long, then ~13 s of mot
 LAG_S = 0.5  # the same as tests.gui.test_live_equals_offline.LAG_S (its comparison helper is used here)
 
 
-def console_process(*args: str, cwd) -> subprocess.CompletedProcess:
+def console_process(*args: str, cwd, code: int = 0) -> subprocess.CompletedProcess:
     """`courtside console` as its own process, offscreen, with a cache of its own and no secret in the
-    environment (it must read the secret file it is given)."""
+    environment (it must read the secret file it is given); ``code`` is the exit code expected."""
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen", COURTSIDE_CACHE_DIR=str(cwd / "cache"))
     env.pop("COURTSIDE_SECRET", None)
     env.pop("COURTSIDE_SECRET_FILE", None)
     result = subprocess.run([sys.executable, "-m", "gateway.cli", "console", *args], cwd=cwd, capture_output=True,
                             text=True, timeout=400, env=env)
-    assert result.returncode == 0, f"console: exit {result.returncode}\n{result.stderr[-3000:]}"
+    assert result.returncode == code, f"console: exit {result.returncode}\n{result.stderr[-3000:]}"
     return result
 
 
@@ -90,6 +90,8 @@ def test_gateway_and_console_as_two_processes_live_equals_offline(court):
                 viewer.start_recording("stolen")
             with pytest.raises(GatewayRequestError, match="needs the operator role"):
                 viewer.calibration("assign", sensor="st1/0", segment="chest")
+        refused = console_process("--connect", f"{HOST}:{port}", "--duration", "1", cwd=court, code=2)
+        assert "cannot connect" in refused.stderr and "Traceback" not in refused.stderr  # no secret: no console
         console = console_process("--connect", f"{HOST}:{port}", "--secret-file", "operator.secret",
                                   "--graph", "g.npz", "--lag", str(LAG_S), "--calibrate", "--record", "e2e",
                                   "--duration", "15", "--save-poses", "live.npz", cwd=court)
