@@ -32,7 +32,8 @@ from PySide6 import QtCore  # noqa: E402
 
 from gateway.client import GatewayClient  # noqa: E402
 from gui.app import application, pump  # noqa: E402
-from gui.engine_link import shipped_graph_spec, synthesis_setup  # noqa: E402
+from engine.stream.databases import shipped_graph_spec  # noqa: E402
+from gui.engine_link import synthesis_setup  # noqa: E402
 from gui.main_window import ConsoleWindow  # noqa: E402
 
 

@@ -65,7 +65,7 @@ def main() -> None:
     _, session = synthesize_streams(NullEngine, rec, list(rec.samples), rate)
     offline_s = time.perf_counter() - t0
 
-    from gui.engine_link import shipped_graph_spec  # Qt-free: the console's default database (cached)
+    from engine.stream.databases import shipped_graph_spec  # the console's default database (cached)
 
     spec = shipped_graph_spec()
     graph_s, graph_frames = run_live(lambda: spec.make(0.5), rec, spec.rate_hz)

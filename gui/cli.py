@@ -196,7 +196,8 @@ def _client_factory(args: argparse.Namespace):
 def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held_out: list[str], refresh=None):
     """(SynthesisSetup or None, worn sensor -> placement, skeleton parents or None). ``refresh`` re-reads the
     station list (live gateway)."""
-    from gui.engine_link import engine_spec, synthesis_setup, worn_sensors
+    from engine.stream.databases import engine_spec
+    from gui.engine_link import synthesis_setup, worn_sensors
 
     n_worn = len(calibration.sensor_ids) if calibration is not None and calibration.sensor_ids else (
         _station_size(stations, args.synth_station))

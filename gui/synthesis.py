@@ -26,7 +26,7 @@ _RESET = object()
 
 @dataclass
 class SynthesisSetup:
-    """Everything the console needs to run live synthesis (built by `gui.engine_link`)."""
+    """Everything the console needs to run live synthesis (`gui.engine_link.synthesis_setup`)."""
 
     engine: EngineSpec          # engine, database, worn placements, rate, skeleton
     sensors: list[SensorKey]    # live sensor feeding each engine sensor column, in order

@@ -32,7 +32,8 @@ def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
     """Start the demo hardware (by default in a child process) and open the console window on it."""
     from gateway.client import GatewayClient
 
-    from gui.engine_link import sensor_joints, shipped_graph_spec, synthesis_setup
+    from engine.stream.databases import shipped_graph_spec
+    from gui.engine_link import sensor_joints, synthesis_setup
     from gui.main_window import ConsoleWindow
 
     hardware = hardware_in_subprocess if separate_process else demo_hardware
