@@ -38,7 +38,8 @@ def _console_parser() -> argparse.ArgumentParser:
     p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
     p.add_argument("--engine", choices=ENGINE_NAMES, default=None,
                    help="synthesis engine (default: motion-graph with --graph, olng with --kb, else by the number "
-                        "of worn sensors: 4 -> olng, otherwise motion-graph; see docs/console.md)")
+                        "of worn sensors: 4 -> olng, 1 -> hmm, which needs gyroscopes the stations do not stream, "
+                        "so motion-graph; otherwise motion-graph; see docs/console.md)")
     p.add_argument("--graph", type=Path, default=None, metavar="G.npz",
                    help="motion graph from `courtside build-graph` (default: built from the shipped clips, cached)")
     p.add_argument("--kb", type=Path, default=None, metavar="KB.npz",
@@ -51,7 +52,9 @@ def _console_parser() -> argparse.ArgumentParser:
                    help="sensor-calibration record (.calibration.json from the calibration workflow): the motion "
                         "graph's virtual sensors use its measured sensor-to-segment rotations, and synthesis reads "
                         "each segment from the live sensor the record assigned to it")
-    p.add_argument("--duration", type=float, default=None, help="close after this many seconds")
+    p.add_argument("--duration", type=float, default=None,
+                   help="close after this many seconds (with --record: the take's length; the console then closes "
+                        "once the gateway confirms the stop)")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs before closing")
     p.add_argument("--calibrate", action="store_true",
                    help="scripted: run the gateway's calibration wizard through this console at start (assign from "
