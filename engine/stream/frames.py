@@ -101,7 +101,7 @@ class FrameResampler:
             return
         t_s = np.asarray(t_s, float).reshape(-1)
         keep = t_s > (self._t[sensor][-1] if len(self._t[sensor]) else -np.inf)
-        self.late_samples += int((t_s[keep] < self._hi_last).sum())
+        self.late_samples += int((t_s[keep] <= self._hi_last).sum())
         if keep.any():
             self._t[sensor] = np.concatenate([self._t[sensor], t_s[keep]])
             self._v[sensor] = np.concatenate([self._v[sensor], np.asarray(acc_g, float).reshape(-1, 3)[keep]])

@@ -101,7 +101,7 @@ class StreamSynthesis:
         self.stats.late_samples = self.resampler.late_samples
 
     def add_camera(self, t_s: float, position_m: Any, heading_rad: float | None = None) -> None:
-        self.stats.late_fixes += int(t_s < self._t_pushed)
+        self.stats.late_fixes += int(t_s <= self._t_pushed)
         self.camera.add(t_s, position_m, heading_rad)
 
     def restart(self, start_s: float | None = None) -> None:
