@@ -71,12 +71,11 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
 
     kb = _olng_knowledge_base(args)
     obs = load_take(args.input, list(SEED003_SENSORS), kb.fps)
-    if obs.acc_g is None or tuple(obs.sensor_indices) != tuple(range(len(SEED003_SENSORS))):
-        raise MalformedFileError(args.input, None, f"the OLNG needs all four sensors {list(SEED003_SENSORS)} in that order")
+    acc = _acc_in_order(args.input, obs, len(SEED003_SENSORS), f"the OLNG needs all four sensors {list(SEED003_SENSORS)}")
     rec = OLNGReconstructor(kb, _olng_config(args))
     t0 = time.perf_counter()
     cam_pos, cam_head = _camera(obs)
-    poses = [rec.push(a, cam_pos[t], cam_head[t]) for t, a in enumerate(obs.acc_g)]
+    poses = [rec.push(a, cam_pos[t], cam_head[t]) for t, a in enumerate(acc)]
     elapsed = time.perf_counter() - t0
     motion = Motion(skeleton_from_rig(kb.rig), kb.fps, np.stack([p.root_pos_m for p in poses]),
                     np.stack([p.local_quats for p in poses]), Path(args.input).stem)
@@ -93,14 +92,13 @@ def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     model = train_model(motions, imu_names=tuple(args.imus))
     take = read_take(args.input, list(args.imus), model.fps)
     obs = take.obs
-    if obs.acc_g is None or tuple(obs.sensor_indices) != tuple(range(len(args.imus))):
-        raise MalformedFileError(args.input, None, f"the HMM needs the IMUs {args.imus} in that order")
-    gyro = _take_gyro(args.input, take.frame, model.fps)
+    acc = _acc_in_order(args.input, obs, len(args.imus), f"the HMM needs the IMUs {args.imus}")
+    gyro = _take_gyro(args.input, take.frame, model.fps, list(args.imus))
     skeleton = motions[0].skeleton
     start = resample(motions[0], model.fps)
     t0 = time.perf_counter()
     cam_pos, cam_head = _camera(obs)
-    root, quats, frames = reconstruct(model, obs.acc_g, gyro, skeleton.n_joints, np.r_[0.0, start.root_positions_m[0, 1], 0.0],
+    root, quats, frames = reconstruct(model, acc, gyro, skeleton.n_joints, np.r_[0.0, start.root_positions_m[0, 1], 0.0],
                                       np.array([1.0, 0.0, 0.0, 0.0]), cam_pos, cam_head, skeleton)
     elapsed = time.perf_counter() - t0
     write_bvh(args.output, to_motion(skeleton, model.fps, root, quats, not args.no_ik, Path(args.input).stem))
@@ -116,15 +114,28 @@ def _camera(obs) -> tuple[np.ndarray, np.ndarray]:
     return pos, head
 
 
-def _take_gyro(path: str, frames: np.ndarray, fps: float) -> np.ndarray:
-    """`gyro_rps` (T, S, 3) rad/s from the take (the HMM's IMU feature is acc + gyro), on the same frames as the
-    accelerations (`engine.stream.resample_uniform`, the one sample -> frame path)."""
+def _acc_in_order(path: str, obs, n: int, need: str) -> np.ndarray:
+    """The take's acc columns in the method's sensor order (a take may list its sensors in any order)."""
+    indices = tuple(obs.sensor_indices) if obs.sensor_indices is not None else tuple(range(n))
+    if obs.acc_g is None or sorted(indices) != list(range(n)):
+        raise MalformedFileError(path, None, need)
+    return obs.acc_g[:, np.argsort(indices)]
+
+
+def _take_gyro(path: str, frames: np.ndarray, fps: float, imus: list[str]) -> np.ndarray:
+    """`gyro_rps` (T, S, 3) rad/s of the model's IMUs from the take (the HMM's IMU feature is acc + gyro), on the
+    same frames as the accelerations (`engine.stream.resample_uniform`, the one sample -> frame path); a take
+    naming its sensors (`sensor_names`, e.g. from `courtside import-imu`) may hold more."""
     from engine.stream import resample_uniform
 
     data = np.load(path, allow_pickle=False)
     if "gyro_rps" not in data.files:
         raise MalformedFileError(path, None, "the HMM method needs 'gyro_rps' (T, S, 3) rad/s beside 'acc_g'")
-    gyro = resample_uniform(np.asarray(data["gyro_rps"], float), float(data["fps"]), fps)
+    gyro = np.asarray(data["gyro_rps"], float)
+    if "sensor_names" in data.files:
+        names = [str(n) for n in data["sensor_names"]]
+        gyro = gyro[:, [names.index(n) for n in imus if n in names]]
+    gyro = resample_uniform(gyro, float(data["fps"]), fps)
     rows = np.searchsorted(gyro.index, frames)
     if len(gyro) == 0 or np.any(rows >= len(gyro)) or not np.array_equal(gyro.index[np.minimum(rows, len(gyro) - 1)], frames):
         raise MalformedFileError(path, None, f"gyro_rps does not cover the acc_g frames at {fps:g} Hz")

@@ -140,6 +140,10 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
                    status_interval_s=config.status_interval_s, lock_after_s=config.clock_lock_after_s,
                    status_line=status_line, discover=config.stations.discover, name=config.name, secrets=secrets,
                    max_clients=config.max_clients, handshake_timeout_s=config.handshake_timeout_s, tls=tls)
+    if config.lsl.enabled:
+        from gateway.lsl import LslPublisher
+
+        options["sample_sinks"] = (LslPublisher(config.name, config.lsl.scope).on_block,)
     options.update(gateway_options or {})
     try:
         gateway = Gateway(sources, **options).start()

@@ -26,6 +26,7 @@ LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
 EMULATE_MOTIONS = ("mocap", "none")
 PLAYER_SIDES = ("near", "far")
 POSES = ("npose", "tpose")
+LSL_SCOPES = ("machine", "network")
 MAX_EMULATED_STATIONS = 16
 
 
@@ -75,6 +76,14 @@ class AuthConfig:
 
 
 @dataclass(frozen=True)
+class LslConfig:
+    """Lab Streaming Layer outlets (gateway.lsl), one per station."""
+
+    enabled: bool = False
+    scope: str = "machine"  # "machine": liblsl kept on 127.0.0.1 (lsl_api.cfg); "network": announce to the LAN
+
+
+@dataclass(frozen=True)
 class CourtConfig:
     """Everything one gateway runs. Build with `load_court_config` / `CourtConfig()` + `with_overrides`."""
 
@@ -91,6 +100,7 @@ class CourtConfig:
     camera: CameraConfig = field(default_factory=CameraConfig)
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
     auth: AuthConfig = field(default_factory=AuthConfig)
+    lsl: LslConfig = field(default_factory=LslConfig)
 
     @property
     def authenticated(self) -> bool:
@@ -228,6 +238,7 @@ _SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
     "calibration": (CalibrationConfig, {"placements": _placements, "pose": _choice(POSES), "records_dir": _PATH}),
     "auth": (AuthConfig, {"operator_secret_file": _PATH, "viewer_secret_file": _PATH, "tls_cert": _PATH,
                           "tls_key": _PATH}),
+    "lsl": (LslConfig, {"enabled": _bool, "scope": _choice(LSL_SCOPES)}),
 }
 _MOVED = {"ports": "stations", "urls": "stations", "discover": "stations", "emulate": "stations"}
 

@@ -33,6 +33,7 @@ from gateway.recorder import Recorder, export_csv, export_npz
 from gateway.names import BadNameError, check_name
 from gateway.server import RequestError, StreamServer
 from gateway.station import SampleBlock, StationReader
+from gateway.vendors import make_reader
 
 if TYPE_CHECKING:
     import ssl
@@ -83,8 +84,10 @@ class Gateway:
         max_clients: int = 32,
         handshake_timeout_s: float = 5.0,
         tls: "ssl.SSLContext | None" = None,
+        sample_sinks: tuple[Callable[[SampleBlock], None], ...] = (),
     ):
         self.name = name
+        self.sample_sinks = tuple(sample_sinks)  # e.g. gateway.lsl.LslPublisher.on_block: every block, reader thread
         self.recorder = Recorder(record_dir, on_event=self._on_recorder_event)
         self.camera = camera
         self.calibration = calibration
@@ -152,7 +155,7 @@ class Gateway:
 
     def add_station(self, source: str, open_link: Callable[[str], Link] | None = None) -> StationReader:
         """Read another link (path or URL); starts at once if the gateway is running."""
-        reader = StationReader(source, self, open_link=open_link or self._open_link, **self._reader_options)
+        reader = make_reader(source, self, open_link=open_link or self._open_link, **self._reader_options)
         with self._readers_lock:
             self.readers.append(reader)
         if self._status_thread.is_alive():
@@ -176,6 +179,8 @@ class Gateway:
         on_samples = getattr(self.calibration, "on_samples", None)
         if on_samples is not None:
             on_samples(block.station, block.sensor, block.t_host_s, block.acc_g)
+        for sink in self.sample_sinks:
+            sink(block)
 
     def on_clock_point(self, station: str, epoch: int, raw_ticks: int, ticks: int, arrival_s: float,
                        tick_hz: float) -> None:
@@ -401,7 +406,8 @@ FLAG_KEYS = {
     "pose": "calibration.pose", "calibration_dir": "calibration.records_dir", "record_dir": "record_dir",
     "record": "record", "listen": "listen", "log_level": "log_level", "secret_file": "auth.operator_secret_file",
     "viewer_secret_file": "auth.viewer_secret_file", "tls_cert": "auth.tls_cert", "tls_key": "auth.tls_key",
-    "max_clients": "max_clients", "handshake_timeout": "handshake_timeout_s",
+    "max_clients": "max_clients", "handshake_timeout": "handshake_timeout_s", "lsl": "lsl.enabled",
+    "lsl_scope": "lsl.scope",
 }
 
 
@@ -409,7 +415,7 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="courtside gateway", description=__doc__.split("\n")[0],
         epilog="Every option can come from --config court.toml (keys in docs/gateway.md); options given here win. "
-               "Also: courtside gateway export <take dir> [--npz F] [--csv-dir D]; "
+               "Also: courtside gateway export <take dir> [--npz F] [--csv-dir D] [--xdf F]; "
                "courtside gateway new-secret FILE. Exit codes: 0 stopped cleanly, 1 could not start "
                "(e.g. address in use), 2 bad config/arguments.")
     p.add_argument("--config", type=Path, help="court config TOML (stations, camera, calibration, auth, ...)")
@@ -448,6 +454,10 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--tls-key", type=Path, default=None, help="PEM private key for --tls-cert")
     g.add_argument("--max-clients", type=int, default=None)
     g.add_argument("--handshake-timeout", type=float, default=None, metavar="S")
+    g = p.add_argument_group("lab streaming layer")
+    g.add_argument("--lsl", action="store_const", const=True, default=None,
+                   help="publish one LSL outlet per station (pip install 'courtside[lsl]')")
+    g.add_argument("--lsl-scope", default=None, help="machine (default: liblsl kept on 127.0.0.1) or network")
     p.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
     p.add_argument("--quiet", action="store_true", help="no status lines")
     p.add_argument("--log-level", default=None, help="DEBUG, INFO (default), WARNING, ERROR")
@@ -459,6 +469,7 @@ def _export_parser() -> argparse.ArgumentParser:
     p.add_argument("recording", type=Path, help="take directory or its take.csrec")
     p.add_argument("--npz", type=Path, help="output .npz file")
     p.add_argument("--csv-dir", type=Path, help="output directory for CSV files")
+    p.add_argument("--xdf", type=Path, help="output .xdf file (Lab Streaming Layer format, one stream per station)")
     return p
 
 
@@ -478,14 +489,18 @@ def load_config(args: argparse.Namespace) -> "CourtConfig":
 
 def _export_main(argv: list[str]) -> int:
     args = _export_parser().parse_args(argv)
-    if not args.npz and not args.csv_dir:
-        print("courtside gateway export: give --npz and/or --csv-dir", file=sys.stderr)
+    if not args.npz and not args.csv_dir and not args.xdf:
+        print("courtside gateway export: give --npz, --csv-dir and/or --xdf", file=sys.stderr)
         return 2
     if args.npz:  # a bad recording raises RecordingError: the courtside dispatcher reports it in one line
         print(f"wrote {export_npz(args.recording, args.npz)}")
     if args.csv_dir:
         for path in export_csv(args.recording, args.csv_dir):
             print(f"wrote {path}")
+    if args.xdf:
+        from gateway.xdf import export_xdf
+
+        print(f"wrote {export_xdf(args.recording, args.xdf)}")
     return 0
 
 

@@ -64,6 +64,9 @@ def _console_parser() -> argparse.ArgumentParser:
     p.add_argument("--save-poses", type=Path, default=None, metavar="OUT.npz",
                    help="save every synthesized pose since the last engine (re)start — with --record, the take's "
                         "poses — when the console closes (format: docs/console.md)")
+    p.add_argument("--stream-bvh", default=None, metavar="[HOST:]PORT",
+                   help="serve the synthesised poses as BVH over TCP (Axis Neuron convention) to animation tools "
+                        "(motion-graph engine)")
     return p
 
 
@@ -223,6 +226,10 @@ def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held
         log.warning("synthesis off: pass --synth-station (or a calibration record) to say which sensors are worn")
         return None, {}, spec.parents
     _check_when_streaming(spec, keys, stations, calibration, refresh)
+    if args.stream_bvh:
+        from engine.livestream.console import streaming_engine
+
+        spec = streaming_engine(spec, args.stream_bvh)
     synth = synthesis_setup(spec, keys, args.lag)
     return synth, dict(zip(synth.sensors, spec.sensor_names)), spec.parents
 

@@ -7,7 +7,8 @@ cd "$(dirname "$0")/.."
 
 APT_PACKAGES=(xvfb xauth libegl1 libgl1-mesa-dri libgl1 libxkbcommon0 libxkbcommon-x11-0 libfontconfig1 libdbus-1-3
               libglib2.0-0 libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 libxcb-shape0 libxcb-xinerama0
-              libxcb-randr0 libxcb-render-util0 libxcb-image0)
+              libxcb-randr0 libxcb-render-util0 libxcb-image0
+              strace)  # strace: the LSL test proves liblsl sends nothing beyond 127.0.0.1
 
 missing=()
 if command -v dpkg >/dev/null 2>&1; then

@@ -173,6 +173,14 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--require-tolerance", type=int, default=10, help="+- frames around each required time")
     p.add_argument("--no-blend", action="store_true")
     p.add_argument("--no-ik", action="store_true")
+    p.add_argument("--calibration", metavar="RECORD", help="sensor-calibration record (`courtside calibrate` or the "
+                   "wizard): readings are rotated from the measured into the graph's nominal sensor mountings")
+    p.add_argument("--stream-bvh", metavar="[HOST:]PORT", help="also serve the poses as BVH lines over TCP (Axis "
+                   "Neuron convention, e.g. 7001; 127.0.0.1 unless a host is given): with --lag each pose as it is "
+                   "decided, at the take's rate; without, the written frames")
+    p.add_argument("--stream-wait", type=float, default=5.0, help="--stream-bvh: wait this long for a client (s)")
+    p.add_argument("--stream-vmc", metavar="[HOST:]PORT", help="also send the poses as VMC (OSC over UDP, e.g. 39539; "
+                   "127.0.0.1 unless a host is given) to Unity/Blender/VSeeFace VMC receivers")
     args = p.parse_args(argv)
     graph = MotionGraph.load(args.graph)
     sensor_map = parse_sensor_map(args.sensor_map, graph.config.sensor_names)
@@ -180,6 +188,13 @@ def synthesize_main(argv: list[str]) -> int:
     check_output(args.output)
     take = read_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map,
                      use_camera_heading=args.camera_heading, times=args.times, start_s=args.start)
+    if args.calibration and graph.skeleton is not None:
+        from .calibrated_input import calibrated_take
+
+        try:
+            take = calibrated_take(take, graph.skeleton, graph.config.sensor_names, args.calibration)
+        except ValueError as exc:  # a record made for another skeleton's joint frames
+            raise MalformedFileError(args.calibration, None, str(exc)) from None
     obs = take.obs
     if graph.skeleton is None:
         raise MalformedFileError(args.graph, None, "graph holds no skeleton (rebuild it with build-graph)")
@@ -200,6 +215,16 @@ def synthesize_main(argv: list[str]) -> int:
     if constraints and args.lag is not None:
         print("error: --require needs the batch search (no --lag)", file=sys.stderr)
         return 2
+    stream, outputs = None, []
+    if args.stream_bvh:
+        from engine.livestream.stream_cli import open_stream
+
+        stream = open_stream(args.stream_bvh, args.stream_wait)
+        outputs.append(stream)
+    if args.stream_vmc:
+        from engine.livestream.stream_cli import open_vmc
+
+        outputs.append(open_vmc(args.stream_vmc, graph.skeleton))
     t0 = time.perf_counter()
     broken = 0
     fps = graph.config.fps
@@ -212,8 +237,16 @@ def synthesize_main(argv: list[str]) -> int:
         poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
     else:
         made = []
-        make = lambda: made.append(FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices,  # noqa: E731
-                                                       warp=warp)) or made[-1]
+
+        def make():
+            syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp)
+            if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
+                from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
+
+                syn = StreamingSynthesizer(syn, PoseStreamer(graph, graph.skeleton, outputs, realtime=True))
+            made.append(syn)
+            return syn
+
         if take.streams is not None:  # a gateway take: the live path, sample by sample
             poses, session = synthesize_streams(make, take.streams, take.stream_keys, fps, start_s=args.start,
                                                 use_camera_heading=args.camera_heading)
@@ -236,6 +269,12 @@ def synthesize_main(argv: list[str]) -> int:
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
                             foot_ik=not args.no_ik, name=Path(args.input).stem)
     write_bvh(args.output, motion)
+    if outputs and args.lag is None:  # the batch search decides the whole path at once: stream the written frames
+        from engine.livestream.stream_cli import stream_motion
+
+        stream_motion(outputs, motion)
+    if stream is not None:
+        stream.close()
     if args.save_poses:
         save_poses(args.save_poses, poses, graph.skeleton.parents,
                    {"engine": "motion-graph", "database": str(args.graph), "lag_s": args.lag, "rate_hz": fps,

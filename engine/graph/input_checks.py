@@ -31,7 +31,9 @@ def open_npz(path: Path) -> np.lib.npyio.NpzFile:
     try:
         data = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise MalformedFileError(path, None, f"not a readable .npz ({exc})") from None
+        hint = ("; a device recording (CSV/TSV, Xsens, x-IMU3) becomes a take with `courtside import-imu`"
+                if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx") else "")
+        raise MalformedFileError(path, None, f"not a readable .npz ({exc}){hint}") from None
     if not isinstance(data, np.lib.npyio.NpzFile):
         raise MalformedFileError(path, None, "not an .npz archive (a single .npy array?)")
     return data

@@ -32,6 +32,7 @@ from .geometry import wrap_angle
 from .graph import EDGE_INTERP, EDGE_NATURAL, NODE_INTERP, GraphParts
 from .metadata import advance, step_offsets
 from .poses import root_local
+from .slope_dtw import HAVE_DTW_PYTHON, library_path
 from .pointcloud import WindowFeatures, distance_matrix, window_features
 from .transitions import contact_code
 
@@ -110,7 +111,7 @@ def find_alignments(clips: list[ClipData], config: GraphConfig, joint_weights: n
                 after = cells[np.all(cells >= first, axis=1)]  # the path must end below-right of its start
                 last = after[np.argmax(after.sum(axis=1))]
                 sub = np.where(inside, dist[box], np.inf)[first[0]:last[0] + 1, first[1]:last[1] + 1]
-                path = slope_constrained_dtw(sub)
+                path = library_path(sub) if HAVE_DTW_PYTHON else slope_constrained_dtw(sub)
                 if path is None or len(path[0]) < min_len:
                     continue
                 a = path[0] + box[0].start + first[0]

@@ -1,10 +1,35 @@
-"""Dynamic time warping and registration of segments to a reference length (spec B2.1b)."""
+"""Dynamic time warping and registration of segments to a reference length (spec B2.1b).
+
+DTW runs in the maintained C library `dtaidistance` (the `engine` extra) when it is installed: with
+``inner_dist='euclidean'`` its local cost is the Euclidean distance, as here, and on the HMM's own phase segments
+it returns identical distances and paths (tests/engine/hmm/test_dtw_library.py) several times faster
+(bench/bench_dtw.py). Note ``dtaidistance.dtw_ndim.warping_path_fast`` ignores ``inner_dist`` (it always uses the
+squared Euclidean cost), so the path comes from ``warping_paths_fast`` + ``best_path``. The numpy recursion
+(:func:`dtw_reference`) is the fallback without the extra and the reference the tests compare against."""
 from __future__ import annotations
 
 import numpy as np
 
+try:
+    from dtaidistance import dtw as _dtai
+    from dtaidistance import dtw_ndim as _dtai_ndim
+except ImportError:  # the engine extra is absent: the numpy reference is used
+    _dtai = _dtai_ndim = None
+
+HAVE_DTAIDISTANCE = _dtai_ndim is not None
+
 
 def dtw(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+    """DTW between sequences a (n, d) and b (m, d) with Euclidean local cost and steps (1,0), (0,1), (1,1):
+    (total cost, warping path (P, 2)); `dtaidistance` when installed, else :func:`dtw_reference`."""
+    if not HAVE_DTAIDISTANCE:
+        return dtw_reference(a, b)
+    total, paths = _dtai_ndim.warping_paths_fast(np.ascontiguousarray(a, float), np.ascontiguousarray(b, float),
+                                                 inner_dist="euclidean")
+    return float(total), np.array(_dtai.best_path(paths), dtype=int)
+
+
+def dtw_reference(a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
     """DTW between sequences a (n, d) and b (m, d), Euclidean local cost, steps (1,0), (0,1), (1,1).
 
     Each row of the cost table is computed at once: D[i, j] = S[j] + min_{k<=j} (A[k] - S[k]) with
@@ -45,11 +70,19 @@ def register(values: np.ndarray, path: np.ndarray, length: int) -> np.ndarray:
     return sums / counts[:, None]
 
 
-def medoid(sequences: list[np.ndarray]) -> int:
-    """Index of the sequence with the least total DTW distance to the others."""
+def distance_matrix(sequences: list[np.ndarray]) -> np.ndarray:
+    """Symmetric (n, n) DTW distances (Euclidean local cost), zero diagonal."""
     n = len(sequences)
+    if HAVE_DTAIDISTANCE:
+        seqs = [np.ascontiguousarray(s, float) for s in sequences]
+        return np.asarray(_dtai_ndim.distance_matrix_fast(seqs, inner_dist="euclidean", parallel=False), float)
     dist = np.zeros((n, n))
     for i in range(n):
         for j in range(i + 1, n):
-            dist[i, j] = dist[j, i] = dtw(sequences[i], sequences[j])[0]
-    return int(np.argmin(dist.sum(axis=1)))
+            dist[i, j] = dist[j, i] = dtw_reference(sequences[i], sequences[j])[0]
+    return dist
+
+
+def medoid(sequences: list[np.ndarray]) -> int:
+    """Index of the sequence with the least total DTW distance to the others."""
+    return int(np.argmin(distance_matrix(sequences).sum(axis=1)))

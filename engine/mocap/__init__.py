@@ -9,7 +9,7 @@ from engine.mocap.asf_amc import AsfSkeleton, read_amc, read_asf
 from engine.mocap.bvh import CMU_UNIT_M, KNOWN_UNITS, read_bvh, write_bvh
 from engine.mocap.c3d import MarkerData, read_c3d
 from engine.mocap.calibrated import (SensorCalibrationData, calibrated_placements,
-                                     load_sensor_calibration, placements_from_calibration)
+                                     load_sensor_calibration, placements_from_calibration, reading_corrections)
 from engine.mocap.clips import DATA_DIR, default_cache_dir, load_clip, load_database, sample_clips
 from engine.mocap.ground import (SEED_HEADING_SPEED_MPS, ContactThresholds, foot_contacts, ground_positions,
                                  heading_from_positions, seed_heading_rule,
@@ -27,6 +27,7 @@ __all__ = [
     "MalformedFileError", "MarkerData", "Motion", "ROLES", "SEED000_SENSORS", "SEED003_SENSORS",
     "SEED004_SENSORS", "STANDARD_SENSORS", "SensorCalibrationData", "SensorErrorModel", "SensorPlacement",
     "Skeleton", "calibrated_placements", "load_sensor_calibration", "placements_from_calibration",
+    "reading_corrections",
     "SEED_HEADING_SPEED_MPS", "default_cache_dir", "error_joint_indices", "foot_contacts", "forward_kinematics", "ground_positions", "seed_heading_rule",
     "heading_from_positions", "joint_roles", "left_right_pairs", "load_clip", "load_database",
     "mean_squared_error_g2", "mirror", "read_amc", "read_asf", "read_bvh", "read_c3d", "rebase_to_tpose", "resample",

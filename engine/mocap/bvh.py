@@ -234,6 +234,14 @@ def read_bvh(path: str | Path, scale: float | str | None = None, name: str | Non
                   name if name is not None else path.stem)
 
 
+def bvh_frame_values(motion: Motion, order: str = "ZYX", units: str = "cm") -> np.ndarray:
+    """(F, C) channel values of the MOTION lines `write_bvh` writes (root position in `units`, then each animated
+    joint's rotation in degrees, intrinsic `order`); also what a live BVH stream sends per frame."""
+    animated = np.flatnonzero(~motion.skeleton.end_site)
+    euler = np.degrees(quat.to_euler(motion.rotations[:, animated], order.upper()))  # (F, A, 3)
+    return np.concatenate([motion.root_positions_m / KNOWN_UNITS[units], euler.reshape(motion.n_frames, -1)], axis=1)
+
+
 def write_bvh(path: str | Path, motion: Motion, order: str = "ZYX", units: str = "cm") -> None:
     """Write a Motion as BVH (root 6 channels, joints 3, given intrinsic rotation order, values in `units`)."""
     order = order.upper()
@@ -262,9 +270,7 @@ def write_bvh(path: str | Path, motion: Motion, order: str = "ZYX", units: str =
     while open_stack:
         open_stack.pop()
         out.append("  " * len(open_stack) + "}")
-    animated = np.flatnonzero(~skel.end_site)
-    euler = np.degrees(quat.to_euler(motion.rotations[:, animated], order))  # (F, A, 3)
-    frames = np.concatenate([motion.root_positions_m * per_m, euler.reshape(motion.n_frames, -1)], axis=1)
+    frames = bvh_frame_values(motion, order, units)
     out += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {1.0 / motion.fps:.10g}"]
     out += [" ".join(f"{v:.10g}" for v in row) for row in frames]
     Path(path).write_text("\n".join(out) + "\n", encoding="utf-8")

@@ -148,3 +148,12 @@ def placements_from_calibration(placements: list[SensorPlacement], calibration: 
     rotations = {s: calibration.rotations[s] for s in used}
     bias = {s: calibration.bias_along_gravity_g[s] for s in used} if with_bias else None
     return calibrated_placements(placements, rotations, bias)
+
+
+def reading_corrections(placements: list[SensorPlacement], calibration: SensorCalibrationData) -> dict[str, np.ndarray]:
+    """Per calibrated placement, the rotation ``C = R_nominalᵀ R_measured`` that turns the real sensor's readings
+    into what the nominally mounted virtual sensor reads (``a_nominal = C a_real``), so a take can be synthesised
+    on a graph built with the nominal mounting instead of rebuilding the graph. Same frame check as
+    :func:`placements_from_calibration`."""
+    measured = {p.name: p.rotation for p in placements_from_calibration(placements, calibration)}
+    return {p.name: p.rotation.T @ measured[p.name] for p in placements if p.name in calibration.rotations}

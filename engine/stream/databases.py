@@ -65,7 +65,7 @@ def shipped_graph_spec(exclude: Sequence[str] = (), calibration: SensorCalibrati
                        cache_dir: Path | None = None) -> EngineSpec:
     """The motion-graph engine on the shipped clips (the console's default database), cached."""
     graph, skeleton, cache = load_or_build_graph(exclude=exclude, calibration=calibration, cache_dir=cache_dir)
-    return motion_graph_spec(graph, f"shipped CMU clips ({cache.name})", skeleton.parents)
+    return motion_graph_spec(graph, f"shipped CMU clips ({cache.name})", skeleton)
 
 
 def shipped_olng_spec(exclude: Sequence[str] = ()) -> EngineSpec:

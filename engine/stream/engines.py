@@ -42,6 +42,8 @@ class EngineSpec:
     parents: np.ndarray             # skeleton parents of the emitted joint positions
     make: Callable[[float], Any]    # lag_s -> a fresh OnlineEngine
     lag_applies: bool = True        # False: the engine decides each frame at once (OLNG)
+    graph: Any = None               # the motion graph (motion-graph engine): what pose streaming needs
+    skeleton: Any = None            # engine.mocap.Skeleton of the emitted poses, when known
 
     @property
     def label(self) -> str:
@@ -63,8 +65,7 @@ def default_engine(n_worn: int) -> str:
     return {4: "olng", 1: "hmm"}.get(n_worn, "motion-graph")
 
 
-def motion_graph_spec(graph: Any, database: str | Path, parents: np.ndarray | None = None,
-                      warp: Any = None) -> EngineSpec:
+def motion_graph_spec(graph: Any, database: str | Path, skeleton: Any = None, warp: Any = None) -> EngineSpec:
     """Fixed-lag Viterbi over a `engine.graph.MotionGraph` (from `courtside build-graph` or the console's cache),
     with `courtside synthesize`'s defaults: root warping towards the camera (``warp``, default
     `engine.graph.warp.RootWarp()`) and the weights that go with it. The confidence reference (the cost per sample
@@ -73,19 +74,19 @@ def motion_graph_spec(graph: Any, database: str | Path, parents: np.ndarray | No
     from engine.graph.online import FixedLagSynthesizer
     from engine.graph.warp import RootWarp, default_weights
 
-    if parents is None:
-        if graph.skeleton is None:
-            raise EngineMismatchError(f"{database}: the graph holds no skeleton (rebuild it with build-graph)")
-        parents = graph.skeleton.parents
+    skeleton = graph.skeleton if skeleton is None else skeleton
+    if skeleton is None:
+        raise EngineMismatchError(f"{database}: the graph holds no skeleton (rebuild it with build-graph)")
     names = tuple(graph.config.sensor_names)
     if len(names) != graph.n_sensors:
         raise EngineMismatchError(f"{database}: graph has {graph.n_sensors} sensor columns but names {list(names)}")
     warp = RootWarp() if warp is None else warp
     weights = default_weights(warp)
     reference = reference_cost_per_sample(graph, weights, warp)
-    return EngineSpec("motion-graph", str(database), names, float(graph.config.fps), np.asarray(parents),
+    return EngineSpec("motion-graph", str(database), names, float(graph.config.fps), np.asarray(skeleton.parents),
                       lambda lag_s: FixedLagSynthesizer(graph, lag_s, weights, warp=warp,
-                                                        confidence_reference=reference))
+                                                        confidence_reference=reference), graph=graph,
+                      skeleton=skeleton)
 
 
 class OLNGEngine:

@@ -171,15 +171,27 @@ class FrameResampler:
 def resample_uniform(acc_g: np.ndarray, fps_in: float, rate_hz: float, max_gap_s: float = 0.25,
                      t0_s: float = 0.0) -> FrameBatch:
     """A whole uniformly sampled stream (T, S, 3) at ``fps_in`` starting at ``t0_s``, through the same resampler
-    (NaN rows are dropouts: they are removed, so the frames around them come out invalid)."""
+    (NaN rows are dropouts: they are removed, so the frames around them come out invalid).
+
+    At the take's two ends each sensor's first and last reading is held for half a frame (at least one input
+    period), so the frames there, whose windows reach half a frame beyond the data, exist: a take of T samples at
+    the graph rate gives T frames, one at 120 Hz as many as the polyphase resampler used to (ceil(T / 4) at 30 Hz)."""
     acc_g = np.asarray(acc_g, float)
-    t = t0_s + np.arange(len(acc_g)) / fps_in
-    gap = max(max_gap_s, 1.0 / rate_hz, 1.5 / fps_in)
+    dt = 1.0 / fps_in
+    t = t0_s + np.arange(len(acc_g)) * dt
+    gap = max(max_gap_s, 1.0 / rate_hz, 1.5 * dt)
     res = FrameResampler(range(acc_g.shape[1]), rate_hz, gap, wait_s=gap)
     for k in range(acc_g.shape[1]):
         ok = ~np.isnan(acc_g[:, k]).any(axis=1)
-        res.add(k, t[ok], acc_g[ok, k])
-    return res.frames()
+        tk, vk = t[ok], acc_g[ok, k]
+        hold = max(dt, 0.5 / rate_hz)
+        if len(tk) and ok[0]:
+            tk, vk = np.r_[tk[0] - hold, tk], np.vstack([vk[:1], vk])
+        if len(tk) and ok[-1]:
+            tk, vk = np.r_[tk, tk[-1] + hold], np.vstack([vk, vk[-1:]])
+        res.add(k, tk, vk)
+    res.start_at(t0_s)
+    return res.frames(until_s=t[-1] if len(t) else -np.inf)
 
 
 def _interp_at(t: np.ndarray, v: np.ndarray, i: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -78,6 +78,26 @@ def reference_npose(skeleton: Any) -> tuple[np.ndarray, np.ndarray]:
     return local, _fk(skeleton, local)[1]
 
 
+def reference_bow(skeleton: Any, bow_deg: float = 60.0) -> np.ndarray:
+    """Global joint rotations (J, 3, 3) of a forward bow: the reference N-pose with the trunk (and everything it
+    carries: head, arms) pitched ``bow_deg`` forward at the hips while the legs stay as they were. A second still
+    pose for `courtside calibrate`: it inclines the pelvis and chest, whose heading one upright pose and walking
+    cannot fix."""
+    from engine.mocap import joint_roles
+
+    roles = joint_roles(skeleton)
+    local, glob = reference_npose(skeleton)
+    c, s = np.cos(np.radians(bow_deg)), np.sin(np.radians(bow_deg))
+    pitch = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])  # about +X (left): up tips toward +Z (forward)
+    legs = {j: glob[j].copy() for j in (roles["left_hip"], roles["right_hip"])}
+    local = local.copy()
+    local[0] = pitch @ local[0]
+    bowed = _fk(skeleton, local)[1]
+    for j, world in legs.items():  # the thighs keep hanging straight down: flex the hips instead
+        local[j] = bowed[skeleton.parents[j]].T @ world
+    return _fk(skeleton, local)[1]
+
+
 def pose_rotations(skeleton: Any, pose: str) -> np.ndarray:
     """Global joint rotations (J, 3, 3) of the named calibration pose: ``"npose"`` (:func:`reference_npose`)
     or ``"tpose"`` (the skeleton's zero pose, a T-pose for CMU ASF and re-based skeletons)."""

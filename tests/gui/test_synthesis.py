@@ -27,7 +27,7 @@ def graph_and_clip(tmp_path_factory):
     motion = load_clip(sample_clips()["16_11"], fps=GRAPH_FPS)
     acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS))
     truth, _ = forward_kinematics(motion)
-    return motion_graph_spec(graph, "shipped clips", skeleton.parents), acc, truth
+    return motion_graph_spec(graph, "shipped clips", skeleton), acc, truth
 
 
 def live_streams(acc30: np.ndarray, t0: float, sensors) -> dict:

@@ -1,0 +1,99 @@
+"""x-IMU3 data-logger recordings (x-io Technologies: x-IMU3 GUI "Data Logger" or the ximu3 API's DataLogger).
+
+The logger writes one folder per recording and inside it one folder per connected device, named
+``"<device name> <serial number> (<interface>)"`` once the device answered the logger's ping. Each device folder
+holds one CSV per message type, written by the x-IMU3 API exactly as:
+
+* ``Inertial.csv``: ``Timestamp (us),Gyroscope X (deg/s),Gyroscope Y (deg/s),Gyroscope Z (deg/s),
+  Accelerometer X (g),Accelerometer Y (g),Accelerometer Z (g)``
+* ``Quaternion.csv``: ``Timestamp (us),W,X,Y,Z`` (AHRS output, sensor -> Earth, w first)
+
+(plus Magnetometer.csv, Battery.csv, Command.json ... which are not needed here). Timestamps are each device's
+own microsecond clock, so streams are put on a common time axis by their first logged sample: the logger opens
+all devices at the same host moment (within one sample period; a cross-device sync tap or the x-IMU3
+synchronisation input would be needed for better)."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from engine.errors import CourtsideError, MalformedFileError
+from engine.imu_import.table import read_table
+from engine.imu_import.take import SensorStream
+from engine.mocap import STANDARD_SENSORS
+
+INERTIAL = "Inertial.csv"
+QUATERNION = "Quaternion.csv"
+INERTIAL_COLUMNS = ["Timestamp (us)", "Gyroscope X (deg/s)", "Gyroscope Y (deg/s)", "Gyroscope Z (deg/s)",
+                    "Accelerometer X (g)", "Accelerometer Y (g)", "Accelerometer Z (g)"]
+QUATERNION_COLUMNS = ["Timestamp (us)", "W", "X", "Y", "Z"]
+_FOLDER = re.compile(r"^(?P<name>.+?) (?P<serial>[0-9A-Fa-f]{8}) \((?P<interface>[^)]*)\)$")
+
+
+def device_folders(path: str | Path) -> list[Path]:
+    """The device folders of a recording: ``path`` is the recording folder, one device folder, or an
+    ``Inertial.csv``."""
+    path = Path(path)
+    if path.is_file():
+        if path.name != INERTIAL:
+            raise MalformedFileError(path, None, f"an x-IMU3 recording is a folder (or its {INERTIAL})")
+        return [path.parent]
+    if (path / INERTIAL).is_file():
+        return [path]
+    found = sorted(p for p in path.iterdir() if (p / INERTIAL).is_file()) if path.is_dir() else []
+    if not found:
+        raise MalformedFileError(path, None, f"no x-IMU3 device folder with an {INERTIAL} in it")
+    return found
+
+
+def default_name(folder: Path) -> str | None:
+    """Standard placement named by the device name (e.g. a device renamed "Left Forearm" or "left_forearm")."""
+    m = _FOLDER.match(folder.name)
+    device = (m.group("name") if m else folder.name).strip().lower().replace("-", "_").replace(" ", "_")
+    return device if device in STANDARD_SENSORS else None
+
+
+def _labels(folder: Path) -> set[str]:
+    m = _FOLDER.match(folder.name)
+    return {folder.name} | ({m.group("name"), m.group("serial")} if m else set())
+
+
+def read_ximu3(path: str | Path, sensor_map: dict[str, str] | None = None) -> tuple[list[SensorStream], list[str]]:
+    """Streams of the mapped devices (``sensor_map``: folder name, device name or serial -> placement name;
+    default: devices named after a placement) and the labels of the devices left out."""
+    streams, ignored = [], []
+    for folder in device_folders(path):
+        name = next((sensor_map[k] for k in _labels(folder) if sensor_map and k in sensor_map), None)
+        name = name or default_name(folder)
+        if name is None:
+            ignored.append(folder.name)
+            continue
+        inertial = read_table(folder / INERTIAL, ",")
+        _require(inertial.header, INERTIAL_COLUMNS, folder / INERTIAL)
+        t_us = inertial.get(INERTIAL_COLUMNS[:1])[:, 0]
+        gyro = np.radians(inertial.get(INERTIAL_COLUMNS[1:4]))
+        acc = inertial.get(INERTIAL_COLUMNS[4:7])
+        quat = None
+        if (folder / QUATERNION).is_file():
+            qt = read_table(folder / QUATERNION, ",")
+            _require(qt.header, QUATERNION_COLUMNS, folder / QUATERNION)
+            tq = qt.get(QUATERNION_COLUMNS[:1])[:, 0]
+            q = qt.get(QUATERNION_COLUMNS[1:])
+            flip = np.cumprod(np.r_[1.0, np.where(np.sum(q[1:] * q[:-1], axis=1) < 0, -1.0, 1.0)])
+            q = q * flip[:, None]
+            quat = np.stack([np.interp(t_us, tq, q[:, k]) for k in range(4)], axis=1)
+            quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+        t_s = (t_us - t_us[0]) * 1e-6
+        streams.append(SensorStream(folder.name, name, t_s, acc, quat, gyro, ("wxyz", True) if quat is not None else None))
+    if not streams:
+        raise CourtsideError(f"{path}: no device is mapped to a sensor placement (devices: "
+                             f"{', '.join(ignored)}); give --sensor-map DEVICE=PLACEMENT")
+    return streams, ignored
+
+
+def _require(header: list[str], columns: list[str], path: Path) -> None:
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise MalformedFileError(path, 1, f"missing column(s) {missing}; this is not an x-IMU3 {path.name}")

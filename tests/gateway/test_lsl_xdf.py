@@ -1,0 +1,96 @@
+"""Lab Streaming Layer out of the gateway, and XDF export, with real pylsl/liblsl and pyxdf on loopback.
+
+The LSL round trip runs in a child process under strace, which logs every socket address liblsl sends to or
+connects to: all of them must be 127.0.0.1 (no multicast, no other interface, no IPv6)."""
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pylsl")
+pyxdf = pytest.importorskip("pyxdf")
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.skipif(shutil.which("strace") is None, reason="strace (scripts/setup.sh installs it) is missing")
+def test_lsl_outlet_round_trip_stays_on_loopback(tmp_path):
+    trace = tmp_path / "net.trace"
+    proc = subprocess.run(["strace", "-f", "-qq", "-e", "trace=connect,sendto,sendmsg,sendmmsg", "-o", str(trace),
+                           sys.executable, str(ROOT / "tests" / "gateway" / "lsl_roundtrip.py"), str(tmp_path), "2.0"],
+                          capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["lslcfg"].endswith("courtside-lsl_api.cfg")
+    # every IPv4 destination is loopback, and there is no IPv6 destination at all
+    text = trace.read_text()
+    v4 = set(re.findall(r'sin_addr=inet_addr\("([0-9.]+)"\)', text))
+    assert v4 and all(a.startswith("127.") for a in v4), v4
+    assert "AF_INET6" not in text
+    # the stream as published
+    assert out["type"] == "Accelerometer" and out["channels"] == 4 and out["name"] == f"lsltest {out['station']}"
+    # every received sample is a delivered one, at its gateway time mapped to local_clock
+    delivered = {}
+    for _, sensor, times, acc in out["delivered"]:
+        for t, a in zip(times, acc):
+            delivered[(sensor, round(t + out["offset_s"], 6))] = a
+    rows, stamps = np.array(out["rows"]), np.array(out["stamps"])
+    assert len(rows) > 300  # 3 sensors x 100 Hz x ~2 s
+    for row, stamp in zip(rows, stamps):
+        key = (int(row[0]), round(stamp, 6))
+        assert key in delivered, key
+        np.testing.assert_allclose(row[1:], delivered[key], atol=1e-6)
+    # per sensor, nothing was lost between the first and the last sample the inlet got
+    received = {(int(r[0]), round(t, 6)) for r, t in zip(rows, stamps)}
+    assert len(received) == len(rows)
+    for sensor in {k[0] for k in received}:
+        got = [t for s, t in received if s == sensor]
+        span = {k for k in delivered if k[0] == sensor and min(got) <= k[1] <= max(got)}
+        assert span <= received and len(span) > 50
+
+
+def test_loopback_config_is_what_the_issue_asks():
+    from gateway.lsl import LOOPBACK_CONFIG
+
+    for line in ("ResolveScope = machine", "MachineAddresses = {127.0.0.1}", "KnownPeers = {127.0.0.1}",
+                 "IPv6 = disable"):
+        assert line in LOOPBACK_CONFIG
+
+
+def test_export_xdf_reads_back_with_pyxdf(tmp_path):
+    """A real gateway recording of an emulated station, exported with `courtside gateway export --xdf`: pyxdf
+    returns exactly the recorded samples at their re-fitted gateway times."""
+    from gateway.daemon import Gateway
+    from gateway.recorder import load_take, realign_take
+
+    with Gateway(["emu://xdf1?sensors=2&rate=200&seed=5"], listen=("127.0.0.1", 0), record_dir=tmp_path) as gw:
+        time.sleep(0.3)
+        gw.recorder.start("take1")
+        time.sleep(1.5)
+        gw.recorder.stop()
+    take_dir = tmp_path / "take1"
+    out = tmp_path / "take1.xdf"
+    proc = subprocess.run([sys.executable, "-m", "gateway.cli", "gateway", "export", str(take_dir), "--xdf", str(out)],
+                          capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    streams, header = pyxdf.load_xdf(str(out), synchronize_clocks=False, dejitter_timestamps=False)
+    assert header["info"]["version"] == ["1.0"] and len(streams) == 1
+    stream = streams[0]
+    take = load_take(take_dir)
+    assert stream["info"]["name"] == [f"courtside-gateway {next(iter(take.samples))[0]}"] and stream["info"]["channel_format"] == ["float32"]
+    realigned = realign_take(take)
+    expected_t = np.concatenate([realigned[k] for k in sorted(take.samples)])
+    expected = np.concatenate([np.column_stack([np.full(len(c["acc_g"]), k[1]), c["acc_g"]])
+                               for k, c in sorted(take.samples.items())])
+    order = np.argsort(expected_t, kind="stable")
+    assert len(stream["time_stamps"]) == len(expected_t) > 300
+    np.testing.assert_array_equal(stream["time_stamps"], expected_t[order])
+    np.testing.assert_array_equal(stream["time_series"], expected[order].astype(np.float32))

@@ -1,0 +1,113 @@
+"""IMUs people can buy as gateway stations: each vendor's own library (x-IMU3: `ximu3`, Shimmer3: `pyshimmer`)
+opens an emulator of its device on a pty, speaking the device's serial protocol with its own drifting clock;
+the gateway aligns, counts, records and serves the samples like those of the project's own stations."""
+from __future__ import annotations
+
+import os
+import pty
+import time
+import tty
+
+import numpy as np
+import pytest
+
+from gateway.client import GatewayClient
+from gateway.daemon import Gateway, format_status_lines
+from gateway.recorder import load_take, realign_take
+
+
+def _wait(predicate, timeout_s: float = 10.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _ximu3():
+    pytest.importorskip("ximu3")
+    from gateway.vendors.ximu3_emulator import Ximu3Emulator
+
+    emu = Ximu3Emulator(serial="65577B49", rate_hz=100.0, drift_ppm=80.0, loss=0.02, seed=1)
+    return emu, f"ximu3:{emu.path}", "ximu3-65577B49", 100.0, lambda: np.array(emu.truth.device_us)
+
+
+def _shimmer():
+    pytest.importorskip("pyshimmer")
+    from gateway.vendors.shimmer_emulator import ShimmerEmulator
+
+    emu = ShimmerEmulator(name="A1B2", rate_hz=102.4, drift_ppm=-30.0, start_ticks=16_700_000, seed=2)
+    return emu, f"shimmer:{emu.path}", "shimmer3-A1B2", 102.4, lambda: np.array(emu.truth.ticks)
+
+
+@pytest.mark.parametrize("make", [_ximu3, _shimmer], ids=["ximu3", "shimmer"])
+def test_vendor_station_streams_records_and_aligns(tmp_path, make):
+    emu, source, station, rate_hz, truth_ticks = make()
+    with emu, Gateway([source], listen=("127.0.0.1", 0), record_dir=tmp_path) as gw:
+        assert _wait(lambda: gw.list_stations()[0]["station"] == station), gw.list_stations()
+        gw.recorder.start("take")
+        time.sleep(5.0)
+        gw.recorder.stop()
+        with GatewayClient(*gw.address).connect() as client:  # what a console sees
+            listed = client.list_stations()
+        status = gw.list_stations()[0]
+        line = format_status_lines(gw.status())[0]  # what `courtside gateway` prints every second
+    assert line.split()[0] == station and "samples/s" in line
+    assert listed[0]["station"] == station and listed[0]["device_clock"] is True
+    sensor = status["sensors"][0]
+    assert sensor["nominal_hz"] == pytest.approx(rate_hz, rel=1e-3)
+    ticks = truth_ticks()
+    sent = len(ticks)
+    assert sensor["received"] > 0.9 * sent - 20
+    lost_truth = getattr(emu.truth, "dropped", 0)
+    assert abs(sensor["lost"] - lost_truth) <= 2 + 0.1 * lost_truth  # counters rebuilt from device time stamps
+    take = load_take(tmp_path / "take")
+    cols = take.samples[(station, 0)]
+    index = {int(t) % (1 << 32): k for k, t in enumerate(ticks)}
+    assert all(int(r) in index for r in cols["raw_ticks"])  # every recorded sample is a sent one
+    rows = [index[int(r)] for r in cols["raw_ticks"]]
+    np.testing.assert_allclose(cols["acc_g"], np.array(emu.truth.acc_g)[rows], atol=1e-6)
+    host = np.array(emu.truth.host_s)[rows]
+    settled = host > host[0] + 2.0
+    online = np.abs(cols["t_host_s"] - host)[settled]
+    offline = np.abs(realign_take(take)[(station, 0)] - host)
+    assert np.percentile(online, 99) < 2e-3 and np.percentile(offline, 99) < 2e-3, \
+        (np.percentile(online, 99), np.percentile(offline, 99))
+
+
+@pytest.mark.parametrize("prefix,module,reason", [("ximu3", "ximu3", "no answer to ping"),
+                                                  ("shimmer", "pyshimmer", "not a Shimmer")])
+def test_a_port_with_another_device_is_reported(tmp_path, prefix, module, reason):
+    pytest.importorskip(module)
+    master, slave = pty.openpty()
+    tty.setraw(slave)
+    try:
+        with Gateway([f"{prefix}:{os.ttyname(slave)}"], listen=("127.0.0.1", 0), record_dir=tmp_path) as gw:
+            os.write(master, b"\xaa\xbb\xcc\xdd" * 64)  # something else talking
+            assert _wait(lambda: gw.list_stations()[0]["link_error"] is not None, 20.0)
+            assert reason in gw.list_stations()[0]["link_error"]
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_courtside_gateway_records_both_families(tmp_path):
+    """The real `courtside gateway` process reads an x-IMU3 and a Shimmer3 (emulated in this process) into one
+    recording."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("ximu3")
+    pytest.importorskip("pyshimmer")
+    from gateway.vendors.shimmer_emulator import ShimmerEmulator
+    from gateway.vendors.ximu3_emulator import Ximu3Emulator
+
+    with Ximu3Emulator(serial="0000BEEF") as x, ShimmerEmulator(name="S1") as s:
+        proc = subprocess.run([sys.executable, "-m", "gateway.cli", "gateway", "--port", f"ximu3:{x.path}",
+                               "--port", f"shimmer:{s.path}", "--record-dir", str(tmp_path), "--record", "both",
+                               "--duration", "5", "--quiet"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    take = load_take(tmp_path / "both")
+    counts = {key[0]: len(cols["t_host_s"]) for key, cols in take.samples.items()}
+    assert set(counts) == {"ximu3-0000BEEF", "shimmer3-S1"} and min(counts.values()) > 200, counts
