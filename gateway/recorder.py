@@ -627,12 +627,19 @@ def _exportable(path: Path | str) -> Take:
     for (station, sensor), cols in take.samples.items():
         if "t_host_s" not in cols:
             raise RecordingError(path, f"samples of {station}/{sensor} carry no 't_host_s' (not a gateway recording?)")
+    if take.end is None:
+        log.warning("%s: no end record: the take was never closed (crash or power loss); exporting everything up "
+                    "to its last intact chunk", path)
+    elif take.end.get("reason") == "fault":
+        log.warning("%s: the take was ended by a disk fault (%s)", path, take.end.get("fault"))
     return take
 
 
 def export_npz(path: Path | str, out: Path | str) -> Path:
     """One npz: ``<station>/<sensor>/<array>`` keys for samples (plus ``t_realigned_s``, the offline clock re-fit),
     ``meta`` and ``messages`` as JSON strings."""
+    out = Path(out)
+    _check_output_dir(out.parent)  # before any work or warning
     take = _exportable(path)
     realigned = realign_take(take)
     arrays: dict[str, Any] = {}
@@ -641,8 +648,6 @@ def export_npz(path: Path | str, out: Path | str) -> Path:
             arrays[f"{station}/{sensor}/{name}"] = value
     arrays["meta"] = np.array(json.dumps(take.meta))
     arrays["messages"] = np.array(json.dumps([{"kind": m.kind, **m.header} for m in take.others]))
-    out = Path(out)
-    _check_output_dir(out.parent)
     partial = out.with_name(out.name + ".partial")
     try:
         with open(partial, "wb") as fh:  # a file object: numpy does not append ".npz" to the name

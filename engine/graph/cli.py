@@ -11,13 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import MalformedFileError, cli_command
+from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load_sensor_calibration,
                           placements_from_calibration, sample_clips, standard_placements, write_bvh)
 
 from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
-from .input_checks import check_database, check_lag, check_output, check_path_length, parse_sensor_map
+from .input_checks import check_database, check_lag, check_non_negative, check_path_length, parse_sensor_map
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .report import coverage_warning, format_report, graph_report, motion_range
 from .viterbi import SearchWeights
@@ -42,7 +42,7 @@ def database_paths(args: argparse.Namespace) -> list[Path]:
     if args.max_clips:
         paths = paths[: args.max_clips]
     if not paths:
-        raise SystemExit("no clips: give clip files, --sample, or --mocap-dir with --pattern")
+        raise CourtsideError("no clips: give clip files, --sample, or --mocap-dir with --pattern (matching files)")
     return paths
 
 
@@ -90,9 +90,10 @@ def build_graph_main(argv: list[str]) -> int:
                    help="sensor-calibration record (.calibration.json from the gateway's calibration workflow): "
                         "virtual sensors use its measured sensor-to-segment rotations")
     args = p.parse_args(argv)
+    check_non_negative("--threshold", [args.threshold], positive=True)
     config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold,
                          connect=not args.no_connect)
-    check_output(args.output)
+    check_output_dir(args.output)
     t0 = time.perf_counter()
     motions, clips, sensor_model = load_clips(args, config)
     t1 = time.perf_counter()
@@ -128,6 +129,7 @@ def graph_info_main(argv: list[str]) -> int:
 
 
 def _weights(values: list[float]) -> SearchWeights:
+    check_non_negative("--weights", values)
     return SearchWeights(*values)
 
 
@@ -185,7 +187,7 @@ def synthesize_main(argv: list[str]) -> int:
     graph = MotionGraph.load(args.graph)
     sensor_map = parse_sensor_map(args.sensor_map, graph.config.sensor_names)
     check_lag(args.lag, graph.config.fps)
-    check_output(args.output)
+    check_output_dir(args.output)
     take = read_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map,
                      use_camera_heading=args.camera_heading, times=args.times, start_s=args.start)
     if args.calibration and graph.skeleton is not None:

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from engine.errors import CourtsideError, MalformedFileError, check_output_dir as check_output  # noqa: F401
+from engine.errors import CourtsideError, MalformedFileError
 
 log = logging.getLogger(__name__)
 
@@ -166,6 +166,13 @@ def check_sensor_map(path: Path, sensor_map: dict[str, str] | None, keys: list[s
     if unknown:
         raise MalformedFileError(path, None, f"--sensor-map names {unknown}, which the recording does not hold "
                                              f"(it holds {keys})")
+
+
+def check_non_negative(option: str, values: list[float], positive: bool = False) -> None:
+    """Command-line numbers that must be finite and >= 0 (> 0 with ``positive``): weights, thresholds."""
+    for v in values:
+        if not np.isfinite(v) or v < 0 or (positive and v == 0):
+            raise CourtsideError(f"{option} {v!r}: must be a finite number {'> 0' if positive else '>= 0'}")
 
 
 def check_lag(lag_s: float | None, fps: float) -> None:

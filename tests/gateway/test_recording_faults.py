@@ -27,7 +27,7 @@ from .test_station_reader import wait_for
 
 def _batch(start: int, n: int) -> dict[str, np.ndarray]:
     counter = np.arange(start, start + n, dtype=np.uint32)
-    return {"counter": counter, "acc_g": np.repeat(counter[:, None], 3, 1).astype(np.float32)}
+    return {"counter": counter, "t_host_s": counter * 0.01, "acc_g": np.repeat(counter[:, None], 3, 1).astype(np.float32)}
 
 
 def _recording(tmp_path: Path, chunks: int = 30) -> Path:
@@ -344,3 +344,19 @@ def test_gateway_process_with_a_full_disk_keeps_running_and_stops_on_sigterm(tmp
     contents = read_recording(tmp_path / "full")
     assert contents.intact_bytes == contents.total_bytes and not contents.ended_cleanly
     assert load_take(tmp_path / "full").samples
+
+
+def test_export_says_when_a_take_was_never_closed(tmp_path, caplog):
+    from gateway.recorder import export_npz
+
+    path = _recording(tmp_path)
+    data = path.read_bytes()
+    offsets = _chunk_offsets(data, _header_end(data))
+    crashed = tmp_path / "crashed.csrec"
+    crashed.write_bytes(data[:offsets[-1]])  # everything but the end record: what a crash leaves
+    with caplog.at_level("WARNING"):
+        export_npz(path, tmp_path / "clean.npz")
+        assert not caplog.records
+        export_npz(crashed, tmp_path / "crashed.npz")
+    assert "never closed" in caplog.text and "crashed.csrec" in caplog.text
+    assert np.load(tmp_path / "crashed.npz")["st1/0/counter"].tolist() == list(range(750))

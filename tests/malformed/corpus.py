@@ -34,7 +34,7 @@ class Case:
     files: dict[str, bytes]  # path relative to the case directory -> content
     argv: list[str]  # "{d}" is replaced by the case directory
     bad: str  # what the one stderr line must name (a path relative to the case directory, or a literal)
-    runner: str = "courtside"  # courtside | mocap | camera
+    runner: str = "courtside"  # courtside (the dispatcher) | mocap (python -m engine.mocap)
     outputs: tuple[str, ...] = ()  # must not exist afterwards (nothing half-written)
     shared: dict[str, str] = field(default_factory=dict)  # name in the case dir -> path of a shared valid file
 
@@ -475,6 +475,14 @@ def take_cases(take: dict[str, np.ndarray]) -> list[Case]:
         cases.append(Case("take", f"lag-{lag}", {"take.npz": good},
                           ["synthesize", "--graph", "{d}/g.npz", "--input", "{d}/take.npz", "-o", "{d}/out.bvh",
                            "--lag", lag], "--lag", outputs=("out.bvh",), shared={"g.npz": "graph"}))
+    for weights in (["nan", "1", "1"], ["-1", "1", "1"]):
+        cases.append(Case("take", f"weights-{weights[0]}", {"take.npz": good},
+                          ["synthesize", "--graph", "{d}/g.npz", "--input", "{d}/take.npz", "-o", "{d}/out.bvh",
+                           "--weights", *weights], "--weights", outputs=("out.bvh",), shared={"g.npz": "graph"}))
+    cases.append(Case("bvh", "build-graph-threshold-negative", {}, ["build-graph", "--sample", "--threshold", "-1", "-o",
+                                                                   "{d}/g.npz"], "--threshold", outputs=("g.npz",)))
+    cases.append(Case("bvh", "build-graph-no-clips", {}, ["build-graph", "--mocap-dir", "{d}/none", "-o", "{d}/g.npz"],
+                      "no clips", outputs=("g.npz",)))
     cases.append(Case("take", "output-dir-missing", {"take.npz": good},
                       ["synthesize", "--graph", "{d}/g.npz", "--input", "{d}/take.npz", "-o", "{d}/no/such/out.bvh"],
                       "no/such", shared={"g.npz": "graph"}))
@@ -594,7 +602,7 @@ def camera_cases() -> list[Case]:
         "homography-shape": json.dumps({**schema, "homography": [[1, 0], [0, 1]]}).encode(),
     }
     cases = [Case("court-calibration", name, {"court.json": data},
-                  ["track", "--video", "{d}/v.mp4", "--calibration", "{d}/court.json"], "court.json", runner="camera")
+                  ["camera", "track", "--video", "{d}/v.mp4", "--calibration", "{d}/court.json"], "court.json")
              for name, data in court.items()]
     clicks = {
         "empty": b"",
@@ -606,8 +614,8 @@ def camera_cases() -> list[Case]:
         "too-few-points": json.dumps({"near_baseline_left_doubles": [1, 2]}).encode(),
     }
     cases += [Case("court-clicks", name, {"clicks.json": data},
-                   ["calibrate", "--clicks", "{d}/clicks.json", "--image-size", "800", "450", "--out", "{d}/court.json"],
-                   "clicks.json", runner="camera", outputs=("court.json",)) for name, data in clicks.items()]
+                   ["camera", "calibrate", "--clicks", "{d}/clicks.json", "--image-size", "800", "450", "--out",
+                    "{d}/court.json"], "clicks.json", outputs=("court.json",)) for name, data in clicks.items()]
     return cases
 
 

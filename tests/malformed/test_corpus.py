@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import logging
 import shutil
 import subprocess
 import sys
@@ -23,17 +24,14 @@ from . import corpus
 SUBPROCESS_PREFIX = {
     "courtside": [sys.executable, "-m", "gateway.cli"],
     "mocap": [sys.executable, "-m", "engine.mocap"],
-    "camera": [sys.executable, "-m", "gateway.camera.cli"],
 }
 
 
 def _entry(runner: str):
     if runner == "courtside":
         from gateway.cli import main
-    elif runner == "mocap":
-        from engine.mocap.__main__ import main
     else:
-        from gateway.camera.cli import main
+        from engine.mocap.__main__ import main
     return main
 
 
@@ -80,6 +78,10 @@ def _materialise(case: corpus.Case, d: Path, shared_paths: dict[str, Path]) -> l
 def _run_in_process(case: corpus.Case, argv: list[str]) -> tuple[int, str, str | None]:
     err, out = io.StringIO(), io.StringIO()
     crash = None
+    # what an unconfigured process does with warnings (logging.lastResort), which pytest's own handler would hide
+    handler = logging.StreamHandler(err)
+    handler.setLevel(logging.WARNING)
+    logging.getLogger().addHandler(handler)
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
         try:
             code = _entry(case.runner)(argv)
@@ -89,6 +91,8 @@ def _run_in_process(case: corpus.Case, argv: list[str]) -> tuple[int, str, str |
                 print(exc.code, file=sys.stderr)
         except BaseException:  # noqa: BLE001 - this is exactly what must never happen
             code, crash = 1, traceback.format_exc()
+        finally:
+            logging.getLogger().removeHandler(handler)
     return int(code or 0), err.getvalue(), crash
 
 
@@ -98,7 +102,7 @@ def _check(case: corpus.Case, d: Path, code: int, stderr: str, crash: str | None
     assert code != 0, f"{case.id}: exit 0 on a bad input (stderr {stderr!r})"
     lines = [line for line in stderr.splitlines() if line.strip()]
     assert len(lines) == 1, f"{case.id}: expected one stderr line, got {lines}"
-    named = case.bad if case.bad.startswith("--") else str(d / case.bad)
+    named = case.bad if case.bad.startswith("--") or " " in case.bad else str(d / case.bad)
     assert named in lines[0], f"{case.id}: {lines[0]!r} does not name {named}"
     assert len(lines[0]) > len(named) + 12, f"{case.id}: {lines[0]!r} does not say what is wrong"
     for rel in case.outputs:
