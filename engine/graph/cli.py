@@ -201,12 +201,12 @@ def synthesize_main(argv: list[str]) -> int:
     if graph.skeleton is None:
         raise MalformedFileError(args.graph, None, "graph holds no skeleton (rebuild it with build-graph)")
     check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, obs.n_samples, graph.config.fps)
-    warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
+    weights = _weights(args.weights) if args.weights else default_weights(warp)  # a bad value: one line, no warning
+    warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     if warning:
         print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"
                          if warp.active else ""), file=sys.stderr)
-    weights = _weights(args.weights) if args.weights else default_weights(warp)
     try:
         constraints = [label_constraint(graph, r.rsplit("@", 1)[0], int(round(float(r.rsplit("@", 1)[1])
                                                                                 * graph.config.fps)),
