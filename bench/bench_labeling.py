@@ -2,27 +2,35 @@
 
 Tables (each baseline measured in the same run on the same degraded stream; frames/s from CPU time,
 so other processes on a shared machine distort them less):
+  0. every shared real take (the labelled C3D files and the jyu Qualisys recordings), exactly as
+     `courtside label FILE --degrade 1` scores it (engine.labeling.evaluation): accuracy overall and per 10 s,
+     re-acquisition time after a forced 0.5 s loss of one rigid body every 10 s, recovered-marker error, and the
+     closest-point baseline; then the full pipeline (label → fit-skeleton → BVH → build-graph) on the long CMU
+     take cmu_85_12 (the test suite runs it on a 15 s slice);
   1. two-player tennis serve (real, 2 x 39 markers, 50 Hz), players slid to 0.6 m after training;
   2. two CMU subjects (real 41-marker trials, 120 Hz) brought together, at 120 / 60 / 30 fps (paper Exp. 1);
   3. scaling: the tennis players replicated to 2..10 subjects on a 1.2 m grid, frames/s per subject count.
 
-    .venv/bin/python bench/bench_labeling.py [--mocap /work/shared/mocap] [--quick]
+    .venv/bin/python bench/bench_labeling.py [--mocap /work/shared/mocap] [--quick] [--only-takes]
 """
 from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from scipy.io import loadmat
 
 from engine.labeling.baseline import ClosestPointTracker
 from engine.labeling.cli import subjects_of
 from engine.labeling.config import LabelingConfig
+from engine.labeling.evaluation import default_train_frames, evaluate_take
 from engine.labeling.labeler import RECOVERED, OnlineLabeler
 from engine.labeling.scenario import DegradeConfig, Score, bring_together, degrade, score_frame
-from engine.mocap import read_c3d
+from engine.mocap import MarkerData, read_c3d
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from conftest import find_shared_mocap  # noqa: E402  (one place that knows where the shared data lives)
@@ -104,13 +112,73 @@ def tennis(mocap: Path):
     return data, subjects, bring_together(data.positions_m, subjects, 1, 0.6, 150, 50)
 
 
+UNLABELLED = ("clouthier_S01_Pronetokneel01_mksrem", "clouthier_S09_KneeltoRun02")  # "*N" fragment ids: no truth
+
+
+def real_takes(mocap: Path) -> list[MarkerData]:
+    """Every shared real take with marker names (C3D files; the jyu Qualisys dance and walk recordings)."""
+    takes = [read_c3d(p) for p in sorted((mocap / "markers").glob("*.c3d")) if p.stem not in UNLABELLED]
+    mat = loadmat(mocap / "jyu-markers" / "mcdemodata.mat", squeeze_me=True, struct_as_record=False)
+    for key in ("dance1", "dance2", "walk1", "walk2"):
+        rec = mat[key]
+        positions = 0.001 * np.asarray(rec.data, float).reshape(int(rec.nFrames), int(rec.nMarkers), 3)
+        positions[(positions == 0).all(axis=2)] = np.nan  # the toolbox stores a missing sample as zeros
+        takes.append(MarkerData(tuple(str(n) for n in rec.markerName), positions, float(rec.freq), f"jyu_{key}"))
+    return takes
+
+
+def takes_table(mocap: Path, seed: int = 1) -> None:
+    print("\n0. every shared real take, as `courtside label FILE --degrade 1` scores it (train 10 s, at most half "
+          "the take; one rigid body removed for 0.5 s every 10 s)")
+    print(f"{'take':<36}{'frames':>7}{'Hz':>5}{'acc':>7}{'base':>7}{'obs':>6}{'rec':>6}{'lost':>6}{'rec_mm':>8}"
+          f"{'fps':>6}  {'re-acq s (median/max)':<22}accuracy per 10 s")
+    for data in real_takes(mocap):
+        subjects = subjects_of(data.labels)
+        train = default_train_frames(data.n_frames, data.fps)
+        ev, _, _ = evaluate_take(data, subjects, LabelingConfig(train_frames=train), seed)
+        reacq = np.array(ev.reacquire_s)
+        cell = (f"{np.median(reacq):.2f} / {np.max(reacq):.2f}" if len(reacq) else "-").replace("inf", "never")
+        print(f"{data.name:<36}{data.n_frames:>7}{data.fps:>5.0f}{ev.score.accuracy:>7.3f}{ev.baseline.accuracy:>7.3f}"
+              + "".join(f"{f:>6.3f}" for f in ev.status_fractions)
+              + f"{ev.recovered_error_mm:>8.1f}{ev.frames_per_s:>6.0f}  {cell:<22}"
+              + " ".join(f"{a:.2f}" for a in ev.window_accuracy))
+    print(f"not scored: {', '.join(UNLABELLED)} carry Vicon '*N' trajectory-fragment ids, not marker labels")
+
+
+def long_take_pipeline(mocap: Path) -> None:
+    """label → fit-skeleton → BVH → build-graph through the CLIs on the full cmu_85_12 (37 s)."""
+    from engine.graph.cli import build_graph_main
+    from engine.labeling.cli import main as label_main
+    from engine.skeleton_fit.cli import main as fit_main
+
+    print("\n0b. full pipeline on the long CMU take cmu_85_12 (4 499 frames, 37 s) through the CLIs")
+    with tempfile.TemporaryDirectory() as tmp:
+        labelled, bvh, graph = Path(tmp) / "labelled.c3d", Path(tmp) / "skel.bvh", Path(tmp) / "graph.npz"
+        start = time.perf_counter()
+        steps = [("label --degrade 1", label_main, [str(mocap / "markers" / "cmu_85_12.c3d"), "-o", str(labelled),
+                                                    "--degrade", "1"]),
+                 ("fit-skeleton", fit_main, [str(labelled), "-o", str(bvh)]),
+                 ("build-graph", build_graph_main, [str(bvh), "-o", str(graph)])]
+        for name, command, argv in steps:
+            print(f"--- courtside {name}")
+            if command(argv) != 0:
+                print(f"courtside {name} failed")
+                return
+        print(f"pipeline wall time {time.perf_counter() - start:.0f} s")
+
+
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--mocap", type=Path, default=find_shared_mocap())
     parser.add_argument("--quick", action="store_true", help="fewer frames and subject counts")
+    parser.add_argument("--only-takes", action="store_true", help="only table 0 and the long-take pipeline")
     args = parser.parse_args()
     if args.mocap is None:
         sys.exit("the shared mocap set is needed (--mocap)")
+    takes_table(args.mocap)
+    long_take_pipeline(args.mocap)
+    if args.only_takes:
+        return
 
     data, subjects, together = tennis(args.mocap)
     rows = [(f"tennis 2x39 {rec}", run_case(together, subjects, data.fps, 150,

@@ -74,7 +74,7 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
     acc = _acc_in_order(args.input, obs, len(SEED003_SENSORS), f"the OLNG needs all four sensors {list(SEED003_SENSORS)}")
     rec = OLNGReconstructor(kb, _olng_config(args))
     t0 = time.perf_counter()
-    cam_pos, cam_head = _camera(obs)
+    cam_pos, cam_head = _camera(obs, len(acc))
     poses = [rec.push(a, cam_pos[t], cam_head[t]) for t, a in enumerate(acc)]
     elapsed = time.perf_counter() - t0
     motion = Motion(skeleton_from_rig(kb.rig), kb.fps, np.stack([p.root_pos_m for p in poses]),
@@ -97,7 +97,7 @@ def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     skeleton = motions[0].skeleton
     start = resample(motions[0], model.fps)
     t0 = time.perf_counter()
-    cam_pos, cam_head = _camera(obs)
+    cam_pos, cam_head = _camera(obs, len(acc))
     root, quats, frames = reconstruct(model, acc, gyro, skeleton.n_joints, np.r_[0.0, start.root_positions_m[0, 1], 0.0],
                                       np.array([1.0, 0.0, 0.0, 0.0]), cam_pos, cam_head, skeleton)
     elapsed = time.perf_counter() - t0
@@ -105,10 +105,9 @@ def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     return {"frames": len(frames), "seconds": round(elapsed, 3), "fps": round(len(frames) / max(elapsed, 1e-9), 1)}
 
 
-def _camera(obs) -> tuple[np.ndarray, np.ndarray]:
-    """The take's camera track (ground position (T, 2) m, heading (T,) rad; NaN rows where it has none): OLNG and
-    the HMM pull their integrated root onto it (engine/graph/warp.py)."""
-    n = len(obs.acc_g)
+def _camera(obs, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The take's camera track for its first n samples (ground position (n, 2) m, heading (n,) rad; NaN rows where
+    it has none): OLNG and the HMM pull their integrated root onto it (engine/graph/warp.py)."""
     pos = np.full((n, 2), np.nan) if obs.position_m is None else np.asarray(obs.position_m, float)[:n]
     head = np.full(n, np.nan) if obs.heading_rad is None else np.asarray(obs.heading_rad, float)[:n]
     return pos, head

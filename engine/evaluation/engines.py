@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.graph.graph import MotionGraph
+from engine.graph.online import FixedLagSynthesizer
 from engine.graph.poses import world_joint_positions
 from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
 from engine.graph.warp import RootWarp
@@ -42,16 +43,26 @@ def start_state(take: Take, camera_position_m: np.ndarray, camera_heading_rad: n
 
 def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: tuple[int, ...],
                  camera_position_m: np.ndarray, camera_heading_rad: np.ndarray, weights: SearchWeights,
-                 use_camera: bool, warp: RootWarp = RootWarp.off()) -> Prediction:
-    """Batch Viterbi search; without the camera only its first fix is kept (where the paths start)."""
+                 use_camera: bool, warp: RootWarp = RootWarp.off(), lag_s: float | None = None) -> Prediction:
+    """Batch Viterbi search, or with `lag_s` the online fixed-lag decoder (what a live user sees); without the
+    camera only its first fix is kept (where the paths start) and the root is not warped."""
     pos, head = camera_position_m.copy(), camera_heading_rad.copy()
     if not use_camera:
         pos[1:], head[1:] = np.nan, np.nan
-    obs = Observations(acc_g[:, list(sensor_indices)] if weights.acc and acc_g is not None else None, pos, head,
-                       tuple(sensor_indices) if weights.acc else None)
-    res = ViterbiSearch(graph, weights, warp=warp if use_camera else RootWarp.off()).run(obs)
-    joints = world_joint_positions(graph, res.nodes, res.ground_m, res.heading_rad)
-    return Prediction(joints, graph.node_clip[res.nodes].astype(int))
+    warp = warp if use_camera else RootWarp.off()
+    acc = acc_g[:, list(sensor_indices)] if weights.acc and acc_g is not None else None
+    sensors = tuple(sensor_indices) if acc is not None else None
+    if lag_s is None:
+        res = ViterbiSearch(graph, weights, warp=warp).run(Observations(acc, pos, head, sensors))
+        joints = world_joint_positions(graph, res.nodes, res.ground_m, res.heading_rad)
+        return Prediction(joints, graph.node_clip[res.nodes].astype(int))
+    syn = FixedLagSynthesizer(graph, lag_s, weights, sensors, warp=warp)
+    poses = []
+    for t in range(len(pos)):
+        poses += syn.push(None if acc is None else acc[t], pos[t], float(head[t]))
+    poses += syn.flush()
+    return Prediction(np.stack([p.joint_positions_m for p in poses]),
+                      graph.node_clip[np.array([p.node for p in poses])].astype(int))
 
 
 def on_take_grid(values: np.ndarray, times_s: np.ndarray, take: Take) -> np.ndarray:

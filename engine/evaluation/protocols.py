@@ -40,13 +40,12 @@ SENSOR_SETS: dict[int, tuple[str, ...]] = {
 HMM_IMUS: dict[int, tuple[str, ...]] = {1: ("right_foot",), 2: ("right_foot", "right_wrist")}
 ENGINES = ("graph", "baselines", "olng", "hmm")
 
-CAMERA_ON, CAMERA_OFF, CAMERA_START = "yes", "no", "start only"
+CAMERA_ON, CAMERA_OFF = "yes", "no"
 
 
 @dataclass(frozen=True)
 class Row:
-    """One line of the table. camera: "yes" (the whole track), "no" (the first fix only), "start only" (the
-    engine takes no camera track; it gets the first fix whatever the setting)."""
+    """One line of the table. camera: "yes" (the whole track), "no" (the first fix only: where the root starts)."""
 
     engine: str
     sensors: str
@@ -74,6 +73,7 @@ class EvalConfig:
     weights: SearchWeights = field(default_factory=SearchWeights.camera_following)
     warp: RootWarp = field(default_factory=RootWarp)  # root warping towards the camera (graph, OLNG, HMM)
     nn_window: int = 15
+    lag_s: float | None = None  # motion graph: None = batch search, else the online fixed-lag decoder
     seed: int = 0
 
 
@@ -174,11 +174,11 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
             for camera, w in ((CAMERA_ON, w_on), (CAMERA_OFF, w_off)):
                 record(Row("motion graph", str(k), camera),
                        lambda: engines.motion_graph(graph, acc, idx, cam.position_m, cam.heading_rad, w,
-                                                    camera == CAMERA_ON, cfg.warp))
+                                                    camera == CAMERA_ON, cfg.warp, cfg.lag_s))
         record(Row("camera only (W_A=0)", "0", CAMERA_ON),
                lambda: engines.motion_graph(graph, None, (), cam.position_m, cam.heading_rad,
                                             SearchWeights(0.0, cfg.weights.position, cfg.weights.heading), True,
-                                            cfg.warp))
+                                            cfg.warp, cfg.lag_s))
     if "baselines" in cfg.engines:
         for k, idx in sets:
             nn = held.nearest_neighbour(idx, cfg.nn_window)
@@ -195,7 +195,7 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                                               np.random.default_rng(streams[2]), fps=kb.fps)
         from engine.olng.config import OLNGConfig
 
-        record(Row("olng (wrists+ankles)", "4", CAMERA_START),
+        record(Row("olng (wrists+ankles)", "4", CAMERA_OFF),
                lambda: engines.olng(kb, OLNGConfig(), acc4, times, take, root0, quat0))
         record(Row("olng (wrists+ankles)", "4", CAMERA_ON),
                lambda: engines.olng(kb, OLNGConfig(), acc4, times, take, root0, quat0, (cam_pos, cam_head),
@@ -205,7 +205,7 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
             model = held.hmm_model(imus)
             imu_acc, _ = simulate.accelerometers(take, imus, cfg.error_model, np.random.default_rng([*rng_seed, 7, k]))
             gyro = simulate.gyroscopes(take, imus)
-            record(Row(f"hmm ({'+'.join(imus)})", str(k), CAMERA_START),
+            record(Row(f"hmm ({'+'.join(imus)})", str(k), CAMERA_OFF),
                    lambda: engines.hmm(model, imu_acc, gyro, skeleton, take, root0, quat0))
             record(Row(f"hmm ({'+'.join(imus)})", str(k), CAMERA_ON),
                    lambda: engines.hmm(model, imu_acc, gyro, skeleton, take, root0, quat0, (cam_pos, cam_head),

@@ -44,3 +44,70 @@ def format_table(results: dict[Row, RowScores], fps: float) -> str:
 def format_trace(name: str, values: np.ndarray) -> str:
     """One take's per-second values as a compact line (integers)."""
     return f"{name}: " + " ".join(f"{v:.0f}" for v in values)
+
+
+def _find(results: dict[Row, RowScores], engine: str, sensors: str, camera: str) -> dict[str, float] | None:
+    scores = results.get(Row(engine, sensors, camera))
+    return summary(scores.errors) if scores else None
+
+
+def chained_verdict(results: dict[Row, RowScores], camera_noise_m: float) -> list[str]:
+    """Issue 11's "done when" for chained takes, judged on this table: the motion graph with 6 accelerometers
+    + camera must reach global joint error <= 15 cm, mean root position error <= 2x the camera's noise (sd per
+    axis) and root-relative error >= 30 % below the mean pose (skill >= 0.30); and with the camera, adding
+    accelerometers must not make root position or heading worse than camera-only."""
+    ref = skill_reference(results)
+    main = _find(results, "motion graph", "6", CAMERA_ON)
+    cam = _find(results, "camera only (W_A=0)", "0", CAMERA_ON)
+    if main is None:
+        return []
+    limit_cm = 200 * camera_noise_m
+    checks = [("global joint error <= 15 cm", main["global_cm"], main["global_cm"] <= 15.0),
+              (f"root position error <= {limit_cm:.0f} cm (2x camera noise)", main["position_cm"],
+               main["position_cm"] <= limit_cm),
+              ("skill (root-relative vs mean pose) >= 0.30", 1 - main["root_relative_cm"] / ref,
+               1 - main["root_relative_cm"] / ref >= 0.30)]
+    lines = [f"done-when (motion graph, 6 sensors + camera): {name}: {value:.2f} -> {'PASS' if ok else 'FAIL'}"
+             for name, value, ok in checks]
+    if cam is not None:
+        for row, scores in results.items():
+            if row.engine == "motion graph" and row.camera == CAMERA_ON:
+                s = summary(scores.errors)
+                ok = s["position_cm"] <= cam["position_cm"] and s["heading_deg"] <= cam["heading_deg"]
+                lines.append(f"done-when: {row.sensors} accelerometers + camera vs camera only: position "
+                             f"{s['position_cm']:.2f} vs {cam['position_cm']:.2f} cm, heading {s['heading_deg']:.2f} "
+                             f"vs {cam['heading_deg']:.2f} deg -> {'PASS' if ok else 'FAIL'}")
+    return lines
+
+
+def group_verdict(group: str, results: dict[Row, RowScores]) -> list[str]:
+    """Issue 11's "done when" for leave-one-content-out turning walks: the motion graph with 6 accelerometers +
+    camera within 10 deg heading and 15 cm position error."""
+    main = _find(results, "motion graph", "6", CAMERA_ON)
+    if main is None:
+        return []
+    ok = main["heading_deg"] <= 10.0 and main["position_cm"] <= 15.0
+    return [f"done-when ({group}, motion graph, 6 sensors + camera): heading {main['heading_deg']:.1f} deg "
+            f"(<= 10), position {main['position_cm']:.1f} cm (<= 15) -> {'PASS' if ok else 'FAIL'}"]
+
+
+COMPARED = (("global_cm", "global cm"), ("root_relative_cm", "root-rel cm"), ("position_cm", "pos cm"),
+            ("heading_deg", "head deg"))
+
+
+def format_comparison(before: dict, after: dict) -> str:
+    """Rows of two `--json` reports side by side (before -> after), matched by group, engine, sensors, camera;
+    a row present in only one report shows '-' on the other side."""
+    def rows(report: dict) -> dict[tuple[str, str, str, str], dict]:
+        return {(g, r["engine"], r["sensors"], r["camera"]): r for g, rs in report["groups"].items() for r in rs}
+    a, b = rows(before), rows(after)
+    head = f"{'group':<12}{'engine':<30}{'sensors':>7} {'camera':<7}" + "".join(f"{name:>22}" for _, name in COMPARED)
+    lines = [head, "-" * len(head)]
+    for key in list(a) + [k for k in b if k not in a]:
+        cells = []
+        for field, _ in COMPARED:
+            old = f"{a[key][field]:.1f}" if key in a else "-"
+            new = f"{b[key][field]:.1f}" if key in b else "-"
+            cells.append(f"{old + ' -> ' + new:>22}")
+        lines.append(f"{key[0]:<12}{key[1]:<30}{key[2]:>7} {key[3]:<7}" + "".join(cells))
+    return "\n".join(lines)

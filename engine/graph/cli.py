@@ -105,8 +105,21 @@ def build_graph_main(argv: list[str]) -> int:
                "build_s": round(t2 - t1, 2), "frames": int(sum(c.n_frames for c in clips))}
     if args.calibration:
         summary["calibration"] = {"record": str(args.calibration), "sensors": args.calibrated_sensors}
+    from .budget import live_verdict, online_rate
+
+    cpu_rate, wall_rate = online_rate(graph)
+    summary["online_samples_per_cpu_s"], summary["online_samples_per_s"] = round(cpu_rate, 1), round(wall_rate, 1)
+    verdict = live_verdict(graph, cpu_rate, wall_rate)
+    if verdict:
+        print(verdict, file=sys.stderr)
+    if graph.build_report and "interpolation" in graph.build_report:
+        i = graph.build_report["interpolation"]
+        print(f"interpolation: {i['alignments_found']} alignments ({i['frames_found']} frames) found, the cleanest "
+              f"{i['alignments_kept']} ({i['frames_kept']} frames) kept under the cap of {i['cap_frames']} frames",
+              file=sys.stderr)
     if graph.build_report:
         summary.update(graph.build_report)
+    if graph.build_report and "component" in graph.build_report:
         c = graph.build_report["component"]
         print(f"component step: largest strongly connected component held {100 * c['share_before']:.1f} % of "
               f"{c['frames']} frames; {c['relaxed_transitions']} relaxed transitions (thresholds "
@@ -114,8 +127,8 @@ def build_graph_main(argv: list[str]) -> int:
               f"({c['pruned_frames']} database frames), {c['pruned_edges']} edges; {c['clips_kept']} of "
               f"{c['clips_total']} clips kept", file=sys.stderr)
     Path(args.output).with_suffix(".json").write_text(json.dumps(summary, indent=2))
-    print(json.dumps(summary))
     print(format_report(graph_report(graph)))
+    print(json.dumps(summary))  # last line: the machine-readable summary scripts parse
     return 0
 
 

@@ -311,11 +311,14 @@ def build_from_clips(clips: list[ClipData], config: GraphConfig,
         from .msv import add_speed_variations
 
         add_speed_variations(parts, clips, offsets, label_names)
+    interp = None
     if config.interp:
         from .interpolate import add_interpolated_motions
 
-        add_interpolated_motions(parts, clips, offsets, config, joint_weights, label_names, sensor_model)
+        interp = add_interpolated_motions(parts, clips, offsets, config, joint_weights, label_names, sensor_model)
     graph = assemble(parts, clips, config, label_names)
+    if interp is not None:
+        graph.build_report = {"interpolation": interp}
     if report is None:
         return graph
     keep = largest_component(graph.edge_src, graph.edge_dst, graph.n_nodes)
@@ -325,7 +328,7 @@ def build_from_clips(clips: list[ClipData], config: GraphConfig,
     report.pruned_edges = graph.n_edges - pruned.n_edges
     report.clips_kept = int(len(np.unique(pruned.node_clip)))
     report.clips_total = len(clips)
-    pruned.build_report = {"component": report.as_dict()}
+    pruned.build_report = {**(graph.build_report or {}), "component": report.as_dict()}
     return pruned
 
 

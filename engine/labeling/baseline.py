@@ -14,7 +14,7 @@ from scipy.spatial import cKDTree
 
 class ClosestPointTracker:
     def __init__(self, last_positions_m: np.ndarray, one_to_one: bool = True):
-        self.last = np.asarray(last_positions_m, dtype=float).copy()  # (L,3), must be complete
+        self.last = np.asarray(last_positions_m, dtype=float).copy()  # (L,3); NaN = not seen yet, never tracked
         self.one_to_one = one_to_one
 
     def step(self, points_m: np.ndarray) -> np.ndarray:
@@ -22,14 +22,15 @@ class ClosestPointTracker:
         points = np.asarray(points_m, dtype=float).reshape(-1, 3)
         finite = np.flatnonzero(np.isfinite(points).all(axis=1))
         label_point = np.full(len(self.last), -1)
-        if len(finite) == 0:
+        known = np.flatnonzero(np.isfinite(self.last).all(axis=1))  # a NaN cost would make the solver fail
+        if len(finite) == 0 or len(known) == 0:
             return label_point
         if self.one_to_one:
-            cost = np.linalg.norm(self.last[:, None, :] - points[finite][None, :, :], axis=2)
+            cost = np.linalg.norm(self.last[known, None, :] - points[finite][None, :, :], axis=2)
             rows, cols = linear_sum_assignment(cost)
-            label_point[rows] = finite[cols]
+            label_point[known[rows]] = finite[cols]
         else:
-            label_point[:] = finite[cKDTree(points[finite]).query(self.last)[1]]
+            label_point[known] = finite[cKDTree(points[finite]).query(self.last[known])[1]]
         hit = label_point >= 0
         self.last[hit] = points[label_point[hit]]
         return label_point

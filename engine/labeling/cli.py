@@ -1,11 +1,12 @@
 """`courtside label in.c3d -o labelled.c3d`: online labeling of every frame after the labelled training frames.
 
-The input's first --train-frames frames must carry correct labels ("Subject:MARKER"), or with --bootstrap
-only the first frame, the rest of the training window being labelled by closest point (the paper's set-up:
-one labelled frame, subjects apart during training). Every later frame is taken as an unordered point cloud — the
+The input's first --train-frames frames (default: the first 10 s) must carry correct labels ("Subject:MARKER"),
+or with --bootstrap only the first frame, the rest of the training window being labelled by closest point
+(the paper's set-up: one labelled frame, subjects apart during training). Every later frame is taken as an unordered point cloud — the
 labels in the file are ignored — and labelled online. --degrade SEED first scrambles the frames the way
-optical capture does (shuffle, noise, gaps ≤ 20 frames, ghosts) and then scores the result against the
-file's own labels, next to the closest-point baseline.
+optical capture does (shuffle, noise, gaps ≤ 20 frames, ghosts), removes one rigid body for 0.5 s every 10 s,
+and scores the result against the file's own labels: accuracy per 10 s, re-acquisition time after each forced
+loss, and the closest-point baseline on the same stream (engine.labeling.evaluation).
 """
 from __future__ import annotations
 
@@ -17,11 +18,12 @@ import numpy as np
 from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import MarkerData, read_c3d
 
-from .baseline import ClosestPointTracker, bootstrap_training_labels
+from .baseline import bootstrap_training_labels
 from .c3d_io import write_c3d
 from .config import LabelingConfig
 from .labeler import LOST, RECOVERED, OnlineLabeler
-from .scenario import DegradeConfig, Score, Stream, degrade, score_frame
+from .evaluation import default_train_frames, evaluate_take
+from .scenario import DegradeConfig, Stream, degrade
 
 
 def subjects_of(labels: tuple[str, ...]) -> np.ndarray:
@@ -59,7 +61,11 @@ def main(argv: list[str]) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("input", help="C3D whose first --train-frames frames are labelled")
     parser.add_argument("-o", "--output", required=True, help="labelled C3D to write (observed + recovered)")
-    parser.add_argument("--train-frames", type=int, default=LabelingConfig.train_frames)
+    parser.add_argument("--train-frames", type=int, default=None,
+                        help="labelled training frames (default: the first --train-s seconds)")
+    parser.add_argument("--train-s", type=float, default=10.0,
+                        help="training window in seconds when --train-frames is not given (at most half the take): "
+                             "the clustering needs the body segments to move relative to each other")
     parser.add_argument("--recovery", choices=["offsets", "kabsch"], default=LabelingConfig.recovery)
     parser.add_argument("--degrade", type=int, metavar="SEED", help="scramble the input, then score the labels")
     parser.add_argument("--bootstrap", action="store_true",
@@ -68,18 +74,18 @@ def main(argv: list[str]) -> int:
     check_output_dir(args.output)
     try:
         data = read_c3d(args.input)
-        config = LabelingConfig(train_frames=args.train_frames, recovery=args.recovery)
+        train = args.train_frames or default_train_frames(data.n_frames, data.fps, args.train_s)
+        config = LabelingConfig(train_frames=train, recovery=args.recovery)
         if data.n_frames <= config.train_frames:
             raise MalformedFileError(args.input, None, f"{data.n_frames} frames, not more than --train-frames "
                                                        f"{config.train_frames}")
         subjects = subjects_of(data.labels)
+        start = time.perf_counter()
         if args.degrade is not None:
-            stream = degrade(data.positions_m, subjects, DegradeConfig(protect_frames=config.train_frames),
-                             np.random.default_rng(args.degrade))
+            evaluation, out, results = evaluate_take(data, subjects, config, args.degrade, args.bootstrap)
         else:
             stream = degrade(data.positions_m, subjects, DegradeConfig(0.0, 0.0, 1, 0.0, 0.0), np.random.default_rng(0))
-        start = time.perf_counter()
-        out, labeler, results = run(data, config, stream, args.bootstrap)
+            out, _, results = run(data, config, stream, args.bootstrap)
         elapsed = time.perf_counter() - start
         write_c3d(args.output, MarkerData(data.labels, out, data.fps, data.name))
     except ValueError as exc:  # the labeler refuses the file's markers (an argument error names itself)
@@ -88,19 +94,24 @@ def main(argv: list[str]) -> int:
         raise MalformedFileError(args.input, None, str(exc)) from None
     status = np.array([r.status for r in results])
     n = len(results)
-    print(f"{args.input}: {len(data.labels)} labels, {len(set(subjects))} subjects, {len(labeler.bodies)} rigid bodies "
-          f"(sizes {sorted(len(b) for b in labeler.bodies)}); labelled {n} frames at {n / elapsed:.0f} frames/s")
+    untrained = int(np.sum(np.isnan(out[: config.train_frames]).any(axis=2).all(axis=0)))
+    print(f"{args.input}: {len(data.labels)} labels, {len(set(subjects))} subjects, trained on {config.train_frames} "
+          f"frames ({config.train_frames / data.fps:.1f} s); labelled {n} frames at {n / elapsed:.0f} frames/s")
+    if untrained:
+        print(f"{untrained} labels never seen in the training frames: they cannot be learned and stay unlabelled")
     print(f"observed {np.mean(status == 0):.3f}, recovered {np.mean(status == RECOVERED):.3f}, "
-          f"lost {np.mean(status == LOST):.3f}; mean gated candidates {np.mean([r.mean_candidates for r in results]):.2f}")
+          f"lost {np.mean(status == LOST):.3f}; "
+          f"mean gated candidates {np.mean([r.mean_candidates for r in results]):.2f}")
     if args.degrade is not None:
-        ours, base = Score(), Score()
-        tracker = ClosestPointTracker(data.positions_m[config.train_frames - 1])
-        for i, t in enumerate(range(config.train_frames, data.n_frames)):
-            score_frame(ours, stream, t, results[i].label_point,
-                        np.where((results[i].status == RECOVERED)[:, None], results[i].positions_m, np.nan))
-            score_frame(base, stream, t, tracker.step(stream.clouds[t]))
-        print(f"accuracy {ours.accuracy:.3f} (closest-point baseline {base.accuracy:.3f}); swaps between subjects "
-              f"{ours.swaps} (baseline {base.swaps}); recovered-marker error "
-              f"{1000 * np.median(ours.recovery_err_m) if ours.recovery_err_m else float('nan'):.1f} mm median")
+        ev = evaluation
+        print(f"rigid bodies: sizes {ev.body_sizes}")
+        print(f"accuracy {ev.score.accuracy:.3f} (closest-point baseline {ev.baseline.accuracy:.3f}); swaps between "
+              f"subjects {ev.score.swaps} (baseline {ev.baseline.swaps}); recovered-marker error "
+              f"{ev.recovered_error_mm:.1f} mm median; {ev.frames_per_s:.0f} frames/s CPU")
+        print("accuracy per 10 s:   " + " ".join(f"{a:.3f}" for a in ev.window_accuracy))
+        print("baseline per 10 s:   " + " ".join(f"{a:.3f}" for a in ev.baseline_window_accuracy))
+        if ev.reacquire_s:
+            print("re-acquisition after a forced 0.5 s loss of one rigid body (s): "
+                  + " ".join("never" if np.isinf(r) else f"{r:.2f}" for r in ev.reacquire_s))
     print(f"wrote {args.output}")
     return 0

@@ -21,6 +21,11 @@ class LabelingConfig:
     cluster_tau_m: complete-linkage threshold on A for rigid-body clustering (largest std inside a body).
     cluster_tau_max_m: if larger than cluster_tau_m, τ_A is searched on a geometric grid from cluster_tau_m to
         this value for the one putting most markers into bodies of min_body..max_body (spec §2.2 option).
+    cluster_proximity: metres of pair-distance std added per metre of mean pair distance before clustering.
+        Why: when a segment barely moves during training, its markers are as "rigid" with the far side of the
+        body as with their neighbours, and the clusters come out anatomically absurd (head + right upper arm on
+        CMU 135_02), which later locks bodies into swaps. The term makes near markers the tie-break: 0.3 m
+        apart costs 6 mm, less than a moving joint adds.
     min_body, max_body: rigid-body size range (paper: 3-8 markers).
     window_frames: T, sliding-window length of the distance statistics (paper gives none; spec: 50).
     recovery: "kabsch" (rigid fit of the body's last complete configuration; the spec's flagged deviation that
@@ -36,6 +41,27 @@ class LabelingConfig:
         body took (see OnlineLabeler._second_chance; 25 = five times the gate radius).
     reacquire_min_support: a point re-acquired that way must have a mean Eq. 5 link term of at least this with
         its body's other assigned markers (guards the wide gate against ghosts and the other subject's points).
+    shape_reacquire: after the gated passes, look for each body's missing markers among the leftover points by
+        the body's shape alone (reacquire.py), wherever the filters predict them. Issue 14: without it a body
+        lost on a long take is predicted forever.
+    shape_min_support: mean link term a point needs with the body's other markers to be re-acquired by shape.
+    shape_sigma_min_m: floor on A when matching by shape (skin markers stretch more than a short window shows).
+    neighbour_std_m, max_neighbours, neighbour_sigma_min_m: each marker's (up to max_neighbours) steadiest links
+        to markers of its subject's other bodies (training std ≤ neighbour_std_m: across one joint) join the
+        Eq. 5 score of the second-chance pass and check shape re-acquisition, with A floored at
+        neighbour_sigma_min_m. Why: bodies of identical shape (left and right hand)
+        score the same on their own links, and on CMU 135_02 the hands swapped for good when they met; a link to
+        the elbow tells them apart. neighbour_min_support: a marker re-acquired by shape is dropped when its mean
+        neighbour link term is below this (≈ 3 sigmas off: a quiet training window understates how far a joint
+        stretches, so only a clear contradiction, the other hand, is refused).
+    motion_weight: weight (in links) of each marker's agreement with its Kalman prediction in the body score;
+        it breaks ties between body-mates' points (see OnlineLabeler._prior). 0 = the paper's gate-only use.
+    repair_swaps, repair_min_rms_m, repair_tol_scale, repair_ratio: undo swaps inside a body by its training
+        template (see OnlineLabeler._repair_swaps); a body whose rigid-fit RMS is below repair_min_rms_m and below
+        repair_tol_scale x its training 95th percentile is left alone, and a relabelling is kept only if its RMS
+        is below repair_ratio x the current one.
+    max_recovered_s: a marker recovered from its body for longer than this counts as lost (its position is no
+        longer reported nor fed to its Kalman filter): a rigid-body guess drifts as the skin and the body move.
     """
 
     train_frames: int = 50
@@ -47,6 +73,7 @@ class LabelingConfig:
     sigma_min_m: float = 0.001
     cluster_tau_m: float = 0.003
     cluster_tau_max_m: float = 0.03
+    cluster_proximity: float = 0.02
     min_body: int = 3
     max_body: int = 8
     window_frames: int = 50
@@ -56,6 +83,19 @@ class LabelingConfig:
     max_combinations: int = 20000
     reacquire_gate_scale: float = 25.0
     reacquire_min_support: float = 0.1
+    shape_reacquire: bool = True
+    shape_min_support: float = 0.5
+    shape_sigma_min_m: float = 0.004
+    neighbour_std_m: float = 0.03
+    max_neighbours: int = 3
+    neighbour_sigma_min_m: float = 0.015
+    neighbour_min_support: float = 0.01
+    motion_weight: float = 0.3
+    repair_swaps: bool = True
+    repair_min_rms_m: float = 0.004
+    repair_tol_scale: float = 2.0
+    repair_ratio: float = 0.5
+    max_recovered_s: float = 0.5
 
     def __post_init__(self) -> None:
         if self.recovery not in ("offsets", "kabsch"):

@@ -47,3 +47,12 @@ class KalmanBank:
         self.pos[which] += gain[:, :1] * innov
         self.vel[which] += gain[:, 1:] * innov
         self.cov[which] = cov - gain[:, :, None] * cov[:, None, 0, :]
+
+    def restart(self, which: np.ndarray, z_m: np.ndarray, vel_std_mps: float = 2.0) -> None:
+        """Start the filters ``which`` afresh at positions z (n,3): velocity 0 with a ``vel_std_mps`` prior.
+
+        Used when a label is found again by shape far from where its filter predicted it; the open velocity
+        prior widens the next gate so the marker is followed from the next frame on."""
+        self.pos[which] = z_m
+        self.vel[which] = 0.0
+        self.cov[which] = np.array([[self.r2, 0.0], [0.0, vel_std_mps**2]])

@@ -56,11 +56,16 @@ def search_body(
     mean: np.ndarray,
     std: np.ndarray,
     max_combinations: int,
+    unary: tuple[np.ndarray, float] | None = None,
 ) -> tuple[np.ndarray, float, int]:
     """Best assignment of one rigid body by exhaustive search over ∏(cand_i ∪ {∅}).
 
     cand_pid (n, K): candidate point ids per marker, nearest first, −1 padded (valid entries first).
     cand_pos (n, K, 3): their positions. mean/std (n, n): the body's current D and A.
+    unary: optional (terms (n, K), weight): per-candidate terms beyond the body's own links (labeler: links to
+        neighbouring bodies across a joint, and agreement with the Kalman prediction) and their total weight;
+        they join the Eq. 5 sum and its normalisation, so the score stays in [0, 1] and a body identical in shape
+        to another one (left and right hand) is told apart by where it sits.
     Returns (assigned point id per marker or −1, score in [0, 1], number of assignments evaluated)."""
     n, k = cand_pid.shape
     valid = (cand_pid >= 0).sum(axis=1)
@@ -70,12 +75,18 @@ def search_body(
     option_pid = np.full((n, k + 1), -1)
     option_pid[:, :k] = np.where(keep, cand_pid, -1)
     combos, flat = _enumeration(tuple((valid + 1).tolist()), k)
-    if n < 2:
+    extra, n_extra = (None, 0) if unary is None else unary
+    if n < 2 and not n_extra:
         return option_pid[np.arange(n), combos[0]], 0.0, len(combos)
     option_pos = np.full((n, k + 1, 3), np.nan)
     option_pos[:, :k] = np.where(keep[..., None], cand_pos, np.nan)
     with np.errstate(invalid="ignore"):
         table = link_table(option_pos, option_pid, mean, std)
-    scores = table.reshape(-1)[flat].sum(axis=1) / flat.shape[1]
+    scores = table.reshape(-1)[flat].sum(axis=1)
+    if n_extra:
+        options = np.zeros((n, k + 1))
+        options[:, :k] = np.where(keep, extra, 0.0)
+        scores = scores + options[np.arange(n), combos].sum(axis=1)
+    scores = scores / (flat.shape[1] + n_extra)
     best = int(np.argmax(scores))
     return option_pid[np.arange(n), combos[best]], float(scores[best]), len(combos)

@@ -97,6 +97,8 @@ class DistanceWindow:
         self._sum = np.zeros(shape)
         self._sumsq = np.zeros(shape)
         self._count = np.zeros(shape)
+        self._held_mean = np.full(shape, np.nan)
+        self._held_std = np.full(shape, np.nan)
 
     def push(self, dist: np.ndarray) -> None:
         """Add one frame's distances (B, n_max, n_max), NaN for pairs not both observed; drop the oldest."""
@@ -113,8 +115,14 @@ class DistanceWindow:
         self._head = (self._head + 1) % self.length
 
     def stats(self) -> tuple[np.ndarray, np.ndarray]:
-        """(D, A): window mean and std (population, as np.std), A floored at sigma_min; NaN for unseen pairs."""
+        """(D, A): window mean and std (population, as np.std), A floored at sigma_min; NaN for never-seen pairs.
+
+        A pair absent from the whole window keeps the statistics it had when last seen: a body hidden for longer
+        than the window must still have a shape to be found again by (reacquire.py)."""
         with np.errstate(invalid="ignore", divide="ignore"):
             mean = self._sum / self._count
             var = np.maximum(self._sumsq / self._count - mean * mean, 0.0)
-        return mean, np.maximum(np.sqrt(var), self.sigma_min)
+        seen = self._count > 0
+        self._held_mean[seen] = mean[seen]
+        self._held_std[seen] = np.maximum(np.sqrt(var[seen]), self.sigma_min)
+        return self._held_mean.copy(), self._held_std.copy()

@@ -55,12 +55,9 @@ class OLNGReconstructor:
 
     def __init__(self, kb: KnowledgeBase, config: OLNGConfig = OLNGConfig(),
                  root_warp: RootWarp = RootWarp()) -> None:
-        from engine.olng.mocap_bridge import skeleton_from_rig
-
         self.kb = kb
         self.root_warp = root_warp
-        roles = joint_roles(skeleton_from_rig(kb.rig))
-        self._hips = (roles["left_hip"], roles["right_hip"])
+        self._hips: tuple[int, int] | None = None  # found on the first camera heading (see _body_offset)
         self._fixed = False  # has a camera fix placed the root yet?
         self.config = config
         self.graph = OnlineLazyNeighbourhoodGraph(kb.clip_id, config.graph, kb.alpha_g)
@@ -150,7 +147,7 @@ class OLNGReconstructor:
         head = None if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
         if pos is None and head is None:
             return
-        offset = float(heading_from_positions(joints_untwisted[None], *self._hips)[0])
+        offset = self._body_offset(joints_untwisted) if head is not None else 0.0
         ground, body = complex(self._root[0], self._root[2]), self._heading + offset
         if not self._fixed:
             ground, body = (pos if pos is not None else ground), (head if head is not None else body)
@@ -159,6 +156,21 @@ class OLNGReconstructor:
             ground, body = warp_one(ground, body, pos, head, self.root_warp, self.kb.fps)
         self._root[0], self._root[2] = ground.real, ground.imag
         self._heading = body - offset
+
+    def _body_offset(self, joints_untwisted: np.ndarray) -> float:
+        """Where the hips face minus the integrated yaw (rad). A rig whose joint names engine.mocap does not know
+        (a synthetic test rig) has no hips to read: its integrated yaw is taken as the body heading."""
+        if self._hips is None:
+            from engine.olng.mocap_bridge import skeleton_from_rig
+
+            try:
+                roles = joint_roles(skeleton_from_rig(self.kb.rig))
+                self._hips = (roles["left_hip"], roles["right_hip"])
+            except ValueError:
+                self._hips = (-1, -1)
+        if self._hips[0] < 0:
+            return 0.0
+        return float(heading_from_positions(joints_untwisted[None], *self._hips)[0])
 
     def _emit(self, q: np.ndarray, nodes: np.ndarray, weights: np.ndarray, camera_position_m=None,
               camera_heading_rad=None) -> ReconstructedPose:

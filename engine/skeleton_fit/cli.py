@@ -1,4 +1,9 @@
-"""`courtside fit-skeleton labelled.c3d -o skel.bvh`: joint centres by GDKE, then the clip as a BVH motion."""
+"""`courtside fit-skeleton labelled.c3d -o skel.bvh`: joint centres, then the clip as a BVH motion.
+
+Each joint centre starts from the GDKE closed form and is refined by a few Levenberg-Marquardt steps on the
+geometric residual, which removes the closed form's bias on partial arcs (--refine-iterations 0 = GDKE only).
+Per joint it reports the type (ball / hinge / static), the arc the child markers swept about the centre and the
+expected centre error (from the fit's residuals and geometry: short arcs give large errors)."""
 from __future__ import annotations
 
 import argparse
@@ -33,13 +38,16 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--kappa-max", type=float, default=JointFitConfig.kappa_max, help="hinge if κ(C) above")
     parser.add_argument("--static-std-m", type=float, default=JointFitConfig.static_std, help="static if below")
     parser.add_argument("--max-samples", type=int, default=None, help="frames per joint fit (default: all)")
+    parser.add_argument("--refine-iterations", type=int, default=JointFitConfig.refine_iterations,
+                        help="geometric refinement steps after the closed form (0 = GDKE only)")
     args = parser.parse_args(argv)
     check_output_dir(args.output)
     try:
         data = read_c3d(args.input)
         markers = subject_markers(data.labels, data.positions_m, args.subject)
         marker_set = detect_marker_set(list(markers)) if args.marker_set == "auto" else MARKER_SETS[args.marker_set]
-        config = SkeletonFitConfig(JointFitConfig(kappa_max=args.kappa_max, static_std=args.static_std_m),
+        config = SkeletonFitConfig(JointFitConfig(kappa_max=args.kappa_max, static_std=args.static_std_m,
+                                                  refine_iterations=max(args.refine_iterations, 0)),
                                    args.max_samples)
         model = fit_skeleton(markers, marker_set, config)
         motion = to_motion(model, markers, data.fps, name=data.name)
@@ -49,10 +57,12 @@ def main(argv: list[str]) -> int:
             raise
         raise MalformedFileError(args.input, None, str(exc)) from None
     print(f"{args.input}: marker set {marker_set.name}, {motion.rotations.shape[0]} frames at {data.fps:g} Hz")
-    print(f"{'joint':<14}{'parent':<14}{'type':<8}{'kappa':>9}{'radius_m':>10}  centre_in_parent_m")
+    print(f"{'joint':<14}{'parent':<14}{'type':<8}{'kappa':>9}{'radius_m':>10}{'arc_deg':>9}{'expected_mm':>12}"
+          "  centre_in_parent_m")
     for joint in model.joints[1:]:
         fit = joint.fit
-        print(f"{joint.segment:<14}{joint.parent:<14}{fit.kind.value:<8}{fit.kappa:>9.1f}{fit.radius:>10.3f}  "
+        print(f"{joint.segment:<14}{joint.parent:<14}{fit.kind.value:<8}{fit.kappa:>9.1f}{fit.radius:>10.3f}"
+              f"{fit.arc_deg:>9.1f}{1000 * fit.expected_error:>12.1f}  "
               f"{np.array2string(joint.centre_local, precision=3)}")
     print(f"wrote {args.output} ({motion.skeleton.n_joints} joints)")
     return 0

@@ -51,7 +51,7 @@ def stop_gateway(proc: subprocess.Popen) -> tuple[str, str]:
             proc.kill()
             proc.wait()
     assert proc.returncode == 0, err
-    assert "Traceback" not in err
+    assert "Traceback" not in err, err
     return out, err
 
 

@@ -37,16 +37,14 @@ def _entry(runner: str):
 
 @pytest.fixture(scope="session")
 def shared(tmp_path_factory) -> dict[str, Path]:
-    """Valid files several cases need: a small motion graph (two shipped clips, no transitions, so its longest
-    path is ~5 s) and a synthesis input."""
+    """Valid files several cases need: a small motion graph (two shipped clips, no transitions and no component
+    step — `--no-connect` — so its longest path is ~5 s) and a synthesis input."""
     from engine.graph.cli import build_graph_main
 
     d = tmp_path_factory.mktemp("corpus-shared")
     clips = corpus.sample_clips()
     with contextlib.redirect_stdout(io.StringIO()):
-        # --no-connect: the graph as built from two clips has no cycle (the component step would add some), so a
-        # long take is longer than any path through it (the case "take-longer-than-any-graph-path")
-        assert build_graph_main([str(clips["16_01"]), str(clips["16_05"]), "-o", str(d / "g.npz"), "--no-connect"]) == 0
+        assert build_graph_main([str(clips["16_01"]), str(clips["16_05"]), "--no-connect", "-o", str(d / "g.npz")]) == 0
     np.savez(d / "take.npz", **corpus.take_arrays())
     return {"graph": d / "g.npz", "take": d / "take.npz"}
 

@@ -12,7 +12,7 @@ from gateway.cli import main as courtside
 def table_rows(out: str) -> dict[tuple[str, str, str], list[float]]:
     rows = {}
     for line in out.splitlines():
-        m = re.match(r"(\S.*?)\s{2,}(\S+) (yes|no|start only)\s+([-\d. nan]+?)(\s+-\s+-)?\s+([\d.]+)$", line)
+        m = re.match(r"(\S.*?)\s{2,}(\S+) (yes|no)\s+([-\d. nan]+?)(\s+-\s+-)?\s+([\d.]+)$", line)
         if m:
             rows[(m.group(1).strip(), m.group(2), m.group(3))] = [float(v) for v in m.group(4).split()]
     return rows
@@ -26,7 +26,8 @@ def test_chained_takes_with_all_engines_and_baselines(tmp_path, capsys):
     rows = table_rows(out)
     for key in [("mean pose", "-", "yes"), ("motion graph", "6", "yes"), ("motion graph", "1", "no"),
                 ("camera only (W_A=0)", "0", "yes"), ("nearest neighbour", "6", "yes"),
-                ("olng (wrists+ankles)", "4", "start only"), ("hmm (right_foot)", "1", "start only")]:
+                ("olng (wrists+ankles)", "4", "no"), ("olng (wrists+ankles)", "4", "yes"),
+                ("hmm (right_foot)", "1", "no"), ("hmm (right_foot)", "1", "yes")]:
         assert key in rows, (key, out)
     mean = rows[("mean pose", "-", "yes")]
     assert mean[2] == 0.0  # skill of the reference is 0 by definition

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import itertools
 
+from dataclasses import replace
+
 import numpy as np
 
 from engine.graph.config import GraphConfig
@@ -59,9 +61,13 @@ def test_rigid_copies_align_on_their_periodic_diagonals_and_blend_exactly():
     assert offsets == [-45, -30, -15, 0, 15, 30, 45]  # the gait repeats every 15 frames
     for al in als:
         assert np.all(np.diff(al.a) == 1) and np.all(np.diff(al.b) == 1)  # straight diagonals
-    g = build_from_clips([a, b], CFG)
+    g = build_from_clips([a, b], replace(CFG, interp_max_share=None))  # every alignment (2x the frames)
     interp = np.flatnonzero(g.node_kind == NODE_INTERP)
     assert len(interp) == sum(len(al.a) for al in als)
+    capped = build_from_clips([a, b], CFG)  # the default cap: half the database's 120 frames
+    rep = capped.build_report["interpolation"]
+    assert rep["frames_found"] == 240 and rep["cap_frames"] == 60
+    assert (capped.node_kind == NODE_INTERP).sum() == rep["frames_kept"] <= 60
     # the diagonal blend of a clip with its rigid copy is the clip itself, placed where clip a is
     diag = interp[(g.node_clip[interp] == 0) & (g.node_clip2[interp] == 1)][:60]
     frames = g.node_frame[diag].astype(int)
@@ -132,3 +138,14 @@ def test_blend_of_a_real_clip_with_its_rigid_copy_reads_the_clip_s_own_sensors(s
     got = g.meta_acc_g[g.node_arrival[inner]]
     want = clips[0].acc_g[g.node_frame[inner].astype(int)]
     assert np.abs(got - want).max() < 1e-3  # float32 storage
+
+
+def test_cap_keeps_the_cleanest_alignments_within_the_frame_budget():
+    from engine.graph.interpolate import Alignment, cap_alignments
+
+    def al(n, d):
+        return Alignment(0, 1, np.arange(n), np.arange(n), d)
+    found = [al(30, 0.04), al(20, 0.01), al(25, 0.02), al(10, 0.03)]
+    kept = cap_alignments(found, 50)
+    assert [a.distance_m for a in kept] == [0.01, 0.02]  # 20 + 25 = 45; the 0.03 one (10) would make 55
+    assert [a.distance_m for a in cap_alignments(found, 55)] == [0.01, 0.02, 0.03]
