@@ -95,12 +95,14 @@ class FrameResampler:
 
     # -- input ----------------------------------------------------------------------------------------------------
     def add(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
-        """Append a batch (ignored for sensors not in the list). Samples not after the sensor's newest are
-        dropped (duplicates / out of order)."""
+        """Append a batch (ignored for sensors not in the list). A sample not after every earlier sample of its
+        sensor is dropped (duplicates, a clock map that stepped back): a running maximum over the whole stream, so
+        the same samples are dropped however the stream is batched."""
         if sensor not in self._t:
             return
         t_s = np.asarray(t_s, float).reshape(-1)
-        keep = t_s > (self._t[sensor][-1] if len(self._t[sensor]) else -np.inf)
+        newest = self._t[sensor][-1] if len(self._t[sensor]) else -np.inf
+        keep = t_s > np.maximum.accumulate(np.r_[newest, t_s])[:-1]
         self.late_samples += int((t_s[keep] <= self._hi_last).sum())
         if keep.any():
             self._t[sensor] = np.concatenate([self._t[sensor], t_s[keep]])

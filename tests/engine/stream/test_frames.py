@@ -163,3 +163,24 @@ def test_box_mean_is_exact_on_lines_and_matches_brute_force():
     fine = np.linspace(lo, hi, 20001)  # brute force on the interpolant
     brute = np.array([np.interp(fine[:, k], t, v[:, 1]).mean() for k in range(4)])
     np.testing.assert_allclose(got[:, 1], brute, atol=1e-5)
+
+
+def test_a_clock_that_steps_back_drops_the_same_samples_however_the_stream_is_batched():
+    """A recorded stream whose times step back (the online clock map re-fitted): samples not after every earlier
+    one are dropped by a running maximum, so live batches and one offline pass keep the same samples."""
+    t = np.arange(0, 300) / 100.0
+    t[150:160] -= 0.2  # ten samples stamped 0.2 s early
+    v = np.c_[t, t, t]
+    offline = FrameResampler(["a"], 30.0)
+    offline.add("a", t, v)
+    ref = offline.frames()
+    for batch in (1, 7, 25):
+        live = FrameResampler(["a"], 30.0)
+        got = []
+        for i in range(0, len(t), batch):
+            live.add("a", t[i:i + batch], v[i:i + batch])
+            got.append(live.frames())
+        got = FrameBatch.concatenate(got, 1)
+        common = np.isin(ref.index, got.index)
+        assert common.sum() > 80 and np.array_equal(ref.acc_g[common], got.acc_g[np.isin(got.index, ref.index)])
+    assert ref.valid.all()  # the 0.1 s of dropped samples is a gap shorter than max_gap_s
