@@ -84,15 +84,16 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
 
 
 def _reconstruct_hmm(args: argparse.Namespace) -> dict:
-    from engine.graph.inputs import load_take
+    from engine.graph.inputs import read_take
     from engine.hmm.evaluation import reconstruct, to_motion, train_model
     from engine.mocap import resample, write_bvh
 
     motions = _load_motions(args)
     model = train_model(motions, imu_names=tuple(args.imus))
-    obs = load_take(args.input, list(args.imus), model.fps)
+    take = read_take(args.input, list(args.imus), model.fps)
+    obs = take.obs
     acc = _acc_in_order(args.input, obs, len(args.imus), f"the HMM needs the IMUs {args.imus}")
-    gyro = _take_gyro(args.input, len(acc), model.fps, list(args.imus))
+    gyro = _take_gyro(args.input, take.frame, model.fps, list(args.imus))
     skeleton = motions[0].skeleton
     start = resample(motions[0], model.fps)
     t0 = time.perf_counter()
@@ -120,10 +121,11 @@ def _acc_in_order(path: str, obs, n: int, need: str) -> np.ndarray:
     return obs.acc_g[:, np.argsort(indices)]
 
 
-def _take_gyro(path: str, frames: int, fps: float, imus: list[str]) -> np.ndarray:
-    """`gyro_rps` (T, S, 3) rad/s of the model's IMUs from the take (the HMM's IMU feature is acc + gyro), at the
-    model rate; a take naming its sensors (`sensor_names`, e.g. from `courtside import-imu`) may hold more."""
-    from engine.graph.online import resample_stream
+def _take_gyro(path: str, frames: np.ndarray, fps: float, imus: list[str]) -> np.ndarray:
+    """`gyro_rps` (T, S, 3) rad/s of the model's IMUs from the take (the HMM's IMU feature is acc + gyro), on the
+    same frames as the accelerations (`engine.stream.resample_uniform`, the one sample -> frame path); a take
+    naming its sensors (`sensor_names`, e.g. from `courtside import-imu`) may hold more."""
+    from engine.stream import resample_uniform
 
     data = np.load(path, allow_pickle=False)
     if "gyro_rps" not in data.files:
@@ -132,10 +134,11 @@ def _take_gyro(path: str, frames: int, fps: float, imus: list[str]) -> np.ndarra
     if "sensor_names" in data.files:
         names = [str(n) for n in data["sensor_names"]]
         gyro = gyro[:, [names.index(n) for n in imus if n in names]]
-    gyro = resample_stream(gyro, float(data["fps"]), fps)
-    if len(gyro) < frames:
-        raise MalformedFileError(path, None, f"gyro_rps has {len(gyro)} frames at {fps:g} Hz, acc_g {frames}")
-    return gyro[:frames]
+    gyro = resample_uniform(gyro, float(data["fps"]), fps)
+    rows = np.searchsorted(gyro.index, frames)
+    if len(gyro) == 0 or np.any(rows >= len(gyro)) or not np.array_equal(gyro.index[np.minimum(rows, len(gyro) - 1)], frames):
+        raise MalformedFileError(path, None, f"gyro_rps does not cover the acc_g frames at {fps:g} Hz")
+    return gyro.acc_g[rows]
 
 
 def _reconstruct_motion_graph(args: argparse.Namespace) -> int:

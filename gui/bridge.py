@@ -18,6 +18,7 @@ import numpy as np
 from gui.ringbuffer import TraceStore
 from gui.synthesis import SensorKey
 SampleSink = Callable[[SensorKey, np.ndarray, np.ndarray], None]
+CameraSink = Callable[[float, Any, "float | None"], None]  # (t_host_s, position_m [x, y] or None, heading_rad)
 
 
 def gateway_clock_offset_s(client: Any, pings: int = 3) -> float:
@@ -33,6 +34,17 @@ def gateway_clock_offset_s(client: Any, pings: int = 3) -> float:
         if best is None or t_recv - t_send < best[0]:
             best = (t_recv - t_send, t_gateway - (t_send + t_recv) / 2)
     return best[1]
+
+
+def client_local_address(client: Any) -> str | None:
+    """``host:port`` of the client's end of the connection, as the gateway names it in ``status["clients"]``."""
+    sock = getattr(client, "_sock", None)
+    sock = getattr(sock, "sock", sock)  # a gateway.tls.TlsChannel wraps the socket
+    try:
+        host, port = sock.getsockname()[:2]
+    except (AttributeError, OSError):
+        return None
+    return f"{host}:{port}"
 
 
 class CameraRate:
@@ -71,6 +83,11 @@ class GatewayBridge:
         self._trail: collections.deque[tuple[float, float, float]] = collections.deque(maxlen=self.TRAIL_LEN)
         self.events: queue.SimpleQueue[dict[str, Any]] = queue.SimpleQueue()
         self.sample_sinks: list[SampleSink] = []
+        self.camera_sinks: list[CameraSink] = []  # every camera observation, in stream order (synthesis)
+        self.recording_sinks: list[Callable[[float], None]] = []  # started_t_host_s of each new take
+        self._take_started_s: float | None = None
+        self._local_address: str | None = None
+        self.display_dropped: dict[str, int] = {}  # our connection(s) -> display frames the gateway dropped for us
         self.camera_rate = CameraRate()
         self.samples_received = 0
         self.sensors_seen: dict[SensorKey, float] = {}  # sensor -> nominal rate (Hz)
@@ -81,6 +98,7 @@ class GatewayBridge:
                                                                "recording", "event")) -> None:
         """Register listeners on a connected GatewayClient and subscribe to ``topics``."""
         self.client = client
+        self._local_address = client_local_address(client)
         client.add_listener("samples", self.on_samples)
         for kind in ("status", "calibration", "recording"):
             client.add_listener(kind, self._on_latest)
@@ -114,6 +132,29 @@ class GatewayBridge:
 
     def _on_latest(self, msg: Any) -> None:
         self.set_latest(msg.kind, msg.header)
+        if msg.kind == "recording":
+            self.note_recording(msg.header)
+        elif msg.kind == "status":
+            self._note_drops(msg.header)
+
+    def _note_drops(self, status: dict[str, Any]) -> None:
+        """Display frames the gateway dropped for this console (it drops oldest-first for a client that falls
+        behind): live synthesis then saw less than the recorder wrote, so live and offline poses may differ."""
+        for entry in status.get("clients") or []:
+            if entry.get("address") == self._local_address and self._local_address is not None:
+                self.display_dropped[self._local_address] = int(entry.get("dropped", 0))
+
+    @property
+    def dropped_total(self) -> int:
+        return sum(self.display_dropped.values())
+
+    def note_recording(self, state: dict[str, Any]) -> None:
+        """A recording state (broadcast or request reply): tell the recording sinks once per new take."""
+        started = state.get("started_t_host_s") if state.get("active") else None
+        if started is not None and started != self._take_started_s:
+            self._take_started_s = started
+            for sink in self.recording_sinks:
+                sink(float(started))
 
     def set_latest(self, kind: str, header: dict[str, Any]) -> None:
         """Store the newest header of ``kind`` (also used for request replies that carry the same state)."""
@@ -130,6 +171,9 @@ class GatewayBridge:
             pos = header.get("position_m")
             if pos is not None:
                 self._trail.append((float(header.get("t_host_s", 0.0)), float(pos[0]), float(pos[1])))
+        if header.get("t_host_s") is not None:
+            for sink in self.camera_sinks:
+                sink(float(header["t_host_s"]), header.get("position_m"), header.get("heading_rad"))
 
     def on_event(self, msg: Any) -> None:
         header = dict(msg.header)

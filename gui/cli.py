@@ -22,7 +22,12 @@ def _host_port(text: str) -> tuple[str, int]:
 
 
 def _console_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside console", description="Operator console for a Courtside gateway.")
+    from engine.stream.engines import ENGINE_NAMES
+
+    p = argparse.ArgumentParser(prog="courtside console", description="Operator console for a Courtside gateway.",
+                                epilog="Unattended capture: courtside console --connect HOST:PORT --calibrate "
+                                       "--record TAKE --duration 60 --save-poses take.poses.npz (no window needed: "
+                                       "QT_QPA_PLATFORM=offscreen).")
     p.add_argument("--connect", type=_host_port, default=("127.0.0.1", 7766), metavar="HOST:PORT",
                    help="gateway to connect to (default 127.0.0.1:7766)")
     p.add_argument("--secret-file", type=Path, default=None, metavar="FILE",
@@ -31,18 +36,37 @@ def _console_parser() -> argparse.ArgumentParser:
     p.add_argument("--tls-ca", type=Path, default=None, metavar="CERT",
                    help="connect with TLS, trusting this certificate (the gateway's cert.pem or its CA)")
     p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
+    p.add_argument("--engine", choices=ENGINE_NAMES, default=None,
+                   help="synthesis engine (default: motion-graph with --graph, olng with --kb, else by the number "
+                        "of worn sensors: 4 -> olng, 1 -> hmm, which needs gyroscopes the stations do not stream, "
+                        "so motion-graph; otherwise motion-graph; see docs/console.md)")
+    p.add_argument("--graph", type=Path, default=None, metavar="G.npz",
+                   help="motion graph from `courtside build-graph` (default: built from the shipped clips, cached)")
+    p.add_argument("--kb", type=Path, default=None, metavar="KB.npz",
+                   help="OLNG knowledge base from `courtside reconstruct --save-kb` (default: built from the shipped clips)")
     p.add_argument("--synth-station", default=None, metavar="ST",
-                   help="station whose sensors 0-5 are worn as the graph's sensors (default: the only station "
-                        "with >= 6 sensors, if there is exactly one); a --calibration record's assignment wins")
+                   help="station whose sensors 0..N-1 are worn as the engine's N sensors (default: the only station "
+                        "with >= N sensors, if there is exactly one); a --calibration record's assignment wins")
     p.add_argument("--lag", type=float, default=0.5, help="synthesis fixed lag, seconds (default 0.5)")
     p.add_argument("--calibration", type=Path, default=None, metavar="RECORD",
                    help="sensor-calibration record (.calibration.json from the calibration workflow): the motion "
                         "graph's virtual sensors use its measured sensor-to-segment rotations, and synthesis reads "
                         "each segment from the live sensor the record assigned to it")
-    p.add_argument("--duration", type=float, default=None, help="close after this many seconds")
+    p.add_argument("--duration", type=float, default=None,
+                   help="close after this many seconds (with --record: the take's length; the console then closes "
+                        "once the gateway confirms the stop)")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs before closing")
+    p.add_argument("--calibrate", action="store_true",
+                   help="scripted: run the gateway's calibration wizard through this console at start (assign from "
+                        "the sensor map, capture the pose, skip the tap, accept) and save the record on the gateway")
+    p.add_argument("--record", default=None, metavar="TAKE",
+                   help="scripted: record this take on the gateway (after --calibrate) until --duration ends")
+    p.add_argument("--save-poses", type=Path, default=None, metavar="OUT.npz",
+                   help="save every synthesized pose since the last engine (re)start — with --record, the take's "
+                        "poses — when the console closes (format: docs/console.md)")
     p.add_argument("--stream-bvh", default=None, metavar="[HOST:]PORT",
-                   help="serve the synthesised poses as BVH over TCP (Axis Neuron convention) to animation tools")
+                   help="serve the synthesised poses as BVH over TCP (Axis Neuron convention) to animation tools "
+                        "(motion-graph engine)")
     return p
 
 
@@ -60,10 +84,10 @@ def _demo_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _pick_synth_station(stations: list[dict], wanted: str | None) -> str | None:
+def _pick_synth_station(stations: list[dict], wanted: str | None, n_sensors: int = 6) -> str | None:
     if wanted:
         return wanted
-    big = [s["station"] for s in stations if len(s.get("sensors", [])) >= 6]
+    big = [s["station"] for s in stations if len(s.get("sensors", [])) >= n_sensors]
     return big[0] if len(big) == 1 else None
 
 
@@ -80,30 +104,34 @@ def console_main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if _screenshots_need_duration("console", args):
         return 2
-    from gateway.client import GatewayClient
+    if (args.record or args.calibrate) and (args.duration is None or args.playback is not None):
+        print("courtside console: --record/--calibrate are scripted runs against a gateway: they need --duration "
+              "and no --playback", file=sys.stderr)
+        return 2
+    from engine.errors import CourtsideError
+
+    try:
+        return _console(args)
+    except CourtsideError as exc:
+        print(f"courtside console: {exc}", file=sys.stderr)
+        return 2
+
+
+def _console(args: argparse.Namespace) -> int:
+    from engine.mocap import load_sensor_calibration
 
     from gui.app import application
-    from engine.mocap import SEED000_SENSORS
-
-    from gui.engine_link import load_or_build_graph, sensor_joints, synthesis_setup, worn_sensors
     from gui.main_window import ConsoleWindow
     from gui.playback import Playback
 
-    from engine.mocap import MalformedFileError, load_sensor_calibration
-
-    calibration = None
-    if args.calibration is not None:
-        try:
-            calibration = load_sensor_calibration(args.calibration)
-        except MalformedFileError as exc:
-            print(f"courtside console: {exc}", file=sys.stderr)
-            return 2
-        if calibration.failed:
-            log.warning("calibration %s: sensors on %s did not pass the wizard's checks (used anyway)",
-                        args.calibration, ", ".join(calibration.failed))
+    calibration = load_sensor_calibration(args.calibration) if args.calibration is not None else None
+    if calibration is not None and calibration.failed:
+        log.warning("calibration %s: sensors on %s did not pass the wizard's checks (used anyway)",
+                    args.calibration, ", ".join(calibration.failed))
     application()
-    client = playback = None
+    client = playback = make_client = None
     held_out: list[str] = []
+    truth_for_take = None
     if args.playback is not None:
         try:
             playback = Playback(args.playback)
@@ -113,56 +141,147 @@ def console_main(argv: list[str]) -> int:
         stations = _stations_in_take(playback)
         # a demo take names the clips it replayed: keep them out of the graph, as the live demo does
         held_out = next((e["truth_clips"] for e in playback.events if "truth_clips" in e), [])
-    else:
-        from gateway.auth import client_secret, client_tls_context
+        if held_out:
+            from gui.demo import truth_from_events  # only demo takes carry ground truth
 
-        tls = client_tls_context(args.tls_ca) if args.tls_ca is not None else None
+            truth_for_take = truth_from_events
+    else:
+        make_client = _client_factory(args)
         try:
-            client = GatewayClient(*args.connect, secret=client_secret(args.secret_file), tls=tls).connect()
+            client = make_client(*args.connect).connect()
         except OSError as exc:
             print(f"courtside console: cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})",
                   file=sys.stderr)
             return 2
-        stations = client.list_stations()
+        stations = _stations_with_sensors(client)
     try:
-        graph, skeleton, cache = load_or_build_graph(exclude=held_out, calibration=calibration)
-    except ValueError as exc:  # a record made for another skeleton's joint frames
-        print(f"courtside console: {exc}", file=sys.stderr)
+        synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out,
+                                                   client.list_stations if client is not None else None)
+        window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton_parents, sensor_segments=worn,
+                               sensor_joints=sensor_joints_or_none(worn), truth_for_take=truth_for_take,
+                               keep_poses=args.save_poses is not None, make_client=make_client)
+    except BaseException:
         if client is not None:
             client.close()
-        return 2
-    log.info("motion graph %s (%d nodes)", cache, graph.n_nodes)
-    synth = None
-    segments = list(graph.config.sensor_names or SEED000_SENSORS)
-    try:
-        keys, notes = worn_sensors(segments, _pick_synth_station(stations, args.synth_station), calibration)
-    except ValueError as exc:
-        print(f"courtside console: {exc}", file=sys.stderr)
-        if client is not None:
-            client.close()
-        return 2
-    for note in notes:
-        log.warning("synthesis: %s", note)
-    worn: dict = {}
-    if keys is not None:
-        synth = synthesis_setup(graph, skeleton, keys, args.lag)
-        if args.stream_bvh:
-            from engine.livestream.console import streaming_setup
-
-            synth = streaming_setup(synth, graph, skeleton, args.stream_bvh)
-        worn = dict(zip(synth.sensors, segments))
-    else:
-        log.warning("synthesis off: pass --synth-station (or a calibration record) to say which sensors are worn")
-    window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton.parents, sensor_segments=worn,
-                           sensor_joints=sensor_joints(skeleton, worn) if worn else None)
+        raise
     window.resize(1500, 950)
     if playback is not None:
         window.load_playback(playback)
-    try:
-        return _run_window(window, args.duration, args.screenshots)
+    script = None
+    if args.calibrate or args.record:
+        from gui.scripted import ScriptedRun
+
+        script = ScriptedRun(window, calibrate=args.calibrate, take=args.record, duration_s=args.duration)
+        script.start()
+    try:  # a scripted run closes the window itself, when its steps are done
+        code = _run_window(window, None if script is not None else args.duration, args.screenshots)
     finally:
         if client is not None:
             client.close()
+    if args.save_poses is not None:
+        path = window.save_poses(args.save_poses)
+        log.info("poses saved to %s", path)
+    if script is not None and script.failure:
+        print(f"courtside console: {script.failure}", file=sys.stderr)
+        return 1
+    return code
+
+
+def _client_factory(args: argparse.Namespace):
+    """``(host, port) -> GatewayClient`` with the secret (--secret-file or the environment) and TLS options, for
+    the first connection and every reconnect."""
+    import functools
+
+    from gateway.auth import client_secret, client_tls_context
+    from gateway.client import GatewayClient
+
+    tls = client_tls_context(args.tls_ca) if args.tls_ca is not None else None
+    return functools.partial(GatewayClient, secret=client_secret(args.secret_file), tls=tls)
+
+
+def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held_out: list[str], refresh=None):
+    """(SynthesisSetup or None, worn sensor -> placement, skeleton parents or None). ``refresh`` re-reads the
+    station list (live gateway)."""
+    from engine.stream.databases import engine_spec
+    from gui.engine_link import synthesis_setup, worn_sensors
+
+    n_worn = len(calibration.sensor_ids) if calibration is not None and calibration.sensor_ids else (
+        _station_size(stations, args.synth_station))
+    spec, notes = engine_spec(args.engine, graph_path=args.graph, kb_path=args.kb, n_worn=n_worn or 6,
+                              exclude=held_out, calibration=calibration)
+    for note in notes:
+        log.info("synthesis: %s", note)
+    log.info("synthesis: %s", spec.label)
+    try:
+        keys, notes = worn_sensors(list(spec.sensor_names),
+                                   _pick_synth_station(stations, args.synth_station, len(spec.sensor_names)),
+                                   calibration)
+    except ValueError as exc:
+        from engine.errors import CourtsideError
+
+        raise CourtsideError(str(exc)) from exc
+    for note in notes:
+        log.warning("synthesis: %s", note)
+    if keys is None:
+        log.warning("synthesis off: pass --synth-station (or a calibration record) to say which sensors are worn")
+        return None, {}, spec.parents
+    _check_when_streaming(spec, keys, stations, calibration, refresh)
+    if args.stream_bvh:
+        from engine.livestream.console import streaming_engine
+
+        spec = streaming_engine(spec, args.stream_bvh)
+    synth = synthesis_setup(spec, keys, args.lag)
+    return synth, dict(zip(synth.sensors, spec.sensor_names)), spec.parents
+
+
+def _stations_with_sensors(client, wait_s: float = 5.0) -> list[dict]:
+    """The gateway's station list once its stations have reported sensors (a gateway that has just started lists
+    stations before their first samples; the engine default depends on how many sensors are worn)."""
+    import time
+
+    deadline = time.monotonic() + wait_s
+    while True:
+        stations = client.list_stations()
+        if any(s.get("sensors") for s in stations) or time.monotonic() > deadline:
+            return stations
+        time.sleep(0.2)
+
+
+def _check_when_streaming(spec, keys, stations, calibration, refresh, wait_s: float = 5.0) -> None:
+    """`check_worn_sensors`, giving sensors that have not streamed yet (a gateway just started) ``wait_s``."""
+    import time
+
+    from engine.stream.engines import SensorsMissingError
+    from gui.engine_link import check_worn_sensors
+
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            return check_worn_sensors(spec, keys, stations, calibration)
+        except SensorsMissingError:
+            if refresh is None or time.monotonic() > deadline:
+                raise
+        time.sleep(0.25)
+        stations = refresh()
+
+
+def _station_size(stations: list[dict], wanted: str | None) -> int:
+    """Sensors on the synthesis station (--synth-station, else the largest)."""
+    sizes = {str(s["station"]): len(s.get("sensors", [])) for s in stations}
+    if wanted:
+        return sizes.get(wanted, 0)
+    return max(sizes.values(), default=0)
+
+
+def sensor_joints_or_none(worn: dict) -> dict | None:
+    """Live sensor -> skeleton joint for the 3-D health colours (standard placements on the shipped skeleton)."""
+    if not worn:
+        return None
+    from engine.mocap import load_clip, sample_clips
+
+    from gui.engine_link import sensor_joints
+
+    return sensor_joints(load_clip(sample_clips()["16_01"]).skeleton, worn)
 
 
 def _stations_in_take(playback) -> list[dict]:

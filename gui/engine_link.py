@@ -1,76 +1,22 @@
-"""Build (or load from cache) the motion graph from the clips the project ships, and package it for the console.
-
-The console builds its graph at start from `engine.mocap.sample_clips()` (minus any held-out clips the demo
-replays, so the demo never synthesises a motion it has seen); the result is cached as .npz keyed by the clip
-files, sensor names and graph config, so a second start only loads it.
-
-With a sensor-calibration record (``courtside console --calibration take01.calibration.json``, written by the
-gateway's calibration workflow), the graph's virtual sensors use the measured sensor-to-segment rotations
-(`engine.mocap.placements_from_calibration`) instead of the nominal mounting; the cache key then includes the
-rotations, so each calibration gets its own cached graph and the uncalibrated one is kept."""
+"""The console's glue between live sensors and an engine: which live sensor feeds which engine column
+(`worn_sensors`), whether they fit the engine's database (`check_worn_sensors`), the synthesis setup, and which
+skeleton segment carries each sensor (for the 3-D health colours). The databases and the choice of engine are the
+engine's (`engine.stream.databases`); the synthesis path is `engine.stream`."""
 from __future__ import annotations
 
-import hashlib
-import json
 from collections.abc import Sequence
-from pathlib import Path
 
-import numpy as np
-
-from engine.graph.config import GraphConfig
-from engine.graph.graph import MotionGraph
-from engine.graph.online import FixedLagSynthesizer
-from engine.mocap import (SEED000_SENSORS, SensorCalibrationData, Skeleton, default_cache_dir, load_clip,
-                          placements_from_calibration, sample_clips, standard_placements)
+from engine.mocap import SensorCalibrationData, Skeleton, standard_placements
+from engine.stream.engines import EngineSpec
 
 from gui.synthesis import SensorKey, SynthesisSetup
 
-GRAPH_FPS = 30.0
 
-
-def graph_cache_path(clip_paths: Sequence[Path], sensor_names: Sequence[str], config: GraphConfig,
-                     cache_dir: Path | None = None, calibration: SensorCalibrationData | None = None) -> Path:
-    """Cache file name from the clip files' identity (path, size, mtime), sensors, config and the calibrated
-    rotations (if any)."""
-    parts = [json.dumps(list(sensor_names)), config.to_json()]
-    if calibration is not None:
-        parts.append(calibration.fingerprint())
-    parts += [f"{p.resolve()}|{p.stat().st_size}|{p.stat().st_mtime_ns}" for p in sorted(clip_paths)]
-    digest = hashlib.sha1("\n".join(parts).encode()).hexdigest()[:16]
-    return (cache_dir or default_cache_dir().parent / "graphs") / f"graph-{digest}.npz"
-
-
-def load_or_build_graph(exclude: Sequence[str] = (), sensor_names: Sequence[str] = SEED000_SENSORS,
-                        cache_dir: Path | None = None, calibration: SensorCalibrationData | None = None
-                        ) -> tuple[MotionGraph, Skeleton, Path]:
-    """Graph over the shipped CMU subject-16 clips (one skeleton topology), minus ``exclude`` clip names; with
-    ``calibration`` (`engine.mocap.load_sensor_calibration`) its virtual sensors are mounted as measured."""
-    clips = {name: path for name, path in sample_clips().items() if name.startswith("16_") and name not in exclude}
-    if not clips:
-        raise ValueError("no shipped clips left to build a motion graph from")
-    config = GraphConfig(fps=GRAPH_FPS, sensor_names=list(sensor_names))
-    motions = [load_clip(path, fps=GRAPH_FPS) for path in clips.values()]
-    skeleton = motions[0].skeleton
-    placements = standard_placements(skeleton, tuple(sensor_names))
-    if calibration is not None:
-        placements = placements_from_calibration(placements, calibration)  # ValueError: other joint frames
-    cache = graph_cache_path(list(clips.values()), sensor_names, config, cache_dir, calibration)
-    if cache.is_file():
-        return MotionGraph.load(cache), skeleton, cache
-    graph = MotionGraph.build(motions, placements, config)
-    cache.parent.mkdir(parents=True, exist_ok=True)
-    tmp = cache.with_suffix(".tmp")
-    graph.save(tmp)
-    tmp.replace(cache)
-    return graph, skeleton, cache
-
-
-def synthesis_setup(graph: MotionGraph, skeleton: Skeleton, sensors: list[SensorKey], lag_s: float = 0.5) -> SynthesisSetup:
-    """Console synthesis over ``graph``; ``sensors[i]`` is the live sensor worn where graph sensor i is."""
-    if len(sensors) != graph.n_sensors:
-        raise ValueError(f"graph expects {graph.n_sensors} sensors, {len(sensors)} mapped")
-    return SynthesisSetup(make_synthesizer=lambda lag: FixedLagSynthesizer(graph, lag), sensors=list(sensors),
-                          rate_hz=graph.config.fps, parents=np.asarray(skeleton.parents), lag_s=lag_s)
+def synthesis_setup(spec: EngineSpec, sensors: list[SensorKey], lag_s: float = 0.5) -> SynthesisSetup:
+    """Console synthesis with ``spec``; ``sensors[i]`` is the live sensor worn where engine sensor i is."""
+    if len(sensors) != len(spec.sensor_names):
+        raise ValueError(f"{spec.name} expects {len(spec.sensor_names)} sensors, {len(sensors)} mapped")
+    return SynthesisSetup(engine=spec, sensors=list(sensors), lag_s=lag_s)
 
 
 def worn_sensors(segments: Sequence[str], station: str | None,
@@ -107,3 +53,22 @@ def sensor_joints(skeleton: Skeleton, sensors: dict[SensorKey, str]) -> dict[Sen
     paints that segment with the sensor's health)."""
     placements = standard_placements(skeleton, tuple(sensors.values()))
     return {key: int(p.joint) for key, p in zip(sensors, placements)}
+
+
+def check_worn_sensors(spec: EngineSpec, keys: list[SensorKey], stations: list[dict],
+                       calibration: SensorCalibrationData | None = None) -> None:
+    """Refuse unless every live sensor feeding ``spec`` exists and fits it: the station list (gateway status or a
+    take) must have each sensor; its placement (the calibration record's, else the one assumed from the
+    engine's column order) must be the engine's, and its nominal rate at least the engine's frame rate."""
+    from engine.stream.engines import SensorsMissingError, check_live_sensors
+
+    listed = {(str(st["station"]), int(s["sensor"])): float(s.get("nominal_hz") or 0.0)
+              for st in stations for s in st.get("sensors", [])}
+    missing = [f"{st}/{i}" for st, i in keys if (st, i) not in listed]
+    if missing:
+        raise SensorsMissingError(f"{spec.name} needs sensors {', '.join(missing)} for "
+                                  f"{', '.join(n for n, k in zip(spec.sensor_names, keys) if f'{k[0]}/{k[1]}' in missing)}"
+                                  f"; live: {', '.join(f'{st}/{i}' for st, i in sorted(listed)) or 'none'}")
+    by_id = {sid: seg for seg, sid in calibration.sensor_ids.items()} if calibration is not None else {}
+    worn = [by_id.get(f"{st}/{i}", name) for (st, i), name in zip(keys, spec.sensor_names)]
+    check_live_sensors(spec, worn, [listed[k] for k in keys])

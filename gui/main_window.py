@@ -29,6 +29,8 @@ from gui.widgets.traces import TracePanel
 TICK_MS = 33
 RECONNECT_INTERVAL_MS = 1000
 TruthProvider = Callable[[float], "np.ndarray | None"]  # gateway time (s) -> (J,3) m or None
+# a take's events -> its ground truth (the demo stamps its takes; production takes have none)
+TruthForTake = Callable[[list], "TruthProvider | None"]
 
 
 HEALTH_RGB = {Sync.AMBER: (0.95, 0.75, 0.1), Sync.RED: (0.9, 0.12, 0.12)}
@@ -76,7 +78,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
     def __init__(self, client: Any | None = None, *, synthesis: SynthesisSetup | None = None,
                  truth: TruthProvider | None = None, truth_parents: np.ndarray | None = None,
                  sensor_segments: dict[SensorKey, str] | None = None,
-                 sensor_joints: dict[SensorKey, int] | None = None, title: str = "Courtside console") -> None:
+                 sensor_joints: dict[SensorKey, int] | None = None, truth_for_take: TruthForTake | None = None,
+                 keep_poses: bool = False, make_client: Callable[[str, int], Any] | None = None,
+                 title: str = "Courtside console") -> None:
         super().__init__()
         self.setWindowTitle(title)
         self.client = client
@@ -85,6 +89,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.requests = RequestRunner(self)
         self.requests.done.connect(self._request_done)
         self.truth = truth
+        self.truth_for_take = truth_for_take
+        self.make_client = make_client  # (host, port) -> unconnected client with our credentials (reconnects)
         self.sensor_joints = sensor_joints or {}
         self.playback: Playback | None = None
         self.playing = False
@@ -155,14 +161,16 @@ class ConsoleWindow(QtWidgets.QMainWindow):
 
         # synthesis
         self.worker: SynthesisWorker | None = None
-        self.use_camera_heading = bool(synthesis and synthesis.use_camera_heading)
+        self.synthesis = synthesis
         if synthesis is not None:
             self.skeleton.set_skeleton(synthesis.parents)
-            self.worker = SynthesisWorker(synthesis.make_synthesizer, synthesis.sensors, synthesis.rate_hz,
-                                          synthesis.lag_s)
+            self.worker = SynthesisWorker(synthesis, keep_poses=keep_poses)
             self.bridge.sample_sinks.append(self.worker.add_samples)
+            self.bridge.camera_sinks.append(self.worker.add_camera)
+            self.bridge.recording_sinks.append(self.worker.recording_started)
             self.lag_spin.setValue(synthesis.lag_s)
             self.lag_spin.valueChanged.connect(self.worker.set_lag)
+            self.lag_spin.setEnabled(synthesis.engine.lag_applies)
             self.worker.start()
         else:
             self.lag_spin.setEnabled(False)
@@ -171,6 +179,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
 
         self._clock_offset_s = 0.0
         self._reconnecting = False
+        self.reconnects = 0
         self._owns_client = False
         self._status_alarms: list[Alarm] = []
         if client is not None:
@@ -212,7 +221,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         """Worker thread: a fresh client, subscribed through the bridge, and its clock offset."""
         from gateway.client import GatewayClient
 
-        client = GatewayClient(host, port).connect(timeout_s=1.0)
+        client = (self.make_client or GatewayClient)(host, port).connect(timeout_s=1.0)
         try:
             self.bridge.detach()
             self.bridge.attach(client)
@@ -243,9 +252,6 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self._update_status()
         header, jpeg, trail = self.bridge.camera_frame()
         self.camera.update_camera(header, jpeg, trail, self.bridge.camera_rate)
-        if self.worker is not None and header:
-            heading = header.get("heading_rad") if self.use_camera_heading else None
-            self.worker.set_camera(header.get("position_m"), heading)
         self.recording.show_state(self.bridge.latest("recording"), self.gateway_now_s())
         calibration = self.bridge.latest("calibration")
         self._mark_tap(calibration)
@@ -291,7 +297,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
 
     def _update_poses(self) -> None:
         pose = self.worker.latest_pose() if self.worker is not None else None
-        estimate = pose.positions_m if pose is not None else None
+        estimate = pose.joint_positions_m if pose is not None else None
+        self.skeleton.set_confidence(pose.confidence if pose is not None else None)
         t_pose = pose.t_s if pose is not None else self.store.latest_time()
         truth = self.truth(t_pose) if (self.truth is not None and t_pose is not None) else None
         if estimate is not None or truth is not None:
@@ -300,13 +307,21 @@ class ConsoleWindow(QtWidgets.QMainWindow):
     def _update_statusbar(self) -> None:
         latest = self.store.latest_time()
         age = (self.gateway_now_s() - latest) * 1e3 if latest is not None else float("nan")
-        parts = [f"gateway t {self.gateway_now_s():.2f} s", f"samples {self.bridge.samples_received}",
+        parts = [f"gateway t {self.gateway_now_s():.2f} s", f"samples {self.bridge.samples_received}"
+                 + (f" ({self.bridge.dropped_total} display frames dropped by the gateway)"
+                    if self.bridge.dropped_total else ""),
                  f"newest sample age {age:.0f} ms",
                  f"GUI {self.stats.fps:.0f} fps, tick {self.stats.tick_ms:.1f} ms (max {self.stats.max_tick_ms:.0f})"]
         if self.worker is not None:
             s = self.worker.stats
-            parts.append(f"synthesis lag {s.lag_s:.2f} s, {s.frames_per_s:.0f} frames/s, {s.push_ms:.1f} ms/frame"
+            pose = self.worker.latest_pose()
+            conf = "" if pose is None or pose.confidence is None else f", confidence {pose.confidence:.2f}"
+            lag = f"lag {s.lag_s:.2f} s, " if self.synthesis.engine.lag_applies else ""
+            parts.append(f"{self.synthesis.engine.label}: {lag}{s.frames_per_s:.0f} frames/s, "
+                         f"{s.push_ms:.1f} ms/frame{conf}"
                          + (f", {s.frames_invalid} frames without a sensor" if s.frames_invalid else "")
+                         + (f", {s.late_samples} samples / {s.late_fixes} camera fixes came after their frames"
+                            if s.late_samples or s.late_fixes else "")
                          + (f" ERROR {s.error}" if s.error else ""))
         if self.playback is not None:
             parts.insert(0, f"PLAYBACK {self.playback.path.name}")
@@ -330,6 +345,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self._reconnecting = False
             if not error:
                 self._connected(*result)
+                self.reconnects += 1
                 self._owns_client = True  # made by us: closed by `shutdown`
             return  # failures retry on the next link check; the banner already says so
         if error:
@@ -338,6 +354,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                 self.recording.show_error(error)
         elif tag.endswith("recording") and isinstance(result, dict):
             self.bridge.set_latest("recording", result)
+            self.bridge.note_recording(result)
         if tag.startswith("calibration") and self.wizard is not None:
             self.wizard.request_done(tag, result, error)
 
@@ -373,12 +390,11 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         if self.client is not None:
             self.bridge.detach()
         self.playback = playback
-        if self.truth is None:
-            from gui.demo import truth_from_events  # Qt-free; only demo takes carry ground truth
-
-            self.truth = truth_from_events(playback.events)
-            if self.truth is not None and self.skeleton.parents is None:
-                self.skeleton.set_skeleton(self.truth.perf.parents)
+        if self.truth is None and self.truth_for_take is not None:
+            self.truth = self.truth_for_take(playback.events)
+            parents = getattr(self.truth, "parents", None)
+            if parents is not None and self.skeleton.parents is None:
+                self.skeleton.set_skeleton(parents)
         self.playbar.loaded(Path(path).parent.name if Path(path).name == "take.csrec" else Path(path).name,
                             playback.duration_s)
         self.seek_playback(0.0)
@@ -407,6 +423,30 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.worker.reset()
         if self.client is not None and self.client.connected:
             self.bridge.attach(self.client)
+
+    # -- saved poses -------------------------------------------------------------------------------------------
+    def save_poses(self, path: str | Path) -> Path:
+        """Write every pose kept since the engine's last (re)start (``keep_poses``), in the format
+        `courtside synthesize --save-poses` writes (`engine.stream.poses_file`)."""
+        from engine.errors import CourtsideError
+        from engine.stream.poses_file import save_poses
+
+        if self.worker is None or self.synthesis is None:
+            raise CourtsideError(f"{path}: no synthesis ran in this console: no poses to save")
+        start, poses = self.worker.poses()
+        spec = self.synthesis.engine
+        recording = self.bridge.latest("recording") or {}
+        meta = {"engine": spec.name, "database": spec.database, "lag_s": self.worker.stats.lag_s,
+                "rate_hz": spec.rate_hz, "start_frame": start, "take": recording.get("take"),
+                "use_camera_heading": self.synthesis.use_camera_heading,
+                "frames_in": self.worker.stats.frames_in, "frames_invalid": self.worker.stats.frames_invalid,
+                "frames_with_camera": self.worker.stats.frames_with_camera,
+                # live = offline needs the console to have seen every recorded sample: count what it missed
+                "display_frames_dropped": self.bridge.dropped_total, "reconnects": self.reconnects,
+                "late_samples": self.worker.stats.late_samples, "late_fixes": self.worker.stats.late_fixes,
+                "sensors": [{"stream": f"{st}/{i}", "placement": name}
+                            for (st, i), name in zip(self.synthesis.sensors, spec.sensor_names)]}
+        return save_poses(path, poses, spec.parents, meta)
 
     # -- shutdown -----------------------------------------------------------------------------------------------
     def closeEvent(self, event: Any) -> None:

@@ -1,38 +1,43 @@
-"""Windowed (fixed-lag) synthesis off the GUI thread.
+"""Live synthesis off the GUI thread: a thread around `engine.stream.StreamSynthesis`.
 
-The worker thread owns the synthesizer (`engine.graph.FixedLagSynthesizer` in the console): it takes sample
-batches from a queue (fed by the bridge on the network thread), resamples them to the graph rate, pushes each
-frame with the latest camera position/heading, and publishes the newest emitted pose in a lock-protected slot
-that the GUI tick reads. Changing the lag rebuilds the synthesizer inside the worker thread."""
+The bridge feeds sample batches and camera fixes (network thread) into an in-band queue; the worker thread owns
+the stream session (resampling, camera alignment, the engine), publishes the newest pose in a lock-protected slot
+the GUI tick reads, and — for unattended capture (`courtside console --save-poses`) — keeps every pose since the
+last restart. All synthesis logic lives in the engine, so `courtside synthesize` on a recorded take runs the
+same code. A recording start restarts the engine at the take's defined first frame
+(`engine.stream.take_start_s`), so the poses shown during a take are exactly what offline synthesis of the take
+gives; a lag change restarts it at the next frame; a reset (playback seek) starts a fresh session."""
 from __future__ import annotations
 
 import queue
 import threading
 import time
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Hashable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
-from gui.resample import FrameResampler
+from engine.stream import EngineSpec, FramePose, StreamSynthesis, take_start_s
 
-
-_RESET = object()
 SensorKey = tuple[str, int]  # (station id, sensor index), as the gateway names streams
-
-
-class Synthesizer(Protocol):
-    def push(self, acc_g: np.ndarray, pos_m: np.ndarray | None = None, heading_rad: float | None = None) -> list: ...
+_RESET = object()
 
 
 @dataclass
-class PoseOut:
-    """Newest synthesized pose: ``t_s`` is the gateway-clock time the pose describes (frame time - lag)."""
+class SynthesisSetup:
+    """Everything the console needs to run live synthesis (`gui.engine_link.synthesis_setup`)."""
 
-    t_s: float
-    positions_m: np.ndarray  # (J, 3) world frame
-    emitted_at_s: float      # gateway-clock time of the frame whose push emitted it
+    engine: EngineSpec          # engine, database, worn placements, rate, skeleton
+    sensors: list[SensorKey]    # live sensor feeding each engine sensor column, in order
+    lag_s: float = 0.5
+    # The overhead tracker's heading is a rule (direction of travel when running, else facing the net), not a
+    # measurement; feeding it as a constraint drags the path when the rule is wrong. Off unless trusted.
+    use_camera_heading: bool = False
+
+    @property
+    def parents(self) -> np.ndarray:
+        return self.engine.parents
 
 
 @dataclass
@@ -40,52 +45,51 @@ class SynthesisStats:
     lag_s: float = 0.0
     frames_in: int = 0
     poses_out: int = 0
-    frames_per_s: float = 0.0      # graph frames processed per wall second (recent)
-    push_ms: float = 0.0           # mean synthesizer cost per frame (recent)
+    frames_per_s: float = 0.0      # frames processed per wall second (recent)
+    push_ms: float = 0.0           # mean engine cost per frame (recent)
     frames_invalid: int = 0        # frames stepped without accelerations (a sensor dropped out)
+    frames_with_camera: int = 0
+    late_samples: int = 0           # data that arrived after its frames were pushed (see engine.stream.StreamStats)
+    late_fixes: int = 0
+    start_frame: int | None = None  # first frame of the current session (engine restart)
     error: str = ""
 
 
-def pose_positions(pose: Any) -> np.ndarray:
-    """Joint positions (J, 3) from an emitted pose object (``joint_positions_m``, as `engine.graph.online.EmittedPose`) or a bare array."""
-    return np.asarray(getattr(pose, "joint_positions_m", pose), float)
-
-
 class SynthesisWorker(threading.Thread):
-    """Background thread: sample batches in, newest pose out."""
+    """Background thread: samples and camera fixes in, newest pose out (and optionally every pose)."""
 
-    def __init__(self, make_synthesizer: Callable[[float], Synthesizer], sensors: Sequence[Hashable],
-                 rate_hz: float, lag_s: float) -> None:
+    def __init__(self, setup: SynthesisSetup, keep_poses: bool = False) -> None:
         super().__init__(name="console-synthesis", daemon=True)
-        self._make = make_synthesizer
-        self.sensors = list(sensors)
-        self.rate_hz = rate_hz
+        self.setup = setup
+        self.keep_poses = keep_poses
         self._inbox: queue.SimpleQueue = queue.SimpleQueue()
         self._stopping = threading.Event()
         self._lock = threading.Lock()
-        self._pose: PoseOut | None = None
-        self._requested_lag_s: float | None = lag_s
-        self._camera: tuple[np.ndarray, float | None] | None = None
-        self.stats = SynthesisStats(lag_s=lag_s)
+        self._pose: FramePose | None = None
+        self._poses: list[FramePose] = []
+        self._lag_s = setup.lag_s
+        self.stats = SynthesisStats(lag_s=setup.lag_s)
 
     # -- inputs (any thread) -----------------------------------------------------------------------------------
     def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
         """Signature matches `gui.bridge.SampleSink`, so the bridge can feed the worker directly."""
-        self._inbox.put((sensor, np.asarray(t_s, float), np.asarray(acc_g, float)))
+        self._inbox.put(("samples", sensor, np.asarray(t_s, float), np.asarray(acc_g, float)))
 
-    def set_camera(self, position_m: Any, heading_rad: float | None) -> None:
-        with self._lock:
-            self._camera = (np.asarray(position_m, float)[:2], heading_rad) if position_m is not None else None
+    def add_camera(self, t_s: float, position_m: Any, heading_rad: float | None) -> None:
+        """One camera observation (gateway time of the camera frame; position None while the player is lost)."""
+        self._inbox.put(("camera", float(t_s), position_m, heading_rad))
+
+    def recording_started(self, started_t_host_s: float) -> None:
+        """A take started: restart at its first frame, so the live poses are the take's offline poses."""
+        self._inbox.put(("restart", take_start_s(started_t_host_s)))
 
     def set_lag(self, lag_s: float) -> None:
-        with self._lock:
-            self._requested_lag_s = float(lag_s)
+        self._inbox.put(("lag", float(lag_s)))
 
     def reset(self) -> None:
-        """Forget buffered samples and the synthesizer's window (playback seek / back to live)."""
+        """Forget buffered samples, fixes and the engine's window (playback seek / back to live)."""
         with self._lock:
             self._pose = None
-            self._camera = None  # the old position belongs to the old time line; wait for a fresh fix
         self._inbox.put(_RESET)  # in-band, so batches queued after the reset are kept
 
     def stop(self) -> None:
@@ -93,87 +97,93 @@ class SynthesisWorker(threading.Thread):
         self._inbox.put(None)
 
     # -- outputs (any thread) ----------------------------------------------------------------------------------
-    def latest_pose(self) -> PoseOut | None:
+    def latest_pose(self) -> FramePose | None:
         with self._lock:
             return self._pose
 
-    def _rebuild(self, lag_s: float) -> Synthesizer | None:
-        try:
-            synth = self._make(lag_s)
-        except Exception as exc:  # a bad lag or graph must show in the status bar, not kill the thread
-            self.stats.error = f"{type(exc).__name__}: {exc}"
-            return None
-        self.stats.lag_s, self.stats.error = lag_s, ""
-        return synth
+    def poses(self) -> tuple[int | None, list[FramePose]]:
+        """(first frame of the current session, every pose since) — with ``keep_poses`` only."""
+        with self._lock:
+            return self.stats.start_frame, list(self._poses)
 
     # -- thread ------------------------------------------------------------------------------------------------
+    def _new_session(self) -> StreamSynthesis | None:
+        setup = self.setup
+        try:
+            return StreamSynthesis(lambda: setup.engine.make(self._lag_s), setup.sensors, setup.engine.rate_hz,
+                                   use_camera_heading=setup.use_camera_heading)
+        except Exception as exc:  # a bad lag or database must show in the status bar, not kill the thread
+            self.stats.error = f"{type(exc).__name__}: {exc}"
+            return None
+
+    def _restart(self, session: StreamSynthesis, start_s: float | None) -> None:
+        try:
+            session.restart(start_s)
+        except Exception as exc:
+            self.stats.error = f"{type(exc).__name__}: {exc}"
+            return
+        self.stats.lag_s, self.stats.error = self._lag_s, ""
+        with self._lock:
+            self._poses = []
+            self._pose = None
+
+    def _handle(self, session: StreamSynthesis | None, entry: Any) -> StreamSynthesis | None:
+        if entry is _RESET:
+            with self._lock:
+                self._poses = []
+            return self._new_session()
+        if session is None or entry is None:
+            return session
+        kind = entry[0]
+        if kind == "samples":
+            session.add_samples(*entry[1:])
+        elif kind == "camera":
+            session.add_camera(*entry[1:])
+        elif kind == "restart":
+            self._restart(session, entry[1])
+        elif kind == "lag":
+            self._lag_s = entry[1]
+            self._restart(session, None)
+        return session
+
     def run(self) -> None:
-        resampler = FrameResampler(self.sensors, self.rate_hz)
-        synth: Synthesizer | None = None
-        camera_seen = False
+        session = self._new_session()
         window_t0, window_frames, window_cost = time.monotonic(), 0, 0.0
         while not self._stopping.is_set():
-            with self._lock:
-                lag, self._requested_lag_s = self._requested_lag_s, None
-                camera = self._camera
-            if lag is not None:
-                synth = self._rebuild(lag) or synth
-            if camera is not None and not camera_seen:
-                # the search anchors its global path at the first sample's position: restart it on the first
-                # camera fix, otherwise the path stays wherever dead reckoning from (0, 0) took it
-                camera_seen = True
-                synth = self._rebuild(self.stats.lag_s) or synth
             try:
-                item = self._inbox.get(timeout=0.1)
+                batch = [self._inbox.get(timeout=0.1)]
             except queue.Empty:
                 continue
-            batch = [item]
-            while True:  # take everything queued: one resample pass per wake-up
+            while True:  # take everything queued: one resampling pass per wake-up
                 try:
                     batch.append(self._inbox.get_nowait())
                 except queue.Empty:
                     break
             for entry in batch:
-                if entry is _RESET:
-                    resampler = FrameResampler(self.sensors, self.rate_hz)
-                    synth = self._rebuild(self.stats.lag_s)
-                    camera_seen = False
-                elif entry is not None:
-                    resampler.add(*entry)
-            times, frames, valid = resampler.frames()
-            self.stats.frames_invalid = resampler.frames_invalid
-            if synth is None or not len(times):
+                session = self._handle(session, entry)
+            if session is None:
                 continue
-            pos, heading = camera if camera is not None else (None, None)
             t_cost = time.perf_counter()
-            for t, acc, ok in zip(times, frames, valid):
-                # a frame spanning a sensor dropout steps the search on the camera alone (acc None)
-                emitted = synth.push(acc if ok else None, pos, heading)
-                self.stats.frames_in += 1
-                if emitted:
-                    newest = emitted[-1]
-                    pose = PoseOut(float(t) - self.stats.lag_s, pose_positions(newest), float(t))
-                    with self._lock:
-                        self._pose = pose
-                    self.stats.poses_out += len(emitted)
+            frames_before = session.stats.frames_in
+            try:
+                poses = session.step()
+            except Exception as exc:
+                self.stats.error = f"{type(exc).__name__}: {exc}"
+                continue
             window_cost += time.perf_counter() - t_cost
-            window_frames += len(times)
+            window_frames += session.stats.frames_in - frames_before
+            s = session.stats
+            self.stats.frames_in, self.stats.frames_invalid = s.frames_in, s.frames_invalid
+            self.stats.frames_with_camera, self.stats.poses_out = s.frames_with_camera, s.poses_out
+            self.stats.late_samples, self.stats.late_fixes = s.late_samples, s.late_fixes
+            self.stats.start_frame = session.first_frame
+            if poses:
+                with self._lock:
+                    self._pose = poses[-1]
+                    if self.keep_poses:
+                        self._poses.extend(poses)
             now = time.monotonic()
             if now - window_t0 >= 1.0:
                 self.stats.frames_per_s = window_frames / (now - window_t0)
                 self.stats.push_ms = 1e3 * window_cost / max(1, window_frames)
                 window_t0, window_frames, window_cost = now, 0, 0.0
-
-
-@dataclass
-class SynthesisSetup:
-    """Everything the console needs to run windowed synthesis (built by `gui.engine_link`)."""
-
-    make_synthesizer: Callable[[float], Any]  # lag_s -> object with push(acc (S,3), pos (2,)|None, heading|None)
-    sensors: list[SensorKey]                  # live sensor feeding each graph sensor column, in order
-    rate_hz: float
-    parents: np.ndarray                       # skeleton parents of emitted poses
-    lag_s: float = 0.5
-    # The overhead tracker's heading is a rule (direction of travel when running, else facing the net), not a
-    # measurement; feeding it as a constraint drags the path when the rule is wrong. Off unless trusted.
-    use_camera_heading: bool = False

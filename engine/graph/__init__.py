@@ -10,7 +10,7 @@ result into a blended, foot-skate-cleaned engine.mocap Motion for `write_bvh`.
 from .clips import ClipData
 from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
-from .online import EmittedPose, FixedLagSynthesizer, resample_stream
+from .online import EmittedPose, FixedLagSynthesizer
 from .poses import world_joint_positions
 from .postprocess import path_to_motion
 from .viterbi import Constraint, Observations, SearchResult, SearchWeights, ViterbiLattice, ViterbiSearch
@@ -24,5 +24,5 @@ def label_constraint(graph: MotionGraph, label: str, frame: int, tolerance_frame
 __all__ = [
     "ClipData", "Constraint", "EmittedPose", "FixedLagSynthesizer", "GraphConfig", "MotionGraph", "Observations",
     "SearchResult", "SearchWeights", "ViterbiLattice", "ViterbiSearch", "build_from_clips", "label_constraint",
-    "path_to_motion", "resample_stream", "world_joint_positions",
+    "path_to_motion", "world_joint_positions",
 ]

@@ -21,7 +21,7 @@ from .input_checks import check_database, check_lag, check_non_negative, check_p
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .report import coverage_warning, format_report, graph_report, motion_range
 from .viterbi import SearchWeights
-from .warp import RootWarp
+from .warp import RootWarp, default_weights
 
 _BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+")
 
@@ -148,10 +148,14 @@ def _weights(values: list[float]) -> SearchWeights:
 
 @cli_command("courtside synthesize")
 def synthesize_main(argv: list[str]) -> int:
-    from .inputs import load_take
-    from .online import FixedLagSynthesizer
-    from .postprocess import path_to_motion
+    from engine.stream import FramePose, synthesize_streams
+    from engine.stream.poses_file import save_poses
+
     from . import label_constraint
+    from .inputs import TIME_COLUMNS, read_take
+    from .online import FixedLagSynthesizer
+    from .poses import world_joint_positions
+    from .postprocess import path_to_motion
     from .viterbi import ViterbiSearch
 
     p = argparse.ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
@@ -164,9 +168,21 @@ def synthesize_main(argv: list[str]) -> int:
                    metavar=("GAIN_P", "GAIN_O"),
                    help="pull the root towards the camera by these gains per sample, bounded to human speeds "
                         "(engine/graph/warp.py); 0 0 = seed 000's search")
-    p.add_argument("--lag", type=float, default=None, help="fixed-lag online decoding with this latency (s)")
+    p.add_argument("--lag", type=float, default=None,
+                   help="fixed-lag online decoding with this latency (s); on a gateway export this is the console's "
+                        "live path itself, so the same lag gives the poses the console showed")
     p.add_argument("--sensor-map", nargs="*", default=None, metavar="STATION/SENSOR=NAME",
                    help="gateway exports: which recorded sensor is which graph sensor")
+    p.add_argument("--camera-heading", action="store_true",
+                   help="gateway exports: use the tracker's heading as a constraint (off by default, as live: the "
+                        "tracker's heading is a rule, not a measurement)")
+    p.add_argument("--times", choices=TIME_COLUMNS, default="t_host_s",
+                   help="gateway exports: sample times online (as the console saw them; default) or re-fitted offline")
+    p.add_argument("--start", type=float, default=None, metavar="T_HOST_S",
+                   help="gateway exports: first frame at this gateway time (default: the take's defined first frame, "
+                        "0.5 s after recording started, as the console)")
+    p.add_argument("--save-poses", default=None, metavar="OUT.npz",
+                   help="also save every frame's joint positions (the format `courtside console --save-poses` writes)")
     p.add_argument("--require", nargs="*", default=[], metavar="LABEL@SECONDS",
                    help="human constraints (eq. 8): be on a clip labelled LABEL around this time of the take")
     p.add_argument("--require-tolerance", type=int, default=10, help="+- frames around each required time")
@@ -185,24 +201,25 @@ def synthesize_main(argv: list[str]) -> int:
     sensor_map = parse_sensor_map(args.sensor_map, graph.config.sensor_names)
     check_lag(args.lag, graph.config.fps)
     check_output_dir(args.output)
-    obs = load_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map)
+    take = read_take(args.input, graph.config.sensor_names, graph.config.fps, sensor_map,
+                     use_camera_heading=args.camera_heading, times=args.times, start_s=args.start)
     if args.calibration and graph.skeleton is not None:
-        from .calibrated_input import calibrated_observations
+        from .calibrated_input import calibrated_take
 
         try:
-            obs = calibrated_observations(obs, graph.skeleton, graph.config.sensor_names, args.calibration)
+            take = calibrated_take(take, graph.skeleton, graph.config.sensor_names, args.calibration)
         except ValueError as exc:  # a record made for another skeleton's joint frames
             raise MalformedFileError(args.calibration, None, str(exc)) from None
+    obs = take.obs
     if graph.skeleton is None:
         raise MalformedFileError(args.graph, None, "graph holds no skeleton (rebuild it with build-graph)")
     check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, obs.n_samples, graph.config.fps)
-    warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
+    weights = _weights(args.weights) if args.weights else default_weights(warp)  # a bad value: one line, no warning
+    warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     if warning:
         print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"
                          if warp.active else ""), file=sys.stderr)
-    weights = _weights(args.weights) if args.weights else (
-        SearchWeights.camera_following() if warp.active else SearchWeights())
     try:
         constraints = [label_constraint(graph, r.rsplit("@", 1)[0], int(round(float(r.rsplit("@", 1)[1])
                                                                                 * graph.config.fps)),
@@ -225,29 +242,38 @@ def synthesize_main(argv: list[str]) -> int:
         outputs.append(open_vmc(args.stream_vmc, graph.skeleton))
     t0 = time.perf_counter()
     broken = 0
-    extra = {}
+    fps = graph.config.fps
+    counts: dict = {}
     if args.lag is None:
         res = ViterbiSearch(graph, weights, warp=warp).run(obs, constraints)
         nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
         broken = res.broken_constraints
+        joints = world_joint_positions(graph, nodes, ground, heading)
+        poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
     else:
-        decoder = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp)
-        syn = decoder
-        if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
-            from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
+        made = []
 
-            syn = StreamingSynthesizer(decoder, PoseStreamer(graph, graph.skeleton, outputs, realtime=True))
-        poses = []
-        for t in range(obs.n_samples):
-            poses += syn.push(None if obs.acc_g is None else obs.acc_g[t],
-                              None if obs.position_m is None else obs.position_m[t],
-                              None if obs.heading_rad is None else float(obs.heading_rad[t]))
-        poses += syn.flush()
-        extra = {"confidence_mean": round(float(np.mean([q.confidence for q in poses])), 3),
-                 "reanchors": len(decoder.reanchors)}
-        nodes = np.array([q.node for q in poses])
-        ground = np.array([q.ground_m for q in poses])
-        heading = np.array([q.heading_rad for q in poses])
+        def make():
+            syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp)
+            if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
+                from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
+
+                syn = StreamingSynthesizer(syn, PoseStreamer(graph, graph.skeleton, outputs, realtime=True))
+            made.append(syn)
+            return syn
+
+        if take.streams is not None:  # a gateway take: the live path, sample by sample
+            poses, session = synthesize_streams(make, take.streams, take.stream_keys, fps, start_s=args.start,
+                                                use_camera_heading=args.camera_heading)
+            counts = vars(session.stats)
+        else:
+            poses = _fixed_lag_over_frames(make(), take)
+        counts.update(confidence_mean=round(float(np.mean([q.confidence for q in poses])), 3) if poses else None,
+                      reanchors=len(made[-1].reanchors))
+        emitted = [q.source for q in poses]
+        nodes = np.array([q.node for q in emitted])
+        ground = np.array([q.ground_m for q in emitted])
+        heading = np.array([q.heading_rad for q in emitted])
         edges = np.full(len(nodes), -1)
         for t in range(1, len(nodes)):
             try:
@@ -264,9 +290,35 @@ def synthesize_main(argv: list[str]) -> int:
         stream_motion(outputs, motion)
     if stream is not None:
         stream.close()
-    print(json.dumps({"samples": int(obs.n_samples), "search_s": round(elapsed, 3), "output": args.output,
-                      "broken_constraints": broken, **extra}))
+    if args.save_poses:
+        save_poses(args.save_poses, poses, graph.skeleton.parents,
+                   {"engine": "motion-graph", "database": str(args.graph), "lag_s": args.lag, "rate_hz": fps,
+                    "start_frame": int(poses[0].frame) if poses else None, "input": str(args.input),
+                    "use_camera_heading": args.camera_heading, **counts})
+    print(json.dumps({"samples": int(obs.n_samples), "first_frame": int(take.frame[0]), "search_s": round(elapsed, 3),
+                      "output": args.output, "broken_constraints": broken,
+                      **{k: counts[k] for k in ("confidence_mean", "reanchors") if k in counts}}))
     return 0
+
+
+def _fixed_lag_over_frames(synthesizer, take) -> list:
+    """Fixed-lag decoding of frames already on the clock (a synthesis-input file): one push per frame, a NaN
+    row (dropout) pushed without accelerations, as the live path does."""
+    from engine.stream import FramePose
+
+    obs, out = take.obs, []
+    first = int(take.frame[0])
+    fps = synthesizer.graph.config.fps
+
+    def frame_poses(emitted):
+        return [FramePose(first + q.t, (first + q.t) / fps, q.joint_positions_m,
+                          getattr(q, "confidence", None), q) for q in emitted]
+
+    for t in range(obs.n_samples):
+        acc = None if obs.acc_g is None or np.isnan(obs.acc_g[t]).any() else obs.acc_g[t]
+        out += frame_poses(synthesizer.push(acc, None if obs.position_m is None else obs.position_m[t],
+                                            None if obs.heading_rad is None else float(obs.heading_rad[t])))
+    return out + frame_poses(synthesizer.flush())
 
 
 @cli_command("courtside evaluate")

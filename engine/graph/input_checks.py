@@ -103,7 +103,9 @@ def check_gateway_export(path: Path, data, keys: list[str]) -> None:
         if acc.shape[1] != 3 or len(acc) != len(t):
             raise MalformedFileError(path, None, f"'{key}': acc_g {acc.shape} and t_host_s {t.shape} must be "
                                                  "(N, 3) and (N,)")
-        if len(t) < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
+        # a real recording may step back now and then (the online clock map re-fits; engine.stream drops samples
+        # that are not after every earlier one, live and offline alike), but overall its times must increase
+        if len(t) < 2 or not np.all(np.isfinite(t)) or not t[-1] > t[0] or np.mean(np.diff(t) > 0) < 0.5:
             raise MalformedFileError(path, None, f"'{key}/t_host_s' must hold at least 2 finite, increasing times")
         _check_finite(path, f"{key}/acc_g", acc[:, None], 1.0 / float(np.median(np.diff(t))))
     if "messages" in data.files:

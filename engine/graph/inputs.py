@@ -1,34 +1,52 @@
-"""Reading a recorded take for synthesis and bringing it to the graph rate.
+"""Reading a recorded take for synthesis, brought to the graph's frame clock by the one sample -> frame path
+(`engine.stream`: box-filtered resampling, dropouts marked and never interpolated, camera fix per frame time).
 
 Two file layouts are accepted (both .npz):
 
 * the synthesis input format (documented in docs/engine-graph.md):
   `acc_g` (T, S, 3) g; `fps` scalar Hz (all streams share it); optional `sensor_names` (S,) graph sensor names of
   the acc columns (default: the graph's first S sensors); optional `position_m` (T, 2) ground (x, z) m and
-  `heading_rad` (T,) rad, NaN where missing.
-* the gateway's export (`courtside gateway` recording -> `export_npz`): per sensor `<station>/<sensor>/acc_g`
-  (N, 3) and `<station>/<sensor>/t_host_s` (N,). Sensors are put on a common time grid; they map to graph
-  sensors in sorted (station, sensor) order unless a mapping is given. Recorded camera messages (in the
-  `messages` JSON: `t_host_s`, `position_m` court [x, y], `heading_rad`) become the position/heading track.
+  `heading_rad` (T,) rad, NaN where missing. Sample i is at time i / fps.
+* the gateway's export (`courtside gateway export --npz`): per sensor `<station>/<sensor>/acc_g` (N, 3) and
+  `<station>/<sensor>/t_host_s` (N,) (or `t_realigned_s`, the offline clock re-fit); they map to graph sensors
+  in sorted (station, sensor) order unless a mapping is given. Recorded camera messages (in the `messages` JSON:
+  `t_host_s`, `position_m` court [x, y] or null, `heading_rad`) are the camera track; the recording's `meta`
+  (`started_t_host_s`) fixes the take's first frame (`engine.stream.take_start_s`), exactly as the console
+  does live, so the same take gives the same frames live and offline.
 
-If a position track is given without heading, the seed-000 heuristic fills it in: the direction of motion when
-the speed exceeds 2 m/s, otherwise facing the net (court y = world z = 0).
+The tracker's heading is used only when asked (``use_camera_heading``), as live; a synthesis-input file's own
+`heading_rad` is always used, and if it has a position track without heading the seed-000 heuristic fills it in:
+the direction of motion when the speed exceeds 2 m/s, otherwise facing the net (court y = world z = 0).
 """
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from engine.errors import MalformedFileError
 from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
+from engine.stream import CameraTrack, FrameBatch, FrameResampler, RecordedStreams, resample_uniform, take_start_s
 
 from .input_checks import check_gateway_export, check_observations, check_sensor_map, check_synthesis_file, open_npz
-from .online import resample_stream
 from .viterbi import Observations
 
 HEURISTIC_SPEED_MPS = SEED_HEADING_SPEED_MPS
+TIME_COLUMNS = ("t_host_s", "t_realigned_s")
+
+
+@dataclass
+class TakeFrames:
+    """A take on the frame clock: the observations, each frame's index and gateway time, and (gateway exports)
+    the raw recorded streams with the live sensor feeding each observation column."""
+
+    obs: Observations
+    frame: np.ndarray   # (T,) int64 frame index (t_s = frame / fps)
+    t_s: np.ndarray     # (T,) s
+    streams: RecordedStreams | None = None
+    stream_keys: list[str] | None = None
 
 
 def heading_heuristic(position_m: np.ndarray, fps: float, speed_threshold_mps: float = HEURISTIC_SPEED_MPS,
@@ -41,17 +59,18 @@ def heading_heuristic(position_m: np.ndarray, fps: float, speed_threshold_mps: f
     return seed_heading_rule(pos, np.gradient(pos, axis=0) * fps, speed_threshold_mps)
 
 
-def _interp_track(values: np.ndarray, fps_in: float, n_out: int, fps_out: float, angle: bool = False) -> np.ndarray:
-    """Linear interpolation of a slowly varying track (position/heading) onto the graph-rate grid."""
-    t_in = np.arange(len(values)) / fps_in
-    t_out = np.arange(n_out) / fps_out
-    v = np.unwrap(values) if angle else values
-    if v.ndim == 1:
-        return np.interp(t_out, t_in, v)
-    return np.stack([np.interp(t_out, t_in, v[:, k]) for k in range(v.shape[1])], axis=1)
+def _track_at(values_t_s: np.ndarray, positions: np.ndarray | None, headings: np.ndarray | None,
+              frames_t_s: np.ndarray, max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """A sampled position/heading track at frame times, by the camera-track rule (bracketing samples)."""
+    track = CameraTrack(max_gap_s)
+    for k, t in enumerate(values_t_s):
+        pos = None if positions is None or np.isnan(positions[k]).any() else positions[k]
+        head = None if headings is None or np.isnan(headings[k]) else float(headings[k])
+        track.add(float(t), pos, head)
+    return track.at(frames_t_s)
 
 
-def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: float) -> Observations:
+def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: float) -> TakeFrames:
     check_synthesis_file(path, data, graph_sensors)  # shapes, fps, finite values: past here they are sound
     acc = np.asarray(data["acc_g"], float)
     fps = float(data["fps"])
@@ -63,80 +82,108 @@ def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: 
     if unknown or len(names) != acc.shape[1]:
         raise MalformedFileError(path, None, f"sensor names {names} do not match the acc_g columns / graph "
                                              f"sensors {graph_sensors}")
-    acc_r = resample_stream(acc, fps, fps_graph)
-    n = len(acc_r)
+    frames = resample_uniform(acc, fps, fps_graph)
+    if not len(frames):
+        raise MalformedFileError(path, None, f"{len(acc)} samples at {fps:g} Hz are less than one frame")
+    t_in = np.arange(len(acc)) / fps
+    gap = max(1.5 / fps, 1.0 / fps_graph)
     pos = head = None
     if "position_m" in data.files:
-        pos = _interp_track(np.asarray(data["position_m"], float), fps, n, fps_graph)
+        pos, _ = _track_at(t_in, np.asarray(data["position_m"], float), None, frames.t_s, gap)
     if "heading_rad" in data.files:
-        head = _interp_track(np.asarray(data["heading_rad"], float), fps, n, fps_graph, angle=True)
+        _, head = _track_at(t_in, np.zeros((len(acc), 2)), np.asarray(data["heading_rad"], float), frames.t_s, gap)
     elif pos is not None:
         head = heading_heuristic(pos, fps_graph)
-    return Observations(acc_r, pos, head, tuple(graph_sensors.index(n) for n in names))
+    obs = Observations(frames.acc_g, pos, head, tuple(graph_sensors.index(n) for n in names))
+    return TakeFrames(obs, frames.index, frames.t_s)
 
 
-def _from_gateway_export(path: Path, data, graph_sensors: list[str], fps_graph: float,
-                         sensor_map: dict[str, str] | None) -> Observations:
+def recorded_streams(path: Path, data, graph_sensors: list[str], sensor_map: dict[str, str] | None,
+                     times: str = "t_host_s") -> tuple[RecordedStreams, list[str], tuple[int, ...]]:
+    """A gateway export's raw streams: (streams, live stream key per observation column, graph sensor index per
+    column). Columns are in graph-sensor order, as the console feeds them live."""
+    if times not in TIME_COLUMNS:
+        raise ValueError(f"times must be one of {TIME_COLUMNS}, not {times!r}")
     keys = sorted({k.rsplit("/", 1)[0] for k in data.files if k.endswith("/acc_g")})
     if not keys:
         raise MalformedFileError(path, None, "no 'acc_g' array and no '<station>/<sensor>/acc_g' arrays")
     check_gateway_export(path, data, keys)
     check_sensor_map(path, sensor_map, keys)
     mapping = sensor_map or dict(zip(keys, graph_sensors))
-    missing = [k for k in keys if k not in mapping]
-    if missing or any(v not in graph_sensors for v in mapping.values()):
-        raise MalformedFileError(path, None, f"cannot map recorded sensors {keys} onto graph sensors {graph_sensors}")
-    streams = [(np.asarray(data[f"{k}/t_host_s"], float), np.asarray(data[f"{k}/acc_g"], float)) for k in keys]
-    t0 = max(t[0] for t, _ in streams)
-    t1 = min(t[-1] for t, _ in streams)
-    rate = min(1.0 / np.median(np.diff(t)) for t, _ in streams)
-    if not t1 > t0:
-        raise MalformedFileError(path, None, "the sensors' recordings do not overlap in time")
-    grid = np.arange(t0, t1, 1.0 / rate)
-    acc = np.stack([np.stack([np.interp(grid, t, a[:, k]) for k in range(3)], axis=1) for t, a in streams], axis=1)
-    acc_r = resample_stream(acc, rate, fps_graph)
-    t_out = t0 + np.arange(len(acc_r)) / fps_graph
-    pos, head = _camera_track(path, data, t_out)
-    if pos is not None and head is not None and np.all(np.isnan(head)):
-        head = heading_heuristic(np.nan_to_num(pos), fps_graph)
-    return Observations(acc_r, pos, head, tuple(graph_sensors.index(mapping[k]) for k in keys))
+    missing = [k for k in mapping if k not in keys]
+    if missing or any(v not in graph_sensors for v in mapping.values()) or len(set(mapping.values())) < len(mapping):
+        raise MalformedFileError(path, None, f"cannot map recorded sensors {keys} onto graph sensors "
+                                             f"{graph_sensors} with {mapping}")
+    used = sorted(mapping, key=lambda k: graph_sensors.index(mapping[k]))
+    samples = {}
+    for k in used:
+        if f"{k}/{times}" not in data.files:
+            raise MalformedFileError(path, None, f"sensor {k} has no '{times}' array")
+        samples[k] = (np.asarray(data[f"{k}/{times}"], float), np.asarray(data[f"{k}/acc_g"], float))
+    meta = _json(path, data, "meta", {})
+    if not isinstance(meta, dict):
+        raise MalformedFileError(path, None, "'meta' must be a JSON object (the recording's header)")
+    cams = [m for m in _json(path, data, "messages", []) if m.get("kind") == "camera" and m.get("t_host_s") is not None]
+    cams.sort(key=lambda m: float(m["t_host_s"]))
+    camera = [(float(m["t_host_s"]), m.get("position_m"), m.get("heading_rad")) for m in cams]
+    streams = RecordedStreams(samples, camera, meta.get("started_t_host_s"))
+    return streams, used, tuple(graph_sensors.index(mapping[k]) for k in used)
 
 
-def _camera_track(path: Path, data, t_out: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Court position (court (x, y) = world (x, z), m) and heading from the export's recorded camera messages,
-    interpolated to the sample times; NaN outside the tracked span. (None, None) if there are none."""
-    if "messages" not in data.files:
-        return None, None
+def _json(path: Path, data, name: str, default):
+    if name not in data.files:
+        return default
     try:
-        messages = json.loads(str(data["messages"]))
+        return json.loads(str(data[name]))
     except json.JSONDecodeError as exc:
-        raise MalformedFileError(path, None, f"'messages' is not JSON ({exc})") from exc
-    cams = [m for m in messages if m.get("kind") == "camera" and m.get("position_m") is not None]
-    if len(cams) < 2:
-        return None, None
-    t = np.array([float(m["t_host_s"]) for m in cams])
-    order = np.argsort(t)
-    t = t[order]
-    xy = np.array([m["position_m"][:2] for m in cams], float)[order]
-    heading = np.array([np.nan if m.get("heading_rad") is None else float(m["heading_rad"]) for m in cams])[order]
-    inside = (t_out >= t[0]) & (t_out <= t[-1])
-    pos = np.full((len(t_out), 2), np.nan)
-    pos[inside] = np.stack([np.interp(t_out[inside], t, xy[:, k]) for k in range(2)], axis=1)
-    head = np.full(len(t_out), np.nan)
-    known = ~np.isnan(heading)
-    if known.sum() >= 2:
-        head[inside] = np.interp(t_out[inside], t[known], np.unwrap(heading[known]))
-    return pos, head
+        raise MalformedFileError(path, None, f"'{name}' is not JSON ({exc})") from exc
+
+
+def _from_gateway_export(path: Path, data, graph_sensors: list[str], fps_graph: float,
+                         sensor_map: dict[str, str] | None, use_camera_heading: bool, times: str,
+                         start_s: float | None) -> TakeFrames:
+    streams, keys, indices = recorded_streams(path, data, graph_sensors, sensor_map, times)
+    if start_s is None and streams.started_t_host_s is not None:
+        start_s = take_start_s(streams.started_t_host_s)
+    resampler = FrameResampler(keys, fps_graph)
+    for k in keys:
+        resampler.add(k, *streams.samples[k])
+    resampler.start_at(start_s)
+    frames: FrameBatch = resampler.frames()
+    if not frames.valid.any():
+        raise MalformedFileError(path, None, "the sensors' recordings do not overlap in time (no frame has every "
+                                             "sensor's samples)")
+    track = CameraTrack()
+    for t, pos, head in streams.camera:
+        track.add(t, pos, head)
+    pos, head = track.at(frames.t_s)
+    obs = Observations(frames.acc_g, pos if streams.camera else None,
+                       head if streams.camera and use_camera_heading else None, indices)
+    return TakeFrames(obs, frames.index, frames.t_s, streams, keys)
+
+
+def read_take(path: str | Path, graph_sensors: list[str], fps_graph: float, sensor_map: dict[str, str] | None = None,
+              *, use_camera_heading: bool = False, times: str = "t_host_s", start_s: float | None = None) -> TakeFrames:
+    """A synthesis-input .npz or a gateway export on the frame clock (see the module doc)."""
+    path = Path(path)
+    try:
+        data = open_npz(path)
+    except MalformedFileError as exc:
+        if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx"):
+            raise MalformedFileError(path, None, f"{exc.problem}; a device recording (CSV/TSV, Xsens, x-IMU3) "
+                                                 "becomes a take with `courtside import-imu`") from None
+        raise
+    with data:
+        if "acc_g" in data.files:
+            take = _from_synthesis_file(path, data, graph_sensors, fps_graph)
+        else:
+            take = _from_gateway_export(path, data, graph_sensors, fps_graph, sensor_map, use_camera_heading, times,
+                                        start_s)
+    check_observations(path, take.obs.acc_g, fps_graph)
+    return take
 
 
 def load_take(path: str | Path, graph_sensors: list[str], fps_graph: float,
-              sensor_map: dict[str, str] | None = None) -> Observations:
-    """Observations at the graph rate from a synthesis-input .npz or a gateway export."""
-    path = Path(path)
-    with open_npz(path) as data:
-        if "acc_g" in data.files:
-            obs = _from_synthesis_file(path, data, graph_sensors, fps_graph)
-        else:
-            obs = _from_gateway_export(path, data, graph_sensors, fps_graph, sensor_map)
-    check_observations(path, obs.acc_g, fps_graph)
-    return obs
+              sensor_map: dict[str, str] | None = None, **options) -> Observations:
+    """Observations at the graph rate from a synthesis-input .npz or a gateway export (`read_take`)."""
+    return read_take(path, graph_sensors, fps_graph, sensor_map, **options).obs

@@ -1,4 +1,4 @@
-"""Online synthesis: a fixed-lag Viterbi decoder and sensor-rate conversion to the graph rate.
+"""Online synthesis: a fixed-lag Viterbi decoder (sensor streams reach the graph rate through `engine.stream`).
 
 At sample t the decoder advances the lattice (O(E)), then decides sample t - L by back-tracing L steps from the
 currently best node: the latency is L samples and the memory L lattice columns (older ones are dropped).
@@ -8,10 +8,8 @@ as the batch search does -- the two are the same computation.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
 
 import numpy as np
-from scipy import signal
 
 from .graph import MotionGraph
 from .poses import world_joint_positions
@@ -133,13 +131,3 @@ class FixedLagSynthesizer:
         lat.drop_before(self.next_emit)
         return [EmittedPose(first + i, int(nodes[i]), joints[i], ground[i], float(heading[i]),
                             self._confidence.pop(first + i, 1.0)) for i in range(k)]
-
-
-def resample_stream(samples: np.ndarray, fs_in_hz: float, fs_graph_hz: float) -> np.ndarray:
-    """Convert a sensor stream (T, ...) to the graph rate with a polyphase FIR whose low-pass removes content
-    above the new Nyquist before decimating (e.g. 100 Hz -> 30 Hz = up 3, down 10)."""
-    ratio = Fraction(fs_graph_hz / fs_in_hz).limit_denominator(1000)
-    if ratio == 1:
-        return np.asarray(samples, dtype=float).copy()
-    return signal.resample_poly(np.asarray(samples, dtype=float), ratio.numerator, ratio.denominator, axis=0,
-                                padtype="line")

@@ -596,7 +596,8 @@ def constraint_penalties(constraints: list[Constraint], n_nodes: int, n_samples:
 
 
 def _sample(obs: Observations, t: int) -> tuple[np.ndarray | None, np.ndarray | None, float | None]:
-    acc = None if obs.acc_g is None else obs.acc_g[t]
+    # a NaN acc row is a sensor dropout (engine.stream marks them): step on the camera alone
+    acc = None if obs.acc_g is None or np.isnan(obs.acc_g[t]).any() else obs.acc_g[t]
     pos = None if obs.position_m is None else obs.position_m[t]
     head = None if obs.heading_rad is None else float(obs.heading_rad[t])
     return acc, pos, head
@@ -622,7 +623,9 @@ class ViterbiSearch:
         for t in range(obs.n_samples):
             if batch and t % ACC_BATCH == 0:  # C_A rows of the next samples in one pass over the metadata
                 rows = lattice.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
-            lattice.step(*_sample(obs, t), penalties.get(t), rows[t % ACC_BATCH] if batch and t else None)
+            acc, pos, head = _sample(obs, t)
+            lattice.step(acc, pos, head, penalties.get(t),
+                         rows[t % ACC_BATCH] if batch and t and acc is not None else None)
         return finish(lattice)
 
 

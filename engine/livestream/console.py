@@ -1,20 +1,22 @@
-"""The console's `--stream-bvh`: its synthesis setup with every emitted pose also sent to animation tools.
+"""The console's `--stream-bvh`: its synthesis engine with every emitted pose also sent to animation tools.
 
-Kept here (engine side, no Qt) so gui/cli.py only swaps the setup: the console's worker thread builds its
-synthesizer through ``make_synthesizer(lag_s)``; the wrapped factory returns a :class:`StreamingSynthesizer`."""
+Kept here (engine side, no Qt) so gui/cli.py only swaps the engine: the console's worker builds its engine
+through ``EngineSpec.make(lag_s)``; the wrapped factory returns a :class:`StreamingSynthesizer`."""
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
 
+from engine.errors import CourtsideError
 from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
 from engine.livestream.stream_cli import open_stream
+from engine.stream.engines import EngineSpec
 
 
-def streaming_setup(setup: Any, graph: Any, skeleton: Any, address: str) -> Any:
-    """``setup`` (gui.synthesis.SynthesisSetup) whose synthesizers stream their poses on ``address``; live
-    samples already arrive in real time, so no pacing."""
+def streaming_engine(spec: EngineSpec, address: str) -> EngineSpec:
+    """``spec`` whose engines also stream their poses on ``address``; live samples already arrive in real time, so
+    no pacing. Poses are placed on the motion graph's path, so only that engine streams."""
+    if spec.graph is None or spec.skeleton is None:
+        raise CourtsideError(f"--stream-bvh streams the motion graph's poses; the {spec.name} engine has none")
     server = open_stream(address, 0.0, "console")
-    streamer = PoseStreamer(graph, skeleton, server, realtime=False)
-    make = setup.make_synthesizer
-    return replace(setup, make_synthesizer=lambda lag_s: StreamingSynthesizer(make(lag_s), streamer))
+    streamer = PoseStreamer(spec.graph, spec.skeleton, server, realtime=False)
+    return replace(spec, make=lambda lag_s: StreamingSynthesizer(spec.make(lag_s), streamer))

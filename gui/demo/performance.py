@@ -10,7 +10,7 @@ import numpy as np
 from engine.mocap import (SEED000_SENSORS, Skeleton, forward_kinematics, load_clip, root_heading, sample_clips,
                           standard_placements, virtual_accelerometers)
 
-from gui.engine_link import GRAPH_FPS
+from engine.stream.databases import GRAPH_FPS
 
 HELD_OUT_CLIPS = ("16_32", "16_36", "16_05")  # walk, run, forward jump: not in the demo's motion graph
 EXTRA_SENSORS = ("left_wrist", "right_wrist", "left_ankle", "right_ankle", "right_foot")
@@ -128,6 +128,10 @@ class TruthClock:
     def __init__(self, perf: Performance, t0_monotonic_s: float) -> None:
         self.perf = perf
         self.t0 = t0_monotonic_s
+
+    @property
+    def parents(self) -> np.ndarray:
+        return self.perf.parents
 
     def __call__(self, t_host_s: float) -> np.ndarray | None:
         if t_host_s < self.t0:

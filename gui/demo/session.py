@@ -9,7 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gui.demo.hardware import demo_hardware, hardware_in_subprocess
-from gui.demo.performance import Performance, TruthClock, build_performance, sensor_segments, synthesis_sensors
+from gui.demo.performance import (Performance, TruthClock, build_performance, sensor_segments, synthesis_sensors,
+                                  truth_from_events)
 
 log = logging.getLogger("courtside.demo")
 
@@ -31,22 +32,23 @@ def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
     """Start the demo hardware (by default in a child process) and open the console window on it."""
     from gateway.client import GatewayClient
 
-    from gui.engine_link import load_or_build_graph, sensor_joints, synthesis_setup
+    from engine.stream.databases import shipped_graph_spec
+    from gui.engine_link import sensor_joints, synthesis_setup
     from gui.main_window import ConsoleWindow
 
     hardware = hardware_in_subprocess if separate_process else demo_hardware
     perf = build_performance()  # deterministic: the same frames the stations replay, for ground truth here
-    graph, skeleton, cache = load_or_build_graph(exclude=perf.clip_names)
-    log.info("motion graph %s: %d nodes from the shipped clips minus held-out %s", cache, graph.n_nodes,
-             ", ".join(perf.clip_names))
+    spec = shipped_graph_spec(exclude=perf.clip_names)
+    log.info("%s, minus held-out %s", spec.label, ", ".join(perf.clip_names))
     with contextlib.ExitStack() as stack:
         address, t0 = stack.enter_context(hardware(listen, record_dir, camera, duration_s))
         client = GatewayClient(*address).connect()
         stack.callback(client.close)
         log.info("demo gateway on %s:%d (connect more consoles with `courtside console --connect ...`)", *address)
-        window = ConsoleWindow(client, synthesis=synthesis_setup(graph, skeleton, synthesis_sensors(), lag_s),
-                               truth=TruthClock(perf, t0), sensor_segments=sensor_segments(),
-                               sensor_joints=sensor_joints(skeleton, sensor_segments()),
+        window = ConsoleWindow(client, synthesis=synthesis_setup(spec, synthesis_sensors(), lag_s),
+                               truth=TruthClock(perf, t0), truth_for_take=truth_from_events,
+                               sensor_segments=sensor_segments(),
+                               sensor_joints=sensor_joints(perf.skeleton, sensor_segments()),
                                title="Courtside demo — emulated stations replaying held-out CMU mocap")
         stack.callback(window.shutdown)
         window.resize(1500, 950)

@@ -12,7 +12,7 @@ import numpy as np
 from PySide6 import QtCore, QtGui, QtWidgets
 
 from gui.render.camera import CameraMode, OrbitCamera
-from gui.render.skeleton_renderer import ESTIMATE_STYLE, TRUTH_STYLE, SkeletonRenderer
+from gui.render.skeleton_renderer import ESTIMATE_STYLE, TRUTH_STYLE, SkeletonRenderer, SkeletonStyle
 
 TRUTH_OFFSET_M = np.array([1.5, 0.0, 0.0])  # ground truth drawn beside the estimate, not on top of it
 # Render at most this many pixels and let Qt scale up: llvmpipe cost grows with the pixel count and the
@@ -33,6 +33,15 @@ def rgba_to_qimage(pixels: np.ndarray) -> QtGui.QImage:
     return image
 
 
+LOW_CONFIDENCE_RGB = (0.45, 0.45, 0.45)
+
+
+def confidence_style(style: SkeletonStyle, confidence: float) -> SkeletonStyle:
+    """``style`` with bones and joints blended towards grey by (1 - confidence)."""
+    mix = lambda rgb: tuple(confidence * c + (1 - confidence) * g for c, g in zip(rgb, LOW_CONFIDENCE_RGB))  # noqa: E731
+    return replace(style, bone_rgb=mix(style.bone_rgb), joint_rgb=mix(style.joint_rgb))
+
+
 class SkeletonView(QtWidgets.QWidget):
     def __init__(self, renderer: SkeletonRenderer | None = None, parent: QtWidgets.QWidget | None = None) -> None:
         super().__init__(parent)
@@ -44,6 +53,7 @@ class SkeletonView(QtWidgets.QWidget):
         self.truth_m: np.ndarray | None = None
         self.truth_offset_m = TRUTH_OFFSET_M.copy()
         self.estimate_style = ESTIMATE_STYLE
+        self.confidence_level: float | None = None
         self._image: QtGui.QImage | None = None
         self._pixels: np.ndarray | None = None
         self._dirty = True
@@ -83,8 +93,20 @@ class SkeletonView(QtWidgets.QWidget):
     def set_segment_colours(self, segment_rgb: dict[int, tuple[float, float, float]]) -> None:
         """Paint the estimate's segments (joint index -> RGB), e.g. sensors in trouble; {} = normal colours."""
         if segment_rgb != (self.estimate_style.segment_rgb or {}):
-            self.estimate_style = replace(ESTIMATE_STYLE, segment_rgb=dict(segment_rgb) or None)
+            self.estimate_style = replace(self.estimate_style, segment_rgb=dict(segment_rgb) or None)
             self._dirty = True
+
+    def set_confidence(self, confidence: float | None) -> None:
+        """Tint the estimate by the engine's confidence in this frame: full colour at 1, fading to grey at 0
+        (None: the engine reports none, normal colours). Quantised to 10 steps so it does not re-render for
+        every small change."""
+        level = None if confidence is None or not np.isfinite(confidence) else round(float(np.clip(confidence, 0, 1)), 1)
+        if level == self.confidence_level:
+            return
+        self.confidence_level = level
+        base = ESTIMATE_STYLE if level is None else confidence_style(ESTIMATE_STYLE, level)
+        self.estimate_style = replace(base, segment_rgb=self.estimate_style.segment_rgb)
+        self._dirty = True
 
     def set_camera_mode(self, mode: CameraMode) -> None:
         self.camera.set_mode(mode)

@@ -73,8 +73,8 @@ def test_console_reads_each_segment_from_the_sensor_the_calibration_record_assig
 
     worn = []
     setup = gui.engine_link.synthesis_setup
-    monkeypatch.setattr(gui.engine_link, "synthesis_setup", lambda g, s, sensors, lag: worn.append(sensors) or
-                        setup(g, s, sensors, lag))
+    monkeypatch.setattr(gui.engine_link, "synthesis_setup", lambda spec, sensors, lag: worn.append(sensors) or
+                        setup(spec, sensors, lag))
     gateway, _ = live_gateway(StillSource(6), 6)
     host, port = gateway.address
     reversed_ids = {seg: f"st1/{5 - i}" for i, seg in enumerate(SEED000_SENSORS)}  # worn in the opposite order
@@ -84,3 +84,24 @@ def test_console_reads_each_segment_from_the_sensor_the_calibration_record_assig
     bad = dict(reversed_ids, chest="chest-sensor")
     assert console_main(["--connect", f"{host}:{port}", "--calibration", record(bad)]) == 2
     assert "sensor id 'chest-sensor' on 'chest'" in capsys.readouterr().err
+
+
+def test_scripted_record_of_an_existing_take_is_refused_with_exit_1(live_gateway, qapp, tmp_path, monkeypatch,
+                                                                   capsys):
+    """Unattended capture must not report success when the gateway refuses the take (here: it exists)."""
+    import time
+
+    from gateway.client import GatewayClient
+
+    monkeypatch.setenv("COURTSIDE_CACHE_DIR", str(tmp_path / "cache"))
+    gateway, _ = live_gateway(StillSource(6), 6)
+    with GatewayClient(*gateway.address).connect() as client:
+        client.start_recording("taken")
+        time.sleep(0.5)
+        client.stop_recording()
+    host, port = gateway.address
+    code = console_main(["--connect", f"{host}:{port}", "--record", "taken", "--duration", "2",
+                         "--save-poses", str(tmp_path / "p.npz")])
+    err = capsys.readouterr().err
+    assert code == 1 and "recording taken refused" in err and "already exists" in err
+    assert console_main(["--connect", f"{host}:{port}", "--record", "x"]) == 2  # a scripted run needs --duration

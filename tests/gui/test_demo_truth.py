@@ -7,7 +7,7 @@ import time
 import numpy as np
 
 from gateway.client import GatewayClient
-from gui.demo import HELD_OUT_CLIPS
+from gui.demo import HELD_OUT_CLIPS, truth_from_events
 from gui.demo.hardware import demo_hardware
 from gui.main_window import ConsoleWindow
 
@@ -21,7 +21,7 @@ def test_demo_take_plays_back_with_ground_truth(qtbot, tmp_path):
             client.start_recording("truth-take")
             time.sleep(2.5)
             state = client.stop_recording()
-    window = ConsoleWindow(None)
+    window = ConsoleWindow(None, truth_for_take=truth_from_events)  # the demo's hook: the window knows no demo
     qtbot.addWidget(window)
     try:
         window.load_playback(state["files"][0])
@@ -35,3 +35,14 @@ def test_demo_take_plays_back_with_ground_truth(qtbot, tmp_path):
         assert window.skeleton.parents is not None and len(window.skeleton.parents) == len(window.skeleton.truth_m)
     finally:
         window.shutdown()
+
+
+def test_the_production_window_imports_no_demo_code():
+    """Issue 13 "Shape": `courtside console` must not load the demo (it is handed a truth hook instead)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, gui.main_window, gui.cli, gui.synthesis, gui.engine_link\n"
+            "demo = sorted(m for m in sys.modules if m.startswith('gui.demo'))\n"
+            "assert not demo, demo\n")
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)

@@ -8,7 +8,7 @@ import pytest
 
 from engine.graph.cli import build_graph_main, evaluate_main, synthesize_main
 from engine.graph.graph import MotionGraph
-from engine.graph.inputs import heading_heuristic, load_take
+from engine.graph.inputs import heading_heuristic, load_take, read_take
 from engine.mocap import (forward_kinematics, load_clip, read_bvh, resample, root_heading, sample_clips,
                           standard_placements, virtual_accelerometers)
 
@@ -67,9 +67,9 @@ def test_gateway_export_is_accepted(tmp_path):
     np.savez(tmp_path / "export.npz", **arrays)
     obs = load_take(tmp_path / "export.npz", ["left_forearm", "right_forearm", "chest"], 30.0,
                     {"base/3": "chest", "base/7": "left_forearm"})
-    assert obs.sensor_indices == (2, 0)
+    assert obs.sensor_indices == (0, 2)  # columns in graph order, as the console feeds them live
     assert obs.acc_g.shape[1:] == (2, 3) and abs(obs.n_samples - 120) <= 1
-    assert np.allclose(obs.acc_g[10:-10, 1, 2], 1.0, atol=1e-3)
+    assert np.allclose(obs.acc_g[10:-10, 0, 2], 1.0, atol=1e-3) and np.allclose(obs.acc_g[10:-10, 1, 2], 0.0)
 
 
 def test_heading_heuristic():
@@ -115,9 +115,13 @@ def test_gateway_export_camera_track(tmp_path):
     cams.insert(3, {"kind": "camera", "t_host_s": 0.6, "position_m": None, "tracking": False})
     np.savez(tmp_path / "export.npz", **{"base/1/t_host_s": t, "base/1/acc_g": np.zeros((len(t), 3)),
                                           "messages": np.array(json.dumps(cams + [{"kind": "event"}]))})
-    obs = load_take(tmp_path / "export.npz", ["chest"], 30.0)
-    ts = np.arange(obs.n_samples) / 30.0
-    inside = (ts >= 0.5) & (ts <= cams[-1]["t_host_s"])
+    take = read_take(tmp_path / "export.npz", ["chest"], 30.0, use_camera_heading=True)
+    obs, ts = take.obs, take.t_s
+    assert np.array_equal(ts, take.frame / 30.0)
+    # each frame gets the fix of its own time; none next to the lost fix at 0.6 s or outside the track
+    lost = (ts > cams[2]["t_host_s"]) & (ts < cams[4]["t_host_s"])
+    inside = (ts >= 0.5) & (ts <= cams[-1]["t_host_s"]) & ~lost
     assert np.allclose(obs.position_m[inside, 0], 1.0 + 0.5 * ts[inside])
     assert np.allclose(obs.heading_rad[inside], 0.25)
-    assert np.all(np.isnan(obs.position_m[~inside]))
+    assert np.all(np.isnan(obs.position_m[~inside])) and lost.sum() == 1  # the 0.6 s frame
+    assert read_take(tmp_path / "export.npz", ["chest"], 30.0).obs.heading_rad is None  # the tracker's rule: off

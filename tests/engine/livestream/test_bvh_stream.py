@@ -125,29 +125,21 @@ def test_fixed_lag_synthesis_streams_each_pose_as_decided(tmp_path):
 
 
 def test_console_setup_streams_what_its_synthesizer_emits(tmp_path):
-    """The console's --stream-bvh swaps only the synthesizer factory: poses pushed through it reach a client."""
-    from dataclasses import dataclass
-    from typing import Any, Callable
-
+    """The console's --stream-bvh swaps only the engine factory: poses pushed through it reach a client."""
     from engine.graph.graph import MotionGraph
     from engine.graph.cli import build_graph_main
-    from engine.graph.online import FixedLagSynthesizer
-    from engine.livestream.console import streaming_setup
+    from engine.livestream.console import streaming_engine
     from engine.mocap import SEED000_SENSORS, resample, standard_placements, virtual_accelerometers
-
-    @dataclass
-    class Setup:  # the fields of gui.synthesis.SynthesisSetup that matter here
-        make_synthesizer: Callable[[float], Any]
-        lag_s: float = 0.5
+    from engine.stream.engines import motion_graph_spec
 
     assert build_graph_main(["--sample", "-o", str(tmp_path / "g.npz")]) == 0
     graph = MotionGraph.load(tmp_path / "g.npz")
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    setup = streaming_setup(Setup(lambda lag: FixedLagSynthesizer(graph, lag)), graph, graph.skeleton, str(port))
+    spec = streaming_engine(motion_graph_spec(graph, "g.npz"), str(port))
     client = socket.create_connection(("127.0.0.1", port))
-    synth = setup.make_synthesizer(0.5)
+    synth = spec.make(0.5)
     motion = resample(load_clip(sample_clips()["16_11"]), 30.0)
     acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS))
     deadline = time.monotonic() + 10

@@ -1,0 +1,152 @@
+"""Which synthesis engine runs on which worn sensors, from which database — one description the console and the
+offline commands share.
+
+`EngineSpec` names the engine and its database (shown in the console's status bar and saved with the poses),
+the worn placements in the engine's sensor-column order, its frame rate, the skeleton of its poses, and makes a
+fresh `engine.stream.OnlineEngine` for a given lag. `check_live_sensors` refuses a database that does not fit
+the live sensors (count, placement names, rate) with a message that names both sides.
+
+Default engine by the number of worn sensors (`default_engine`): 4 -> ``olng`` (Tautges et al.'s OLNG is built for
+wrists + ankles), 1 -> ``hmm`` (the hierarchical HMM is built for one foot IMU), anything else -> ``motion-graph``
+(1-6 sensors plus the camera). The HMM needs gyroscope readings with each accelerometer sample; the base stations
+stream accelerometers only, so the HMM is refused live with that reason (`hmm_spec`) and the 1-sensor default
+falls back to the motion graph (`engine_for_live`)."""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.errors import CourtsideError
+
+ENGINE_NAMES = ("motion-graph", "olng", "hmm")
+
+
+class EngineMismatchError(CourtsideError):
+    """The chosen engine/database cannot run on the live sensors (the message says why)."""
+
+
+class SensorsMissingError(EngineMismatchError):
+    """Sensors the engine needs are not (yet) streaming."""
+
+
+@dataclass
+class EngineSpec:
+    name: str                       # one of ENGINE_NAMES
+    database: str                   # what the engine was built from: a file, or "shipped CMU clips (cached ...)"
+    sensor_names: tuple[str, ...]   # worn placement of each engine sensor column, in order
+    rate_hz: float                  # synthesis frame rate
+    parents: np.ndarray             # skeleton parents of the emitted joint positions
+    make: Callable[[float], Any]    # lag_s -> a fresh OnlineEngine
+    lag_applies: bool = True        # False: the engine decides each frame at once (OLNG)
+    graph: Any = None               # the motion graph (motion-graph engine): what pose streaming needs
+    skeleton: Any = None            # engine.mocap.Skeleton of the emitted poses, when known
+
+    @property
+    def label(self) -> str:
+        """One line for a status bar: engine, database, sensors."""
+        return f"{self.name} on {self.database} ({len(self.sensor_names)} sensors @ {self.rate_hz:g} Hz)"
+
+
+@dataclass(frozen=True)
+class EnginePose:
+    """A decided pose in the `OnlineEngine` protocol: push index, joints, optional confidence."""
+
+    t: int
+    joint_positions_m: np.ndarray
+    confidence: float | None = None
+
+
+def default_engine(n_worn: int) -> str:
+    """The engine the number of worn sensors calls for (module doc)."""
+    return {4: "olng", 1: "hmm"}.get(n_worn, "motion-graph")
+
+
+def motion_graph_spec(graph: Any, database: str | Path, skeleton: Any = None, warp: Any = None) -> EngineSpec:
+    """Fixed-lag Viterbi over a `engine.graph.MotionGraph` (from `courtside build-graph` or the console's cache),
+    with `courtside synthesize`'s defaults: root warping towards the camera (``warp``, default
+    `engine.graph.warp.RootWarp()`) and the weights that go with it. The confidence reference (the cost per sample
+    of the graph's own clips) is measured once here, not at every engine restart."""
+    from engine.graph.confidence import reference_cost_per_sample
+    from engine.graph.online import FixedLagSynthesizer
+    from engine.graph.warp import RootWarp, default_weights
+
+    skeleton = graph.skeleton if skeleton is None else skeleton
+    if skeleton is None:
+        raise EngineMismatchError(f"{database}: the graph holds no skeleton (rebuild it with build-graph)")
+    names = tuple(graph.config.sensor_names)
+    if len(names) != graph.n_sensors:
+        raise EngineMismatchError(f"{database}: graph has {graph.n_sensors} sensor columns but names {list(names)}")
+    warp = RootWarp() if warp is None else warp
+    weights = default_weights(warp)
+    reference = reference_cost_per_sample(graph, weights, warp)
+    return EngineSpec("motion-graph", str(database), names, float(graph.config.fps), np.asarray(skeleton.parents),
+                      lambda lag_s: FixedLagSynthesizer(graph, lag_s, weights, warp=warp,
+                                                        confidence_reference=reference), graph=graph,
+                      skeleton=skeleton)
+
+
+class OLNGEngine:
+    """`engine.olng.OLNGReconstructor` in the `OnlineEngine` protocol. It decides each frame at once (no lag), its
+    integrated root follows the camera fix when there is one; a dropout frame holds the last reading (the
+    reconstructor's own rule), and nothing is emitted until the first complete reading."""
+
+    def __init__(self, kb: Any) -> None:
+        from engine.olng.reconstructor import OLNGReconstructor
+
+        self.rec = OLNGReconstructor(kb)
+        self.n_sensors = kb.alpha_g.shape[1] // 3
+        self.t = -1
+        self.started = False
+
+    def push(self, acc_g: np.ndarray | None, pos_m: Any = None, heading_rad: float | None = None) -> list[EnginePose]:
+        self.t += 1
+        if acc_g is None and not self.started:
+            return []
+        self.started = True
+        reading = np.full((self.n_sensors, 3), np.nan) if acc_g is None else acc_g
+        return [EnginePose(self.t, self.rec.push(reading, pos_m, heading_rad).joints_world_m)]
+
+    def flush(self) -> list[EnginePose]:
+        return []
+
+
+def olng_spec(kb: Any, database: str | Path, sensor_names: Sequence[str] | None = None) -> EngineSpec:
+    """OLNG over a knowledge base (`courtside reconstruct --save-kb`, or built from the shipped clips). A saved
+    knowledge base does not name its sensors; it is built at the seed-003 placements unless told otherwise."""
+    from engine.mocap import SEED003_SENSORS
+    from engine.olng.mocap_bridge import skeleton_from_rig
+
+    names = tuple(sensor_names or SEED003_SENSORS)
+    n = kb.alpha_g.shape[1] // 3
+    if len(names) != n:
+        raise EngineMismatchError(f"{database}: knowledge base has {n} sensors, named {list(names)}")
+    return EngineSpec("olng", str(database), names, float(kb.fps), np.asarray(skeleton_from_rig(kb.rig).parents),
+                      lambda lag_s: OLNGEngine(kb), lag_applies=False)
+
+
+def hmm_spec() -> EngineSpec:
+    """The hierarchical HMM cannot run on the live stream (module doc): always refused, with the reason."""
+    raise EngineMismatchError("the hmm engine needs gyroscope readings with every accelerometer sample (its IMU "
+                              "feature is acc + gyro); the base stations stream accelerometers only. Use "
+                              "`courtside reconstruct --method hmm` on a take with gyro_rps, or --engine motion-graph")
+
+
+def check_live_sensors(spec: EngineSpec, worn: Sequence[str], nominal_hz: Sequence[float]) -> None:
+    """Refuse ``spec`` unless the live sensors fit it: ``worn[i]`` is the placement of the live sensor feeding
+    column i (same count, same names, in order) and each streams at least at the engine's frame rate
+    (``nominal_hz[i]``; 0 = not known yet, not checked) — slower sensors would have to be up-sampled."""
+    if len(worn) != len(spec.sensor_names):
+        raise EngineMismatchError(f"{spec.name} database {spec.database} expects {len(spec.sensor_names)} sensors "
+                                  f"({', '.join(spec.sensor_names)}); {len(worn)} are worn ({', '.join(worn)})")
+    wrong = [f"column {i}: database {a!r}, worn {b!r}" for i, (a, b) in enumerate(zip(spec.sensor_names, worn)) if a != b]
+    if wrong:
+        raise EngineMismatchError(f"{spec.name} database {spec.database} was built for other placements: "
+                                  + "; ".join(wrong))
+    slow = [f"{name} {hz:g} Hz" for name, hz in zip(worn, nominal_hz) if 0 < hz < spec.rate_hz]
+    if slow:
+        raise EngineMismatchError(f"{spec.name} database {spec.database} runs at {spec.rate_hz:g} Hz but these "
+                                  f"sensors stream slower: {', '.join(slow)}")

@@ -1,0 +1,55 @@
+"""The poses file (.npz) that `courtside console --save-poses` and `courtside synthesize --save-poses` both write,
+so a live session and an offline run of the same take can be compared frame by frame.
+
+Arrays: ``frame`` (F,) int64 frame index on the absolute clock (``t_s = frame / rate_hz``), ``t_s`` (F,) gateway
+seconds, ``joint_positions_m`` (F, J, 3) world frame (x, y up, z), ``confidence`` (F,) in [0, 1] (NaN when the
+engine reports none), ``parents`` (J,) skeleton; ``meta_json``: engine, database, lag_s, rate_hz, sensors (live
+stream per engine column and its placement), start_frame, and anything else the writer adds."""
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.errors import MalformedFileError
+
+from .session import FramePose
+
+
+@dataclass
+class PosesFile:
+    frame: np.ndarray
+    t_s: np.ndarray
+    joint_positions_m: np.ndarray
+    confidence: np.ndarray
+    parents: np.ndarray
+    meta: dict[str, Any]
+
+
+def save_poses(path: str | Path, poses: Sequence[FramePose], parents: np.ndarray, meta: dict[str, Any]) -> Path:
+    path = Path(path)
+    n_joints = len(parents)
+    joints = np.stack([p.joint_positions_m for p in poses]) if poses else np.zeros((0, n_joints, 3))
+    conf = np.array([np.nan if p.confidence is None else p.confidence for p in poses], float)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, frame=np.array([p.frame for p in poses], np.int64),
+                        t_s=np.array([p.t_s for p in poses], float), joint_positions_m=joints, confidence=conf,
+                        parents=np.asarray(parents), meta_json=np.array(json.dumps(meta)))
+    return path
+
+
+def load_poses(path: str | Path) -> PosesFile:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = [k for k in ("frame", "t_s", "joint_positions_m", "confidence", "parents", "meta_json")
+                       if k not in data.files]
+            if missing:
+                raise MalformedFileError(path, None, f"not a poses file: missing {', '.join(missing)}")
+            return PosesFile(data["frame"], data["t_s"], data["joint_positions_m"], data["confidence"],
+                             data["parents"], json.loads(str(data["meta_json"])))
+    except (OSError, ValueError) as exc:
+        raise MalformedFileError(path, None, f"not a readable poses .npz ({exc})") from exc

@@ -1,0 +1,186 @@
+"""Resampling jittery, batched per-sensor streams onto the frame clock: exact on known signals, dropouts marked
+and never interpolated across, and the frames bit-identical however the samples were batched."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.stream import FrameBatch, FrameResampler, box_mean, resample_uniform
+
+
+def signal(t: np.ndarray, k: int) -> np.ndarray:
+    """Piecewise-linear-friendly ground truth: linear in t, so interpolation is exact."""
+    return np.c_[2.0 * t + k, -t, np.full(len(t), float(k))]
+
+
+def jittered_streams(seed: int = 3, n: int = 400) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return {s: np.cumsum(rng.uniform(0.007, 0.013, n)) + 0.05 * k + 100.0 for k, s in enumerate("abc")}
+
+
+def feed(res: FrameResampler, streams: dict[str, np.ndarray], batch: int, values=signal) -> FrameBatch:
+    out = []
+    n = len(next(iter(streams.values())))
+    for i in range(0, n, batch):
+        for k, (s, t) in enumerate(streams.items()):
+            res.add(s, t[i:i + batch], values(t[i:i + batch], k))
+        out.append(res.frames())
+    return FrameBatch.concatenate(out, len(streams))
+
+
+def test_frames_are_exact_on_linear_signals_despite_jitter_and_batching():
+    streams = jittered_streams()
+    res = FrameResampler(list(streams), rate_hz=30.0)
+    got = feed(res, streams, 7)
+    assert got.valid.all()
+    assert np.array_equal(np.diff(got.index), np.ones(len(got) - 1))
+    assert np.array_equal(got.t_s, got.index / 30.0)  # the absolute clock, not an accumulated float
+    assert got.t_s[0] - 1 / 60 >= max(s[0] for s in streams.values()) - 1e-12
+    assert got.t_s[-1] + 1 / 60 <= min(s[-1] for s in streams.values()) + 1e-12
+    for k in range(3):
+        np.testing.assert_allclose(got.acc_g[:, k], signal(got.t_s, k), atol=1e-9)
+    assert res.frames_out == len(got)
+
+
+@pytest.mark.parametrize("batch", [1, 3, 10, 400])
+def test_frames_do_not_depend_on_batching_to_the_bit(batch):
+    """Live (small batches, history trimmed as it goes) and offline (everything at once) must agree exactly:
+    each window's integral is summed from the window's own samples."""
+    streams = jittered_streams(seed=5)
+    wiggle = lambda t, k: np.c_[np.sin(7 * t + k), np.cos(3 * t) ** 2, t * t]  # noqa: E731
+    reference = feed(FrameResampler(list(streams), 30.0), streams, 400, wiggle)
+    got = feed(FrameResampler(list(streams), 30.0, history_s=0.0), streams, batch, wiggle)
+    common = np.intersect1d(reference.index, got.index)
+    assert len(common) > 100
+    a = reference.acc_g[np.isin(reference.index, common)]
+    b = got.acc_g[np.isin(got.index, common)]
+    assert np.array_equal(a, b)
+
+
+def test_no_frame_until_every_sensor_has_data_and_duplicates_ignored():
+    res = FrameResampler(["a", "b"], rate_hz=10.0)
+    res.add("a", np.array([0.0, 0.1, 0.2]), np.zeros((3, 3)))
+    assert len(res.frames()) == 0
+    res.add("b", np.array([0.0, 0.1, 0.2]), np.ones((3, 3)))
+    res.add("b", np.array([0.1]), np.full((1, 3), 99.0))  # duplicate time: dropped
+    got = res.frames()
+    np.testing.assert_allclose(got.t_s, [0.1])  # windows are +-0.05 s: 0.0 starts too early, 0.2 ends too late
+    np.testing.assert_allclose(got.acc_g[:, 1], 1.0)
+    assert got.valid.all()
+    res.add("ignored", np.array([5.0]), np.zeros((1, 3)))
+
+
+def test_a_silent_sensor_does_not_freeze_frames_and_its_gap_is_marked_invalid():
+    """b stops at 1.0 s and resumes at 2.0 s while a streams on: after waiting ``wait_s`` for b, frames keep coming
+    (a is live), frames whose window touches b's silence are invalid with NaN accelerations, frames on either
+    side are valid and exact — and offline (all samples at once) marks exactly the same frames."""
+    ta = np.arange(0, 301) / 100.0
+    tb = np.r_[np.arange(0, 101), np.arange(200, 301)] / 100.0
+    res = FrameResampler(["a", "b"], rate_hz=10.0, max_gap_s=0.25, wait_s=0.5)
+    got = []
+    for t_end in np.arange(0.1, 3.01, 0.1):  # deliver in 100 ms slices, like the gateway does
+        for name, t in (("a", ta), ("b", tb)):
+            sl = t[(t > t_end - 0.1 + 1e-9) & (t <= t_end + 1e-9)]
+            res.add(name, sl, np.c_[sl, sl, sl])
+        got.append(res.frames())
+        if 1.4 < t_end < 1.5:
+            assert FrameBatch.concatenate(got, 2).t_s[-1] < 1.0  # still waiting for b (0.5 s)
+        if 1.6 <= t_end < 2.0:
+            assert FrameBatch.concatenate(got, 2).t_s[-1] > 1.2  # then not frozen at b's 1.0 s
+    live = FrameBatch.concatenate(got, 2)
+    gap = (live.t_s > 0.95 + 1e-9) & (live.t_s < 2.05 - 1e-9)  # frames whose +-0.05 s window touches the silence
+    assert not live.valid[gap].any() and live.valid[~gap].all()
+    assert np.isnan(live.acc_g[gap]).all()  # nothing made up across the dropout
+    np.testing.assert_allclose(live.acc_g[live.valid][:, :, 0], np.c_[live.t_s[live.valid], live.t_s[live.valid]],
+                               atol=1e-9)
+    assert res.frames_invalid == gap.sum()
+    offline = FrameResampler(["a", "b"], rate_hz=10.0, max_gap_s=0.25)
+    offline.add("a", ta, np.c_[ta, ta, ta])
+    offline.add("b", tb, np.c_[tb, tb, tb])
+    off = offline.frames()
+    common = np.isin(off.index, live.index)
+    assert np.array_equal(off.valid[common], live.valid)
+
+
+def test_a_late_sensor_is_waited_for_so_live_frames_equal_offline():
+    """b's samples arrive 0.8 s after a's (a loaded gateway): within wait_s nothing is marked invalid."""
+    t = np.arange(0, 300) / 100.0
+    res = FrameResampler(["a", "b"], rate_hz=30.0)  # wait 1 s
+    got = []
+    for t_end in np.arange(0.1, 3.91, 0.1):
+        for name, lag in (("a", 0.0), ("b", 0.8)):
+            sl = t[(t > t_end - 0.1 - lag + 1e-9) & (t <= t_end - lag + 1e-9)]
+            res.add(name, sl, np.c_[sl, sl, sl])
+        got.append(res.frames())
+    live = FrameBatch.concatenate(got, 2)
+    assert live.valid.all() and len(live) > 80
+    with pytest.raises(ValueError, match="wait_s"):
+        FrameResampler(["a"], 30.0, max_gap_s=0.5, wait_s=0.25)
+
+
+def test_start_at_rewinds_within_history_and_until_holds_frames_back():
+    t = np.arange(0, 300) / 100.0
+    res = FrameResampler(["a"], rate_hz=10.0)
+    res.add("a", t, np.c_[t, t, t])
+    assert res.frames(until_s=1.0).t_s[-1] == pytest.approx(1.0)
+    first = res.frames()
+    assert first.index[0] == 11
+    res.start_at(1.96)  # back in time, within the 2 s history
+    again = res.frames()
+    assert again.index[0] == 20 and np.allclose(again.acc_g[:, 0, 0], np.arange(20, 30) / 10.0)
+
+
+def test_box_filter_suppresses_aliasing_that_point_sampling_lets_through():
+    """A 40 Hz tone sampled at 100 Hz, taken to 30 Hz: point sampling folds it to 10 Hz at nearly full amplitude;
+    the resampler's box average keeps less than a quarter of it."""
+    fs, tone = 100.0, 40.0
+    t = np.arange(0, 10, 1 / fs)
+    x = np.sin(2 * np.pi * tone * t + 0.3)
+    got = resample_uniform(np.repeat(x[:, None, None], 3, axis=2), fs, 30.0)
+    assert got.valid.all() and len(got) > 250
+    point = np.interp(got.t_s, t, x)
+    assert point.std() > 0.5 * x.std()
+    assert got.acc_g[:, 0, 0].std() < 0.25 * x.std()
+
+
+def test_resample_uniform_marks_nan_rows_as_dropouts():
+    x = np.ones((300, 2, 3))
+    x[100:150, 1] = np.nan  # 0.5 s silence on sensor 1
+    got = resample_uniform(x, 100.0, 30.0)
+    bad = (got.t_s > 0.99 - 1 / 60) & (got.t_s < 1.50 + 1 / 60)
+    assert not got.valid[bad].any() and got.valid[~bad].all()
+    assert np.array_equal(got.acc_g[got.valid], np.ones((got.valid.sum(), 2, 3)))
+
+
+def test_box_mean_is_exact_on_lines_and_matches_brute_force():
+    rng = np.random.default_rng(1)
+    t = np.sort(rng.uniform(0, 1, 40))
+    v = np.c_[3 * t - 1, np.sin(5 * t)]
+    lo = np.array([0.2, 0.5, 0.7, t[10]])
+    hi = np.r_[lo[:3] + 0.05, t[13]]  # the last window starts and ends exactly on samples
+    got = box_mean(t, v, lo, hi)
+    np.testing.assert_allclose(got[:, 0], 3 * (lo + hi) / 2 - 1, atol=1e-12)  # a line: the window centre value
+    fine = np.linspace(lo, hi, 20001)  # brute force on the interpolant
+    brute = np.array([np.interp(fine[:, k], t, v[:, 1]).mean() for k in range(4)])
+    np.testing.assert_allclose(got[:, 1], brute, atol=1e-5)
+
+
+def test_a_clock_that_steps_back_drops_the_same_samples_however_the_stream_is_batched():
+    """A recorded stream whose times step back (the online clock map re-fitted): samples not after every earlier
+    one are dropped by a running maximum, so live batches and one offline pass keep the same samples."""
+    t = np.arange(0, 300) / 100.0
+    t[150:160] -= 0.2  # ten samples stamped 0.2 s early
+    v = np.c_[t, t, t]
+    offline = FrameResampler(["a"], 30.0)
+    offline.add("a", t, v)
+    ref = offline.frames()
+    for batch in (1, 7, 25):
+        live = FrameResampler(["a"], 30.0)
+        got = []
+        for i in range(0, len(t), batch):
+            live.add("a", t[i:i + batch], v[i:i + batch])
+            got.append(live.frames())
+        got = FrameBatch.concatenate(got, 1)
+        common = np.isin(ref.index, got.index)
+        assert common.sum() > 80 and np.array_equal(ref.acc_g[common], got.acc_g[np.isin(got.index, ref.index)])
+    assert ref.valid.all()  # the 0.1 s of dropped samples is a gap shorter than max_gap_s
