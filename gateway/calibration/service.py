@@ -72,18 +72,6 @@ class CalibrationService:
         with self._lock:
             return self.wizard.snapshot()
 
-    def _record_path(self, args: dict[str, Any]) -> Path:
-        """``<records_dir>/<name>.calibration.json``, refusing client paths, bad names and existing records."""
-        if "path" in args:
-            raise ValueError("save takes a record 'name', not a path: records go to the gateway's records directory")
-        if self.records_dir is None:
-            raise ValueError("this gateway has no calibration records directory configured")
-        name = check_name(args["name"], "record name")
-        path = self.records_dir / f"{name}{RECORD_SUFFIX}"
-        if path.exists() or path.with_suffix(".npz").exists():
-            raise ValueError(f"record {name!r} already exists in {self.records_dir}; choose another name")
-        return path
-
     def handle(self, action: str, args: dict[str, Any]) -> Any:
         """Run one action; operator mistakes come back to the client as a clean ``RequestError``."""
         try:
