@@ -74,14 +74,14 @@ def _wait_readable(sock: socket.socket, deadline: float | None) -> None:
     pending = getattr(sock, "pending", None)  # a TLS channel may hold decrypted bytes already
     if pending is not None and pending():
         return
-    if deadline is None:
-        try:
-            select.select([sock], [], [])
-        except ValueError:  # closed by another thread meanwhile (fileno -1): as recv on a closed socket would
-            raise OSError("socket closed") from None
-        return
-    remaining = deadline - time.monotonic()
-    if remaining <= 0 or not select.select([sock], [], [], remaining)[0]:
+    remaining = None if deadline is None else deadline - time.monotonic()
+    if remaining is not None and remaining <= 0:
+        raise WireTimeout("peer too slow: frame or handshake not completed in time")
+    try:
+        ready = select.select([sock], [], [], remaining)[0]
+    except ValueError:  # closed by another thread meanwhile (fileno -1): as recv on a closed socket would
+        raise OSError("socket closed") from None
+    if not ready:
         raise WireTimeout("peer too slow: frame or handshake not completed in time")
 
 

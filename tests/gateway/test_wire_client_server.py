@@ -163,3 +163,18 @@ def test_client_that_never_reads_control_traffic_is_disconnected():
     finally:
         sock.close()
         srv.close()
+
+
+@pytest.mark.parametrize("idle_deadline_s", [None, 5.0])
+def test_socket_closed_by_another_thread_is_an_os_error_not_a_traceback(idle_deadline_s):
+    """The server's writer thread may close a client's socket while its reader waits for the next frame; the
+    reader must see an ordinary disconnect (OSError), with or without a deadline. A ValueError from select on
+    fileno -1 used to escape as 'unexpected error' with a traceback in the gateway's log."""
+    mine, peer = socket.socketpair()
+    try:
+        mine.close()
+        deadline = None if idle_deadline_s is None else time.monotonic() + idle_deadline_s
+        with pytest.raises(OSError):
+            wire.recv_message(mine, frame_timeout_s=1.0, idle_deadline=deadline)
+    finally:
+        peer.close()
