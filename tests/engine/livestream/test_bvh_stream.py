@@ -71,13 +71,14 @@ def test_a_client_that_leaves_is_dropped_and_the_others_keep_receiving():
         stay.close()
 
 
-def test_synthesize_streams_what_it_writes(tmp_path):
-    """`courtside synthesize --stream-bvh PORT`: a real client receives exactly the frames of the written BVH."""
+def _synthesize_streaming(tmp_path, clip: str, *options: str):
+    """`courtside synthesize` on a clip's virtual accelerometers with a BVH client listening on a free loopback
+    port; ``options`` may use ``{port}``. Returns (the clip, the lines the client received, the written BVH's lines)."""
     from engine.graph.cli import build_graph_main, synthesize_main
     from engine.mocap import SEED000_SENSORS, resample, standard_placements, virtual_accelerometers
 
     assert build_graph_main(["--sample", "-o", str(tmp_path / "g.npz")]) == 0
-    motion = resample(load_clip(sample_clips()["16_11"]), 30.0)
+    motion = resample(load_clip(sample_clips()[clip]), 30.0)
     acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS))
     np.savez(tmp_path / "take.npz", acc_g=acc, fps=30.0)
     with socket.socket() as probe:
@@ -88,9 +89,14 @@ def test_synthesize_streams_what_it_writes(tmp_path):
     thread.start()
     out = tmp_path / "out.bvh"
     assert synthesize_main(["--graph", str(tmp_path / "g.npz"), "--input", str(tmp_path / "take.npz"), "-o", str(out),
-                            "--stream-bvh", str(port), "--stream-wait", "30"]) == 0
+                            *(o.format(port=port) for o in options), "--stream-wait", "30"]) == 0
     thread.join(60)
-    text = out.read_text().splitlines()
+    return motion, received, out.read_text().splitlines()
+
+
+def test_synthesize_streams_what_it_writes(tmp_path):
+    """`courtside synthesize --stream-bvh PORT`: a real client receives exactly the frames of the written BVH."""
+    motion, received, text = _synthesize_streaming(tmp_path, "16_11", "--stream-bvh", "{port}")
     motion_rows = text[text.index("MOTION") + 3:]
     assert len(received) == len(motion_rows) == motion.n_frames
     for line, row in zip(received[::25], motion_rows[::25]):
@@ -100,24 +106,8 @@ def test_synthesize_streams_what_it_writes(tmp_path):
 def test_fixed_lag_synthesis_streams_each_pose_as_decided(tmp_path):
     """With --lag every emitted pose goes out at once (raw node pose placed on the path): one line per sample,
     within a few cm of the written (blended, foot-fixed) file."""
-    from engine.graph.cli import build_graph_main, synthesize_main
-    from engine.mocap import SEED000_SENSORS, resample, standard_placements, virtual_accelerometers
-
-    assert build_graph_main(["--sample", "-o", str(tmp_path / "g.npz")]) == 0
-    motion = resample(load_clip(sample_clips()["16_16"]), 30.0)
-    acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS))
-    np.savez(tmp_path / "take.npz", acc_g=acc, fps=30.0)
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    received: list[str] = []
-    thread = threading.Thread(target=_collect, args=(port, received))
-    thread.start()
-    out = tmp_path / "lag.bvh"
-    assert synthesize_main(["--graph", str(tmp_path / "g.npz"), "--input", str(tmp_path / "take.npz"), "-o", str(out),
-                            "--lag", "0.5", "--stream-bvh", f"127.0.0.1:{port}", "--stream-wait", "30"]) == 0
-    thread.join(60)
-    text = out.read_text().splitlines()
+    motion, received, text = _synthesize_streaming(tmp_path, "16_16", "--lag", "0.5",
+                                                   "--stream-bvh", "127.0.0.1:{port}")
     rows = np.array([r.split() for r in text[text.index("MOTION") + 3:]], float)
     streamed = np.array([line.split()[2:-1] for line in received], float)
     assert streamed.shape == rows.shape == (motion.n_frames, rows.shape[1])
