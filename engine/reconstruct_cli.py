@@ -125,16 +125,18 @@ def _take_gyro(path: str, frames: np.ndarray, fps: float, imus: list[str]) -> np
     """`gyro_rps` (T, S, 3) rad/s of the model's IMUs from the take (the HMM's IMU feature is acc + gyro), on the
     same frames as the accelerations (`engine.stream.resample_uniform`, the one sample -> frame path); a take
     naming its sensors (`sensor_names`, e.g. from `courtside import-imu`) may hold more."""
+    from engine.graph.input_checks import open_npz
     from engine.stream import resample_uniform
 
-    data = np.load(path, allow_pickle=False)
-    if "gyro_rps" not in data.files:
-        raise MalformedFileError(path, None, "the HMM method needs 'gyro_rps' (T, S, 3) rad/s beside 'acc_g'")
-    gyro = np.asarray(data["gyro_rps"], float)
-    if "sensor_names" in data.files:
-        names = [str(n) for n in data["sensor_names"]]
-        gyro = gyro[:, [names.index(n) for n in imus if n in names]]
-    gyro = resample_uniform(gyro, float(data["fps"]), fps)
+    with open_npz(Path(path)) as data:
+        if "gyro_rps" not in data.files:
+            raise MalformedFileError(path, None, "the HMM method needs 'gyro_rps' (T, S, 3) rad/s beside 'acc_g'")
+        gyro = np.asarray(data["gyro_rps"], float)
+        if "sensor_names" in data.files:
+            names = [str(n) for n in data["sensor_names"]]
+            gyro = gyro[:, [names.index(n) for n in imus if n in names]]
+        take_fps = float(data["fps"])
+    gyro = resample_uniform(gyro, take_fps, fps)
     rows = np.searchsorted(gyro.index, frames)
     if len(gyro) == 0 or np.any(rows >= len(gyro)) or not np.array_equal(gyro.index[np.minimum(rows, len(gyro) - 1)], frames):
         raise MalformedFileError(path, None, f"gyro_rps does not cover the acc_g frames at {fps:g} Hz")

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import CourtsideError, MalformedFileError
+from engine.graph.input_checks import open_npz
 from engine.mocap import STANDARD_SENSORS
 from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, calibrate_recording,
                                            standard_segment_poses)
@@ -17,11 +18,7 @@ from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationCon
 
 def _read_take(path: Path) -> tuple[np.ndarray, float, list[str], list[str]]:
     """acc_g (T, S, 3), fps, placement names, sensor ids (source labels) of a synthesis-input take."""
-    try:
-        data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise MalformedFileError(path, None, f"not a readable .npz ({exc})") from None
-    with data:
+    with open_npz(path) as data:
         missing = [k for k in ("acc_g", "fps", "sensor_names") if k not in data.files]
         if missing:
             raise MalformedFileError(path, None, f"missing {missing}: calibrate reads a take written by "
