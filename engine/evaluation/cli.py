@@ -19,6 +19,7 @@ from engine.graph.cli import _add_database_args, database_paths, evaluate_main a
 from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph, build_from_clips
 from engine.graph.viterbi import SearchWeights
+from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 
@@ -55,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="motion-graph weights (default 0.5 10 3 with root warping, 0.5 1 1 without)")
     p.add_argument("--root-warp", nargs=2, type=float, default=[0.5, 0.25], metavar=("GAIN_P", "GAIN_O"),
                    help="root warping towards the camera for all engines (0 0 = off; engine/graph/warp.py)")
+    p.add_argument("--no-root-fusion", action="store_true",
+                   help="with the camera, keep each engine's own (warped) root instead of the camera track smoothed "
+                        "over the lag (engine/graph/root_fusion.py; the pose still comes from the engine)")
     p.add_argument("--lag", type=float, default=None,
                    help="motion graph: the online fixed-lag decoder with this latency (s) instead of the batch search")
     p.add_argument("--camera-noise-m", type=float, default=0.05)
@@ -88,7 +92,10 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
         error_model=None if args.sensor_noise == "clean" else getattr(SensorErrorModel, args.sensor_noise)(),
         weights=SearchWeights(*args.weights) if args.weights else (
             SearchWeights.camera_following() if any(args.root_warp) else SearchWeights()),
-        warp=RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off(), lag_s=args.lag, seed=args.seed)
+        warp=RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off(),
+        fusion=RootFusion.off() if args.no_root_fusion else RootFusion(
+            args.camera_noise_m, float(np.radians(args.camera_noise_deg))),
+        lag_s=args.lag, seed=args.seed)
 
 
 def _database(args: argparse.Namespace) -> protocols.Database:

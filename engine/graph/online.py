@@ -15,13 +15,14 @@ from .graph import MotionGraph
 from .poses import world_joint_positions
 from .viterbi import DEFAULT_KERNEL, PRUNE_EVERY, SearchWeights, ViterbiLattice
 from .confidence import CostWindow, confidence, reference_cost_per_sample
+from .root_fusion import RootFuser, RootFusion
 from .warp import RootWarp
 
 
 @dataclass(frozen=True)
 class EmittedPose:
-    """The decided pose of sample `t`: graph node, joint positions (J, 3) m in the world frame, the path's root
-    ground position (x, z) m and heading rad, and `confidence` in [0, 1] (confidence.py: 1 = the search costs
+    """The decided pose of sample `t`: graph node, joint positions (J, 3) m in the world frame, the output root's
+    ground position (x, z) m and heading rad (the camera's smoothed track with root fusion, else the path's), and `confidence` in [0, 1] (confidence.py: 1 = the search costs
     what the database's own clips cost; towards 0 = the engine is lost)."""
 
     t: int
@@ -40,20 +41,25 @@ class FixedLagSynthesizer:
     100k-node graph). When the cost per sample over the last `confidence_window_s` stays above `reanchor_ratio`
     x the reference for `reanchor_after_s`, the search re-anchors (`ViterbiLattice.reanchor`: the accumulated
     costs are forgotten and every path's root is put on the camera fix) -- a lost track recovers from fresh
-    evidence instead of defending a wrong history. `reanchor_ratio` = 0 never re-anchors."""
+    evidence instead of defending a wrong history. `reanchor_ratio` = 0 never re-anchors.
+
+    `fusion` (root_fusion.py): the output root is the camera track smoothed over the same lag, the chosen path
+    supplying the root-relative pose (and the root only where the camera is absent); off = the path's own root."""
 
     def __init__(self, graph: MotionGraph, lag_s: float, weights: SearchWeights = SearchWeights(),
                  sensor_indices: tuple[int, ...] | None = None, prune_every: int = PRUNE_EVERY,
                  kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off(),
                  confidence_reference: float | None = None, confidence_window_s: float = 2.0,
-                 reanchor_ratio: float = 4.0, reanchor_after_s: float = 3.0) -> None:
+                 reanchor_ratio: float = 4.0, reanchor_after_s: float = 3.0,
+                 fusion: RootFusion = RootFusion.off()) -> None:
         if lag_s < 0:
             raise ValueError("lag must be non-negative")
         self.graph = graph
         self.lag = int(round(lag_s * graph.config.fps))
         self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp)
         self.next_emit = 0  # first sample not yet emitted
-        self._last: tuple[complex, float, int] | None = None  # (ground, heading, node) of the last emitted sample
+        self._last: tuple[complex, float, int] | None = None  # the path's (ground, heading, node) at the last emitted
+        self._fuser = RootFuser(fusion, graph.config.fps)  # the output root (the path's own when fusion is off)
         if confidence_reference is None:
             confidence_reference = reference_cost_per_sample(graph, weights, warp, sensor_indices)
         self.confidence_reference = confidence_reference
@@ -71,6 +77,7 @@ class FixedLagSynthesizer:
         per-node broken-constraint count for this sample); returns the pose of sample t - L once t >= L."""
         lat = self.lattice
         lat.step(acc_g, pos_m, heading_rad, penalty)
+        self._fuser.push(pos_m, heading_rad)
         t = lat.t
         per_sample = self._window.push(lat.cost_offset)
         self._confidence[t] = confidence(per_sample, self.confidence_reference)
@@ -125,9 +132,10 @@ class FixedLagSynthesizer:
             ground, heading = lat.global_states(best, edges, start)
         k = last - first + 1
         nodes, ground, heading = nodes[:k], ground[:k], heading[:k]
-        joints = world_joint_positions(self.graph, nodes, ground, heading)
+        out_ground, out_heading = self._fuser.decide(ground, heading)
+        joints = world_joint_positions(self.graph, nodes, out_ground, out_heading)
         self.next_emit = last + 1
         self._last = (complex(*ground[-1]), float(heading[-1]), int(nodes[-1]))
         lat.drop_before(self.next_emit)
-        return [EmittedPose(first + i, int(nodes[i]), joints[i], ground[i], float(heading[i]),
+        return [EmittedPose(first + i, int(nodes[i]), joints[i], out_ground[i], float(out_heading[i]),
                             self._confidence.pop(first + i, 1.0)) for i in range(k)]
