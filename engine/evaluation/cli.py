@@ -18,13 +18,14 @@ from engine.errors import CourtsideError
 from engine.graph.cli import _add_database_args, database_paths, evaluate_main as leave_one_out_main, load_clips
 from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph, build_from_clips
-from engine.graph.viterbi import SearchWeights
 from engine.graph.root_fusion import RootFusion
+from engine.graph.viterbi import SearchWeights
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 
 from . import protocols, table
 from .labels import clip_label
+from .confidence_quality import confidence_quality
 from .simulate import CameraModel
 from .takes import plan_chained_takes
 
@@ -123,7 +124,9 @@ def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.R
     for group, results in per_group.items():
         out["groups"][group] = [{"engine": r.engine, "sensors": r.sensors, "camera": r.camera,
                                  **summary(s.errors), "clips_used": s.clips_used, "longest_run_s": s.longest_run_s,
-                                 "seconds": s.seconds, "per_second": protocols.traces(s, fps)}
+                                 "seconds": s.seconds, "per_second": protocols.traces(s, fps),
+                                 **({"confidence": vars(confidence_quality(s.confidence, [e.global_cm for e in s.errors],
+                                                                           fps))} if s.confidence else {})}
                                 for r, s in results.items()]
     with open(path, "w") as fh:
         json.dump(out, fh, indent=1)
@@ -175,6 +178,10 @@ def main(argv: list[str] | None = None) -> int:
             for k, e in enumerate(results[key].errors):
                 from .metrics import per_second
                 print(table.format_trace(f"  take {k + 1}", per_second(e.global_cm, fps)))
+        for row, scores in results.items():
+            if scores.confidence:
+                quality = confidence_quality(scores.confidence, [e.global_cm for e in scores.errors], fps)
+                print(f"{row.engine}, {row.sensors} sensors, camera {row.camera}: {quality.line(15.0)}")
         per_group = {"chained": results}
         extra = {"takes": [[db.clips[s.clip].name for s in t.segments] for t in takes]}
     else:

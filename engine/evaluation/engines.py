@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.graph.confidence import reference_cost_per_sample
 from engine.graph.graph import MotionGraph
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.geometry import rotate_ground
@@ -20,7 +21,7 @@ from engine.graph.poses import world_joint_positions
 from engine.graph.root_fusion import RootFusion, fuse_track
 from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
 from engine.graph.warp import RootWarp
-from engine.mocap import Skeleton, forward_kinematics, quaternions
+from engine.mocap import SensorErrorModel, Skeleton, forward_kinematics, quaternions
 
 from .metrics import hips_heading
 from .simulate import CameraTrack
@@ -30,10 +31,12 @@ from .takes import Take, yaw_quaternion
 @dataclass
 class Prediction:
     """World joints (T, J, 3) on the take's frame grid; `source_clip` (T,) database clip of each output frame
-    where the engine plays database frames (motion graph, nearest neighbour), else None."""
+    where the engine plays database frames (motion graph, nearest neighbour), else None; `confidence` where the
+    engine reports one (the motion graph's online decoder)."""
 
     joints_m: np.ndarray
     source_clip: np.ndarray | None = None
+    confidence: np.ndarray | None = None  # (T,) the online decoder's per-frame confidence
 
 
 def start_state(take: Take, camera_position_m: np.ndarray, camera_heading_rad: np.ndarray
@@ -50,8 +53,9 @@ def start_state(take: Take, camera_position_m: np.ndarray, camera_heading_rad: n
 def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: tuple[int, ...],
                  camera_position_m: np.ndarray, camera_heading_rad: np.ndarray, weights: SearchWeights,
                  use_camera: bool, warp: RootWarp = RootWarp.off(), lag_s: float | None = None,
-                 fusion: RootFusion = RootFusion.off()) -> Prediction:
-    """Batch Viterbi search, or with `lag_s` the online fixed-lag decoder (what a live user sees); without the
+                 fusion: RootFusion = RootFusion.off(), error_model: SensorErrorModel | None = None) -> Prediction:
+    """Batch Viterbi search, or with `lag_s` the online fixed-lag decoder (what a live user sees, with its
+    confidence against the database's own clips observed through `error_model`, default seed 000's); without the
     camera only its first fix is kept (where the paths start) and the root is neither warped nor fused."""
     pos, head = camera_position_m.copy(), camera_heading_rad.copy()
     if not use_camera:
@@ -65,13 +69,18 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
         ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
         joints = world_joint_positions(graph, res.nodes, ground, heading)
         return Prediction(joints, graph.node_clip[res.nodes].astype(int))
-    syn = FixedLagSynthesizer(graph, lag_s, weights, sensors, warp=warp, fusion=fusion)
+    reference = reference_cost_per_sample(graph, weights, warp, sensors, error_model=error_model,
+                                          camera_noise_m=fusion.position_noise_m,
+                                          camera_noise_rad=fusion.heading_noise_rad)
+    syn = FixedLagSynthesizer(graph, lag_s, weights, sensors, warp=warp, fusion=fusion,
+                              confidence_reference=reference)
     poses = []
     for t in range(len(pos)):
         poses += syn.push(None if acc is None else acc[t], pos[t], float(head[t]))
     poses += syn.flush()
     return Prediction(np.stack([p.joint_positions_m for p in poses]),
-                      graph.node_clip[np.array([p.node for p in poses])].astype(int))
+                      graph.node_clip[np.array([p.node for p in poses])].astype(int),
+                      np.array([p.confidence for p in poses]))
 
 
 def fused_joints(joints_m: np.ndarray, take: Take, camera: CameraTrack, fusion: RootFusion) -> np.ndarray:

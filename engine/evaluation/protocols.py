@@ -61,6 +61,7 @@ class RowScores:
     clips_used: list[int] = field(default_factory=list)  # distinct database clips played (graph / NN)
     longest_run_s: list[float] = field(default_factory=list)  # longest stretch played from one clip
     seconds: float = 0.0  # compute time
+    confidence: list[np.ndarray] = field(default_factory=list)  # per take, per frame (online motion graph only)
 
 
 @dataclass
@@ -157,6 +158,8 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
         scores = results.setdefault(row, RowScores())
         scores.seconds += time.perf_counter() - t0
         scores.errors.append(frame_errors(pred.joints_m, take.joints_m, skeleton))
+        if pred.confidence is not None:
+            scores.confidence.append(pred.confidence)
         used, longest = _clip_stats(pred.source_clip, take.fps)
         scores.clips_used.append(used)
         scores.longest_run_s.append(longest)
@@ -176,11 +179,12 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
             for camera, w in ((CAMERA_ON, w_on), (CAMERA_OFF, w_off)):
                 record(Row("motion graph", str(k), camera),
                        lambda: engines.motion_graph(graph, acc, idx, cam.position_m, cam.heading_rad, w,
-                                                    camera == CAMERA_ON, cfg.warp, cfg.lag_s, cfg.fusion))
+                                                    camera == CAMERA_ON, cfg.warp, cfg.lag_s, cfg.fusion,
+                                                    cfg.error_model))
         record(Row("camera only (W_A=0)", "0", CAMERA_ON),
                lambda: engines.motion_graph(graph, None, (), cam.position_m, cam.heading_rad,
                                             SearchWeights(0.0, cfg.weights.position, cfg.weights.heading), True,
-                                            cfg.warp, cfg.lag_s, cfg.fusion))
+                                            cfg.warp, cfg.lag_s, cfg.fusion, cfg.error_model))
     if "baselines" in cfg.engines:
         for k, idx in sets:
             nn = held.nearest_neighbour(idx, cfg.nn_window)

@@ -14,7 +14,7 @@ import numpy as np
 from .graph import MotionGraph
 from .poses import world_joint_positions
 from .viterbi import DEFAULT_KERNEL, PRUNE_EVERY, SearchWeights, ViterbiLattice
-from .confidence import CostWindow, confidence, reference_cost_per_sample
+from .confidence import CostHistory, CostWindow, confidence, reference_cost_per_sample
 from .root_fusion import RootFuser, RootFusion
 from .warp import RootWarp
 
@@ -64,12 +64,13 @@ class FixedLagSynthesizer:
             confidence_reference = reference_cost_per_sample(graph, weights, warp, sensor_indices)
         self.confidence_reference = confidence_reference
         fps = graph.config.fps
-        self._window = CostWindow(max(1, int(round(confidence_window_s * fps))))
+        window = max(1, int(round(confidence_window_s * fps)))
+        self._window = CostWindow(window)  # the last `window` samples: re-anchoring
+        self._history = CostHistory(window)  # centred on each decided sample: its confidence
         self.reanchor_ratio = reanchor_ratio
         self._reanchor_after = max(1, int(round(reanchor_after_s * fps)))
         self._high_for = 0  # consecutive samples with the window cost above reanchor_ratio x reference
         self.reanchors: list[int] = []  # samples at which the search re-anchored
-        self._confidence: dict[int, float] = {}  # per undecided sample, as measured when it was pushed
 
     def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None, heading_rad: float | None = None,
              penalty: np.ndarray | None = None) -> list[EmittedPose]:
@@ -80,7 +81,7 @@ class FixedLagSynthesizer:
         self._fuser.push(pos_m, heading_rad)
         t = lat.t
         per_sample = self._window.push(lat.cost_offset)
-        self._confidence[t] = confidence(per_sample, self.confidence_reference)
+        self._history.push(lat.cost_offset)
         high = self.reanchor_ratio > 0 and np.isfinite(per_sample) and \
             per_sample > self.reanchor_ratio * self.confidence_reference
         self._high_for = self._high_for + 1 if high else 0
@@ -137,5 +138,7 @@ class FixedLagSynthesizer:
         self.next_emit = last + 1
         self._last = (complex(*ground[-1]), float(heading[-1]), int(nodes[-1]))
         lat.drop_before(self.next_emit)
-        return [EmittedPose(first + i, int(nodes[i]), joints[i], out_ground[i], float(out_heading[i]),
-                            self._confidence.pop(first + i, 1.0)) for i in range(k)]
+        conf = [confidence(self._history.per_sample_around(first + i), self.confidence_reference) for i in range(k)]
+        self._history.drop_before(self.next_emit)
+        return [EmittedPose(first + i, int(nodes[i]), joints[i], out_ground[i], float(out_heading[i]), conf[i])
+                for i in range(k)]
