@@ -36,7 +36,8 @@ class EmittedPose:
 class FixedLagSynthesizer:
     """Push one synchronised sample at the graph rate, get back the poses decided `lag_s` seconds ago.
 
-    Each pose carries a confidence (confidence.py) against `confidence_reference`, the per-sample cost of the
+    Each pose carries a confidence (confidence.py): the cost per sample over the `confidence_window_s` window
+    centred on it (as far as the lag reaches) against `confidence_reference`, the per-sample cost of the
     database's own clips (None: measured on this graph at construction, `reference_cost_per_sample`, ~1 s on a
     100k-node graph). When the cost per sample over the last `confidence_window_s` stays above `reanchor_ratio`
     x the reference for `reanchor_after_s`, the search re-anchors (`ViterbiLattice.reanchor`: the accumulated
