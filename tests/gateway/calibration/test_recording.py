@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from engine.errors import MalformedFileError
 from engine.mocap import SEED000_SENSORS, load_sensor_calibration, reading_corrections, standard_placements, \
     virtual_accelerometers
 from gateway.calibration import CalibrationRecord, rotation_angle_deg
@@ -121,3 +122,44 @@ def test_an_arm_sensor_rolled_180_degrees_about_the_bone_is_caught_by_the_t_pose
     arm = record.sensors["right_forearm"]
     assert arm.correction_deg > 170 and not arm.passed and any("mounted 18" in r for r in arm.reasons), arm
     assert rotation_angle_deg(arm.rotation @ truth[1].rotation.T) < 3.0
+
+
+def _gateway_export(path, acc: np.ndarray, fps: float, keys: list[str]) -> None:
+    """``acc`` (T, S, 3) written as `courtside gateway export --npz` lays a recording out: per live sensor its own
+    samples and gateway times; here each sensor has its own rate (x-IMU3 100 Hz, Shimmer3 102.4 Hz), start and
+    a 0.2 s dropout."""
+    arrays = {}
+    t_take = np.arange(len(acc)) / fps
+    for k, key in enumerate(keys):
+        rate = (100.0, 32768 / 320)[k % 2]
+        t = np.arange(0.05 * k, t_take[-1], 1.0 / rate)
+        gap = (t > 4.0 + 0.5 * k) & (t < 4.2 + 0.5 * k)
+        t = t[~gap]
+        arrays[f"{key}/t_host_s"] = 1000.0 + t
+        arrays[f"{key}/acc_g"] = np.stack([np.interp(t, t_take, acc[:, k, a]) for a in range(3)], axis=1)
+    np.savez(path, **arrays)
+
+
+def test_calibrate_reads_a_gateway_recording_and_names_the_live_sensors(tmp_path, capsys):
+    """`courtside calibrate EXPORT --sensor-map STATION/SENSOR=PLACEMENT`: devices bought off the shelf are one
+    station each, so the record's sensor ids must be the live keys the console reads; the mountings are recovered
+    as from an imported file (pelvis and shins; arms and chest keep the nominal heading and say so)."""
+    from gateway.calibration.offline_cli import main
+
+    acc, truth, _ = _take()
+    keys = [f"{('ximu3-0000A00', 'shimmer3-R')[k % 2]}{k}/0" for k in range(len(NAMES))]
+    _gateway_export(tmp_path / "rec.npz", acc, FPS, keys)
+    out = tmp_path / "rec.calibration.json"
+    assert main([str(tmp_path / "rec.npz"), "-o", str(out), "--sensor-map",
+                 *(f"{key}={name}" for key, name in zip(keys, NAMES))]) == 0
+    record = CalibrationRecord.load(out)
+    assert set(record.sensors) == set(keys)
+    by_segment = {s.segment: s for s in record.sensors.values()}
+    err = {p.name: rotation_angle_deg(by_segment[p.name].rotation @ p.rotation.T) for p in truth}
+    for name in ("lower_back", "left_shin", "right_shin"):
+        assert err[name] < 4.0, err
+    assert load_sensor_calibration(out).sensor_ids == dict(zip(NAMES, keys))  # what the console reads
+    with pytest.raises(MalformedFileError, match="--sensor-map STATION/SENSOR=PLACEMENT"):
+        main([str(tmp_path / "rec.npz"), "-o", str(out)])
+    with pytest.raises(MalformedFileError, match="does not hold"):
+        main([str(tmp_path / "rec.npz"), "-o", str(out), "--sensor-map", "nosuch/0=chest"])
