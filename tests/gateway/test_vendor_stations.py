@@ -86,10 +86,11 @@ def test_vendor_station_streams_records_and_aligns(tmp_path, make):
     settled = host > host[0] + 2.0
     online = np.abs(cols["t_host_s"] - host)[settled]
     offline = np.abs(realign_take(take)[(station, 0)] - host)
-    # online: arrival-stamped, so a loaded host (6 ms p99 seen at load 11 on 2 cores) widens it; the offline
-    # re-fit over the whole take is the accuracy claim (bench/bench_vendor_stations.py: ~0.3 ms p99 on a quiet host)
-    assert np.percentile(online, 99) < 10e-3 and np.percentile(offline, 99) < 2e-3, \
-        (np.percentile(online, 99), np.percentile(offline, 99))
+    # online the map is fitted to arrivals as they come, so its tail follows the host's load (p99 6-11 ms seen at
+    # load 11-22 on 2 cores, 0.3 ms quiet: bench/bench_vendor_stations.py); its median and the offline re-fit over
+    # the whole take do not (a wrong tick rate or offset would be off by tens of ms)
+    assert np.median(online) < 2e-3 and np.percentile(offline, 99) < 2e-3, \
+        (np.median(online), np.percentile(offline, 99))
 
 
 @pytest.mark.parametrize("prefix,module,reason", [("ximu3", "ximu3", "no answer to ping"),
