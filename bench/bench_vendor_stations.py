@@ -1,4 +1,4 @@
-"""Vendor stations (x-IMU3 via ximu3, Shimmer3 via pyshimmer) through a real Gateway against their pty emulators:
+"""Vendor stations (x-IMU3 via ximu3 in binary and ASCII mode, Shimmer3 via pyshimmer) through a real Gateway against their pty emulators:
 clock alignment of the recorded samples against the emulators' true latch times (online estimate and the
 offline re-fit), counted loss vs the emulator's, and the CPU cost.
 
@@ -50,14 +50,16 @@ def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--seconds", type=float, default=20.0)
     args = p.parse_args()
-    x = Ximu3Emulator(rate_hz=100.0, drift_ppm=80.0, loss=0.02, seed=1)
+    xb = Ximu3Emulator(rate_hz=100.0, drift_ppm=80.0, loss=0.02, seed=1, mode="binary")
+    xa = Ximu3Emulator(rate_hz=100.0, drift_ppm=80.0, loss=0.02, seed=1, mode="ascii")
     s = ShimmerEmulator(rate_hz=102.4, drift_ppm=-30.0, seed=2)
-    print(f"{'station':16s} {'samples':>8s} {'lost (true)':>12s} {'online p50/p99/max ms':>24s} "
+    print(f"{'station':24s} {'samples':>8s} {'lost (true)':>12s} {'online p50/p99/max ms':>24s} "
           f"{'offline p50/p99/max ms':>24s} {'CPU %':>6s}")
-    for emu, source in ((x, f"ximu3:{x.path}"), (s, f"shimmer:{s.path}")):
+    for emu, source, label in ((xb, f"ximu3:{xb.path}", " (binary)"), (xa, f"ximu3:{xa.path}", " (ASCII)"),
+                               (s, f"shimmer:{s.path}", "")):
         r = run(emu, source, args.seconds)
         on, off = (f"{np.percentile(a, 50):.3f}/{np.percentile(a, 99):.3f}/{a.max():.3f}" for a in (r["online"], r["offline"]))
-        print(f"{r['station']:16s} {r['samples']:8d} {r['lost']:5d} ({r['dropped']:4d}) {on:>24s} {off:>24s} "
+        print(f"{r['station'] + label:24s} {r['samples']:8d} {r['lost']:5d} ({r['dropped']:4d}) {on:>24s} {off:>24s} "
               f"{100 * r['cpu']:6.1f}")
 
 
