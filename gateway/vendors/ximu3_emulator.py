@@ -3,7 +3,7 @@ ASCII mode, so the vendor's own `ximu3` library opens it exactly as it opens the
 
 What it speaks (x-IMU3-API ``receiver.rs``, ``data_messages/*.rs``, ``command_message``, ``ping_response``; the
 factory settings in x-IMU3-GUI ``DeviceSettings/Settings.json``: "Binary mode enabled" true, AHRS messages as
-quaternions at the inertial rate, temperature every fifth):
+quaternions at the inertial message rate divisor, temperature at a slow rate of its own, here every fifth sample):
 
 * data, ASCII mode: ``I,<timestamp us>,<gyro x,y,z deg/s>,<acc x,y,z g>\\r\\n``, ``Q,<us>,w,x,y,z\\r\\n``,
   ``T,<us>,<deg C>\\r\\n``;
@@ -104,7 +104,8 @@ class Ximu3Emulator(PtyDeviceEmulator):
 
     def _messages(self, k: int, device_us: int, acc: np.ndarray) -> list[bytes]:
         """Sample ``k``'s messages as the device sends them by default: inertial, AHRS quaternion (the tilt that
-        ``acc`` shows, about the horizontal axis), every fifth a temperature."""
+        ``acc`` shows, about a horizontal axis), now and then a temperature. The station must pick the inertial
+        messages out of this mix."""
         up = acc / (np.linalg.norm(acc) or 1.0)
         half = np.array([1.0 + up[2], up[1], -up[0], 0.0])  # rotation taking the sensor's up to z, unnormalised
         quaternion = half / (np.linalg.norm(half) or 1.0)
