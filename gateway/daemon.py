@@ -421,7 +421,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--config", type=Path, help="court config TOML (stations, camera, calibration, auth, ...)")
     g = p.add_argument_group("stations")
     g.add_argument("--port", action="append", default=None, metavar="PATH",
-                   help="serial port path, or hid:<path> / hid:VVVV:PPPP[:serial] (repeatable)")
+                   help="serial port path, or hid:<path> / hid:VVVV:PPPP[:serial], or a device read through its "
+                        "vendor's library: ximu3:<port>, shimmer:<port> (repeatable)")
     g.add_argument("--url", action="append", default=None, metavar="URL", help="pyserial URL, e.g. emu://... (repeatable)")
     g.add_argument("--discover", action=argparse.BooleanOptionalAction, default=None,
                    help="find stations by USB VID:PID 1209:C0DE (serial + HID), also hot-plugged ones")
