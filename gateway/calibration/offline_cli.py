@@ -99,7 +99,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("-o", "--output", required=True, help="record .calibration.json (raw still samples go beside it)")
     p.add_argument("--second-pose", metavar="POSE@START:END", action="append",
                    help="a second still pose held in the take (fixes the heading with sign): tpose@12:14 for the "
-                        "arms, bow@20:22 (a forward bow from the hips) for pelvis and chest; repeatable")
+                        "arms, bow@20:22 (a forward bow from the hips) for pelvis and chest, sit@30:32 (sitting on "
+                        "the floor, legs straight out in front, kneecaps up) for the shanks; repeatable")
     p.add_argument("--max-std", type=float, default=RecordingCalibrationConfig.max_std_g,
                    help="windows stiller than this (g) count as quasi-static")
     p.add_argument("--subject", default="")

@@ -2,6 +2,8 @@
 virtual sensors on a standing-then-walking take, with noise; the record is the wizard's."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -16,8 +18,8 @@ NAMES = list(SEED000_SENSORS)
 FPS = 100.0
 
 
-def _take(tpose_s: float = 0.0, flip: tuple[str, ...] = (), seed: int = 3, bow_s: float = 0.0):
-    motion = standing_then_walking(tpose_s=tpose_s, fps=FPS, seed=seed, bow_s=bow_s)
+def _take(tpose_s: float = 0.0, flip: tuple[str, ...] = (), seed: int = 3, bow_s: float = 0.0, sit_s: float = 0.0):
+    motion = standing_then_walking(tpose_s=tpose_s, fps=FPS, seed=seed, bow_s=bow_s, sit_s=sit_s)
     truth = mounted(standard_placements(motion.skeleton, NAMES), seed=seed, flip=flip)
     rng = np.random.default_rng(seed)
     acc = virtual_accelerometers(motion, truth) + rng.normal(0.0, 0.01, (motion.n_frames, len(NAMES), 3))
@@ -61,6 +63,30 @@ def test_second_poses_fix_the_arms_and_the_trunk():
     assert max(err.values()) < 5.0, err
     assert err["left_forearm"] < 3.0 and err["right_forearm"] < 3.0 and err["chest"] < 3.0, err
     assert not any(s.reasons for s in record.sensors.values())
+
+
+def test_a_long_sit_fixes_the_shanks_without_walking():
+    """Sitting on the floor, legs straight out, lays the shank horizontal: gravity then shows its rotation about
+    its own long axis (its standing heading) with sign. No walking at all: the still N-pose, then the sit."""
+    from dataclasses import replace
+
+    motion = standing_then_walking(sit_s=2.0, fps=FPS, seed=5)
+    end = motion.n_frames / FPS
+    nominal = standard_placements(motion.skeleton, NAMES)
+    roll = np.diag([1.0, -1.0, -1.0])  # the right shin also rolled 180° about its X axis (along the bone)
+    truth = [replace(p, rotation=p.rotation @ roll) if p.name == "right_shin" else p
+             for p in mounted(nominal, seed=5)]
+    acc = virtual_accelerometers(motion, truth) + np.random.default_rng(5).normal(0.0, 0.01, (motion.n_frames,
+                                                                                              len(NAMES), 3))
+    still = np.r_[0:int(2.5 * FPS), int((end - 1.8) * FPS):motion.n_frames]  # the N-pose, then the sit
+    sit = (2.5 + 0.2, 2.5 + 1.9)
+    record = calibrate_recording(acc[still], FPS, NAMES, NAMES, standard_segment_poses(NAMES, ("sit",)),
+                                 second_windows={"sit": sit})
+    err = _errors(record, truth)
+    assert err["left_shin"] < 2.0 and err["right_shin"] < 2.0, err
+    assert not record.sensors["left_shin"].reasons and record.sensors["left_shin"].passed
+    shin = record.sensors["right_shin"]  # recovered, and failed as mounted far from nominal
+    assert not shin.passed and any(re.search(r"mounted 1[5-9]\d deg away", r) for r in shin.reasons), shin.reasons
 
 
 def test_without_heading_information_the_nominal_yaw_is_kept_and_said():
