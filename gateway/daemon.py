@@ -519,6 +519,18 @@ def _new_secret_main(argv: list[str]) -> int:
     return 0
 
 
+def _wait_for_stop(stop: threading.Event, duration_s: float | None, poll_s: float = 0.2) -> None:
+    """Until ``stop`` is set or ``duration_s`` has passed, waking every ``poll_s``: a signal the kernel hands to
+    another thread (any thread not blocking it may take it: liblsl's, a vendor driver's, or under a tracer) only
+    runs its Python handler when the main thread next runs bytecode, which an untimed wait never does."""
+    deadline = None if duration_s is None else time.monotonic() + duration_s
+    while not stop.is_set():
+        left = poll_s if deadline is None else min(poll_s, deadline - time.monotonic())
+        if left <= 0:
+            return
+        stop.wait(left)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "export":
@@ -551,7 +563,7 @@ def main(argv: list[str] | None = None) -> int:
     if court.take:
         print(f"recording take {court.take}", flush=True)
     try:
-        stop.wait(args.duration)
+        _wait_for_stop(stop, args.duration)
     finally:
         court.stop()
     print("gateway stopped", flush=True)

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,10 @@ def main(workdir: str, seconds: float) -> None:
 
     work = Path(workdir)
     still = [0.0, 0.0, 1.0] + np.random.default_rng(4).normal(0.0, 0.005, (12000, 3))  # 2 min: no repeats
-    with Ximu3Emulator(serial="00C0FFEE", rate_hz=100.0, drift_ppm=60.0, acc_g=still) as device:
+    # LSL at machine scope sees every outlet on this machine: a serial of this run's own keeps the source id apart
+    # from any other run's
+    serial = f"{zlib.crc32(str(work.resolve()).encode()) & 0xFFFFFFFF:08X}"
+    with Ximu3Emulator(serial=serial, rate_hz=100.0, drift_ppm=60.0, acc_g=still) as device:
         (work / "court.toml").write_text(f"""
 name = "lslx"
 listen = "127.0.0.1:0"
@@ -39,11 +43,14 @@ ports = ["ximu3:{device.path}"]
 enabled = true
 """)
         gateway = subprocess.Popen([sys.executable, "-m", "gateway.cli", "gateway", "--config", "court.toml"],
-                                   cwd=work, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                                   cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
-            found = pylsl.resolve_byprop("source_id", "courtside/lslx/ximu3-00C0FFEE", 1, 60.0)
+            while "gateway listening" not in (line := gateway.stdout.readline()):  # its SIGTERM handler is set
+                if not line:
+                    raise SystemExit(f"gateway exited early: {gateway.wait()} {gateway.stderr.read()[-2000:]}")
+            found = pylsl.resolve_byprop("source_id", f"courtside/lslx/ximu3-{serial}", 1, 60.0)
             if not found:
-                raise SystemExit(f"no outlet resolved; gateway: {gateway.poll()}")
+                raise SystemExit("no outlet resolved within 60 s")
             inlet = pylsl.StreamInlet(found[0], max_buflen=60)
             inlet.open_stream(timeout=10.0)
             rows, stamps = [], []
@@ -53,11 +60,14 @@ enabled = true
                 rows += chunk
                 stamps += ts
             info = inlet.info()
+            inlet.close_stream()  # before the outlet goes: no reconnect attempts left running
+            del inlet
         finally:
             gateway.send_signal(signal.SIGTERM)
             _, err = gateway.communicate(timeout=30)
         sent = {"host_s": list(device.truth.host_s), "acc_g": [a.tolist() for a in device.truth.acc_g]}
-    print(json.dumps({"rows": rows, "stamps": stamps, "sent": sent, "name": info.name(), "lslcfg": str(cfg),
+    print(json.dumps({"rows": rows, "stamps": stamps, "sent": sent, "name": info.name(), "serial": serial,
+                      "lslcfg": str(cfg),
                       "local_minus_monotonic_s": pylsl.local_clock() - time.monotonic(),
                       "gateway_exit": gateway.returncode, "gateway_stderr": err[-2000:]}))
 
