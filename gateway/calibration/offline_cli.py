@@ -121,6 +121,11 @@ def main(argv: list[str] | None = None) -> int:
     for sid, s in record.sensors.items():
         for reason in s.reasons:
             print(f"calibrate: warning: {sid} ({s.segment}): {reason}", file=sys.stderr)
+    shanks = sorted({s.segment for s in record.sensors.values() if s.segment in SECOND_POSES["sit"]})
+    if shanks and "sit" not in windows:
+        print(f"calibrate: note: {', '.join(shanks)}: heading from the walking swing plane, which follows the "
+              "walker's toe-out (2-3 deg on normal gait, up to ~24 deg on unusual gaits); a long sit held in the "
+              "take (--second-pose sit@START:END) measures it directly", file=sys.stderr)
     print(json.dumps({"output": args.output, "quality": record.quality_score, "grade": record.grade,
                       "passed": record.passed,
                       "sensors": {sid: {"segment": s.segment, "correction_deg": round(s.correction_deg, 1),

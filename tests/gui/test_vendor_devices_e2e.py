@@ -154,6 +154,10 @@ viewer_secret_file = "viewer.secret"
     counts = {key[0]: len(cols["t_host_s"]) for key, cols in take.samples.items()}
     assert set(counts) == {k.rsplit("/", 1)[0] for k in station.values()}
     assert min(counts.values()) > 0.8 * 100 * length_s, counts  # both families recorded the whole walk
+    pyxdf = pytest.importorskip("pyxdf")  # the same recording as XDF, one stream per device
+    courtside("gateway", "export", "takes/live", "--xdf", "live.xdf", cwd=tmp_path)
+    streams, _ = pyxdf.load_xdf(str(tmp_path / "live.xdf"), synchronize_clocks=False, dejitter_timestamps=False)
+    assert {s["info"]["name"][0].split()[-1]: len(s["time_stamps"]) for s in streams} == counts
     poses = load_poses(tmp_path / "live.npz")
     assert {s["stream"] for s in poses.meta["sensors"]} == set(station.values())  # read across six stations
     assert len(poses.frame) > 0.8 * poses.meta["rate_hz"] * length_s

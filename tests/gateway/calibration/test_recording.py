@@ -185,6 +185,7 @@ def test_calibrate_reads_a_gateway_recording_and_names_the_live_sensors(tmp_path
     for name in ("lower_back", "left_shin", "right_shin"):
         assert err[name] < 4.0, err
     assert load_sensor_calibration(out).sensor_ids == dict(zip(NAMES, keys))  # what the console reads
+    assert "left_shin, right_shin: heading from the walking swing plane" in capsys.readouterr().err  # sit hint
     with pytest.raises(MalformedFileError, match="--sensor-map STATION/SENSOR=PLACEMENT"):
         main([str(tmp_path / "rec.npz"), "-o", str(out)])
     with pytest.raises(MalformedFileError, match="does not hold"):
