@@ -106,7 +106,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--subject", default="")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
-    acc, fps, names, labels = _read_take(path, parse_sensor_map(args.sensor_map, list(STANDARD_SENSORS)))
+    acc, fps, names, labels = _read_take(path, parse_sensor_map(args.sensor_map, list(STANDARD_SENSORS),
+                                                               "a standard placement"))
     windows = _windows(args.second_pose)
     config = RecordingCalibrationConfig(max_std_g=args.max_std)
     try:

@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from engine.errors import MalformedFileError
+from engine.errors import CourtsideError, MalformedFileError
 from engine.mocap import SEED000_SENSORS, load_sensor_calibration, reading_corrections, standard_placements, \
     virtual_accelerometers
 from gateway.calibration import CalibrationRecord, rotation_angle_deg
@@ -190,3 +190,5 @@ def test_calibrate_reads_a_gateway_recording_and_names_the_live_sensors(tmp_path
         main([str(tmp_path / "rec.npz"), "-o", str(out)])
     with pytest.raises(MalformedFileError, match="does not hold"):
         main([str(tmp_path / "rec.npz"), "-o", str(out), "--sensor-map", "nosuch/0=chest"])
+    with pytest.raises(CourtsideError, match="'left_knee' is not a standard placement"):
+        main([str(tmp_path / "rec.npz"), "-o", str(out), "--sensor-map", f"{keys[0]}=left_knee"])
