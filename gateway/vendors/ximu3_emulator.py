@@ -38,6 +38,7 @@ class Ximu3Truth:
     host_s: list[float] = field(default_factory=list)
     acc_g: list[np.ndarray] = field(default_factory=list)  # as sent (float32 in binary mode)
     dropped: int = 0
+    dropped_us: list[int] = field(default_factory=list)  # device time stamps of the dropped samples
     escaped_bytes: int = 0  # binary mode: payload bytes that needed byte stuffing (0x0A, 0xDB)
 
 
@@ -92,6 +93,7 @@ class Ximu3Emulator(PtyDeviceEmulator):
                 k += 1
                 if self._rng.random() < self.loss:
                     self.truth.dropped += 1
+                    self.truth.dropped_us.append(device_us)
                     continue
                 self.truth.device_us.append(device_us)
                 self.truth.host_s.append(host)
