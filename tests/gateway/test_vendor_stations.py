@@ -81,6 +81,11 @@ def test_vendor_station_streams_records_and_aligns(tmp_path, make):
     index = {int(t) % (1 << 32): k for k, t in enumerate(ticks)}
     assert all(int(r) in index for r in cols["raw_ticks"])  # every recorded sample is a sent one
     rows = [index[int(r)] for r in cols["raw_ticks"]]
+    # in the take: the gaps in the rebuilt counters are exactly the samples the device dropped in that span
+    dropped = np.array(getattr(emu.truth, "dropped_us", []), np.int64)
+    span = ticks[rows[0]], ticks[rows[-1]]
+    assert int((np.diff(cols["counter"].astype(np.int64)) - 1).sum()) == \
+        int(((dropped > span[0]) & (dropped < span[1])).sum())
     np.testing.assert_allclose(cols["acc_g"], np.array(emu.truth.acc_g)[rows], atol=1e-6)
     host = np.array(emu.truth.host_s)[rows]
     settled = host > host[0] + 2.0
