@@ -1,4 +1,5 @@
-"""Vendor stations (x-IMU3 via ximu3 in binary and ASCII mode, Shimmer3 via pyshimmer) through a real Gateway against their pty emulators:
+"""Vendor stations (x-IMU3 via ximu3 in binary and ASCII mode, Shimmer3 via pyshimmer) through a real Gateway
+against their pty emulators:
 clock alignment of the recorded samples against the emulators' true latch times (online estimate and the
 offline re-fit), the loss counted in the take vs the emulator's drops in the same span, and the CPU cost.
 
