@@ -290,6 +290,7 @@ class OnlineLabeler:
         self._second_chance(points, finite, assigned, used, best_score, mean, std)
         if cfg.shape_reacquire:
             self._reacquire_by_shape(points, finite, assigned, mean, std)
+        self._orient_reentering_bodies(points, assigned)
         if cfg.repair_swaps:
             self._repair_swaps(points, assigned)
         return self._finish(points, assigned, mean_candidates)
@@ -351,6 +352,36 @@ class OnlineLabeler:
             if best is not None:
                 assigned[sl] = best
 
+    def _orient_reentering_bodies(self, points: np.ndarray, assigned: np.ndarray) -> None:
+        """Relabel a body coming back (< 3 markers observed last frame, ≥ 3 now) by its last complete pose.
+
+        Why: pair distances, the only thing Eq. 5 and the shape search score, are blind to mirror images and to
+        the symmetries of a body (a head's four markers form a near-planar rectangle: left/right swapped is the
+        same rectangle turned upside down). A body that comes back after a loss is gated around stale
+        predictions, so nothing picks the right one of those twins, and a head re-acquired mirrored stayed
+        mirrored for the rest of the take (cmu_135_02, --degrade 2). A body lost for a fraction of a second has
+        barely turned, so its points are relabelled one-to-one (Hungarian) against its last complete
+        configuration moved by translation only; the relabelling is kept if the proper rigid fit to it is no
+        worse than the current one by more than the body's rigid tolerance (an asymmetric body that did turn far
+        fits its true labels much better, and keeps them). Modifies ``assigned``."""
+        cfg = self.config
+        for b in range(len(self.bodies)):
+            sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
+            if self._reliable[sl].sum() >= 3:
+                continue
+            current, tmpl = assigned[sl], self._template[b, :n]
+            usable = np.flatnonzero((current >= 0) & ~np.isnan(tmpl).any(axis=1))
+            if len(usable) < 3:
+                continue
+            src, pts = tmpl[usable], points[current[usable]]
+            cost = np.square((src - src.mean(0))[:, None] - (pts - pts.mean(0))[None]).sum(axis=2)
+            _, perm = linear_sum_assignment(cost)
+            if np.array_equal(perm, np.arange(len(usable))):
+                continue
+            tol = max(cfg.repair_min_rms_m, self._rigid_tol[b])
+            if _rigid_rms(src, pts[perm]) <= _rigid_rms(src, pts) + tol:
+                assigned[sl.start + usable] = current[usable][perm]
+
     def _reacquire_by_shape(self, points: np.ndarray, finite: np.ndarray, assigned: np.ndarray, mean: np.ndarray,
                             std: np.ndarray) -> None:
         """Give missing labels leftover points that fit their body's shape, wherever the filters predict them.
@@ -377,6 +408,17 @@ class OnlineLabeler:
             body_pos[have] = points[assigned[sl][have]]
             pick = reacquire_body(points[leftover], body_pos, mean[b, :n, :n], std_shape[b, :n, :n],
                                   cfg.shape_min_support)
+            if have.sum() == 1:
+                # One labelled marker carries no shape evidence: after a loss a stale gate hands it another
+                # marker's point (cmu_135_02: RSHO took CLAV's), and anchored on it the rest is never found. So
+                # the body is also searched from scratch with that point back in the pool; the search finding
+                # more markers wins.
+                lone = sl.start + int(np.flatnonzero(have)[0])
+                pool = np.append(leftover, assigned[lone])
+                alone = reacquire_body(points[pool], np.full((n, 3), np.nan), mean[b, :n, :n],
+                                       std_shape[b, :n, :n], cfg.shape_min_support)
+                if np.sum(alone >= 0) > np.sum(pick >= 0) + 1:
+                    assigned[lone], leftover, pick = -1, pool, alone
             pick[~self.trained[sl]] = -1
             got = np.flatnonzero(pick >= 0)
             if len(got):  # a shape twin (the other hand) fits the body's own links: its neighbours must agree too
