@@ -9,7 +9,7 @@ import pytest
 
 from engine.labeling.baseline import ClosestPointTracker, bootstrap_training_labels
 from engine.labeling.config import LabelingConfig
-from engine.labeling.evaluation import evaluate_take, force_losses
+from engine.labeling.evaluation import evaluate_take, force_losses, reacquisition_s
 from engine.labeling.labeler import LOST, RECOVERED, OnlineLabeler
 from engine.labeling.reacquire import reacquire_body
 from engine.labeling.scenario import DegradeConfig, degrade
@@ -245,6 +245,28 @@ def test_evaluation_scores_windows_forced_losses_and_the_baseline():
     assert [(loss.start, loss.end) for loss in losses] == [(150, 180), (330, 360), (510, 540)]
     assert not np.isin(stream.truth[179], np.arange(5, 10)).any() and len(stream.clouds[179]) == 10
     assert len(stream.clouds[180]) == 15 and not stream.visible[179, 5:10].any() and stream.visible[180].all()
+
+
+def test_reacquisition_time_counts_the_markers_the_loss_took_not_an_older_error():
+    """Known answer: body {0, 1, 2} removed over frames [7, 9); marker 2 was already wrong before the loss and
+    stays wrong; markers 0 and 1 are labelled correctly again 3 frames after the body returns. The old rule (every
+    visible marker correct) read "never", which every later loss of that body repeated."""
+    frames, first = 14, 2
+    stream = degrade(np.zeros((frames, 4, 3)) + np.arange(4)[None, :, None], np.zeros(4, int),
+                     DegradeConfig(0.0, 0.0, 1, 0.0, 0.0, protect_frames=frames), np.random.default_rng(0))
+    (loss,) = force_losses(stream, [np.array([0, 1, 2])], first, 1.0, every_s=10.0, duration_s=2.0)
+    assert (loss.start, loss.end) == (7, 9)
+    picks = []
+    for t in range(first, frames):
+        where = {int(label): i for i, label in enumerate(stream.truth[t])}
+        pick = np.array([where.get(label, -1) for label in range(4)])
+        pick[2] = where.get(3, -1)  # marker 2 holds marker 3's point throughout
+        if 9 <= t < 12:
+            pick[[0, 1]] = pick[[1, 0]]  # swapped for the first three frames back
+        picks.append(pick)
+    assert reacquisition_s(loss, stream, picks, first, fps=10.0) == 0.3
+    picks = [np.full(4, -1) for _ in range(first, frames)]  # nothing correct before the loss: all must be
+    assert reacquisition_s(loss, stream, picks, first, fps=10.0) == float("inf")
 
 
 def test_default_training_window_is_ten_seconds_at_most_half_the_take_at_least_fifty_frames():
