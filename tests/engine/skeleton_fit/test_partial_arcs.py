@@ -50,15 +50,19 @@ def test_refinement_reaches_the_geometric_least_squares_optimum():
 
 
 def test_full_sphere_error_stays_in_the_eq7_band_after_refinement():
-    """The refinement must not spoil the full-sphere case: |c − c0|·√N/σ mean 2.6-3.1 (spec 002 §5)."""
+    """The refinement must not spoil the full-sphere case. Spec 002 §5 test 4's protocol (N ~ U{4..1000}, σ/R in
+    [1e-4, 0.05]): |c − c0|·√N/σ mean in [2.6, 3.1], std in [1.0, 1.45]. At a fixed small N the factor is larger for
+    every estimator (N = 10: 3.4 for the closed form and for iterative least squares alike, spec and bench), so the
+    band is a statement about the spec's mix of N, not about N = 10."""
     rng = np.random.default_rng(7)
     errors = []
     for _ in range(400):
-        n = int(rng.integers(20, 1001))
-        centre = rng.normal(0, 0.5, 3)
-        pts = spherical_cap(rng, n, 180.0, RADIUS, SIGMA, centre)
-        errors.append(np.linalg.norm(fit_joint(pts, REFINED).centre - centre) * np.sqrt(n) / SIGMA)
+        n = int(rng.integers(4, 1001))
+        centre, sigma = rng.normal(0, 0.5, 3), RADIUS * rng.uniform(1e-4, 0.05)
+        pts = spherical_cap(rng, n, 180.0, RADIUS, sigma, centre)
+        errors.append(np.linalg.norm(fit_joint(pts, REFINED).centre - centre) * np.sqrt(n) / sigma)
     assert 2.6 <= np.mean(errors) <= 3.1, np.mean(errors)
+    assert 1.0 <= np.std(errors) <= 1.45, np.std(errors)
 
 
 def test_reported_arc_and_expected_error_match_the_data():
