@@ -135,6 +135,7 @@ class OnlineLabeler:
         self.window = DistanceWindow(len(self.bodies), self._n_max, cfg.window_frames, cfg.sigma_min_m)
         self._disp = np.full((len(self.bodies), self._n_max, self._n_max, 3), np.nan)
         self._template = np.full((len(self.bodies), self._n_max, 3), np.nan)
+        self._template_age = np.zeros(len(self.bodies), int)  # frames since the body was last complete
         for t in range(max(0, n_frames - cfg.window_frames), n_frames):
             self._update_structure(train[t], ~np.isnan(train[t]).any(axis=1))
         self._train_template = self._template.copy()
@@ -230,6 +231,7 @@ class OnlineLabeler:
         untrained = self._padded(np.where(self.trained, 0.0, 1.0)[:, None])[..., 0] == 1.0
         complete = (~np.isnan(body_pos).any(axis=-1) | (self._pad < 0) | untrained).all(axis=1)
         self._template[complete] = body_pos[complete]
+        self._template_age = np.where(complete, 0, self._template_age + 1)
 
     # ---------------------------------------------------------------- online step
     def step(self, points_m: np.ndarray) -> FrameLabels:
@@ -353,21 +355,24 @@ class OnlineLabeler:
                 assigned[sl] = best
 
     def _orient_reentering_bodies(self, points: np.ndarray, assigned: np.ndarray) -> None:
-        """Relabel a body coming back (< 3 markers observed last frame, ≥ 3 now) by its last complete pose.
+        """Undo a mirrored or flipped re-acquisition of a symmetric body by its last complete pose.
 
         Why: pair distances, the only thing Eq. 5 and the shape search score, are blind to mirror images and to
         the symmetries of a body (a head's four markers form a near-planar rectangle: left/right swapped is the
         same rectangle turned upside down). A body that comes back after a loss is gated around stale
         predictions, so nothing picks the right one of those twins, and a head re-acquired mirrored stayed
-        mirrored for the rest of the take (cmu_135_02, --degrade 2). A body lost for a fraction of a second has
-        barely turned, so its points are relabelled one-to-one (Hungarian) against its last complete
-        configuration moved by translation only; the relabelling is kept if the proper rigid fit to it is no
-        worse than the current one by more than the body's rigid tolerance (an asymmetric body that did turn far
-        fits its true labels much better, and keeps them). Modifies ``assigned``."""
+        mirrored for the rest of the take (cmu_135_02, --degrade 2). For a body coming back (< 3 markers observed
+        last frame, ≥ 3 now, complete within the last second), its points are relabelled one-to-one (Hungarian)
+        against its last complete configuration moved by translation only. The relabelling is kept only when it
+        is a twin of the current labels (proper rigid fits within repair_min_rms_m of each other) and the
+        current labels imply the body turned by more than 120° while the relabelling implies less than 60°.
+        Shape alone is not trusted to decide: on the tennis serve the trunk changes shape as the arm rises, and
+        a relabelling that merely fitted the older template better flipped a correctly labelled trunk.
+        Modifies ``assigned``."""
         cfg = self.config
         for b in range(len(self.bodies)):
             sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
-            if self._reliable[sl].sum() >= 3:
+            if self._reliable[sl].sum() >= 3 or self._template_age[b] * self.dt > 1.0:
                 continue
             current, tmpl = assigned[sl], self._template[b, :n]
             usable = np.flatnonzero((current >= 0) & ~np.isnan(tmpl).any(axis=1))
@@ -378,8 +383,9 @@ class OnlineLabeler:
             _, perm = linear_sum_assignment(cost)
             if np.array_equal(perm, np.arange(len(usable))):
                 continue
-            tol = max(cfg.repair_min_rms_m, self._rigid_tol[b])
-            if _rigid_rms(src, pts[perm]) <= _rigid_rms(src, pts) + tol:
+            (old_turn, old_rms), (new_turn, new_rms) = _turn_and_rms(src, pts), _turn_and_rms(src, pts[perm])
+            twin = abs(new_rms - old_rms) <= cfg.repair_min_rms_m
+            if twin and old_turn > 2 * np.pi / 3 and new_turn < np.pi / 3:
                 assigned[sl.start + usable] = current[usable][perm]
 
     def _reacquire_by_shape(self, points: np.ndarray, finite: np.ndarray, assigned: np.ndarray, mean: np.ndarray,
@@ -411,13 +417,15 @@ class OnlineLabeler:
             if have.sum() == 1:
                 # One labelled marker carries no shape evidence: after a loss a stale gate hands it another
                 # marker's point (cmu_135_02: RSHO took CLAV's), and anchored on it the rest is never found. So
-                # the body is also searched from scratch with that point back in the pool; the search finding
-                # more markers wins.
+                # the body is also searched from scratch with that point back in the pool; a search finding 4 or
+                # more markers, more than the anchored one, wins (3 points match some body by chance: along an
+                # arm the upper-arm triangle was found in forearm points, cmu_85_02 --degrade 1).
                 lone = sl.start + int(np.flatnonzero(have)[0])
                 pool = np.append(leftover, assigned[lone])
                 alone = reacquire_body(points[pool], np.full((n, 3), np.nan), mean[b, :n, :n],
                                        std_shape[b, :n, :n], cfg.shape_min_support)
-                if np.sum(alone >= 0) > np.sum(pick >= 0) + 1:
+                found = int(np.sum(alone >= 0))
+                if found >= 4 and found > np.sum(pick >= 0) + 1:
                     assigned[lone], leftover, pick = -1, pool, alone
             pick[~self.trained[sl]] = -1
             got = np.flatnonzero(pick >= 0)
@@ -552,10 +560,16 @@ class OnlineLabeler:
         return out
 
 
+def _turn_and_rms(src: np.ndarray, dst: np.ndarray) -> tuple[float, float]:
+    """Rotation angle (rad) and RMS distance of the best rigid fit of src onto dst (paired rows)."""
+    rot, shift = _kabsch(src, dst)
+    angle = float(np.arccos(np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0)))
+    return angle, float(np.sqrt(np.mean(np.sum((src @ rot.T + shift - dst) ** 2, axis=1))))
+
+
 def _rigid_rms(src: np.ndarray, dst: np.ndarray) -> float:
     """RMS distance after the best rigid fit of src onto dst (paired rows)."""
-    rot, shift = _kabsch(src, dst)
-    return float(np.sqrt(np.mean(np.sum((src @ rot.T + shift - dst) ** 2, axis=1))))
+    return _turn_and_rms(src, dst)[1]
 
 
 def _link_support(points: np.ndarray, pid: np.ndarray, which: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:

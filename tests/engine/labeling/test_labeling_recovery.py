@@ -106,16 +106,17 @@ def test_a_whole_subject_hidden_for_a_second_is_reacquired_body_by_body():
     assert np.array_equal(got, np.arange(15))
 
 
-def _symmetric_head_scene(rng, frames, velocity_mps):
+def _symmetric_head_scene(rng, frames, velocity_mps, spin_radps=0.0):
     """Three rigid bodies; the middle one is a left/right symmetric near-planar quad (a head's four markers), so
-    pair distances alone cannot tell its mirror image from it."""
+    pair distances alone cannot tell its mirror image from it. spin_radps: the first (asymmetric) body also
+    turns steadily about the vertical at this rate."""
     quad = np.array([[-0.08, 0.05, 0.0], [0.08, 0.05, 0.0], [-0.07, -0.06, 0.0], [0.07, -0.06, 0.0]])
     local = [rng.uniform(-0.1, 0.1, (5, 3)), quad, rng.uniform(-0.1, 0.1, (5, 3))]
     offsets = np.array([[0.0, 0, 1.0], [0.0, 0.35, 1.6], [0.0, 0.7, 1.0]])
     t = np.arange(frames) / FPS
     pos = []
     for b in range(3):
-        ang = 0.4 * np.sin(0.9 * t + b)
+        ang = 0.4 * np.sin(0.9 * t + b) + (spin_radps * t if b == 0 else 0.0)
         c, s = np.cos(ang), np.sin(ang)
         rot = np.stack([np.stack([c, -s, 0 * c], -1), np.stack([s, c, 0 * c], -1),
                         np.stack([0 * c, 0 * c, 1 + 0 * c], -1)], -2)
@@ -140,6 +141,24 @@ def test_a_symmetric_body_lost_for_half_a_second_comes_back_not_mirrored(seed):
         got = np.where(result.label_point >= 0, perm[np.maximum(result.label_point, 0)], -1)
         if t >= 245:  # back within 5 frames, and never mirrored
             assert np.array_equal(got, np.arange(14)), (t, got[quad])
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_an_asymmetric_body_that_turned_far_while_hidden_keeps_its_true_labels(seed):
+    """The re-entry check must not "untwist" a body that really turned: the asymmetric body spins at 5 rad/s and
+    is hidden for 0.5 s (143°). Its true labels fit its shape; the translation-only relabelling does not."""
+    rng = np.random.default_rng(seed)
+    pos, subjects = _symmetric_head_scene(rng, 330, np.zeros(3), spin_radps=5.0)
+    labeler = OnlineLabeler(LabelingConfig(train_frames=120))
+    labeler.train(pos[:120], subjects, FPS, bodies=[np.arange(5), np.arange(5, 9), np.arange(9, 14)])
+    spinning = np.arange(5)
+    for t in range(120, 330):
+        keep = np.setdiff1d(np.arange(14), spinning) if 180 <= t < 240 else np.arange(14)
+        perm = rng.permutation(keep)
+        result = labeler.step(pos[t, perm] + rng.normal(0, 0.0005, (len(perm), 3)))
+        got = np.where(result.label_point >= 0, perm[np.maximum(result.label_point, 0)], -1)
+        if t >= 245:
+            assert np.array_equal(got, np.arange(14)), (t, got[spinning])
 
 
 def test_a_lone_marker_on_a_ghost_does_not_anchor_the_search_for_its_body():
