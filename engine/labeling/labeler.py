@@ -372,7 +372,7 @@ class OnlineLabeler:
         cfg = self.config
         for b in range(len(self.bodies)):
             sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
-            if self._reliable[sl].sum() >= 3 or self._template_age[b] * self.dt > 1.0:
+            if self._reliable[sl].sum() >= 3 or self._template_age[b] * self.dt > cfg.reentry_max_age_s:
                 continue
             current, tmpl = assigned[sl], self._template[b, :n]
             usable = np.flatnonzero((current >= 0) & ~np.isnan(tmpl).any(axis=1))
@@ -385,7 +385,7 @@ class OnlineLabeler:
                 continue
             (old_turn, old_rms), (new_turn, new_rms) = _turn_and_rms(src, pts), _turn_and_rms(src, pts[perm])
             twin = abs(new_rms - old_rms) <= cfg.repair_min_rms_m
-            if twin and old_turn > 2 * np.pi / 3 and new_turn < np.pi / 3:
+            if twin and old_turn > cfg.reentry_turn_rad and new_turn < cfg.reentry_settled_rad:
                 assigned[sl.start + usable] = current[usable][perm]
 
     def _reacquire_by_shape(self, points: np.ndarray, finite: np.ndarray, assigned: np.ndarray, mean: np.ndarray,
