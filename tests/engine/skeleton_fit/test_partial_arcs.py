@@ -11,7 +11,7 @@ import pytest
 from scipy.optimize import least_squares
 
 from engine.skeleton_fit.frames import frame_from_three, to_local
-from engine.skeleton_fit.gdke import JointFitConfig, JointType, fit_joint, refine_centre, sphere_fit
+from engine.skeleton_fit.gdke import JointFitConfig, JointType, _inverse_small, fit_joint, refine_centre, sphere_fit
 from engine.skeleton_fit.score import cluster_poses, score_centre
 from engine.skeleton_fit.synthetic import functional_trial, random_rotation, spherical_cap
 
@@ -125,3 +125,14 @@ def test_score_is_exact_without_noise():
     child = cluster_poses(trial.child)
     world = child[0] + np.einsum("fij,j->fi", child[1], centre_child)
     assert np.abs(world - trial.centre_world).max() < 1e-9
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_small_inverse_equals_numpy_and_refuses_a_singular_matrix(dim):
+    rng = np.random.default_rng(dim)
+    for _ in range(20):
+        a = rng.normal(size=(dim, dim))
+        m = a @ a.T + 0.1 * np.eye(dim)
+        assert np.allclose(_inverse_small(m), np.linalg.inv(m), rtol=1e-10, atol=1e-12)
+    with pytest.raises(np.linalg.LinAlgError):
+        _inverse_small(np.zeros((dim, dim)))
