@@ -10,8 +10,14 @@ gateway clock (inside the take's span).
 
 `run_acceptance(span_s, speed, n_unplugs)` is the whole run; it returns an `AcceptanceRun` whose `failures()`
 lists every criterion missed and whose `summary()` prints the figures. The suite runs 60 s emulated at 2x and
-3 min emulated at 3x with 3 unplugs; the 10-minute case of the issue runs from the bench
-(`bench/bench_gateway.py --acceptance-minutes 10`, see docs/gateway.md "Acceptance")."""
+3 min emulated at 2x with 3 unplugs; the 10-minute case of the issue runs from the bench
+(`bench/bench_gateway.py --acceptance-minutes 10`, see docs/gateway.md "Acceptance").
+
+Why 2x and not faster: everything shares one process, whose CPU need grows with the speed (3x took 1.25 of the
+2-core CI box's cores and missed the 1 ms clock limit at load 2.6), and a host stall covers `speed` times more of
+the clock's device-time window. The 1 ms limit is not relaxed for a busy machine; instead every run measures how
+late the host delivered the fastest clock beacons (`AcceptanceRun.host_starved`), so a clock failure on a starved
+host says so, and a pass on one warns."""
 from __future__ import annotations
 
 import os
