@@ -311,9 +311,20 @@ def demo_main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if _screenshots_need_duration("demo", args):
         return 2
+    from engine.errors import CourtsideError
+    from gateway.court_config import check_consistent, is_loopback
     from gui.app import application
+    from gui.demo.hardware import demo_court_config
     from gui.demo.session import demo_session
 
+    # the demo's court goes through the config loader's rules before anything starts, so a refusal is one line
+    # here, not a failure in the hardware process; the demo gateway has no secret, so it stays on loopback
+    if not is_loopback(args.listen[0]):
+        raise CourtsideError(f"--listen {args.listen[0]}:{args.listen[1]}: the demo gateway has no authentication, "
+                             "so it listens on loopback only (127.0.0.0/8); for consoles on other machines run "
+                             "`courtside gateway --config court.toml` with an [auth] secret (docs/gateway.md "
+                             "\"Two machines\")")
+    check_consistent(demo_court_config(args.listen, args.record_dir))
     application()
     with demo_session(lag_s=args.lag, listen=args.listen, record_dir=args.record_dir, camera=not args.no_camera,
                       duration_s=args.duration, separate_process=not args.single_process) as session:
