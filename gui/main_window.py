@@ -323,6 +323,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                          + (f", {s.late_samples} samples / {s.late_fixes} camera fixes came after their frames"
                             if s.late_samples or s.late_fixes else "")
                          + (f" ERROR {s.error}" if s.error else ""))
+            behind = s.falling_behind(self.synthesis.engine.rate_hz)
+            if behind:
+                parts.insert(0, behind)  # first: the status line is cut at the window's width
         if self.playback is not None:
             parts.insert(0, f"PLAYBACK {self.playback.path.name}")
         self.status_label.setText("  |  ".join(parts))

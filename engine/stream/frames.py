@@ -126,9 +126,10 @@ class FrameResampler:
         return max((t[-1] for t in self._t.values() if len(t)), default=-np.inf)
 
     # -- output ---------------------------------------------------------------------------------------------------
-    def frames(self, until_s: float = np.inf) -> FrameBatch:
+    def frames(self, until_s: float = np.inf, max_frames: int | None = None) -> FrameBatch:
         """All newly complete frames with ``t <= until_s`` (the caller's other streams, e.g. the camera, may hold
-        frames back); trims history."""
+        frames back), at most ``max_frames`` of them (the rest come on the next call: a live caller whose engine
+        is slower than real time stays responsive); trims history."""
         if any(len(t) == 0 for t in self._t.values()):  # every worn sensor must have spoken once
             return FrameBatch.empty(len(self.sensors))
         rate = self.rate_hz
@@ -146,6 +147,8 @@ class FrameResampler:
             # minutes after it started): start where the data does, instead of pushing every frame since the
             # take's start blind (an hour-old take would be 108 000 empty frames before the first real one)
             self._next = covered
+        if max_frames is not None:
+            last = min(last, self._next + max_frames - 1)
         if last < self._next:
             return FrameBatch.empty(len(self.sensors))
         index = np.arange(self._next, last + 1, dtype=np.int64)
