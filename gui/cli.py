@@ -153,6 +153,13 @@ def _console(args: argparse.Namespace) -> int:
             print(f"courtside console: cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})",
                   file=sys.stderr)
             return 2
+        if (args.record or args.calibrate) and getattr(client, "role", "operator") == "viewer":
+            client.close()  # refuse before anything runs: the gateway would refuse every step (and the wizard's
+            # refusals would only surface when it timed out, 90 s later)
+            print(f"courtside console: --calibrate/--record need the operator role, but gateway "
+                  f"{args.connect[0]}:{args.connect[1]} accepted this console's secret as a viewer (watch only): "
+                  "give the operator secret file", file=sys.stderr)
+            return 2
         stations = _stations_with_sensors(client)
     try:
         synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out,

@@ -19,6 +19,7 @@ from gui.health import Alarm, Sync, status_alarms
 from gui.playback import Playback
 from gui.ringbuffer import TraceStore
 from gui.synthesis import SynthesisSetup, SynthesisWorker
+from gui.widgets import VIEWER_ONLY
 from gui.widgets.alarms import AlarmBar
 from gui.widgets.camera_pane import CameraPane
 from gui.widgets.device_panel import DevicePanel
@@ -199,8 +200,15 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.client = client
         self._clock_offset_s = clock_offset_s
         hello = getattr(client, "server_hello", {}) or {}
-        self.connection.setText(f"gateway {hello.get('gateway', '')} {client.host}:{client.port}")
+        viewer = getattr(client, "role", "operator") == "viewer"
+        self.connection.setText(f"gateway {hello.get('gateway', '')} {client.host}:{client.port}"
+                                + (" (viewer: watch only)" if viewer else ""))
         self.connection.setStyleSheet("")
+        # the gateway checks the role of every request; a viewer console does not offer what it would refuse
+        self.calibrate_button.setEnabled(not viewer)
+        self.calibrate_button.setToolTip(VIEWER_ONLY if viewer else "")
+        self.recording.set_allowed(not viewer)
+        self.devices.set_commands_allowed(not viewer)
 
     def link_alarms(self) -> list[Alarm]:
         if self.client is None or self.playback is not None or self.client.connected:

@@ -105,3 +105,26 @@ def test_scripted_record_of_an_existing_take_is_refused_with_exit_1(live_gateway
     err = capsys.readouterr().err
     assert code == 1 and "recording taken refused" in err and "already exists" in err
     assert console_main(["--connect", f"{host}:{port}", "--record", "x"]) == 2  # a scripted run needs --duration
+
+
+def test_scripted_calibration_with_a_viewer_secret_is_refused_at_once(qapp, tmp_path, monkeypatch, capsys):
+    """A viewer cannot calibrate or record: the console says so in one line right after connecting (before, the
+    wizard's refusals were silent and the run hung until its 90 s calibration timeout)."""
+    from gateway import auth
+    from gateway.daemon import Gateway
+
+    auth.write_secret_file(tmp_path / "operator.secret")
+    auth.write_secret_file(tmp_path / "viewer.secret")
+    monkeypatch.delenv("COURTSIDE_SECRET", raising=False)
+    secrets = auth.Secrets.from_files(tmp_path / "operator.secret", tmp_path / "viewer.secret")
+    gateway = Gateway([], listen=("127.0.0.6", 0), record_dir=tmp_path / "rec", secrets=secrets).start()
+    try:
+        host, port = gateway.address
+        for script in (["--calibrate"], ["--record", "t1"]):
+            code = console_main(["--connect", f"{host}:{port}", "--secret-file", str(tmp_path / "viewer.secret"),
+                                 "--duration", "30", *script])
+            err = capsys.readouterr().err
+            assert code == 2 and "need the operator role" in err and "as a viewer" in err
+        assert not (tmp_path / "rec" / "t1").exists()
+    finally:
+        gateway.stop()

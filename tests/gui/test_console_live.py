@@ -137,3 +137,39 @@ def test_console_reconnects_when_the_gateway_comes_back(live_gateway, console, q
     finally:
         second.stop()
         station.stop()
+
+
+def test_a_viewer_console_offers_no_control_the_gateway_would_refuse(tmp_path, qtbot):
+    """Roles end to end: a gateway with an operator and a viewer secret on 127.0.0.6; the console connected with
+    the viewer secret shows "viewer" and has calibration, recording and identify disabled (the gateway refuses
+    them all); the operator's console has them enabled."""
+    from firmware_protocol.emulator import StationConfig
+    from gateway import auth
+    from gateway.daemon import Gateway
+    from gateway.emulation.stations import start_emulated_station
+
+    secrets = auth.Secrets(auth.new_secret().encode(), auth.new_secret().encode())
+    station = start_emulated_station(StationConfig(station_id=1, n_sensors=2, autostart=True), motion=StillSource(2))
+    gateway = Gateway([station.path], listen=("127.0.0.6", 0), record_dir=tmp_path / "rec", status_interval_s=0.2,
+                      secrets=secrets).start()
+    windows = []
+    try:
+        for secret in (secrets.viewer, secrets.operator):
+            window = ConsoleWindow(GatewayClient(*gateway.address, secret=secret).connect())
+            qtbot.addWidget(window)
+            windows.append(window)
+            qtbot.waitUntil(lambda: window.devices.identify_button("st1", 1) is not None, timeout=10_000)
+        (viewer, operator) = windows
+        identify = lambda w: w.devices.identify_button("st1", 0)  # noqa: E731
+        assert viewer.connection.text().endswith("(viewer: watch only)")
+        assert not viewer.calibrate_button.isEnabled() and not viewer.recording.start_button.isEnabled()
+        assert not identify(viewer).isEnabled() and "viewer" in viewer.recording.message.text()
+        assert "viewer" not in operator.connection.text()
+        assert operator.calibrate_button.isEnabled() and operator.recording.start_button.isEnabled()
+        assert identify(operator).isEnabled()
+    finally:
+        for window in windows:
+            window.shutdown()
+            window.client.close()
+        gateway.stop()
+        station.stop()
