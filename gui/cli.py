@@ -209,6 +209,7 @@ def _client_factory(args: argparse.Namespace):
 def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held_out: list[str], refresh=None):
     """(SynthesisSetup or None, worn sensor -> placement, skeleton parents or None). ``refresh`` re-reads the
     station list (live gateway)."""
+    from engine.errors import CourtsideError
     from engine.stream.databases import engine_spec
     from gui.engine_link import synthesis_setup, worn_sensors
 
@@ -224,9 +225,15 @@ def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held
                                    _pick_synth_station(stations, args.synth_station, len(spec.sensor_names)),
                                    calibration)
     except ValueError as exc:
-        from engine.errors import CourtsideError
-
         raise CourtsideError(str(exc)) from exc
+    if keys is None:
+        if args.graph or args.kb or args.engine:  # asked for by name: refuse rather than run without it
+            candidates = ", ".join(f"{s['station']} ({len(s.get('sensors') or [])} sensors)" for s in stations
+                                   if len(s.get("sensors") or []) >= len(spec.sensor_names)) or "none"
+            raise CourtsideError(f"{spec.label} needs {len(spec.sensor_names)} worn sensors "
+                                 f"({', '.join(spec.sensor_names)}) but nothing says which live sensors those are; "
+                                 f"stations that could carry them: {candidates}. Pass --synth-station ST (its "
+                                 "sensors 0.. in that order) or --calibration RECORD")
     for note in notes:
         log.warning("synthesis: %s", note)
     if keys is None:

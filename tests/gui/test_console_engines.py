@@ -147,3 +147,27 @@ def test_confidence_tints_the_estimate_towards_grey(qtbot):
     assert confident > 30 and is_estimate_colour(img).sum() < confident / 10 and grey.sum() > 30
     view.set_confidence(None)  # the engine reports none: normal colours
     assert view.refresh() and is_estimate_colour(view.last_pixels()).sum() == confident
+
+
+def test_a_named_database_with_no_way_to_tell_the_worn_sensors_is_refused(qapp, tmp_path, wrist_graph, capsys):
+    """Two stations could carry the wrist graph's four sensors and nothing says which: `--graph` was named, so the
+    console refuses in one line naming the candidates and the two ways to say it (before: it ran with synthesis
+    off, exit 0, the graph silently unused)."""
+    from firmware_protocol.emulator import StationConfig
+    from gateway.daemon import Gateway
+    from gateway.emulation.stations import start_emulated_station
+
+    stations_ = [start_emulated_station(StationConfig(station_id=i, n_sensors=n, autostart=True), motion=StillSource(n))
+                 for i, n in ((1, 6), (2, 5))]
+    gateway = Gateway([s.path for s in stations_], listen=("127.0.0.6", 0), record_dir=tmp_path / "rec").start()
+    try:
+        host, port = gateway.address
+        code = console_main(["--connect", f"{host}:{port}", "--graph", str(wrist_graph), "--duration", "1"])
+    finally:
+        gateway.stop()
+        for s in stations_:
+            s.stop()
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "needs 4 worn sensors (left_wrist, right_wrist, left_ankle, right_ankle)" in err
+    assert "st1 (6 sensors), st2 (5 sensors)" in err and "--synth-station" in err
