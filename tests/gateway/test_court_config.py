@@ -182,6 +182,11 @@ def test_cli_refuses_a_bad_config_with_one_line_and_exit_2(tmp_path):
     assert str(path) in result.stderr and "stations.ports" in result.stderr
     result = _gateway_cli("--listen", "0.0.0.0:7766", cwd=tmp_path)
     assert result.returncode == 2 and "needs authentication" in result.stderr and "Traceback" not in result.stderr
+    # a rule across keys broken by the file alone names the file (it did not: only the flag case is nameless)
+    path = write(tmp_path, 'listen = "0.0.0.0:7766"\n')
+    result = _gateway_cli("--config", str(path), cwd=tmp_path)
+    assert result.returncode == 2 and result.stderr.strip().count("\n") == 0, result.stderr
+    assert result.stderr.startswith(f"courtside gateway: {path}: listening on 0.0.0.0:7766 (beyond loopback) needs")
 
 
 def test_shipped_example_config_loads_and_every_key_is_documented():
