@@ -38,8 +38,8 @@ def _console_parser() -> argparse.ArgumentParser:
     p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
     p.add_argument("--engine", choices=ENGINE_NAMES, default=None,
                    help="synthesis engine (default: motion-graph with --graph, olng with --kb, else by the number "
-                        "of worn sensors: 4 -> olng, 1 -> hmm, which needs gyroscopes the stations do not stream, "
-                        "so motion-graph; otherwise motion-graph; see docs/console.md)")
+                        "of worn sensors: 4 -> olng, 1 -> hmm (an accelerometer-only model trained from the shipped "
+                        "clips: the stations stream no gyroscope), otherwise motion-graph; see docs/console.md)")
     p.add_argument("--graph", type=Path, default=None, metavar="G.npz",
                    help="motion graph from `courtside build-graph` (default: built from the shipped clips, cached)")
     p.add_argument("--kb", type=Path, default=None, metavar="KB.npz",

@@ -76,11 +76,9 @@ def test_console_refuses_a_graph_for_other_placements_than_the_calibration_recor
     assert err.count("\n") == 1  # one line, no traceback
 
 
-def test_console_refuses_the_hmm_live_and_an_unreadable_graph(live_gateway, qapp, tmp_path, capsys):
+def test_console_refuses_an_unreadable_graph(live_gateway, qapp, tmp_path, capsys):
     gateway, _ = live_gateway(StillSource(6), 6)
     host, port = gateway.address
-    assert console_main(["--connect", f"{host}:{port}", "--engine", "hmm", "--duration", "1"]) == 2
-    assert "gyroscope" in capsys.readouterr().err
     bad = tmp_path / "not-a-graph.npz"
     bad.write_bytes(b"nope")
     assert console_main(["--connect", f"{host}:{port}", "--graph", str(bad), "--duration", "1"]) == 2
@@ -101,6 +99,24 @@ def test_four_worn_sensors_default_to_the_olng_and_the_status_bar_names_it(live_
     saved = load_poses(tmp_path / "p.npz")
     assert saved.meta["engine"] == "olng" and [s["placement"] for s in saved.meta["sensors"]] == [
         "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
+
+
+def test_one_worn_sensor_defaults_to_the_accelerometer_only_hmm_and_it_runs_live(live_gateway, qapp, tmp_path,
+                                                                                caplog):
+    """The seed-004 HMM reads acc + gyro and the stations stream no gyroscope: live it runs a model trained on
+    accelerometers only (it used to be refused, and a one-sensor court fell back to the motion graph)."""
+    gateway, _ = live_gateway(StillSource(1), 1)
+    host, port = gateway.address
+    with caplog.at_level(logging.INFO, logger="courtside.console"):
+        assert console_main(["--connect", f"{host}:{port}", "--duration", "3",
+                             "--save-poses", str(tmp_path / "p.npz")]) == 0
+    assert "engine hmm (default for 1 worn sensors)" in caplog.text
+    assert "hmm on shipped CMU clips, accelerometer-only model (1 sensors @ 30 Hz)" in caplog.text
+    from engine.stream.poses_file import load_poses
+
+    saved = load_poses(tmp_path / "p.npz")
+    assert saved.meta["engine"] == "hmm" and [s["placement"] for s in saved.meta["sensors"]] == ["right_foot"]
+    assert len(saved.t_s) > 10 and np.isfinite(saved.joint_positions_m).all()
 
 
 def test_status_bar_names_engine_and_database(live_gateway, qtbot, wrist_graph):
