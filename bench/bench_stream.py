@@ -4,7 +4,8 @@ Six sensors at 100 Hz (jittered) plus a 12 fps camera, 60 s, resampled to 30 Hz 
 (a do-nothing engine) fed live in 100 ms batches as the console's worker is, the same fed offline in one pass
 (as `courtside synthesize`), the path driving the real fixed-lag motion graph (shipped clips, lag 0.5 s), and
 the path driving the OLNG (shipped-clip knowledge base without the walk 16_32, fed that walk's virtual
-accelerometers at the 4 seed-003 sites, 100 Hz, 25 Hz frames). Times are per frame; the ratio
+accelerometers at the 4 seed-003 sites, 100 Hz, 25 Hz frames), and the accelerometer-only HMM on that walk's
+right-foot sensor. Times are per frame; the ratio
 column is against the path's live run, measured in this process; "x real time" is the frame period over the CPU
 cost per frame (below 1 the engine falls behind a live stream even on an idle core: the console then says
 FALLING BEHIND). CPU time (this process, all threads) is printed beside wall time because on a shared, loaded
@@ -88,13 +89,15 @@ def main() -> None:
     _, session = synthesize_streams(NullEngine, rec, list(rec.samples), rate)
     offline_s, offline_cpu_s = time.perf_counter() - t0, time.process_time() - c0
 
-    from engine.stream.databases import shipped_graph_spec, shipped_olng_spec  # the console's defaults
+    from engine.stream.databases import shipped_graph_spec, shipped_hmm_spec, shipped_olng_spec  # console defaults
 
     spec = shipped_graph_spec()
     graph = run_live(lambda: spec.make(0.5), rec, spec.rate_hz)
     olng = shipped_olng_spec(exclude=(HELD_OUT,))  # the console's `--engine olng` default: 4 sensors at 25 Hz
     olng_rec = worn_streams(HELD_OUT, olng.sensor_names, min(args.seconds, args.olng_seconds))
     olng_run = run_live(lambda: olng.make(0.5), olng_rec, olng.rate_hz)
+    hmm = shipped_hmm_spec(exclude=(HELD_OUT,))  # the console's 1-sensor default: accelerometer-only HMM
+    hmm_run = run_live(lambda: hmm.make(0.5), worn_streams(HELD_OUT, hmm.sensor_names, args.seconds), hmm.rate_hz)
     load = os.getloadavg()[0]
     print(f"stream bench: 6 sensors x 100 Hz + 12 fps camera, {args.seconds:g} s -> {frames} frames at 30 Hz, "
           f"load avg {load:.1f} on {os.cpu_count()} cores")
@@ -104,7 +107,8 @@ def main() -> None:
                                        ("path alone, offline one pass",
                                         (offline_s, offline_cpu_s, session.stats.frames_in), 30.0),
                                        ("path + motion graph (lag 0.5 s), live", graph, spec.rate_hz),
-                                       ("path + OLNG (4 sensors, 25 Hz), live", olng_run, olng.rate_hz)):
+                                       ("path + OLNG (4 sensors, 25 Hz), live", olng_run, olng.rate_hz),
+                                       ("path + HMM acc-only (1 sensor), live", hmm_run, hmm.rate_hz)):
         us = 1e6 * cpu / n
         # "x real time" = frame period / CPU cost per frame: below 1 the engine cannot keep up with the stream
         # even with a core to itself (wall time on a loaded machine is worse)
