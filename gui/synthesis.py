@@ -55,7 +55,8 @@ class SynthesisStats:
     late_samples: int = 0           # data that arrived after its frames were pushed (see engine.stream.StreamStats)
     late_fixes: int = 0
     start_frame: int | None = None  # first frame of the current session (engine restart)
-    behind_s: float = 0.0           # newest sample minus the last frame pushed (engine.stream.StreamSynthesis.behind_s)
+    behind_s: float = 0.0           # newest sample minus the last frame pushed while complete frames wait for the
+                                    # engine (engine.stream.StreamSynthesis.behind_s); 0 when nothing waits
     error: str = ""
 
     def falling_behind(self, rate_hz: float) -> str:
@@ -197,7 +198,9 @@ class SynthesisWorker(threading.Thread):
             window_cost += time.perf_counter() - t_cost
             window_frames += session.stats.frames_in - frames_before
             more = session.stats.frames_in - frames_before >= max_frames
-            self.stats.behind_s = session.behind_s
+            # behind only while complete frames wait for the engine: frames held back by the data (a sensor or
+            # the camera waited for, a gateway restarting) are not the engine falling behind
+            self.stats.behind_s = session.behind_s if more else 0.0
             s = session.stats
             self.stats.frames_in, self.stats.frames_invalid = s.frames_in, s.frames_invalid
             self.stats.frames_with_camera, self.stats.poses_out = s.frames_with_camera, s.poses_out
