@@ -232,6 +232,11 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         client = (self.make_client or GatewayClient)(host, port).connect(timeout_s=1.0)
         try:
             self.bridge.detach()
+            if self.worker is not None:
+                # synthesis starts afresh on the new connection's data (queued before it, in-band): the frames
+                # of the outage would otherwise all be pushed through the engine blind (12 s of them after a
+                # gateway restart, as many as the outage was long)
+                self.worker.reset()
             self.bridge.attach(client)
             return client, gateway_clock_offset_s(client)
         except Exception:
