@@ -230,6 +230,9 @@ def test_cli_exit_1_when_it_cannot_start_now(tmp_path):
     CourtCalibration.fit(clicks, names=names, image_size=camera.image_size).save(tmp_path / "court.json")
     result = _gateway_cli("--camera", "/dev/video63", "--court", "court.json", "--listen", "127.0.0.4:0", cwd=tmp_path)
     assert result.returncode == 1 and "/dev/video63" in result.stderr and "Traceback" not in result.stderr
+    result = _gateway_cli("--camera", "63", "--court", "court.json", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    assert result.returncode == 1 and "camera 63: cannot open" in result.stderr
+    assert "WARN" not in result.stderr, result.stderr  # OpenCV's own "can't open camera by index" lines
     result = _gateway_cli("--camera", "/dev/video63", "--court", "absent.json", cwd=tmp_path)
     assert result.returncode == 2 and "absent.json" in result.stderr
     (tmp_path / "not-a-dir").write_text("")  # the first take cannot be started (as on a full disk)
