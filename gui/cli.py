@@ -313,8 +313,15 @@ def _run_window(window, duration_s: float | None, screenshots: Path | None) -> i
     from gui.screens import capture_console
 
     if screenshots is not None and duration_s is not None:
-        QtCore.QTimer.singleShot(int(max(0.0, duration_s - 1.5) * 1000),
-                                 lambda: log.info("screenshots: %s", [str(p) for p in capture_console(window, screenshots)]))
+        def capture_then_close() -> None:
+            log.info("screenshots: %s", [str(p) for p in capture_console(window, screenshots)])
+            window.close()
+
+        # one callback, in order: capturing runs nested event loops, and a separate close timer firing inside
+        # one of them (a loaded machine: the grabs take longer than the 1.5 s left) closed the window there,
+        # where the quit on the last window was lost, and the console never exited
+        QtCore.QTimer.singleShot(int(max(0.0, duration_s - 1.5) * 1000), capture_then_close)
+        duration_s = None
     code = run(window, duration_s)
     window.shutdown()
     return code

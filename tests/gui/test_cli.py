@@ -17,6 +17,24 @@ def test_console_connects_runs_and_saves_screenshots(live_gateway, qapp, tmp_pat
     assert (tmp_path / "shots" / "devices.png").is_file()
 
 
+def test_console_closes_after_its_screenshots_even_when_the_close_falls_inside_the_capture(live_gateway, tmp_path):
+    """--duration 0.5 --screenshots: the capture starts at once and pumps the event loop for 0.8 s, so the close
+    used to fire inside that nested loop, which swallowed the quit: the console never exited (found as a hung
+    suite run on the loaded machine). A subprocess, so the old behaviour shows as a timeout, not a hung test."""
+    import os
+    import subprocess
+    import sys
+
+    gateway, _ = live_gateway(StillSource(6), 6)
+    host, port = gateway.address
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen", COURTSIDE_CACHE_DIR=str(tmp_path / "cache"))
+    proc = subprocess.run([sys.executable, "-m", "gateway.cli", "console", "--connect", f"{host}:{port}",
+                           "--duration", "0.5", "--screenshots", str(tmp_path / "shots")],
+                          capture_output=True, text=True, timeout=60, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert (tmp_path / "shots" / "devices.png").is_file()
+
+
 def test_console_reports_unreachable_gateway(qapp, capsys):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
