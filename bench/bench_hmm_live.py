@@ -38,7 +38,8 @@ def main() -> int:
     motions = [load_clip(p, fps=30.0) for n, p in sample_clips().items() if n.startswith("16_")]
     tests = list(range(len(motions)))
     rows = {}
-    for name, config in (("acc + gyro (seed 004)", HMMConfig()), ("acc only (live console)", HMMConfig(imu_channels="acc"))):
+    for name, config in (("acc + gyro (seed 004)", HMMConfig()),
+                         ("acc only (live console)", HMMConfig(imu_channels="acc"))):
         scores = leave_one_out(motions, tests, ("right_foot",), error_model=SensorErrorModel(), config=config)
         rows[name] = (np.mean([s.joint_cm.mean() for s in scores]), np.mean([s.rms_root_cm.mean() for s in scores]))
     rows["mean pose (baseline)"] = (float("nan"), np.mean([mean_pose_rms_cm(motions, t) for t in tests]))
