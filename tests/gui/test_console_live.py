@@ -137,3 +137,82 @@ def test_console_reconnects_when_the_gateway_comes_back(live_gateway, console, q
     finally:
         second.stop()
         station.stop()
+
+
+def test_a_viewer_console_offers_no_control_the_gateway_would_refuse(tmp_path, qtbot):
+    """Roles end to end: a gateway with an operator and a viewer secret on 127.0.0.6; the console connected with
+    the viewer secret shows "viewer" and has calibration, recording and identify disabled (the gateway refuses
+    them all); the operator's console has them enabled."""
+    from firmware_protocol.emulator import StationConfig
+    from gateway import auth
+    from gateway.daemon import Gateway
+    from gateway.emulation.stations import start_emulated_station
+
+    secrets = auth.Secrets(auth.new_secret().encode(), auth.new_secret().encode())
+    station = start_emulated_station(StationConfig(station_id=1, n_sensors=2, autostart=True), motion=StillSource(2))
+    gateway = Gateway([station.path], listen=("127.0.0.6", 0), record_dir=tmp_path / "rec", status_interval_s=0.2,
+                      secrets=secrets).start()
+    windows = []
+    try:
+        for secret in (secrets.viewer, secrets.operator):
+            window = ConsoleWindow(GatewayClient(*gateway.address, secret=secret).connect())
+            qtbot.addWidget(window)
+            windows.append(window)
+            qtbot.waitUntil(lambda: window.devices.identify_button("st1", 1) is not None, timeout=30_000)
+        (viewer, operator) = windows
+        identify = lambda w: w.devices.identify_button("st1", 0)  # noqa: E731
+        assert viewer.connection.text().endswith("(viewer: watch only)")
+        assert not viewer.calibrate_button.isEnabled() and not viewer.recording.start_button.isEnabled()
+        assert not identify(viewer).isEnabled() and "viewer" in viewer.recording.message.text()
+        assert "viewer" not in operator.connection.text()
+        assert operator.calibrate_button.isEnabled() and operator.recording.start_button.isEnabled()
+        assert identify(operator).isEnabled()
+    finally:
+        for window in windows:
+            window.shutdown()
+            window.client.close()
+        gateway.stop()
+        station.stop()
+
+
+def test_synthesis_starts_afresh_after_a_reconnect_instead_of_stepping_through_the_outage(tmp_path, qtbot):
+    """The gateway restarts (service manager) under a running console: synthesis resumes on the new data; the
+    frames of the outage are not pushed through the engine blind (before: every one of them, e.g. 12 s of
+    frames after a real restart, reported as FALLING BEHIND while the engine worked them off)."""
+    import time
+
+    from engine.stream.databases import shipped_hmm_spec
+    from firmware_protocol.emulator import StationConfig
+    from gateway.daemon import Gateway
+    from gateway.emulation.stations import start_emulated_station
+    from gui.engine_link import synthesis_setup
+
+    def court(address):
+        station = start_emulated_station(StationConfig(station_id=1, n_sensors=1, autostart=True),
+                                         motion=StillSource(1))
+        return station, Gateway([station.path], listen=address, record_dir=tmp_path / "rec",
+                                status_interval_s=0.2).start()
+
+    station, gateway = court(("127.0.0.6", 0))
+    address = gateway.address
+    window = ConsoleWindow(GatewayClient(*address).connect(),
+                           synthesis=synthesis_setup(shipped_hmm_spec(), [("st1", 0)], lag_s=0.5))
+    qtbot.addWidget(window)
+    try:
+        qtbot.waitUntil(lambda: window.worker.stats.frames_in > 30, timeout=30_000)
+        gateway.stop()
+        station.stop()
+        qtbot.waitUntil(lambda: "DISCONNECTED" in window.connection.text(), timeout=30_000)
+        time.sleep(3.0)  # the outage: 90 frames at 30 Hz without data
+        t_back = time.monotonic()  # the gateway clock is this machine's CLOCK_MONOTONIC
+        station, gateway = court(address)
+        qtbot.waitUntil(lambda: window.reconnects == 1, timeout=30_000)
+        pose_after = lambda: (p := window.worker.latest_pose()) is not None and p.t_s > t_back + 1.0  # noqa: E731
+        qtbot.waitUntil(pose_after, timeout=30_000)
+        assert window.worker.stats.frames_invalid < 15  # none of the outage's ~90+ frames
+        assert window.worker.stats.error == ""
+    finally:
+        window.shutdown()
+        window.client.close()
+        gateway.stop()
+        station.stop()
