@@ -13,7 +13,7 @@ import numpy as np
 
 from engine.graph.graph import MotionGraph
 from engine.graph.online import FixedLagSynthesizer
-from engine.graph.poses import world_joint_positions
+from engine.graph.poses import blended_joint_positions, world_joint_positions
 from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
 from engine.graph.warp import RootWarp
 from engine.mocap import Skeleton, forward_kinematics, quaternions
@@ -54,7 +54,8 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
     sensors = tuple(sensor_indices) if acc is not None else None
     if lag_s is None:
         res = ViterbiSearch(graph, weights, warp=warp).run(Observations(acc, pos, head, sensors))
-        joints = world_joint_positions(graph, res.nodes, res.ground_m, res.heading_rad)
+        joints = world_joint_positions(graph, res.nodes, res.ground_m, res.heading_rad) if res.blend_nodes is None \
+            else blended_joint_positions(graph, res.blend_nodes, res.ground_m, res.heading_rad)
         return Prediction(joints, graph.node_clip[res.nodes].astype(int))
     syn = FixedLagSynthesizer(graph, lag_s, weights, sensors, warp=warp)
     poses = []

@@ -7,6 +7,7 @@ import json
 import re
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -141,9 +142,27 @@ def graph_info_main(argv: list[str]) -> int:
     return 0
 
 
-def _weights(values: list[float]) -> SearchWeights:
-    check_non_negative("--weights", values)
-    return SearchWeights(*values)
+def add_search_args(p: argparse.ArgumentParser) -> None:
+    """--weights and --forgetting, shared by `synthesize` and `evaluate` (read back by `weights_from_args`)."""
+    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
+                   help="search weights (default: 1 1 0.3 with root warping, the paper's 0.5 1 1 without)")
+    p.add_argument("--forgetting", type=float, default=None, metavar="LAMBDA",
+                   help="per-sample fading of every path's accumulated cost, in (0, 1]; 1 = seed 000's Viterbi "
+                        "(default: 0.85 with root warping, 1 without; engine/graph/viterbi.SearchWeights)")
+
+
+def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights:
+    """The preset that goes with `warp` (warp.default_weights), with --weights / --forgetting replacing its
+    values; a bad value is one line, no traceback."""
+    weights = default_weights(warp)
+    if args.weights:
+        check_non_negative("--weights", args.weights)
+        weights = replace(weights, acc=args.weights[0], position=args.weights[1], heading=args.weights[2])
+    if args.forgetting is not None:
+        if not (np.isfinite(args.forgetting) and 0 < args.forgetting <= 1):
+            raise CourtsideError(f"--forgetting {args.forgetting!r}: must be in (0, 1]")
+        weights = replace(weights, forgetting=args.forgetting)
+    return weights
 
 
 @cli_command("courtside synthesize")
@@ -162,8 +181,7 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--graph", required=True, help="graph .npz from build-graph")
     p.add_argument("--input", required=True, help="take .npz (synthesis input format or a gateway export)")
     p.add_argument("-o", "--output", required=True, help="output .bvh")
-    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
-                   help="search weights (default: 0.5 10 3 with root warping, the paper's 0.5 1 1 without)")
+    add_search_args(p)
     p.add_argument("--root-warp", nargs=2, type=float, default=[RootWarp().position_gain, RootWarp().heading_gain],
                    metavar=("GAIN_P", "GAIN_O"),
                    help="pull the root towards the camera by these gains per sample, bounded to human speeds "
@@ -215,7 +233,7 @@ def synthesize_main(argv: list[str]) -> int:
         raise MalformedFileError(args.graph, None, "graph holds no skeleton (rebuild it with build-graph)")
     check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, obs.n_samples, graph.config.fps)
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
-    weights = _weights(args.weights) if args.weights else default_weights(warp)  # a bad value: one line, no warning
+    weights = weights_from_args(args, warp)
     warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     if warning:
         print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"

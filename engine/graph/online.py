@@ -12,8 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .graph import MotionGraph
-from .poses import world_joint_positions
-from .viterbi import DEFAULT_KERNEL, PRUNE_EVERY, SearchWeights, ViterbiLattice
+from .poses import blended_joint_positions, world_joint_positions
+from .viterbi import (ACC_BATCH, DEFAULT_KERNEL, PRUNE_EVERY, Constraint, Observations, SearchResult,
+                      SearchWeights, ViterbiLattice, constraint_penalties, observation)
 from .confidence import CostWindow, confidence, reference_cost_per_sample
 from .warp import RootWarp
 
@@ -30,6 +31,9 @@ class EmittedPose:
     ground_m: np.ndarray
     heading_rad: float
     confidence: float = 1.0
+    edge: int = -1  # graph edge from the previous emitted node into `node`; -1: first sample, or the decoder
+    # changed its mind (the previous emitted node is not this edge's source)
+    blend_nodes: np.ndarray | None = None  # (k,) nodes whose mean pose `joint_positions_m` is (blend_paths > 1)
 
 
 class FixedLagSynthesizer:
@@ -51,6 +55,8 @@ class FixedLagSynthesizer:
             raise ValueError("lag must be non-negative")
         self.graph = graph
         self.lag = int(round(lag_s * graph.config.fps))
+        if weights.forgets:  # a forgetting search decides sooner (SearchWeights.decision_frames); lag_s bounds it
+            self.lag = min(self.lag, weights.decision_frames)
         self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp)
         self.next_emit = 0  # first sample not yet emitted
         self._last: tuple[complex, float, int] | None = None  # (ground, heading, node) of the last emitted sample
@@ -66,11 +72,12 @@ class FixedLagSynthesizer:
         self._confidence: dict[int, float] = {}  # per undecided sample, as measured when it was pushed
 
     def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None, heading_rad: float | None = None,
-             penalty: np.ndarray | None = None) -> list[EmittedPose]:
+             penalty: np.ndarray | None = None, rows: np.ndarray | None = None) -> list[EmittedPose]:
         """Consume sample t (acc (S, 3) g, optional ground position (2,) m and heading rad; `penalty` = optional
-        per-node broken-constraint count for this sample); returns the pose of sample t - L once t >= L."""
+        per-node broken-constraint count for this sample; `rows` = this sample's `acc_rows_batch` row if the
+        caller batched them); returns the pose of sample t - L once t >= L."""
         lat = self.lattice
-        lat.step(acc_g, pos_m, heading_rad, penalty)
+        lat.step(acc_g, pos_m, heading_rad, penalty, rows)
         t = lat.t
         per_sample = self._window.push(lat.cost_offset)
         self._confidence[t] = confidence(per_sample, self.confidence_reference)
@@ -125,9 +132,49 @@ class FixedLagSynthesizer:
             ground, heading = lat.global_states(best, edges, start)
         k = last - first + 1
         nodes, ground, heading = nodes[:k], ground[:k], heading[:k]
-        joints = world_joint_positions(self.graph, nodes, ground, heading)
+        blend = None
+        if lat.weights.blend_paths > 1:  # row i: the k best paths at sample first + i
+            blend = lat.ancestors(lat.weights.blend_paths, lat.t - first)[::-1][:k]
+            joints = blended_joint_positions(self.graph, blend, ground, heading)
+        else:
+            joints = world_joint_positions(self.graph, nodes, ground, heading)
+        edges = edges[:k].copy()
+        if self._last is not None and edges[0] >= 0 and self.graph.edge_src[edges[0]] != self._last[2]:
+            edges[0] = -1  # the decoder changed its mind since the last emitted sample
         self.next_emit = last + 1
         self._last = (complex(*ground[-1]), float(heading[-1]), int(nodes[-1]))
         lat.drop_before(self.next_emit)
         return [EmittedPose(first + i, int(nodes[i]), joints[i], ground[i], float(heading[i]),
-                            self._confidence.pop(first + i, 1.0)) for i in range(k)]
+                            self._confidence.pop(first + i, 1.0), int(edges[i]), None if blend is None else blend[i])
+                for i in range(k)]
+
+
+def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Observations,
+                           constraints: list[Constraint] | None = None, prune_every: int = PRUNE_EVERY,
+                           kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> SearchResult:
+    """The batch search of a forgetting search (`ViterbiSearch.run` with `weights.forgets`): the fixed-lag decoder
+    over the whole take with lag `weights.decision_frames`, so offline and live decide every sample the same way
+    (bit for bit: the accelerometer rows are batched as the batch search batches them, identical per row)."""
+    syn = FixedLagSynthesizer(graph, weights.decision_frames / graph.config.fps, weights, obs.sensor_indices,
+                              prune_every, kernel, warp, confidence_reference=float("nan"), reanchor_ratio=0.0)
+    lat = syn.lattice
+    penalties = constraint_penalties(constraints or [], graph.n_nodes, obs.n_samples)
+    batch = lat.kernel == "numba" and obs.acc_g is not None and lat.n_sensors and weights.acc != 0
+    poses: list[EmittedPose] = []
+    rows = None
+    for t in range(obs.n_samples):
+        if batch and t % ACC_BATCH == 0:
+            rows = lat.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
+        acc, pos, head = observation(obs, t)
+        poses += syn.push(acc, pos, head, penalties.get(t), rows[t % ACC_BATCH] if batch and t and acc is not None
+                          else None)
+    best = lat.best_node()
+    cost, broken = lat.cost_of(best), lat.broken_of(best)
+    poses += syn.flush()
+    return SearchResult(nodes=np.array([p.node for p in poses], dtype=np.int64),
+                        edges=np.array([p.edge for p in poses], dtype=np.int64),
+                        ground_m=np.array([p.ground_m for p in poses], dtype=float).reshape(-1, 2),
+                        heading_rad=np.array([p.heading_rad for p in poses], dtype=float), cost=cost,
+                        broken_constraints=broken, compression_ratio=lat.compression_ratio(),
+                        lattice_entries=lat.lattice_entries(),
+                        blend_nodes=None if weights.blend_paths == 1 else np.stack([p.blend_nodes for p in poses]))
