@@ -147,8 +147,9 @@ def add_search_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
                    help="search weights (default: 1 1 0.3 with root warping, the paper's 0.5 1 1 without)")
     p.add_argument("--forgetting", type=float, default=None, metavar="LAMBDA",
-                   help="per-sample fading of every path's accumulated cost, in (0, 1]; 1 = seed 000's Viterbi "
-                        "(default: 0.85 with root warping, 1 without; engine/graph/viterbi.SearchWeights)")
+                   help="per-sample fading of every path's accumulated cost, in (0, 1]; 1 = seed 000's Viterbi, "
+                        "one path, unblended (default: 0.9 with root warping, deciding each sample 0.2 s later and "
+                        "blending the 8 best paths; 1 without; engine/graph/viterbi.SearchWeights)")
 
 
 def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights:
@@ -161,7 +162,9 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
     if args.forgetting is not None:
         if not (np.isfinite(args.forgetting) and 0 < args.forgetting <= 1):
             raise CourtsideError(f"--forgetting {args.forgetting!r}: must be in (0, 1]")
-        weights = replace(weights, forgetting=args.forgetting)
+        # the blend of the best paths needs per-sample decisions: forgetting 1 is seed 000's search, unblended
+        weights = replace(weights, forgetting=args.forgetting,
+                          blend_paths=weights.blend_paths if args.forgetting < 1 else 1)
     return weights
 
 
@@ -173,7 +176,7 @@ def synthesize_main(argv: list[str]) -> int:
     from . import label_constraint
     from .inputs import TIME_COLUMNS, read_take
     from .online import FixedLagSynthesizer
-    from .poses import world_joint_positions
+    from .poses import blended_joint_positions, world_joint_positions
     from .postprocess import path_to_motion
     from .viterbi import ViterbiSearch
 
@@ -265,8 +268,10 @@ def synthesize_main(argv: list[str]) -> int:
     if args.lag is None:
         res = ViterbiSearch(graph, weights, warp=warp).run(obs, constraints)
         nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
+        blend_nodes = res.blend_nodes
         broken = res.broken_constraints
-        joints = world_joint_positions(graph, nodes, ground, heading)
+        joints = world_joint_positions(graph, nodes, ground, heading) if blend_nodes is None else \
+            blended_joint_positions(graph, blend_nodes, ground, heading)
         poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
     else:
         made = []
@@ -292,6 +297,8 @@ def synthesize_main(argv: list[str]) -> int:
         nodes = np.array([q.node for q in emitted])
         ground = np.array([q.ground_m for q in emitted])
         heading = np.array([q.heading_rad for q in emitted])
+        blend_nodes = None if not emitted or emitted[0].blend_nodes is None else \
+            np.stack([q.blend_nodes for q in emitted])
         edges = np.full(len(nodes), -1)
         for t in range(1, len(nodes)):
             try:
@@ -300,7 +307,7 @@ def synthesize_main(argv: list[str]) -> int:
                 edges[t] = -1  # the decoder changed its mind: blended like a transition
     elapsed = time.perf_counter() - t0
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
-                            foot_ik=not args.no_ik, name=Path(args.input).stem)
+                            foot_ik=not args.no_ik, name=Path(args.input).stem, blend_nodes=blend_nodes)
     write_bvh(args.output, motion)
     if outputs and args.lag is None:  # the batch search decides the whole path at once: stream the written frames
         from engine.livestream.stream_cli import stream_motion

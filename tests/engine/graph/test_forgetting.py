@@ -124,3 +124,42 @@ def test_settings_are_checked():
         SearchWeights(blend_paths=4)  # a blend needs the per-sample decisions of a forgetting search
     preset = SearchWeights.camera_following()
     assert preset.forgets and preset.blend_paths > 1 and SearchWeights().forgetting == 1.0
+
+
+def test_blended_bvh_pose_is_the_rotation_midpoint(sample_graph):
+    """The written/streamed pose of a blend (postprocess.place_blend): one column = the path's own pose; two
+    columns = every joint rotation halfway between the two (the chordal mean of two unit quaternions is their
+    slerp midpoint), the root halfway between the placed roots."""
+    from engine.graph.postprocess import place_blend, place_path
+    from engine.mocap import quaternions as quat
+
+    g = sample_graph
+    a, b = np.arange(0, 20), np.arange(40, 60)
+    ground = np.stack([np.linspace(0, 1, 20), np.zeros(20)], axis=1)
+    heading = np.linspace(0.0, 0.5, 20)
+    root_a, rots_a = place_path(g, a, ground, heading)
+    root_b, rots_b = place_path(g, b, ground, heading)
+    root, rots = place_blend(g, a[:, None], ground, heading)
+    assert np.allclose(root, root_a) and np.allclose(np.abs(np.sum(rots * rots_a, -1)), 1.0)
+    root, rots = place_blend(g, np.stack([a, b], axis=1), ground, heading)
+    assert np.allclose(root, 0.5 * (root_a + root_b))
+    mid = quat.slerp(rots_a, rots_b, np.full(rots_a.shape[:-1], 0.5))
+    assert np.allclose(np.abs(np.sum(rots * mid, -1)), 1.0, atol=1e-9)
+
+
+def test_forgetting_option_on_the_command_line():
+    """--forgetting replaces the preset's value; 1 is seed 000's search (one path, no blend); out of range is a
+    one-line error."""
+    import argparse
+
+    from engine.errors import CourtsideError
+    from engine.graph.cli import add_search_args, weights_from_args
+
+    p = argparse.ArgumentParser()
+    add_search_args(p)
+    assert weights_from_args(p.parse_args([]), RootWarp()) == SearchWeights.camera_following()
+    exact = weights_from_args(p.parse_args(["--forgetting", "1", "--weights", "0.5", "10", "3"]), RootWarp())
+    assert (exact.acc, exact.position, exact.heading, exact.forgets, exact.blend_paths) == (0.5, 10, 3, False, 1)
+    assert weights_from_args(p.parse_args([]), RootWarp.off()) == SearchWeights()
+    with pytest.raises(CourtsideError, match="--forgetting"):
+        weights_from_args(p.parse_args(["--forgetting", "0"]), RootWarp())
