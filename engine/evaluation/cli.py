@@ -147,8 +147,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"database: {len(db.motions)} clips, {sum(c.n_frames for c in db.clips)} frames at {fps:g} Hz; graph "
           f"{db.graph.n_nodes} nodes, {db.graph.n_edges} edges ({args.graph or 'built: ' + args.variant}); "
           f"motion graph: {'batch search' if args.lag is None else f'fixed lag {args.lag:g} s'}, weights "
-          f"{cfg.weights.acc:g} / {cfg.weights.position:g} / {cfg.weights.heading:g}, forgetting "
-          f"{cfg.weights.forgetting:g} (decided {cfg.weights.decision_frames} samples later); root warp gains "
+          f"{cfg.weights.acc:g} / {cfg.weights.position:g} / {cfg.weights.heading:g}, "
+          + (f"forgetting {cfg.weights.forgetting:g} (decided {cfg.weights.decision_frames} samples later, "
+             f"{cfg.weights.blend_paths} paths blended)" if cfg.weights.forgets else "no forgetting (seed 000)")
+          + f"; root warp gains "
           f"{cfg.warp.position_gain:g} / {cfg.warp.heading_gain:g}; sensor noise: {args.sensor_noise}; camera: {args.camera_noise_m * 100:g} cm / "
           f"{args.camera_noise_deg:g} deg at {args.camera_hz:g} Hz; seed {args.seed}")
     if args.protocol == "chained":
