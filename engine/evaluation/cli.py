@@ -19,11 +19,13 @@ from engine.graph.cli import (_add_database_args, add_search_args, database_path
                               load_clips, weights_from_args)
 from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph, build_from_clips
+from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 
 from . import protocols, table
 from .labels import clip_label
+from .confidence_quality import confidence_quality
 from .simulate import CameraModel
 from .takes import plan_chained_takes
 
@@ -54,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_search_args(p)
     p.add_argument("--root-warp", nargs=2, type=float, default=[0.5, 0.25], metavar=("GAIN_P", "GAIN_O"),
                    help="root warping towards the camera for all engines (0 0 = off; engine/graph/warp.py)")
+    p.add_argument("--no-root-fusion", action="store_true",
+                   help="with the camera, keep each engine's own (warped) root instead of the camera track smoothed "
+                        "over the lag (engine/graph/root_fusion.py; the pose still comes from the engine)")
     p.add_argument("--lag", type=float, default=None,
                    help="motion graph: the online fixed-lag decoder with this latency (s) instead of the batch search")
     p.add_argument("--camera-noise-m", type=float, default=0.05)
@@ -86,7 +91,10 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
         sensor_sets=sets, engines=engines,
         camera=CameraModel(args.camera_noise_m, float(np.radians(args.camera_noise_deg)), args.camera_hz),
         error_model=None if args.sensor_noise == "clean" else getattr(SensorErrorModel, args.sensor_noise)(),
-        weights=weights_from_args(args, warp), warp=warp, lag_s=args.lag, seed=args.seed)
+        weights=weights_from_args(args, warp), warp=warp,
+        fusion=RootFusion.off() if args.no_root_fusion else RootFusion(
+            args.camera_noise_m, float(np.radians(args.camera_noise_deg))),
+        lag_s=args.lag, seed=args.seed)
 
 
 def _database(args: argparse.Namespace) -> protocols.Database:
@@ -114,7 +122,9 @@ def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.R
     for group, results in per_group.items():
         out["groups"][group] = [{"engine": r.engine, "sensors": r.sensors, "camera": r.camera,
                                  **summary(s.errors), "clips_used": s.clips_used, "longest_run_s": s.longest_run_s,
-                                 "seconds": s.seconds, "per_second": protocols.traces(s, fps)}
+                                 "seconds": s.seconds, "per_second": protocols.traces(s, fps),
+                                 **({"confidence": vars(confidence_quality(s.confidence, [e.global_cm for e in s.errors],
+                                                                           fps))} if s.confidence else {})}
                                 for r, s in results.items()]
     with open(path, "w") as fh:
         json.dump(out, fh, indent=1)
@@ -169,6 +179,10 @@ def main(argv: list[str] | None = None) -> int:
             for k, e in enumerate(results[key].errors):
                 from .metrics import per_second
                 print(table.format_trace(f"  take {k + 1}", per_second(e.global_cm, fps)))
+        for row, scores in results.items():
+            if scores.confidence:
+                quality = confidence_quality(scores.confidence, [e.global_cm for e in scores.errors], fps)
+                print(f"{row.engine}, {row.sensors} sensors, camera {row.camera}: {quality.line(15.0)}")
         per_group = {"chained": results}
         extra = {"takes": [[db.clips[s.clip].name for s in t.segments] for t in takes]}
     else:

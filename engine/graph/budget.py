@@ -13,6 +13,7 @@ import numpy as np
 
 from .graph import MotionGraph
 from .online import FixedLagSynthesizer
+from .root_fusion import RootFusion
 from .viterbi import SearchWeights
 from .warp import RootWarp
 
@@ -30,7 +31,7 @@ def online_rate(graph: MotionGraph, n_samples: int = 90, lag_s: float = 2.0,
     ground = graph.node_ground_m[np.arange(n_samples + 1) % graph.n_nodes]
     heading = graph.node_heading_rad[np.arange(n_samples + 1) % graph.n_nodes]
     syn = FixedLagSynthesizer(graph, lag_s, weights or SearchWeights.camera_following(), warp=RootWarp(),
-                              confidence_reference=1.0)
+                              confidence_reference=1.0, fusion=RootFusion())  # as live: root fusion on
     syn.push(acc[0], ground[0], heading[0])
     t0, c0 = time.perf_counter(), time.process_time()
     for t in range(1, n_samples + 1):

@@ -178,6 +178,7 @@ def synthesize_main(argv: list[str]) -> int:
     from .online import FixedLagSynthesizer
     from .poses import blended_joint_positions, world_joint_positions
     from .postprocess import path_to_motion
+    from .root_fusion import RootFusion, fuse_track
     from .viterbi import ViterbiSearch
 
     p = argparse.ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
@@ -189,6 +190,9 @@ def synthesize_main(argv: list[str]) -> int:
                    metavar=("GAIN_P", "GAIN_O"),
                    help="pull the root towards the camera by these gains per sample, bounded to human speeds "
                         "(engine/graph/warp.py); 0 0 = seed 000's search")
+    p.add_argument("--no-root-fusion", action="store_true",
+                   help="keep the chosen path's own (warped) root instead of the camera track smoothed over the lag "
+                        "(engine/graph/root_fusion.py)")
     p.add_argument("--lag", type=float, default=None,
                    help="fixed-lag online decoding with this latency (s); on a gateway export this is the console's "
                         "live path itself, so the same lag gives the poses the console showed")
@@ -237,6 +241,7 @@ def synthesize_main(argv: list[str]) -> int:
     check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, obs.n_samples, graph.config.fps)
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
     weights = weights_from_args(args, warp)
+    fusion = RootFusion.off() if args.no_root_fusion else RootFusion()
     warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     if warning:
         print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"
@@ -267,8 +272,8 @@ def synthesize_main(argv: list[str]) -> int:
     counts: dict = {}
     if args.lag is None:
         res = ViterbiSearch(graph, weights, warp=warp).run(obs, constraints)
-        nodes, edges, ground, heading = res.nodes, res.edges, res.ground_m, res.heading_rad
-        blend_nodes = res.blend_nodes
+        nodes, edges, blend_nodes = res.nodes, res.edges, res.blend_nodes
+        ground, heading = fuse_track(fusion, fps, obs.position_m, obs.heading_rad, res.ground_m, res.heading_rad)
         broken = res.broken_constraints
         joints = world_joint_positions(graph, nodes, ground, heading) if blend_nodes is None else \
             blended_joint_positions(graph, blend_nodes, ground, heading)
@@ -277,7 +282,7 @@ def synthesize_main(argv: list[str]) -> int:
         made = []
 
         def make():
-            syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp)
+            syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp, fusion=fusion)
             if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
                 from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
 

@@ -15,14 +15,15 @@ from .graph import MotionGraph
 from .poses import blended_joint_positions, world_joint_positions
 from .viterbi import (ACC_BATCH, DEFAULT_KERNEL, PRUNE_EVERY, Constraint, Observations, SearchResult,
                       SearchWeights, ViterbiLattice, constraint_penalties, observation)
-from .confidence import CostWindow, confidence, reference_cost_per_sample
+from .confidence import CostHistory, CostWindow, confidence, reference_cost_per_sample
+from .root_fusion import RootFuser, RootFusion
 from .warp import RootWarp
 
 
 @dataclass(frozen=True)
 class EmittedPose:
-    """The decided pose of sample `t`: graph node, joint positions (J, 3) m in the world frame, the path's root
-    ground position (x, z) m and heading rad, and `confidence` in [0, 1] (confidence.py: 1 = the search costs
+    """The decided pose of sample `t`: graph node, joint positions (J, 3) m in the world frame, the output root's
+    ground position (x, z) m and heading rad (the camera's smoothed track with root fusion, else the path's), and `confidence` in [0, 1] (confidence.py: 1 = the search costs
     what the database's own clips cost; towards 0 = the engine is lost)."""
 
     t: int
@@ -39,18 +40,23 @@ class EmittedPose:
 class FixedLagSynthesizer:
     """Push one synchronised sample at the graph rate, get back the poses decided `lag_s` seconds ago.
 
-    Each pose carries a confidence (confidence.py) against `confidence_reference`, the per-sample cost of the
+    Each pose carries a confidence (confidence.py): the cost per sample over the `confidence_window_s` window
+    centred on it (as far as the lag reaches) against `confidence_reference`, the per-sample cost of the
     database's own clips (None: measured on this graph at construction, `reference_cost_per_sample`, ~1 s on a
     100k-node graph). When the cost per sample over the last `confidence_window_s` stays above `reanchor_ratio`
     x the reference for `reanchor_after_s`, the search re-anchors (`ViterbiLattice.reanchor`: the accumulated
     costs are forgotten and every path's root is put on the camera fix) -- a lost track recovers from fresh
-    evidence instead of defending a wrong history. `reanchor_ratio` = 0 never re-anchors."""
+    evidence instead of defending a wrong history. `reanchor_ratio` = 0 never re-anchors.
+
+    `fusion` (root_fusion.py): the output root is the camera track smoothed over the same lag, the chosen path
+    supplying the root-relative pose (and the root only where the camera is absent); off = the path's own root."""
 
     def __init__(self, graph: MotionGraph, lag_s: float, weights: SearchWeights = SearchWeights(),
                  sensor_indices: tuple[int, ...] | None = None, prune_every: int = PRUNE_EVERY,
                  kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off(),
                  confidence_reference: float | None = None, confidence_window_s: float = 2.0,
-                 reanchor_ratio: float = 4.0, reanchor_after_s: float = 3.0) -> None:
+                 reanchor_ratio: float = 4.0, reanchor_after_s: float = 3.0,
+                 fusion: RootFusion = RootFusion.off()) -> None:
         if lag_s < 0:
             raise ValueError("lag must be non-negative")
         self.graph = graph
@@ -59,17 +65,19 @@ class FixedLagSynthesizer:
             self.lag = min(self.lag, weights.decision_frames)
         self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp)
         self.next_emit = 0  # first sample not yet emitted
-        self._last: tuple[complex, float, int] | None = None  # (ground, heading, node) of the last emitted sample
+        self._last: tuple[complex, float, int] | None = None  # the path's (ground, heading, node) at the last emitted
+        self._fuser = RootFuser(fusion, graph.config.fps)  # the output root (the path's own when fusion is off)
         if confidence_reference is None:
             confidence_reference = reference_cost_per_sample(graph, weights, warp, sensor_indices)
         self.confidence_reference = confidence_reference
         fps = graph.config.fps
-        self._window = CostWindow(max(1, int(round(confidence_window_s * fps))))
+        window = max(1, int(round(confidence_window_s * fps)))
+        self._window = CostWindow(window)  # the last `window` samples: re-anchoring
+        self._history = CostHistory(window)  # centred on each decided sample: its confidence
         self.reanchor_ratio = reanchor_ratio
         self._reanchor_after = max(1, int(round(reanchor_after_s * fps)))
         self._high_for = 0  # consecutive samples with the window cost above reanchor_ratio x reference
         self.reanchors: list[int] = []  # samples at which the search re-anchored
-        self._confidence: dict[int, float] = {}  # per undecided sample, as measured when it was pushed
 
     def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None, heading_rad: float | None = None,
              penalty: np.ndarray | None = None, rows: np.ndarray | None = None) -> list[EmittedPose]:
@@ -78,9 +86,10 @@ class FixedLagSynthesizer:
         caller batched them); returns the pose of sample t - L once t >= L."""
         lat = self.lattice
         lat.step(acc_g, pos_m, heading_rad, penalty, rows)
+        self._fuser.push(pos_m, heading_rad)
         t = lat.t
         per_sample = self._window.push(lat.cost_offset)
-        self._confidence[t] = confidence(per_sample, self.confidence_reference)
+        self._history.push(lat.cost_offset)
         high = self.reanchor_ratio > 0 and np.isfinite(per_sample) and \
             per_sample > self.reanchor_ratio * self.confidence_reference
         self._high_for = self._high_for + 1 if high else 0
@@ -132,21 +141,23 @@ class FixedLagSynthesizer:
             ground, heading = lat.global_states(best, edges, start)
         k = last - first + 1
         nodes, ground, heading = nodes[:k], ground[:k], heading[:k]
+        out_ground, out_heading = self._fuser.decide(ground, heading)
         blend = None
         if lat.weights.blend_paths > 1:  # row i: the k best paths at sample first + i
             blend = lat.ancestors(lat.weights.blend_paths, lat.t - first)[::-1][:k]
-            joints = blended_joint_positions(self.graph, blend, ground, heading)
+            joints = blended_joint_positions(self.graph, blend, out_ground, out_heading)
         else:
-            joints = world_joint_positions(self.graph, nodes, ground, heading)
+            joints = world_joint_positions(self.graph, nodes, out_ground, out_heading)
         edges = edges[:k].copy()
         if self._last is not None and edges[0] >= 0 and self.graph.edge_src[edges[0]] != self._last[2]:
             edges[0] = -1  # the decoder changed its mind since the last emitted sample
         self.next_emit = last + 1
         self._last = (complex(*ground[-1]), float(heading[-1]), int(nodes[-1]))
         lat.drop_before(self.next_emit)
-        return [EmittedPose(first + i, int(nodes[i]), joints[i], ground[i], float(heading[i]),
-                            self._confidence.pop(first + i, 1.0), int(edges[i]), None if blend is None else blend[i])
-                for i in range(k)]
+        conf = [confidence(self._history.per_sample_around(first + i), self.confidence_reference) for i in range(k)]
+        self._history.drop_before(self.next_emit)
+        return [EmittedPose(first + i, int(nodes[i]), joints[i], out_ground[i], float(out_heading[i]), conf[i],
+                            int(edges[i]), None if blend is None else blend[i]) for i in range(k)]
 
 
 def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Observations,
