@@ -60,12 +60,15 @@ class FixedLagSynthesizer:
         if lag_s < 0:
             raise ValueError("lag must be non-negative")
         self.graph = graph
-        self.lag = int(round(lag_s * graph.config.fps))
-        if weights.forgets:  # a forgetting search decides sooner (SearchWeights.decision_frames); lag_s bounds it
-            self.lag = min(self.lag, weights.decision_frames)
+        self.lag = int(round(lag_s * graph.config.fps))  # samples between a push and the pose it emits
+        # a forgetting search decides sooner (SearchWeights.decision_frames) and holds the decided samples until
+        # the lag has passed, so the fused root (root_fusion.py) still smooths the camera over the whole lag
+        self.decision_lag = min(self.lag, weights.decision_frames) if weights.forgets else self.lag
         self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp)
         self.next_emit = 0  # first sample not yet emitted
-        self._last: tuple[complex, float, int] | None = None  # the path's (ground, heading, node) at the last emitted
+        self.next_decide = 0  # first sample not yet decided
+        self._decided: list[tuple] = []  # (node, edge, ground, heading, blend nodes) of samples next_emit.. decided
+        self._last: tuple[complex, float, int] | None = None  # the path's (ground, heading, node) at the last decided
         self._fuser = RootFuser(fusion, graph.config.fps)  # the output root (the path's own when fusion is off)
         if confidence_reference is None:
             confidence_reference = reference_cost_per_sample(graph, weights, warp, sensor_indices)
@@ -98,66 +101,86 @@ class FixedLagSynthesizer:
             self.reanchors.append(t)
             self._high_for = 0
             self._window.clear()
+        if t - self.decision_lag >= self.next_decide:
+            self._decide(t - self.decision_lag, t - self.decision_lag)
         if t - self.lag < self.next_emit:
             return []
-        return self._emit(t - self.lag, t - self.lag)
+        return self._emit(t - self.lag)
 
     def flush(self) -> list[EmittedPose]:
-        """End of input: emit every sample not yet decided, along the final best path."""
+        """End of input: decide every sample not yet decided, along the final best path, and emit everything."""
         if self.lattice.t < self.next_emit:
             return []
-        self.lattice.prune()
-        return self._emit(self.next_emit, self.lattice.t)
+        if self.lattice.t >= self.next_decide:
+            self.lattice.prune()
+            self._decide(self.next_decide, self.lattice.t)
+        return self._emit(self.lattice.t)
 
-    def _step_after_last_emitted(self, node: int, edge: int) -> int:
-        """Metadata row of the step from the last emitted sample into the first one to emit: the arriving edge if
-        it leaves the last emitted node, else the node's own natural step (the decoder changed its mind; the pose
+    def _step_after_last_decided(self, node: int, edge: int) -> int:
+        """Metadata row of the step from the last decided sample into the first one to decide: the arriving edge if
+        it leaves the last decided node, else the node's own natural step (the decoder changed its mind; the pose
         jumps but the root path stays continuous)."""
         g = self.graph
         return int(g.edge_meta[edge] if edge >= 0 and g.edge_src[edge] == self._last[2] else g.node_arrival[node])
 
-    def _start_after_last_emitted(self, node: int, edge: int) -> tuple[complex, float] | None:
-        """Markov (accelerometer-only) search: the global state of the first sample to emit, continuing from the
-        last emitted one (see `_step_after_last_emitted`)."""
+    def _start_after_last_decided(self, node: int, edge: int) -> tuple[complex, float] | None:
+        """Markov (accelerometer-only) search: the global state of the first sample to decide, continuing from the
+        last decided one (see `_step_after_last_decided`)."""
         if self._last is None:
             return None  # first sample: the lattice's start state
         ground, heading, _ = self._last
-        row = self._step_after_last_emitted(node, edge)
+        row = self._step_after_last_decided(node, edge)
         d = complex(*self.graph.meta_dpos_m[row])
         return ground + d * np.exp(-1j * heading), heading + self.graph.meta_dheading_rad[row]
 
-    def _emit(self, first: int, last: int) -> list[EmittedPose]:
+    def _decide(self, first: int, last: int) -> None:
+        """Samples first..last along the best path now: nodes, arriving edges (-1 where the decoder changed its
+        mind since the last decided sample), the path's root (the warped replay from the last decided sample) and,
+        with `blend_paths` > 1, the nodes of the best paths at each sample."""
         lat = self.lattice
         best = lat.best_node()
         nodes, edges = lat.backtrace(best, lat.t - first)
-        if lat.warp.active:  # replay the warped root from the last emitted sample (or the first input)
+        if lat.warp.active:  # replay the warped root from the last decided sample (or the first input)
             if self._last is None:
                 ground, heading = lat.warped_states(edges, first, lat.start_state, None)
             else:
                 ground, heading = lat.warped_states(edges, first, self._last[:2],
-                                                    self._step_after_last_emitted(int(nodes[0]), int(edges[0])))
+                                                    self._step_after_last_decided(int(nodes[0]), int(edges[0])))
         else:
-            start = None if lat.track_global else self._start_after_last_emitted(int(nodes[0]), int(edges[0]))
+            start = None if lat.track_global else self._start_after_last_decided(int(nodes[0]), int(edges[0]))
             ground, heading = lat.global_states(best, edges, start)
         k = last - first + 1
         nodes, ground, heading = nodes[:k], ground[:k], heading[:k]
-        out_ground, out_heading = self._fuser.decide(ground, heading)
-        blend = None
+        blend = [None] * k
         if lat.weights.blend_paths > 1:  # row i: the k best paths at sample first + i
-            blend = lat.ancestors(lat.weights.blend_paths, lat.t - first)[::-1][:k]
-            joints = blended_joint_positions(self.graph, blend, out_ground, out_heading)
-        else:
-            joints = world_joint_positions(self.graph, nodes, out_ground, out_heading)
+            blend = list(lat.ancestors(lat.weights.blend_paths, lat.t - first)[::-1][:k])
         edges = edges[:k].copy()
         if self._last is not None and edges[0] >= 0 and self.graph.edge_src[edges[0]] != self._last[2]:
-            edges[0] = -1  # the decoder changed its mind since the last emitted sample
-        self.next_emit = last + 1
+            edges[0] = -1  # the decoder changed its mind since the last decided sample
+        self.next_decide = last + 1
         self._last = (complex(*ground[-1]), float(heading[-1]), int(nodes[-1]))
-        lat.drop_before(self.next_emit)
+        lat.drop_before(self.next_decide)
+        self._decided += [(int(nodes[i]), int(edges[i]), ground[i], float(heading[i]), blend[i]) for i in range(k)]
+
+    def _emit(self, last: int) -> list[EmittedPose]:
+        """The decided samples next_emit..last as poses: the output root (fused from the camera over the lag, or
+        the path's), the joints (the path's pose, or the blend of the best paths'), the confidence."""
+        first = self.next_emit
+        k = last - first + 1
+        out, self._decided = self._decided[:k], self._decided[k:]
+        nodes = np.array([d[0] for d in out], dtype=np.int64)
+        ground = np.array([d[2] for d in out], dtype=float).reshape(-1, 2)
+        heading = np.array([d[3] for d in out], dtype=float)
+        out_ground, out_heading = self._fuser.decide(ground, heading)
+        if out[0][4] is not None:
+            joints = blended_joint_positions(self.graph, np.stack([d[4] for d in out]), out_ground, out_heading)
+        else:
+            joints = world_joint_positions(self.graph, nodes, out_ground, out_heading)
+        self.next_emit = last + 1
         conf = [confidence(self._history.per_sample_around(first + i), self.confidence_reference) for i in range(k)]
         self._history.drop_before(self.next_emit)
         return [EmittedPose(first + i, int(nodes[i]), joints[i], out_ground[i], float(out_heading[i]), conf[i],
-                            int(edges[i]), None if blend is None else blend[i]) for i in range(k)]
+                            out[i][1], out[i][4]) for i in range(k)]
 
 
 def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Observations,

@@ -75,10 +75,12 @@ def test_batch_equals_fixed_lag_bit_for_bit(two_chains, kernel):
     assert np.array_equal(batch.nodes, reference.nodes) and np.array_equal(batch.ground_m, reference.ground_m)
     for lag_s in (3 / g.config.fps, 2.0):
         syn = FixedLagSynthesizer(g, lag_s, weights, kernel=kernel, warp=warp, confidence_reference=1.0)
-        assert syn.lag == 3  # a forgetting search decides after decision_frames; the lag only bounds it
+        assert syn.decision_lag == 3  # a forgetting search decides after decision_frames ...
         out = []
         for t in range(n):
-            out += syn.push(full.acc_g[t], full.position_m[t], full.heading_rad[t])
+            got = syn.push(full.acc_g[t], full.position_m[t], full.heading_rad[t])
+            assert [p.t for p in got] == ([t - syn.lag] if t >= syn.lag else [])  # ... and emits after the lag
+            out += got
         out += syn.flush()
         assert [p.t for p in out] == list(range(n))
         assert np.array_equal([p.node for p in out], batch.nodes)
