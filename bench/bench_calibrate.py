@@ -32,17 +32,18 @@ WALKS = [("16_11", "16_16", "16_21"), ("16_32", "16_11")]
 
 def run(takes: list[tuple], with_poses: bool, skeleton=None) -> tuple[np.ndarray, np.ndarray, float]:
     """``takes``: (walks, seed) per take; walks are shipped clip names or Motions of ``skeleton``. With
-    ``with_poses`` the take ends with a 2 s T-pose and a 2 s forward bow, each reached within 1 s."""
+    ``with_poses`` the take ends with a 2 s T-pose, a 2 s forward bow and a 2 s long sit, each reached within 1 s."""
     errors, flagged, seconds = [], [], 0.0
-    poses = standard_segment_poses(NAMES, ("tpose", "bow") if with_poses else (), skeleton)
+    poses = standard_segment_poses(NAMES, ("tpose", "bow", "sit") if with_poses else (), skeleton)
+    hold = 2.0 if with_poses else 0.0
     for walks, seed in takes:
-        motion = standing_then_walking(walks=walks, tpose_s=2.0 if with_poses else 0.0,
-                                       bow_s=2.0 if with_poses else 0.0, fps=FPS, seed=seed)
+        motion = standing_then_walking(walks=walks, tpose_s=hold, bow_s=hold, sit_s=hold, fps=FPS, seed=seed)
         truth = mounted(standard_placements(motion.skeleton, NAMES), seed=seed)
         rng = np.random.default_rng(seed)
         acc = virtual_accelerometers(motion, truth) + rng.normal(0.0, 0.01, (motion.n_frames, len(NAMES), 3))
         end = motion.n_frames / FPS
-        windows = {"tpose": (end - 4.8, end - 3.1), "bow": (end - 1.8, end - 0.1)} if with_poses else None
+        windows = {"tpose": (end - 7.8, end - 6.1), "bow": (end - 4.8, end - 3.1), "sit": (end - 1.8, end - 0.1)} \
+            if with_poses else None
         t0 = time.process_time()
         record = calibrate_recording(acc, FPS, NAMES, NAMES, poses, second_windows=windows)
         seconds += time.process_time() - t0
@@ -52,7 +53,8 @@ def run(takes: list[tuple], with_poses: bool, skeleton=None) -> tuple[np.ndarray
 
 
 def table(label: str, takes: list[tuple], skeleton=None) -> None:
-    for variant, with_poses in (("walking only", False), ("walking + 2 s T-pose + 2 s bow (--second-pose)", True)):
+    for variant, with_poses in (("walking only", False),
+                                ("walking + 2 s T-pose + 2 s bow + 2 s long sit (--second-pose)", True)):
         errors, flagged, per_take = run(takes, with_poses, skeleton)
         print(f"{label}, {variant}: {len(errors)} takes, {per_take * 1e3:.0f} ms CPU per take")
         print(f"  {'sensor':14s} {'median deg':>10s} {'max deg':>8s} {'heading flagged':>16s}")

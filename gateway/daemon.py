@@ -421,7 +421,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--config", type=Path, help="court config TOML (stations, camera, calibration, auth, ...)")
     g = p.add_argument_group("stations")
     g.add_argument("--port", action="append", default=None, metavar="PATH",
-                   help="serial port path, or hid:<path> / hid:VVVV:PPPP[:serial] (repeatable)")
+                   help="serial port path, or hid:<path> / hid:VVVV:PPPP[:serial], or a device read through its "
+                        "vendor's library: ximu3:<port>, shimmer:<port> (repeatable)")
     g.add_argument("--url", action="append", default=None, metavar="URL", help="pyserial URL, e.g. emu://... (repeatable)")
     g.add_argument("--discover", action=argparse.BooleanOptionalAction, default=None,
                    help="find stations by USB VID:PID 1209:C0DE (serial + HID), also hot-plugged ones")
@@ -518,6 +519,18 @@ def _new_secret_main(argv: list[str]) -> int:
     return 0
 
 
+def _wait_for_stop(stop: threading.Event, duration_s: float | None, poll_s: float = 0.2) -> None:
+    """Until ``stop`` is set or ``duration_s`` has passed, waking every ``poll_s``: a signal the kernel hands to
+    another thread (any thread not blocking it may take it: liblsl's, a vendor driver's, or under a tracer) only
+    runs its Python handler when the main thread next runs bytecode, which an untimed wait never does."""
+    deadline = None if duration_s is None else time.monotonic() + duration_s
+    while not stop.is_set():
+        left = poll_s if deadline is None else min(poll_s, deadline - time.monotonic())
+        if left <= 0:
+            return
+        stop.wait(left)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "export":
@@ -550,7 +563,7 @@ def main(argv: list[str] | None = None) -> int:
     if court.take:
         print(f"recording take {court.take}", flush=True)
     try:
-        stop.wait(args.duration)
+        _wait_for_stop(stop, args.duration)
     finally:
         court.stop()
     print("gateway stopped", flush=True)

@@ -67,6 +67,9 @@ def _console_parser() -> argparse.ArgumentParser:
     p.add_argument("--stream-bvh", default=None, metavar="[HOST:]PORT",
                    help="serve the synthesised poses as BVH over TCP (Axis Neuron convention) to animation tools "
                         "(motion-graph engine)")
+    p.add_argument("--stream-vmc", default=None, metavar="[HOST:]PORT",
+                   help="send the synthesised poses as VMC over OSC/UDP (port 39539 by convention: Unity EVMC4U, "
+                        "Blender VMC4B, VSeeFace) to HOST (default 127.0.0.1) (motion-graph engine)")
     return p
 
 
@@ -226,10 +229,10 @@ def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held
         log.warning("synthesis off: pass --synth-station (or a calibration record) to say which sensors are worn")
         return None, {}, spec.parents
     _check_when_streaming(spec, keys, stations, calibration, refresh)
-    if args.stream_bvh:
+    if args.stream_bvh or args.stream_vmc:
         from engine.livestream.console import streaming_engine
 
-        spec = streaming_engine(spec, args.stream_bvh)
+        spec = streaming_engine(spec, bvh=args.stream_bvh, vmc=args.stream_vmc)
     synth = synthesis_setup(spec, keys, args.lag)
     return synth, dict(zip(synth.sensors, spec.sensor_names)), spec.parents
 

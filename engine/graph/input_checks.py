@@ -148,8 +148,10 @@ def check_observations(path: Path, acc_g: np.ndarray | None, fps_graph: float) -
                     "the time, so these look like m/s^2 (divide by 9.81)", path, median_g)
 
 
-def parse_sensor_map(items: list[str] | None, graph_sensors: list[str]) -> dict[str, str] | None:
-    """``STATION/SENSOR=NAME`` items -> {recorded key: graph sensor}; errors name --sensor-map and the item."""
+def parse_sensor_map(items: list[str] | None, graph_sensors: list[str],
+                     known_as: str = "a sensor of the graph") -> dict[str, str] | None:
+    """``STATION/SENSOR=NAME`` items -> {recorded key: graph sensor}; errors name --sensor-map and the item
+    (``known_as`` says what the names must be)."""
     if not items:
         return None
     out: dict[str, str] = {}
@@ -158,7 +160,7 @@ def parse_sensor_map(items: list[str] | None, graph_sensors: list[str]) -> dict[
         if not sep or not key or not name:
             raise CourtsideError(f"--sensor-map {item!r}: expected STATION/SENSOR=NAME")
         if name not in graph_sensors:
-            raise CourtsideError(f"--sensor-map {item!r}: {name!r} is not a sensor of the graph ({graph_sensors})")
+            raise CourtsideError(f"--sensor-map {item!r}: {name!r} is not {known_as} ({graph_sensors})")
         out[key] = name
     return out
 

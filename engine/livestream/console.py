@@ -1,22 +1,30 @@
-"""The console's `--stream-bvh`: its synthesis engine with every emitted pose also sent to animation tools.
+"""The console's `--stream-bvh` / `--stream-vmc`: its synthesis engine with every emitted pose also sent to
+animation tools.
 
 Kept here (engine side, no Qt) so gui/cli.py only swaps the engine: the console's worker builds its engine
 through ``EngineSpec.make(lag_s)``; the wrapped factory returns a :class:`StreamingSynthesizer`."""
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 from engine.errors import CourtsideError
 from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
-from engine.livestream.stream_cli import open_stream
+from engine.livestream.stream_cli import open_stream, open_vmc
 from engine.stream.engines import EngineSpec
 
 
-def streaming_engine(spec: EngineSpec, address: str) -> EngineSpec:
-    """``spec`` whose engines also stream their poses on ``address``; live samples already arrive in real time, so
-    no pacing. Poses are placed on the motion graph's path, so only that engine streams."""
+def streaming_engine(spec: EngineSpec, bvh: str | None = None, vmc: str | None = None) -> EngineSpec:
+    """``spec`` whose engines also stream their poses as BVH over TCP on ``bvh`` and/or as VMC over OSC/UDP to
+    ``vmc`` (``[HOST:]PORT`` each); live samples already arrive in real time, so no pacing. Poses are placed on
+    the motion graph's path, so only that engine streams."""
+    flags = " / ".join(flag for flag, address in (("--stream-bvh", bvh), ("--stream-vmc", vmc)) if address)
     if spec.graph is None or spec.skeleton is None:
-        raise CourtsideError(f"--stream-bvh streams the motion graph's poses; the {spec.name} engine has none")
-    server = open_stream(address, 0.0, "console")
-    streamer = PoseStreamer(spec.graph, spec.skeleton, server, realtime=False)
+        raise CourtsideError(f"{flags} streams the motion graph's poses; the {spec.name} engine has none")
+    outputs: list[Any] = []
+    if bvh:
+        outputs.append(open_stream(bvh, 0.0, "console"))
+    if vmc:
+        outputs.append(open_vmc(vmc, spec.skeleton, "console"))
+    streamer = PoseStreamer(spec.graph, spec.skeleton, outputs, realtime=False)
     return replace(spec, make=lambda lag_s: StreamingSynthesizer(spec.make(lag_s), streamer))

@@ -1,4 +1,4 @@
-"""`--stream-bvh` / `--stream-vmc [HOST:]PORT` of `courtside synthesize` (and the console's `--stream-bvh`):
+"""`--stream-bvh` / `--stream-vmc [HOST:]PORT` of `courtside synthesize` and `courtside console`:
 synthesised poses to animation tools."""
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ from engine.errors import CourtsideError
 from engine.livestream.bvh_server import BvhBroadcastServer
 
 
-def parse_address(text: str) -> tuple[str, int]:
+def parse_address(text: str, flag: str = "--stream-bvh") -> tuple[str, int]:
     host, _, port = str(text).rpartition(":")
     try:
         return host or "127.0.0.1", int(port)
     except ValueError:
-        raise CourtsideError(f"--stream-bvh {text!r}: expected [HOST:]PORT") from None
+        raise CourtsideError(f"{flag} {text!r}: expected [HOST:]PORT") from None
 
 
 def open_stream(address: str, wait_s: float, who: str = "synthesize") -> BvhBroadcastServer:
@@ -36,7 +36,7 @@ def open_vmc(address: str, skeleton: Any, who: str = "synthesize") -> Any:
     """A VMC sender (OSC over UDP) to ``address`` (127.0.0.1 unless a host is given)."""
     from engine.livestream.vmc import VmcSender
 
-    host, port = parse_address(address)
+    host, port = parse_address(address, "--stream-vmc")
     print(f"{who}: VMC (OSC/UDP) to {host}:{port}", file=sys.stderr)
     return VmcSender(skeleton, host, port)
 

@@ -1,5 +1,10 @@
 """`courtside calibrate take.npz -o take.calibration.json`: sensor-to-segment rotations from a recorded take
-(gateway.calibration.recording), written as the same record the live wizard saves."""
+(gateway.calibration.recording), written as the same record the live wizard saves.
+
+The take is an `import-imu` file, or the gateway's own recording (`courtside gateway export --npz`) with
+``--sensor-map STATION/SENSOR=PLACEMENT``: then the record's sensor ids are the live ``station/sensor`` keys, so
+`courtside console --calibration` reads each segment from that live sensor (devices bought off the shelf are one
+station each, and no station holds all the worn sensors)."""
 from __future__ import annotations
 
 import argparse
@@ -10,14 +15,48 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import CourtsideError, MalformedFileError
-from engine.graph.input_checks import open_npz
+from engine.graph.input_checks import open_npz, parse_sensor_map
 from engine.mocap import STANDARD_SENSORS
 from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, calibrate_recording,
                                            standard_segment_poses)
 
 
-def _read_take(path: Path) -> tuple[np.ndarray, float, list[str], list[str]]:
-    """acc_g (T, S, 3), fps, placement names, sensor ids (source labels) of a synthesis-input take."""
+EXPORT_RATE_HZ = 50.0  # a gateway recording is brought to this frame clock (0.5 s windows, gait below 6 Hz)
+
+
+def _read_gateway_export(path: Path, sensor_map: dict[str, str]) -> tuple[np.ndarray, float, list[str], list[str]]:
+    """acc_g (T, S, 3), fps, placement names, live sensor ids of a gateway export, on one frame clock by the
+    console's own sample -> frame path (`engine.graph.inputs.read_take`). Frames a dropout touched are filled
+    linearly from their neighbours: calibration averages windows, and a NaN would void a whole window."""
+    from engine.graph.inputs import read_take
+
+    placements = list(sensor_map.values())
+    take = read_take(path, placements, EXPORT_RATE_HZ, sensor_map)
+    acc = np.array(take.obs.acc_g, float)
+    bad = ~np.isfinite(acc).all(axis=(1, 2))
+    if bad.all():
+        raise MalformedFileError(path, None, "no frame has every mapped sensor's samples")
+    if bad.any():
+        good = np.flatnonzero(~bad)
+        for k in range(acc.shape[1]):
+            for axis in range(3):
+                acc[bad, k, axis] = np.interp(np.flatnonzero(bad), good, acc[good, k, axis])
+    names = [placements[i] for i in take.obs.sensor_indices]
+    return acc, EXPORT_RATE_HZ, names, list(take.stream_keys)
+
+
+def _read_take(path: Path, sensor_map: dict[str, str] | None = None) -> tuple[np.ndarray, float, list[str], list[str]]:
+    """acc_g (T, S, 3), fps, placement names, sensor ids (source labels) of a synthesis-input take, or of a
+    gateway export when ``sensor_map`` is given."""
+    with open_npz(path) as data:
+        is_export = "acc_g" not in data.files and any(k.endswith("/acc_g") for k in data.files)
+    if is_export:
+        if not sensor_map:
+            raise MalformedFileError(path, None, "a gateway recording: say which sensor is worn where with "
+                                                 "--sensor-map STATION/SENSOR=PLACEMENT ...")
+        return _read_gateway_export(path, sensor_map)
+    if sensor_map:
+        raise MalformedFileError(path, None, "--sensor-map is for gateway recordings; this take names its sensors")
     with open_npz(path) as data:
         missing = [k for k in ("acc_g", "fps", "sensor_names") if k not in data.files]
         if missing:
@@ -52,17 +91,23 @@ def _windows(texts: list[str] | None) -> dict[str, tuple[float, float]]:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="courtside calibrate", description=__doc__)
-    p.add_argument("take", help="take .npz from `courtside import-imu`")
+    p.add_argument("take", help="take .npz from `courtside import-imu`, or a gateway recording exported with "
+                                "`courtside gateway export --npz` (with --sensor-map)")
+    p.add_argument("--sensor-map", nargs="+", default=None, metavar="STATION/SENSOR=PLACEMENT",
+                   help="gateway recordings: which recorded sensor is worn where (standard placements: "
+                        f"{', '.join(STANDARD_SENSORS)}); the record names the live sensors")
     p.add_argument("-o", "--output", required=True, help="record .calibration.json (raw still samples go beside it)")
     p.add_argument("--second-pose", metavar="POSE@START:END", action="append",
                    help="a second still pose held in the take (fixes the heading with sign): tpose@12:14 for the "
-                        "arms, bow@20:22 (a forward bow from the hips) for pelvis and chest; repeatable")
+                        "arms, bow@20:22 (a forward bow from the hips) for pelvis and chest, sit@30:32 (sitting on "
+                        "the floor, legs straight out in front, kneecaps up) for the shanks; repeatable")
     p.add_argument("--max-std", type=float, default=RecordingCalibrationConfig.max_std_g,
                    help="windows stiller than this (g) count as quasi-static")
     p.add_argument("--subject", default="")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
-    acc, fps, names, labels = _read_take(path)
+    acc, fps, names, labels = _read_take(path, parse_sensor_map(args.sensor_map, list(STANDARD_SENSORS),
+                                                               "a standard placement"))
     windows = _windows(args.second_pose)
     config = RecordingCalibrationConfig(max_std_g=args.max_std)
     try:
@@ -77,6 +122,11 @@ def main(argv: list[str] | None = None) -> int:
     for sid, s in record.sensors.items():
         for reason in s.reasons:
             print(f"calibrate: warning: {sid} ({s.segment}): {reason}", file=sys.stderr)
+    shanks = sorted({s.segment for s in record.sensors.values() if s.segment in SECOND_POSES["sit"]})
+    if shanks and "sit" not in windows:
+        print(f"calibrate: note: {', '.join(shanks)}: heading from the walking swing plane, which follows the "
+              "walker's toe-out (2-3 deg on normal gait, up to ~24 deg on unusual gaits); a long sit held in the "
+              "take (--second-pose sit@START:END) measures it directly", file=sys.stderr)
     print(json.dumps({"output": args.output, "quality": record.quality_score, "grade": record.grade,
                       "passed": record.passed,
                       "sensors": {sid: {"segment": s.segment, "correction_deg": round(s.correction_deg, 1),

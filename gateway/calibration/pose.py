@@ -98,6 +98,25 @@ def reference_bow(skeleton: Any, bow_deg: float = 60.0) -> np.ndarray:
     return _fk(skeleton, local)[1]
 
 
+def reference_long_sit(skeleton: Any) -> np.ndarray:
+    """Global joint rotations (J, 3, 3) of a long sit: the reference N-pose with the trunk upright and both legs
+    straight out in front, horizontal (hips flexed 90 deg), kneecaps and toes up. A second still pose for
+    `courtside calibrate`: it lays the shank horizontal, so gravity then shows the shank's rotation about its
+    own long axis, which is its heading while standing; walking sees it only through the leg's swing plane, which
+    follows the actor's toe-out (6-24 deg off on stylised gait)."""
+    from engine.mocap import joint_roles
+
+    roles = joint_roles(skeleton)
+    local, glob = reference_npose(skeleton)
+    c, s = np.cos(np.radians(-90.0)), np.sin(np.radians(-90.0))
+    pitch = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])  # about +X (left): down (-Y) -> forward (+Z)
+    local = local.copy()
+    for side in ("left", "right"):  # the whole leg turns as one: only the hip's local rotation changes
+        j = roles[f"{side}_hip"]
+        local[j] = glob[skeleton.parents[j]].T @ pitch @ glob[j]
+    return _fk(skeleton, local)[1]
+
+
 def pose_rotations(skeleton: Any, pose: str) -> np.ndarray:
     """Global joint rotations (J, 3, 3) of the named calibration pose: ``"npose"`` (:func:`reference_npose`)
     or ``"tpose"`` (the skeleton's zero pose, a T-pose for CMU ASF and re-based skeletons)."""

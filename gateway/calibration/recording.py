@@ -19,8 +19,9 @@ stillest moment had a forearm std of ~0.12 g. This calibrates from what a take d
    for forearms (they twist with the arm swing) nor the chest (it counter-rotates): their walking axes were
    14-47° and up to 41° off forward, often with a clear share, so they keep the nominal heading (and say so)
    unless a **second still pose** inclines the segment (>= ``second_pose_min_deg``; ``SECOND_POSES``: a T-pose
-   for the arms, a forward bow for pelvis and chest) and fixes all three angles with sign: all gravity
-   directions go into one Wahba/Kabsch fit.
+   for the arms, a forward bow for pelvis and chest, a long sit for the shanks, whose walking swing plane follows
+   the actor's toe-out) and fixes all three angles with sign: all gravity directions go into one Wahba/Kabsch
+   fit.
 3. **Per-sensor quality** ``min(stillness, consistency, heading)`` in 0..1: stillness ``1 - std/max_std_g`` of the
    windows used, consistency = weight fraction inside the dominant cluster, heading = the walking axis' share
    of horizontal variance (``(λ1 - λ2)/(λ1 + λ2)``, 1 with a second pose). A sensor whose measured up is more than
@@ -73,7 +74,8 @@ class RecordingCalibrationConfig:
 
 # second still poses `courtside calibrate` knows, and the segments each one is meant to incline
 SECOND_POSES = {"tpose": ("left_forearm", "right_forearm", "left_wrist", "right_wrist"),
-                "bow": ("lower_back", "chest")}
+                "bow": ("lower_back", "chest"),
+                "sit": ("left_shin", "right_shin", "left_ankle", "right_ankle")}
 
 
 @dataclass(frozen=True)
@@ -93,7 +95,7 @@ def standard_segment_poses(names: list[str], second_poses: tuple[str, ...] = (),
     T-pose zero pose, e.g. after ``engine.mocap.rebase_to_tpose``); default: the shipped CMU skeleton (the
     set-up of ``CalibrationService.standard`` and of ``courtside build-graph --sample``)."""
     from engine.mocap import load_clip, sample_clips, standard_placements
-    from gateway.calibration.pose import pose_rotations, reference_bow
+    from gateway.calibration.pose import pose_rotations, reference_bow, reference_long_sit
 
     unknown = [p for p in second_poses if p not in SECOND_POSES]
     if unknown:
@@ -101,7 +103,8 @@ def standard_segment_poses(names: list[str], second_poses: tuple[str, ...] = (),
     skeleton = skeleton if skeleton is not None else load_clip(sample_clips()["16_01"]).skeleton
     placements = standard_placements(skeleton, names)
     npose = pose_rotations(skeleton, "npose")
-    others = {p: reference_bow(skeleton) if p == "bow" else pose_rotations(skeleton, p) for p in second_poses}
+    builders = {"bow": reference_bow, "sit": reference_long_sit}
+    others = {p: builders[p](skeleton) if p in builders else pose_rotations(skeleton, p) for p in second_poses}
     return {p.name: SegmentPose(p.rotation, npose[p.joint].T @ UP, npose[p.joint].T @ FORWARD,
                                 {pose: rots[p.joint].T @ UP for pose, rots in others.items()
                                  if p.name in SECOND_POSES[pose]}) for p in placements}

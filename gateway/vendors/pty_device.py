@@ -18,6 +18,10 @@ class PtyDeviceEmulator:
     """Owns the pty pair (`path` is the slave's device path) and the emulator threads."""
 
     def __init__(self, *targets: Callable[[], None]) -> None:
+        # None: the replayed readings start over whenever streaming starts. A host monotonic time: they follow
+        # that origin instead (the row played at host time t is the one at t - origin_s; before it, the first),
+        # so several devices worn by one subject replay one motion in step, and a test can start it on cue.
+        self.origin_s: float | None = None
         self._master, self._slave = pty.openpty()
         tty.setraw(self._slave)
         self.path = os.ttyname(self._slave)
@@ -45,6 +49,12 @@ class PtyDeviceEmulator:
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+    def _replay_row(self, k: int, host_s: float, rate_hz: float, n_rows: int) -> int:
+        """Which of ``n_rows`` replayed readings sample ``k`` (due at ``host_s``) carries (see ``origin_s``)."""
+        if self.origin_s is None:
+            return k % n_rows
+        return max(0, int(round((host_s - self.origin_s) * rate_hz))) % n_rows
 
     def _write(self, data: bytes) -> None:
         """Bytes to the host; a closed pty (the host went away) stops the emulator."""

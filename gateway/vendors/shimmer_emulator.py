@@ -121,7 +121,8 @@ class ShimmerEmulator(PtyDeviceEmulator):
             for _ in range(self.burst):
                 host = t0 + k * self.period_ticks / CLOCK_HZ / (1.0 + self.drift_ppm * 1e-6)
                 ticks = self.start_ticks + k * self.period_ticks
-                raw = np.round(self.acc_g[k % len(self.acc_g)] * GRAVITY_MPS2 * SENSITIVITY_LSB_PER_MPS2)
+                acc = self.acc_g[self._replay_row(k, host, self.rate_hz, len(self.acc_g))]
+                raw = np.round(acc * GRAVITY_MPS2 * SENSITIVITY_LSB_PER_MPS2)
                 raw = np.clip(raw, -32768, 32767).astype(int)
                 k += 1
                 self.truth.ticks.append(ticks)

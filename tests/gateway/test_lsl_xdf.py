@@ -4,8 +4,11 @@ The LSL round trip runs in a child process under strace, which logs every socket
 connects to: all of them must be 127.0.0.1 (no multicast, no other interface, no IPv6)."""
 from __future__ import annotations
 
+import importlib.util
 import json
+import os
 import re
+import signal
 import shutil
 import subprocess
 import sys
@@ -15,26 +18,45 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("pylsl")
+if importlib.util.find_spec("pylsl") is None:  # found, not imported: liblsl never loads in the pytest process
+    pytest.skip("pylsl (the lsl extra) is not installed", allow_module_level=True)
 pyxdf = pytest.importorskip("pyxdf")
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-@pytest.mark.skipif(shutil.which("strace") is None, reason="strace (scripts/setup.sh installs it) is missing")
-def test_lsl_outlet_round_trip_stays_on_loopback(tmp_path):
+needs_strace = pytest.mark.skipif(shutil.which("strace") is None,
+                                  reason="strace (scripts/setup.sh installs it) is missing")
+
+
+def _traced_on_loopback(tmp_path, script: str, seconds: str) -> dict:
+    """Run ``tests/gateway/<script>`` (and every process it starts) under strace; assert that every socket
+    destination was loopback: every IPv4 address 127.x, no IPv6 at all (so no multicast, no other interface).
+    Returns the script's JSON."""
     trace = tmp_path / "net.trace"
-    proc = subprocess.run(["strace", "-f", "-qq", "-e", "trace=connect,sendto,sendmsg,sendmmsg", "-o", str(trace),
-                           sys.executable, str(ROOT / "tests" / "gateway" / "lsl_roundtrip.py"), str(tmp_path), "2.0"],
-                          capture_output=True, text=True, timeout=120, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    proc = subprocess.Popen(["strace", "-f", "-qq", "-e", "trace=connect,sendto,sendmsg,sendmmsg", "-o", str(trace),
+                             sys.executable, str(ROOT / "tests" / "gateway" / script), str(tmp_path), seconds],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                            start_new_session=True)
+    try:
+        stdout, stderr = proc.communicate(timeout=240)
+    finally:  # strace detaches its tracees when killed: end the whole session (script, gateway) instead
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 0, stderr[-2000:]
+    out = json.loads(stdout.strip().splitlines()[-1])
     assert out["lslcfg"].endswith("courtside-lsl_api.cfg")
-    # every IPv4 destination is loopback, and there is no IPv6 destination at all
     text = trace.read_text()
     v4 = set(re.findall(r'sin_addr=inet_addr\("([0-9.]+)"\)', text))
     assert v4 and all(a.startswith("127.") for a in v4), v4
     assert "AF_INET6" not in text
+    return out
+
+
+@needs_strace
+def test_lsl_outlet_round_trip_stays_on_loopback(tmp_path):
+    out = _traced_on_loopback(tmp_path, "lsl_roundtrip.py", "2.0")
     # the stream as published
     assert out["type"] == "Accelerometer" and out["channels"] == 4 and out["name"] == f"lsltest {out['station']}"
     # every received sample is a delivered one, at its gateway time mapped to local_clock
@@ -55,6 +77,26 @@ def test_lsl_outlet_round_trip_stays_on_loopback(tmp_path):
         got = [t for s, t in received if s == sensor]
         span = {k for k in delivered if k[0] == sensor and min(got) <= k[1] <= max(got)}
         assert span <= received and len(span) > 50
+
+
+@needs_strace
+def test_gateway_process_publishes_a_vendor_device_to_an_inlet_process_on_loopback(tmp_path):
+    """`courtside gateway --config` with ``[lsl] enabled`` (default scope: machine) reading an x-IMU3 through its
+    vendor's library, and an inlet in another process: the inlet receives every sample the device sent between
+    its first and last, with the device's values, stamped at the true latch time on LSL's clock."""
+    out = _traced_on_loopback(tmp_path, "lsl_cross_process.py", "3.0")
+    assert out["gateway_exit"] == 0 and "Traceback" not in out["gateway_stderr"], out["gateway_stderr"]
+    assert out["name"] == f"lslx ximu3-{out['serial']}"
+    rows, stamps = np.array(out["rows"]), np.array(out["stamps"])
+    sent_t, sent_acc = np.array(out["sent"]["host_s"]), np.array(out["sent"]["acc_g"])
+    assert len(rows) > 200 and np.all(rows[:, 0] == 0)  # ~3 s at 100 Hz, one sensor
+    # which sent sample each received row is: the one with the same (float32) acceleration
+    index = {tuple(np.float32(a)): k for k, a in enumerate(sent_acc)}
+    k = np.array([index[tuple(np.float32(r[1:]))] for r in rows])
+    assert np.array_equal(k, np.arange(k[0], k[0] + len(k)))  # in order, none missing
+    # stamps: the gateway clock (host monotonic) mapped to local_clock; the true latch time on the same clock
+    error_s = np.abs(stamps - (sent_t[k] + out["local_minus_monotonic_s"]))
+    assert np.median(error_s) < 2e-3, np.median(error_s)
 
 
 def test_loopback_config_is_what_the_issue_asks():

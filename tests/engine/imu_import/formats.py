@@ -200,12 +200,14 @@ def write_mt_exports(folder: Path, truth: Truth, device_ids: list[str], packet_s
 
 
 def standing_then_walking(stand_s: float = 3.0, walks: tuple[str | Motion, ...] = ("16_11", "16_16", "16_21"),
-                          tpose_s: float = 0.0, fps: float = 100.0, seed: int = 3, bow_s: float = 0.0) -> Motion:
+                          tpose_s: float = 0.0, fps: float = 100.0, seed: int = 3, bow_s: float = 0.0,
+                          sit_s: float = 0.0) -> Motion:
     """A take as a real one starts: the subject stands relaxed (the reference N-pose with a slow ~1° sway), moves
     within 1 s into the first walking pose and walks (shipped CMU walks, or given Motions of one upright T-pose skeleton, joined end to start with
     continuous ground position and heading), optionally
     moving within 1 s into a held T-pose (the CMU zero pose, facing the last walking heading) for ``tpose_s``
-    and then into a forward bow (``gateway.calibration.pose.reference_bow``) for ``bow_s``; smoothed like
+    and then into a forward bow (``gateway.calibration.pose.reference_bow``) for ``bow_s`` and a long sit
+    (``reference_long_sit``, legs out in front) for ``sit_s``; smoothed like
     :func:`clip`."""
     from engine.mocap import root_heading
     from gateway.calibration.pose import reference_npose
@@ -246,6 +248,12 @@ def standing_then_walking(stand_s: float = 3.0, walks: tuple[str | Motion, ...] 
         bow = quat.from_matrix(_local_from_global(skeleton, reference_bow(skeleton)))
         bow[0] = quat.multiply(heading, bow[0])
         tails.append((bow, int(bow_s * fps)))
+    if sit_s:
+        from gateway.calibration.pose import reference_long_sit
+
+        sit = quat.from_matrix(_local_from_global(skeleton, reference_long_sit(skeleton)))
+        sit[0] = quat.multiply(heading, sit[0])
+        tails.append((sit, int(sit_s * fps)))
     rot_parts, previous = [stand] + rots, rots[-1][-1]
     n_tail = 0
     for target, n_hold in tails:

@@ -6,6 +6,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 
 from engine.livestream import BvhBroadcastServer
 from engine.mocap import load_clip, sample_clips
@@ -115,7 +116,11 @@ def test_fixed_lag_synthesis_streams_each_pose_as_decided(tmp_path):
 
 
 def test_console_setup_streams_what_its_synthesizer_emits(tmp_path):
-    """The console's --stream-bvh swaps only the engine factory: poses pushed through it reach a client."""
+    """The console's --stream-bvh / --stream-vmc swap only the engine factory: every pose pushed through it reaches
+    a BVH client and a VMC receiver, one line / one bundle each."""
+    from pythonosc.dispatcher import Dispatcher
+    from pythonosc.osc_server import ThreadingOSCUDPServer
+
     from engine.graph.graph import MotionGraph
     from engine.graph.cli import build_graph_main
     from engine.livestream.console import streaming_engine
@@ -127,20 +132,43 @@ def test_console_setup_streams_what_its_synthesizer_emits(tmp_path):
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    spec = streaming_engine(motion_graph_spec(graph, "g.npz"), str(port))
-    client = socket.create_connection(("127.0.0.1", port))
-    synth = spec.make(0.5)
-    motion = resample(load_clip(sample_clips()["16_11"]), 30.0)
-    acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS))
-    deadline = time.monotonic() + 10
-    while synth._streamer.server.n_clients < 1 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    emitted = sum(len(synth.push(a)) for a in acc[:60]) + len(synth.flush())
-    lines = _read_lines(client, emitted)
-    assert emitted == 60 and len(lines) == 60
+    vmc_t: list[float] = []
+    dispatcher = Dispatcher()
+    dispatcher.map("/VMC/Ext/T", lambda address, t: vmc_t.append(t))
+    receiver = ThreadingOSCUDPServer(("127.0.0.1", 0), dispatcher)
+    threading.Thread(target=receiver.serve_forever, daemon=True).start()
+    try:
+        spec = streaming_engine(motion_graph_spec(graph, "g.npz"), bvh=str(port),
+                                vmc=f"127.0.0.1:{receiver.server_address[1]}")
+        client = socket.create_connection(("127.0.0.1", port))
+        synth = spec.make(0.5)
+        motion = resample(load_clip(sample_clips()["16_11"]), 30.0)
+        acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS))
+        deadline = time.monotonic() + 10
+        while synth._streamer.server.n_clients < 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        emitted = sum(len(synth.push(a)) for a in acc[:60]) + len(synth.flush())
+        lines = _read_lines(client, emitted)
+        deadline = time.monotonic() + 5
+        while len(vmc_t) < emitted and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        receiver.shutdown()
+    assert emitted == 60 and len(lines) == 60 and len(vmc_t) == 60
     assert all(line.startswith("0 Avatar00 ") and line.endswith(" ||") for line in lines)
     client.close()
     synth._streamer.server.close()
+
+
+def test_console_stream_flags_refuse_an_engine_without_poses_on_a_graph():
+    from engine.errors import CourtsideError
+    from engine.livestream.console import streaming_engine
+    from engine.stream.engines import EngineSpec
+
+    spec = EngineSpec(name="olng", database="kb.npz", sensor_names=("left_wrist",), rate_hz=30.0,
+                      parents=np.array([-1]), make=lambda lag_s: None)
+    with pytest.raises(CourtsideError, match="--stream-vmc streams the motion graph's poses; the olng engine"):
+        streaming_engine(spec, vmc="39539")
 
 
 def test_vmc_bundles_rebuild_the_skeleton_on_a_real_udp_receiver():

@@ -2,9 +2,12 @@
 virtual sensors on a standing-then-walking take, with noise; the record is the wizard's."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
+from engine.errors import CourtsideError, MalformedFileError
 from engine.mocap import SEED000_SENSORS, load_sensor_calibration, reading_corrections, standard_placements, \
     virtual_accelerometers
 from gateway.calibration import CalibrationRecord, rotation_angle_deg
@@ -15,8 +18,8 @@ NAMES = list(SEED000_SENSORS)
 FPS = 100.0
 
 
-def _take(tpose_s: float = 0.0, flip: tuple[str, ...] = (), seed: int = 3, bow_s: float = 0.0):
-    motion = standing_then_walking(tpose_s=tpose_s, fps=FPS, seed=seed, bow_s=bow_s)
+def _take(tpose_s: float = 0.0, flip: tuple[str, ...] = (), seed: int = 3, bow_s: float = 0.0, sit_s: float = 0.0):
+    motion = standing_then_walking(tpose_s=tpose_s, fps=FPS, seed=seed, bow_s=bow_s, sit_s=sit_s)
     truth = mounted(standard_placements(motion.skeleton, NAMES), seed=seed, flip=flip)
     rng = np.random.default_rng(seed)
     acc = virtual_accelerometers(motion, truth) + rng.normal(0.0, 0.01, (motion.n_frames, len(NAMES), 3))
@@ -60,6 +63,30 @@ def test_second_poses_fix_the_arms_and_the_trunk():
     assert max(err.values()) < 5.0, err
     assert err["left_forearm"] < 3.0 and err["right_forearm"] < 3.0 and err["chest"] < 3.0, err
     assert not any(s.reasons for s in record.sensors.values())
+
+
+def test_a_long_sit_fixes_the_shanks_without_walking():
+    """Sitting on the floor, legs straight out, lays the shank horizontal: gravity then shows its rotation about
+    its own long axis (its standing heading) with sign. No walking at all: the still N-pose, then the sit."""
+    from dataclasses import replace
+
+    motion = standing_then_walking(sit_s=2.0, fps=FPS, seed=5)
+    end = motion.n_frames / FPS
+    nominal = standard_placements(motion.skeleton, NAMES)
+    roll = np.diag([1.0, -1.0, -1.0])  # the right shin also rolled 180° about its X axis (along the bone)
+    truth = [replace(p, rotation=p.rotation @ roll) if p.name == "right_shin" else p
+             for p in mounted(nominal, seed=5)]
+    acc = virtual_accelerometers(motion, truth) + np.random.default_rng(5).normal(0.0, 0.01, (motion.n_frames,
+                                                                                              len(NAMES), 3))
+    still = np.r_[0:int(2.5 * FPS), int((end - 1.8) * FPS):motion.n_frames]  # the N-pose, then the sit
+    sit = (2.5 + 0.2, 2.5 + 1.9)
+    record = calibrate_recording(acc[still], FPS, NAMES, NAMES, standard_segment_poses(NAMES, ("sit",)),
+                                 second_windows={"sit": sit})
+    err = _errors(record, truth)
+    assert err["left_shin"] < 2.0 and err["right_shin"] < 2.0, err
+    assert not record.sensors["left_shin"].reasons and record.sensors["left_shin"].passed
+    shin = record.sensors["right_shin"]  # recovered, and failed as mounted far from nominal
+    assert not shin.passed and any(re.search(r"mounted 1[5-9]\d deg away", r) for r in shin.reasons), shin.reasons
 
 
 def test_without_heading_information_the_nominal_yaw_is_kept_and_said():
@@ -121,3 +148,47 @@ def test_an_arm_sensor_rolled_180_degrees_about_the_bone_is_caught_by_the_t_pose
     arm = record.sensors["right_forearm"]
     assert arm.correction_deg > 170 and not arm.passed and any("mounted 18" in r for r in arm.reasons), arm
     assert rotation_angle_deg(arm.rotation @ truth[1].rotation.T) < 3.0
+
+
+def _gateway_export(path, acc: np.ndarray, fps: float, keys: list[str]) -> None:
+    """``acc`` (T, S, 3) written as `courtside gateway export --npz` lays a recording out: per live sensor its own
+    samples and gateway times; here each sensor has its own rate (x-IMU3 100 Hz, Shimmer3 102.4 Hz), start and
+    a 0.2 s dropout."""
+    arrays = {}
+    t_take = np.arange(len(acc)) / fps
+    for k, key in enumerate(keys):
+        rate = (100.0, 32768 / 320)[k % 2]
+        t = np.arange(0.05 * k, t_take[-1], 1.0 / rate)
+        gap = (t > 4.0 + 0.5 * k) & (t < 4.2 + 0.5 * k)
+        t = t[~gap]
+        arrays[f"{key}/t_host_s"] = 1000.0 + t
+        arrays[f"{key}/acc_g"] = np.stack([np.interp(t, t_take, acc[:, k, a]) for a in range(3)], axis=1)
+    np.savez(path, **arrays)
+
+
+def test_calibrate_reads_a_gateway_recording_and_names_the_live_sensors(tmp_path, capsys):
+    """`courtside calibrate EXPORT --sensor-map STATION/SENSOR=PLACEMENT`: devices bought off the shelf are one
+    station each, so the record's sensor ids must be the live keys the console reads; the mountings are recovered
+    as from an imported file (pelvis and shins; arms and chest keep the nominal heading and say so)."""
+    from gateway.calibration.offline_cli import main
+
+    acc, truth, _ = _take()
+    keys = [f"{('ximu3-0000A00', 'shimmer3-R')[k % 2]}{k}/0" for k in range(len(NAMES))]
+    _gateway_export(tmp_path / "rec.npz", acc, FPS, keys)
+    out = tmp_path / "rec.calibration.json"
+    assert main([str(tmp_path / "rec.npz"), "-o", str(out), "--sensor-map",
+                 *(f"{key}={name}" for key, name in zip(keys, NAMES))]) == 0
+    record = CalibrationRecord.load(out)
+    assert set(record.sensors) == set(keys)
+    by_segment = {s.segment: s for s in record.sensors.values()}
+    err = {p.name: rotation_angle_deg(by_segment[p.name].rotation @ p.rotation.T) for p in truth}
+    for name in ("lower_back", "left_shin", "right_shin"):
+        assert err[name] < 4.0, err
+    assert load_sensor_calibration(out).sensor_ids == dict(zip(NAMES, keys))  # what the console reads
+    assert "left_shin, right_shin: heading from the walking swing plane" in capsys.readouterr().err  # sit hint
+    with pytest.raises(MalformedFileError, match="--sensor-map STATION/SENSOR=PLACEMENT"):
+        main([str(tmp_path / "rec.npz"), "-o", str(out)])
+    with pytest.raises(MalformedFileError, match="does not hold"):
+        main([str(tmp_path / "rec.npz"), "-o", str(out), "--sensor-map", "nosuch/0=chest"])
+    with pytest.raises(CourtsideError, match="'left_knee' is not a standard placement"):
+        main([str(tmp_path / "rec.npz"), "-o", str(out), "--sensor-map", f"{keys[0]}=left_knee"])
