@@ -57,7 +57,11 @@ class DemoCamera:
     (``TrackerConfig.player_side``) and must not follow the opponent.
 
     Runs as a gateway camera hook (``start(sink)`` / ``stop()``); frames are paced to the wall clock so their
-    times line up with the emulated stations' samples."""
+    times line up with the emulated stations' samples. Like a real camera it never delivers a frame more than
+    ``MAX_LAG_S`` old: when rendering falls behind the wall clock (a CPU-starved machine) it skips ahead instead of
+    publishing seconds-old frames, which the console would get after their synthesis frames were decided."""
+
+    MAX_LAG_S = 0.25
 
     def __init__(self, perf: Performance, t0_monotonic_s: float, duration_s: float, fps: float = 12.0,
                  image_size: tuple[int, int] = (640, 360)) -> None:
@@ -107,6 +111,9 @@ class DemoCamera:
         # path time 0 is the empty-court start; the performance (station time 0) begins empty_s later
         offset = self.t0 - self.empty_s
         while not self._stop.is_set():
+            next_s = self.source.next_t_true_s
+            if next_s is not None and time.monotonic() - (offset + next_s) > self.MAX_LAG_S:
+                self.source.skip_to(time.monotonic() - offset)
             frame = self.source.read()
             if frame is None:
                 return

@@ -38,9 +38,10 @@ def test_console_plays_back_a_take_and_rejects_a_bad_one(live_gateway, qapp, tmp
     monkeypatch.setenv("COURTSIDE_CACHE_DIR", str(tmp_path / "cache"))
     gateway, _ = live_gateway(StillSource(6), 6)
     with GatewayClient(*gateway.address).connect() as client:
-        client.start_recording("cli-take")
+        # generous reply deadlines (the default is 5 s): a loaded machine only makes the gateway slower to answer
+        client.request("start_recording", take="cli-take", timeout_s=60.0)
         time.sleep(1.5)
-        take = client.stop_recording()["files"][0]
+        take = client.request("stop_recording", timeout_s=60.0)["files"][0]
     assert console_main(["--playback", take, "--duration", "2", "--screenshots", str(tmp_path / "shots")]) == 0
     assert (tmp_path / "shots" / "main.png").is_file()
     bogus = tmp_path / "bogus.csrec"
@@ -96,9 +97,9 @@ def test_scripted_record_of_an_existing_take_is_refused_with_exit_1(live_gateway
     monkeypatch.setenv("COURTSIDE_CACHE_DIR", str(tmp_path / "cache"))
     gateway, _ = live_gateway(StillSource(6), 6)
     with GatewayClient(*gateway.address).connect() as client:
-        client.start_recording("taken")
+        client.request("start_recording", take="taken", timeout_s=60.0)  # generous deadlines, as above
         time.sleep(0.5)
-        client.stop_recording()
+        client.request("stop_recording", timeout_s=60.0)
     host, port = gateway.address
     code = console_main(["--connect", f"{host}:{port}", "--record", "taken", "--duration", "2",
                          "--save-poses", str(tmp_path / "p.npz")])
