@@ -25,7 +25,7 @@ from engine.mocap import SensorErrorModel
 
 from . import protocols, table
 from .labels import clip_label
-from .confidence_quality import confidence_quality
+from .confidence_quality import ConfidenceQuality, confidence_quality
 from .simulate import CameraModel
 from .takes import plan_chained_takes
 
@@ -114,6 +114,11 @@ def _database(args: argparse.Namespace) -> protocols.Database:
     return protocols.Database(motions, labels, clips, graph)
 
 
+def _confidence(scores: protocols.RowScores, fps: float) -> ConfidenceQuality:
+    """How an online row's per-frame confidence predicts its per-second global error (confidence_quality.py)."""
+    return confidence_quality(scores.confidence, [e.global_cm for e in scores.errors], fps)
+
+
 def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.RowScores]], fps: float,
                  extra: dict) -> None:
     from .metrics import summary
@@ -123,8 +128,7 @@ def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.R
         out["groups"][group] = [{"engine": r.engine, "sensors": r.sensors, "camera": r.camera,
                                  **summary(s.errors), "clips_used": s.clips_used, "longest_run_s": s.longest_run_s,
                                  "seconds": s.seconds, "per_second": protocols.traces(s, fps),
-                                 **({"confidence": vars(confidence_quality(s.confidence, [e.global_cm for e in s.errors],
-                                                                           fps))} if s.confidence else {})}
+                                 **({"confidence": vars(_confidence(s, fps))} if s.confidence else {})}
                                 for r, s in results.items()]
     with open(path, "w") as fh:
         json.dump(out, fh, indent=1)
@@ -181,8 +185,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(table.format_trace(f"  take {k + 1}", per_second(e.global_cm, fps)))
         for row, scores in results.items():
             if scores.confidence:
-                quality = confidence_quality(scores.confidence, [e.global_cm for e in scores.errors], fps)
-                print(f"{row.engine}, {row.sensors} sensors, camera {row.camera}: {quality.line(15.0)}")
+                quality = _confidence(scores, fps).line(15.0)
+                print(f"{row.engine}, {row.sensors} sensors, camera {row.camera}: {quality}")
         per_group = {"chained": results}
         extra = {"takes": [[db.clips[s.clip].name for s in t.segments] for t in takes]}
     else:

@@ -79,7 +79,8 @@ def chained_verdict(results: dict[Row, RowScores], camera_noise_m: float) -> lis
         for row, scores in results.items():
             if row.engine == "motion graph" and row.camera == CAMERA_ON:
                 s = summary(scores.errors)
-                ok = s["position_cm"] <= cam["position_cm"] + EQUAL_CM and s["heading_deg"] <= cam["heading_deg"] + EQUAL_DEG
+                ok = (s["position_cm"] <= cam["position_cm"] + EQUAL_CM
+                      and s["heading_deg"] <= cam["heading_deg"] + EQUAL_DEG)
                 lines.append(f"done-when: {row.sensors} accelerometers + camera vs camera only: position "
                              f"{s['position_cm']:.2f} vs {cam['position_cm']:.2f} cm, heading {s['heading_deg']:.2f} "
                              f"vs {cam['heading_deg']:.2f} deg -> {'PASS' if ok else 'FAIL'}")

@@ -118,8 +118,8 @@ class _ConstantVelocity:
             if u < newest:
                 (g00, g01), (g10, g11) = self.gain[k]
                 xp = self.predicted[k + 1]
-                s = [[f[0] + g00 * (a[0] - p[0]) + g01 * (a[1] - p[1]), f[1] + g10 * (a[0] - p[0]) + g11 * (a[1] - p[1])]
-                     for f, a, p in zip(xf, s, xp)]
+                s = [[f[0] + g00 * (a[0] - p[0]) + g01 * (a[1] - p[1]),
+                      f[1] + g10 * (a[0] - p[0]) + g11 * (a[1] - p[1])] for f, a, p in zip(xf, s, xp)]
             if u <= last:
                 out[u - first] = [v[0] for v in s]
         return out
