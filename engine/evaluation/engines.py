@@ -3,7 +3,9 @@ frame grid, so one scorer (metrics.frame_errors) judges them all.
 
 Start state: every engine starts from the camera's first fix (root ground position and heading); without a
 camera that is all it gets. With the camera on, all three pull their root onto the camera track with the bounded
-root warp (engine/graph/warp.py).
+root warp (engine/graph/warp.py), and with root fusion (engine/graph/root_fusion.py, the default) the output root
+is the camera track smoothed over the lag (the whole take for the batch rows), each engine's own root used only
+where the camera gives no fix: the same root for every engine and sensor set, the poses their own.
 """
 from __future__ import annotations
 
@@ -11,23 +13,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.graph.confidence import reference_cost_per_sample
 from engine.graph.graph import MotionGraph
 from engine.graph.online import FixedLagSynthesizer
-from engine.graph.poses import world_joint_positions
+from engine.graph.geometry import rotate_ground
+from engine.graph.poses import blended_joint_positions, world_joint_positions
+from engine.graph.root_fusion import RootFusion, fuse_track
 from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
 from engine.graph.warp import RootWarp
-from engine.mocap import Skeleton, forward_kinematics, quaternions
+from engine.mocap import SensorErrorModel, Skeleton, forward_kinematics, quaternions
 
+from .metrics import hips_heading
+from .simulate import CameraTrack
 from .takes import Take, yaw_quaternion
 
 
 @dataclass
 class Prediction:
     """World joints (T, J, 3) on the take's frame grid; `source_clip` (T,) database clip of each output frame
-    where the engine plays database frames (motion graph, nearest neighbour), else None."""
+    where the engine plays database frames (motion graph, nearest neighbour), else None; `confidence` where the
+    engine reports one (the motion graph's online decoder)."""
 
     joints_m: np.ndarray
     source_clip: np.ndarray | None = None
+    confidence: np.ndarray | None = None  # (T,) the online decoder's per-frame confidence
 
 
 def start_state(take: Take, camera_position_m: np.ndarray, camera_heading_rad: np.ndarray
@@ -43,26 +52,50 @@ def start_state(take: Take, camera_position_m: np.ndarray, camera_heading_rad: n
 
 def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: tuple[int, ...],
                  camera_position_m: np.ndarray, camera_heading_rad: np.ndarray, weights: SearchWeights,
-                 use_camera: bool, warp: RootWarp = RootWarp.off(), lag_s: float | None = None) -> Prediction:
-    """Batch Viterbi search, or with `lag_s` the online fixed-lag decoder (what a live user sees); without the
-    camera only its first fix is kept (where the paths start) and the root is not warped."""
+                 use_camera: bool, warp: RootWarp = RootWarp.off(), lag_s: float | None = None,
+                 fusion: RootFusion = RootFusion.off(), error_model: SensorErrorModel | None = None) -> Prediction:
+    """Batch Viterbi search, or with `lag_s` the online fixed-lag decoder (what a live user sees, with its
+    confidence against the database's own clips observed through `error_model`, default seed 000's); without the
+    camera only its first fix is kept (where the paths start) and the root is neither warped nor fused."""
     pos, head = camera_position_m.copy(), camera_heading_rad.copy()
     if not use_camera:
         pos[1:], head[1:] = np.nan, np.nan
     warp = warp if use_camera else RootWarp.off()
+    fusion = fusion if use_camera else RootFusion.off()
     acc = acc_g[:, list(sensor_indices)] if weights.acc and acc_g is not None else None
     sensors = tuple(sensor_indices) if acc is not None else None
     if lag_s is None:
         res = ViterbiSearch(graph, weights, warp=warp).run(Observations(acc, pos, head, sensors))
-        joints = world_joint_positions(graph, res.nodes, res.ground_m, res.heading_rad)
+        ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
+        joints = world_joint_positions(graph, res.nodes, ground, heading) if res.blend_nodes is None \
+            else blended_joint_positions(graph, res.blend_nodes, ground, heading)
         return Prediction(joints, graph.node_clip[res.nodes].astype(int))
-    syn = FixedLagSynthesizer(graph, lag_s, weights, sensors, warp=warp)
+    reference = reference_cost_per_sample(graph, weights, warp, sensors, error_model=error_model,
+                                          camera_noise_m=fusion.position_noise_m,
+                                          camera_noise_rad=fusion.heading_noise_rad)
+    syn = FixedLagSynthesizer(graph, lag_s, weights, sensors, warp=warp, fusion=fusion,
+                              confidence_reference=reference)
     poses = []
     for t in range(len(pos)):
         poses += syn.push(None if acc is None else acc[t], pos[t], float(head[t]))
     poses += syn.flush()
     return Prediction(np.stack([p.joint_positions_m for p in poses]),
-                      graph.node_clip[np.array([p.node for p in poses])].astype(int))
+                      graph.node_clip[np.array([p.node for p in poses])].astype(int),
+                      np.array([p.confidence for p in poses]))
+
+
+def fused_joints(joints_m: np.ndarray, take: Take, camera: CameraTrack, fusion: RootFusion) -> np.ndarray:
+    """An engine's world joints (T, J, 3) on the take's grid turned and moved, frame by frame, onto the fused
+    root (root_fusion.fuse_track of the camera fixes, the engine's own root -- joint 0 on the ground, the hips'
+    heading -- where the camera gives none): OLNG and the HMM get the motion graph's root."""
+    if not fusion.enabled:
+        return joints_m
+    own_ground, own_heading = joints_m[:, 0, [0, 2]], hips_heading(joints_m, take.skeleton)
+    ground, heading = fuse_track(fusion, take.fps, camera.position_m, camera.heading_rad, own_ground, own_heading)
+    out = np.array(joints_m, float, copy=True)
+    out[..., [0, 2]] = rotate_ground(out[..., [0, 2]] - own_ground[:, None], (heading - own_heading)[:, None]) \
+        + ground[:, None]
+    return out
 
 
 def on_take_grid(values: np.ndarray, times_s: np.ndarray, take: Take) -> np.ndarray:
@@ -83,20 +116,25 @@ def _camera_at(camera: tuple[np.ndarray, np.ndarray], times_s: np.ndarray, take:
 
 def olng(kb, config, acc_g: np.ndarray, times_s: np.ndarray, take: Take, root0_m: np.ndarray,
          root_quat0: np.ndarray, camera: tuple[np.ndarray, np.ndarray] | None = None,
-         warp: RootWarp = RootWarp()) -> Prediction:
+         warp: RootWarp = RootWarp(), fixes: CameraTrack | None = None,
+         fusion: RootFusion = RootFusion.off()) -> Prediction:
     """OLNG (seed 003) on its four wrist/ankle accelerometers at the knowledge-base rate; `camera` = (ground
-    (T, 2), heading (T,)) on the take's frames pulls its root (else only the start is given)."""
+    (T, 2), heading (T,)) on the take's frames pulls its root (else only the start is given); with `fixes` (the
+    raw camera track) the output root is fused (`fused_joints`)."""
     from engine.olng.evaluation import reconstruct
 
     cam = None if camera is None else _camera_at(camera, times_s, take)
     world, _, _ = reconstruct(kb, config, acc_g, root0_m, root_quat0, cam, warp)
-    return Prediction(on_take_grid(world, times_s, take))
+    joints = on_take_grid(world, times_s, take)
+    return Prediction(joints if fixes is None else fused_joints(joints, take, fixes, fusion))
 
 
 def hmm(model, acc_g: np.ndarray, gyro_rps: np.ndarray, skeleton: Skeleton, take: Take, root0_m: np.ndarray,
         root_quat0: np.ndarray, camera: tuple[np.ndarray, np.ndarray] | None = None,
-        warp: RootWarp = RootWarp()) -> Prediction:
-    """Hierarchical HMM (seed 004) on its IMU(s) at the take rate, with its foot-skate IK; `camera` as in `olng`."""
+        warp: RootWarp = RootWarp(), fixes: CameraTrack | None = None,
+        fusion: RootFusion = RootFusion.off()) -> Prediction:
+    """Hierarchical HMM (seed 004) on its IMU(s) at the take rate, with its foot-skate IK; `camera`, `fixes` and
+    `fusion` as in `olng`."""
     from engine.hmm.evaluation import reconstruct, to_motion
 
     if camera is not None and abs(model.fps - take.fps) > 1e-9:
@@ -107,4 +145,4 @@ def hmm(model, acc_g: np.ndarray, gyro_rps: np.ndarray, skeleton: Skeleton, take
     joints, _ = forward_kinematics(to_motion(skeleton, model.fps, root, quats, foot_ik=True))
     if len(joints) != take.n_frames:
         joints = on_take_grid(joints, np.arange(len(joints)) / model.fps, take)
-    return Prediction(joints)
+    return Prediction(joints if fixes is None else fused_joints(joints, take, fixes, fusion))

@@ -13,7 +13,7 @@ Protocols:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -22,6 +22,7 @@ from engine.errors import CourtsideError
 from engine.graph.clips import ClipData
 from engine.graph.graph import MotionGraph
 from engine.graph.viterbi import SearchWeights
+from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SEED003_SENSORS, Motion, SensorErrorModel
 
@@ -60,6 +61,7 @@ class RowScores:
     clips_used: list[int] = field(default_factory=list)  # distinct database clips played (graph / NN)
     longest_run_s: list[float] = field(default_factory=list)  # longest stretch played from one clip
     seconds: float = 0.0  # compute time
+    confidence: list[np.ndarray] = field(default_factory=list)  # per take, per frame (online motion graph only)
 
 
 @dataclass
@@ -72,6 +74,7 @@ class EvalConfig:
     error_model: SensorErrorModel | None = field(default_factory=SensorErrorModel.seed000)
     weights: SearchWeights = field(default_factory=SearchWeights.camera_following)
     warp: RootWarp = field(default_factory=RootWarp)  # root warping towards the camera (graph, OLNG, HMM)
+    fusion: RootFusion = field(default_factory=RootFusion)  # with the camera: the output root = the smoothed track
     nn_window: int = 15
     lag_s: float | None = None  # motion graph: None = batch search, else the online fixed-lag decoder
     seed: int = 0
@@ -155,6 +158,8 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
         scores = results.setdefault(row, RowScores())
         scores.seconds += time.perf_counter() - t0
         scores.errors.append(frame_errors(pred.joints_m, take.joints_m, skeleton))
+        if pred.confidence is not None:
+            scores.confidence.append(pred.confidence)
         used, longest = _clip_stats(pred.source_clip, take.fps)
         scores.clips_used.append(used)
         scores.longest_run_s.append(longest)
@@ -169,16 +174,17 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                lambda: engines.Prediction(baselines.mean_pose(graph, np.repeat(off[0], take.n_frames, 0),
                                                               np.repeat(off[1], take.n_frames))))
     if "graph" in cfg.engines:
-        w_on, w_off = cfg.weights, SearchWeights(cfg.weights.acc, 0.0, 0.0)
+        w_on, w_off = cfg.weights, replace(cfg.weights, position=0.0, heading=0.0)
         for k, idx in sets:
             for camera, w in ((CAMERA_ON, w_on), (CAMERA_OFF, w_off)):
                 record(Row("motion graph", str(k), camera),
                        lambda: engines.motion_graph(graph, acc, idx, cam.position_m, cam.heading_rad, w,
-                                                    camera == CAMERA_ON, cfg.warp, cfg.lag_s))
+                                                    camera == CAMERA_ON, cfg.warp, cfg.lag_s, cfg.fusion,
+                                                    cfg.error_model))
         record(Row("camera only (W_A=0)", "0", CAMERA_ON),
                lambda: engines.motion_graph(graph, None, (), cam.position_m, cam.heading_rad,
-                                            SearchWeights(0.0, cfg.weights.position, cfg.weights.heading), True,
-                                            cfg.warp, cfg.lag_s))
+                                            replace(cfg.weights, acc=0.0), True,
+                                            cfg.warp, cfg.lag_s, cfg.fusion, cfg.error_model))
     if "baselines" in cfg.engines:
         for k, idx in sets:
             nn = held.nearest_neighbour(idx, cfg.nn_window)
@@ -199,7 +205,7 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                lambda: engines.olng(kb, OLNGConfig(), acc4, times, take, root0, quat0))
         record(Row("olng (wrists+ankles)", "4", CAMERA_ON),
                lambda: engines.olng(kb, OLNGConfig(), acc4, times, take, root0, quat0, (cam_pos, cam_head),
-                                    cfg.warp))
+                                    cfg.warp, cam, cfg.fusion))
     if "hmm" in cfg.engines:
         for k, imus in HMM_IMUS.items():
             model = held.hmm_model(imus)
@@ -209,7 +215,7 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                    lambda: engines.hmm(model, imu_acc, gyro, skeleton, take, root0, quat0))
             record(Row(f"hmm ({'+'.join(imus)})", str(k), CAMERA_ON),
                    lambda: engines.hmm(model, imu_acc, gyro, skeleton, take, root0, quat0, (cam_pos, cam_head),
-                                       cfg.warp))
+                                       cfg.warp, cam, cfg.fusion))
 
 
 def chained_takes(db: Database, takes: list[list[int]], cfg: EvalConfig, max_clip_s: float | None = None

@@ -51,6 +51,12 @@ def _find(results: dict[Row, RowScores], engine: str, sensors: str, camera: str)
     return summary(scores.errors) if scores else None
 
 
+# "Not worse" allows what the metric itself cannot resolve: with root fusion every row's output root is the same
+# (engine/graph/root_fusion.py, equal to the bit), but the metric reads position and heading back from the placed
+# database poses, stored in float32: the rows then differ by ~1e-7 cm and ~3e-5 deg.
+EQUAL_CM, EQUAL_DEG = 1e-3, 1e-3
+
+
 def chained_verdict(results: dict[Row, RowScores], camera_noise_m: float) -> list[str]:
     """Issue 11's "done when" for chained takes, judged on this table: the motion graph with 6 accelerometers
     + camera must reach global joint error <= 15 cm, mean root position error <= 2x the camera's noise (sd per
@@ -73,7 +79,8 @@ def chained_verdict(results: dict[Row, RowScores], camera_noise_m: float) -> lis
         for row, scores in results.items():
             if row.engine == "motion graph" and row.camera == CAMERA_ON:
                 s = summary(scores.errors)
-                ok = s["position_cm"] <= cam["position_cm"] and s["heading_deg"] <= cam["heading_deg"]
+                ok = (s["position_cm"] <= cam["position_cm"] + EQUAL_CM
+                      and s["heading_deg"] <= cam["heading_deg"] + EQUAL_DEG)
                 lines.append(f"done-when: {row.sensors} accelerometers + camera vs camera only: position "
                              f"{s['position_cm']:.2f} vs {cam['position_cm']:.2f} cm, heading {s['heading_deg']:.2f} "
                              f"vs {cam['heading_deg']:.2f} deg -> {'PASS' if ok else 'FAIL'}")

@@ -65,13 +65,16 @@ def default_engine(n_worn: int) -> str:
     return {4: "olng", 1: "hmm"}.get(n_worn, "motion-graph")
 
 
-def motion_graph_spec(graph: Any, database: str | Path, skeleton: Any = None, warp: Any = None) -> EngineSpec:
+def motion_graph_spec(graph: Any, database: str | Path, skeleton: Any = None, warp: Any = None,
+                      fusion: Any = None) -> EngineSpec:
     """Fixed-lag Viterbi over a `engine.graph.MotionGraph` (from `courtside build-graph` or the console's cache),
     with `courtside synthesize`'s defaults: root warping towards the camera (``warp``, default
-    `engine.graph.warp.RootWarp()`) and the weights that go with it. The confidence reference (the cost per sample
+    `engine.graph.warp.RootWarp()`) and the weights that go with it, the output root fused from the camera track
+    (``fusion``, default `engine.graph.root_fusion.RootFusion()`). The confidence reference (the cost per sample
     of the graph's own clips) is measured once here, not at every engine restart."""
     from engine.graph.confidence import reference_cost_per_sample
     from engine.graph.online import FixedLagSynthesizer
+    from engine.graph.root_fusion import RootFusion
     from engine.graph.warp import RootWarp, default_weights
 
     skeleton = graph.skeleton if skeleton is None else skeleton
@@ -81,11 +84,13 @@ def motion_graph_spec(graph: Any, database: str | Path, skeleton: Any = None, wa
     if len(names) != graph.n_sensors:
         raise EngineMismatchError(f"{database}: graph has {graph.n_sensors} sensor columns but names {list(names)}")
     warp = RootWarp() if warp is None else warp
+    fusion = RootFusion() if fusion is None else fusion
     weights = default_weights(warp)
     reference = reference_cost_per_sample(graph, weights, warp)
     return EngineSpec("motion-graph", str(database), names, float(graph.config.fps), np.asarray(skeleton.parents),
                       lambda lag_s: FixedLagSynthesizer(graph, lag_s, weights, warp=warp,
-                                                        confidence_reference=reference), graph=graph,
+                                                        confidence_reference=reference, fusion=fusion),
+                      graph=graph,
                       skeleton=skeleton)
 
 

@@ -26,6 +26,18 @@ def test_chained_verdict_thresholds():
     assert "0.29" in format_table(results, 30.0).splitlines()[3]  # the skill column: 1 - 7.1 / 10
 
 
+def test_accelerometers_vs_camera_only_tolerates_only_float32_pose_storage():
+    """Rows on the same fused root differ by ~3e-5 deg in the metric (float32 database poses): not worse; a
+    hundredth of a degree or of a centimetre worse is worse."""
+    def verdict(pos, head):
+        results = {Row("mean pose", "-", CAMERA_ON): scores(14, 10, 6, 8),
+                   Row("motion graph", "6", CAMERA_ON): scores(11, 9, pos, head),
+                   Row("camera only (W_A=0)", "0", CAMERA_ON): scores(15, 14, 2.146, 2.677)}
+        return chained_verdict(results, 0.05)[-1].rsplit(" ", 1)[1]
+    assert verdict(2.146, 2.677 + 3e-5) == "PASS"
+    assert verdict(2.146, 2.687) == "FAIL" and verdict(2.156, 2.677) == "FAIL"
+
+
 def test_group_verdict_thresholds():
     ok = {Row("motion graph", "6", CAMERA_ON): scores(10, 5, 15.0, 10.0)}
     bad = {Row("motion graph", "6", CAMERA_ON): scores(10, 5, 15.0, 10.5)}

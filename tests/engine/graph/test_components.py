@@ -90,12 +90,38 @@ def test_relaxed_transitions_connect_only_frames_outside_the_component():
     # the trap is now left: nodes of c's second part survive pruning and reach a
     trap = (g.node_clip == 2) & (g.node_frame >= 45)
     assert trap.sum() > 30
-    # transitions among a and b (inside the component from the start) are strict ones only (pruning drops
-    # those from the clips' dead-end tails)
+    # transitions among a and b (inside the component from the start) are strict ones, except relaxed ones that
+    # enter a clip's head or leave its tail -- frames that were outside the component (pruning drops strict ones
+    # from the clips' dead-end tails)
     ab = lambda gr: {(int(gr.node_clip[s]), float(gr.node_frame[s]), int(gr.node_clip[d]), float(gr.node_frame[d]))
                      for s, d, k in zip(gr.edge_src, gr.edge_dst, gr.edge_kind)
                      if k == EDGE_TRANSITION and gr.node_clip[s] < 2 and gr.node_clip[d] < 2}
-    assert ab(g) <= ab(g0) and len(ab(g)) > 10
+    inside0 = largest_component(g0.edge_src, g0.edge_dst, g0.n_nodes)
+    key0 = {(int(c), float(f)): bool(i) for c, f, i in zip(g0.node_clip, g0.node_frame, inside0)}
+    added = ab(g) - ab(g0)
+    assert len(ab(g) & ab(g0)) > 10
+    assert all(not key0[(cs, fs)] or not key0[(cd, fd)] for cs, fs, cd, fd in added)
+
+
+def test_clip_heads_are_entered_and_tails_left():
+    """Two copies of one gait (period 15, contact changes at frames 7, 15, 22, ...): strict transitions join only
+    contact changes, so each clip's head (frames before 7) and tail cannot be entered or left and are pruned.
+    Clip-end transitions match each clip's first and last window-fitting frame (2 and n - 3 for a 5-frame window)
+    against every frame of the other clip -- frame 2 is frame 17's pose exactly (one period on) -- so each clip is
+    kept from frame 2 to frame n - 4 (the tail edge leaves from n - 4 = e - 1), no more, no less."""
+    a = gait_clip("a", n_frames=60, seed=1)
+    b = rigid_copy(a, "b", angle_rad=0.7, shift_xz=(3.0, 1.0))
+    strict = build_from_clips([a, b], GraphConfig(window_frames=5, transition_threshold_m=0.05, connect=True,
+                                                  connect_thresholds_m=[]))
+    ends = build_from_clips([a, b], GraphConfig(window_frames=5, transition_threshold_m=0.05, connect=True,
+                                                connect_thresholds_m=[0.05], min_component_share=0.99))
+    for clip in (0, 1):
+        kept = lambda gr: gr.node_frame[(gr.node_clip == clip) & (gr.node_kind == 0)]
+        assert kept(strict).min() >= 7 and kept(strict).max() < 56
+        assert kept(ends).min() == 2 and kept(ends).max() == 56
+        assert len(kept(ends)) == 55  # every frame in between
+    fwd = _reach(ends.edge_src, ends.edge_dst, ends.n_nodes, 0)
+    assert fwd.all() and _reach(ends.edge_dst, ends.edge_src, ends.n_nodes, 0).all()
 
 
 def test_idle_frames_are_spaced_inside_long_runs_only():

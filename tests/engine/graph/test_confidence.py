@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from engine.graph.config import GraphConfig
-from engine.graph.confidence import CostWindow, confidence, reference_cost_per_sample
+from engine.graph.confidence import CostHistory, CostWindow, confidence, reference_cost_per_sample
 from engine.graph.graph import EDGE_TRANSITION, build_from_clips
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.viterbi import SearchWeights
@@ -33,6 +33,38 @@ def test_confidence_formula_and_cost_window():
     w = CostWindow(2)
     assert np.isnan(w.push(10.0))
     assert w.push(13.0) == 3.0 and w.push(14.0) == 2.0 and w.push(20.0) == pytest.approx(3.5)  # (20 - 13) / 2
+
+
+def test_cost_history_centres_the_window_on_the_decided_sample():
+    """Totals t^2: the window [s - 2, s + 2] costs ((s + 2)^2 - (s - 2)^2) / 4 = 2 s; cut at the newest sample
+    it ends there; forgotten totals are ones no later window needs."""
+    h = CostHistory(4)
+    for t in range(10):
+        h.push(float(t * t))
+    assert h.per_sample_around(5) == 10.0
+    assert h.per_sample_around(8) == (81 - 25) / 4  # newest is 9: the window [5, 9]
+    assert h.per_sample_around(1) == (9 - 0) / 3  # from the first sample: [0, 3]
+    h.drop_before(7)
+    assert h.first == 3 and h.per_sample_around(7) == (81 - 25) / 4
+    single = CostHistory(4)
+    single.push(1.0)
+    assert np.isnan(single.per_sample_around(0))
+
+
+def test_confidence_of_a_decided_frame_sees_the_samples_after_it(graph_and_path):
+    """With a lag, the frame where the sensors stop matching the database loses confidence from half a window
+    *before* the change (the window centred on it sees the change), not only after."""
+    g, (acc, _, _) = graph_and_path
+    lost = acc.copy()
+    lost[120:] = np.random.default_rng(4).normal(0, 3.0, lost[120:].shape)
+    w = SearchWeights(0.5, 0, 0)
+    syn = FixedLagSynthesizer(g, 2.0, w, confidence_reference=0.05, confidence_window_s=1.0, reanchor_ratio=0)
+    conf = np.array([p.confidence for t in range(len(acc)) for p in syn.push(lost[t])] +
+                    [p.confidence for p in syn.flush()])
+    assert conf[100] > 0.9 and conf[112] < conf[100] / 2  # 8 samples before the change: 7 lost samples in view
+    trailing = FixedLagSynthesizer(g, 0.0, w, confidence_reference=0.05, confidence_window_s=1.0, reanchor_ratio=0)
+    conf0 = np.array([p.confidence for t in range(len(acc)) for p in trailing.push(lost[t])])
+    assert conf0[112] > 0.9  # the window behind it (lag 0) has not seen the change yet
 
 
 def test_reference_cost_grows_with_the_sensor_noise(graph_and_path):
