@@ -2,8 +2,14 @@
 
 Six sensors at 100 Hz (jittered) plus a 12 fps camera, 60 s, resampled to 30 Hz frames. Rows: the path alone
 (a do-nothing engine) fed live in 100 ms batches as the console's worker is, the same fed offline in one pass
-(as `courtside synthesize`), and the path driving the real fixed-lag motion graph (shipped clips, lag 0.5 s).
-Times are per frame; the ratio column is against the path's live run, measured in this process.
+(as `courtside synthesize`), the path driving the real fixed-lag motion graph (shipped clips, lag 0.5 s), and
+the path driving the OLNG (shipped-clip knowledge base without the walk 16_32, fed that walk's virtual
+accelerometers at the 4 seed-003 sites, 100 Hz, 25 Hz frames), and the accelerometer-only HMM on that walk's
+right-foot sensor. Times are per frame; the ratio
+column is against the path's live run, measured in this process; "x real time" is the frame period over the CPU
+cost per frame (below 1 the engine falls behind a live stream even on an idle core: the console then says
+FALLING BEHIND). CPU time (this process, all threads) is printed beside wall time because on a shared, loaded
+machine wall time measures the queue for the CPU more than the code.
 
     nice -n 10 .venv/bin/python bench/bench_stream.py [--seconds 60]
 """
@@ -37,12 +43,29 @@ def streams(seconds: float, n_sensors: int = 6, seed: int = 0) -> RecordedStream
     return RecordedStreams(samples, camera, None)
 
 
-def run_live(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, int]:
+HELD_OUT = "16_32"  # a walk, left out of the OLNG knowledge base
+
+
+def worn_streams(clip: str, sensor_names, seconds: float) -> RecordedStreams:
+    """Real motion for the engines that search on it: the clip's virtual accelerometers at ``sensor_names``,
+    sampled at 100 Hz with jitter (looped to ``seconds``), no camera."""
+    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers
+
+    motion = load_clip(sample_clips()[clip], fps=100.0)
+    acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, list(sensor_names)))
+    rng = np.random.default_rng(1)
+    n = int(seconds * 100)
+    t = 1000.0 + np.arange(n) / 100.0 + rng.uniform(0, 0.002, n)
+    return RecordedStreams({k: (t, acc[np.arange(n) % len(acc), k]) for k in range(len(sensor_names))}, [], None)
+
+
+def run_live(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, int]:
+    """(wall s, CPU s of this process, frames pushed) for the stream fed in 100 ms batches."""
     session = StreamSynthesis(make, list(rec.samples), rate_hz)
     t_end_all = max(t[-1] for t, _ in rec.samples.values())
     cam = iter(rec.camera)
     pending = next(cam, None)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for t_end in np.arange(1000.1, t_end_all + 0.1, 0.1):
         for key, (t, a) in rec.samples.items():
             sl = slice(np.searchsorted(t, t_end - 0.1, "right"), np.searchsorted(t, t_end, "right"))
@@ -51,34 +74,45 @@ def run_live(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, int]:
             session.add_camera(*pending)
             pending = next(cam, None)
         session.step()
-    return time.perf_counter() - t0, session.stats.frames_in
+    return time.perf_counter() - t0, time.process_time() - c0, session.stats.frames_in
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seconds", type=float, default=60.0)
+    p.add_argument("--olng-seconds", type=float, default=20.0, help="stream length for the (slow) OLNG row")
     args = p.parse_args()
     rec = streams(args.seconds)
     rate = 30.0
-    live_s, frames = run_live(NullEngine, rec, rate)
-    t0 = time.perf_counter()
+    live_s, live_cpu_s, frames = run_live(NullEngine, rec, rate)
+    t0, c0 = time.perf_counter(), time.process_time()
     _, session = synthesize_streams(NullEngine, rec, list(rec.samples), rate)
-    offline_s = time.perf_counter() - t0
+    offline_s, offline_cpu_s = time.perf_counter() - t0, time.process_time() - c0
 
-    from engine.stream.databases import shipped_graph_spec  # the console's default database (cached)
+    from engine.stream.databases import shipped_graph_spec, shipped_hmm_spec, shipped_olng_spec  # console defaults
 
     spec = shipped_graph_spec()
-    graph_s, graph_frames = run_live(lambda: spec.make(0.5), rec, spec.rate_hz)
+    graph = run_live(lambda: spec.make(0.5), rec, spec.rate_hz)
+    olng = shipped_olng_spec(exclude=(HELD_OUT,))  # the console's `--engine olng` default: 4 sensors at 25 Hz
+    olng_rec = worn_streams(HELD_OUT, olng.sensor_names, min(args.seconds, args.olng_seconds))
+    olng_run = run_live(lambda: olng.make(0.5), olng_rec, olng.rate_hz)
+    hmm = shipped_hmm_spec(exclude=(HELD_OUT,))  # the console's 1-sensor default: accelerometer-only HMM
+    hmm_run = run_live(lambda: hmm.make(0.5), worn_streams(HELD_OUT, hmm.sensor_names, args.seconds), hmm.rate_hz)
     load = os.getloadavg()[0]
     print(f"stream bench: 6 sensors x 100 Hz + 12 fps camera, {args.seconds:g} s -> {frames} frames at 30 Hz, "
           f"load avg {load:.1f} on {os.cpu_count()} cores")
-    print(f"{'':44s}{'us/frame':>10s}{'ratio':>8s}")
-    base = 1e6 * live_s / frames
-    for name, seconds, n in (("path alone, live 100 ms batches", live_s, frames),
-                             ("path alone, offline one pass", offline_s, session.stats.frames_in),
-                             ("path + motion graph (lag 0.5 s), live", graph_s, graph_frames)):
-        print(f"{name:44s}{1e6 * seconds / n:10.1f}{1e6 * seconds / n / base:8.2f}")
-
+    print(f"{'':40s}{'wall us/frame':>14s}{'CPU us/frame':>14s}{'ratio (CPU)':>12s}{'x real time (CPU)':>19s}")
+    base = 1e6 * live_cpu_s / frames
+    for name, (wall, cpu, n), rate in (("path alone, live 100 ms batches", (live_s, live_cpu_s, frames), 30.0),
+                                       ("path alone, offline one pass",
+                                        (offline_s, offline_cpu_s, session.stats.frames_in), 30.0),
+                                       ("path + motion graph (lag 0.5 s), live", graph, spec.rate_hz),
+                                       ("path + OLNG (4 sensors, 25 Hz), live", olng_run, olng.rate_hz),
+                                       ("path + HMM acc-only (1 sensor), live", hmm_run, hmm.rate_hz)):
+        us = 1e6 * cpu / n
+        # "x real time" = frame period / CPU cost per frame: below 1 the engine cannot keep up with the stream
+        # even with a core to itself (wall time on a loaded machine is worse)
+        print(f"{name:40s}{1e6 * wall / n:14.1f}{us:14.1f}{us / base:12.2f}{1e6 / rate / us:19.2f}")
 
 if __name__ == "__main__":
     main()

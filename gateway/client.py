@@ -101,7 +101,9 @@ class GatewayClient:
             self.close()
             if self._refusal:
                 raise ConnectionError(f"gateway {self.host}:{self.port} refused the connection: {self._refusal}")
-            raise ConnectionError(f"no hello from gateway {self.host}:{self.port} within {timeout_s} s")
+            hint = "" if self.tls is not None else " (a TLS gateway waits for a TLS handshake: connect with TLS, " \
+                "e.g. `courtside console --tls-ca cert.pem`)"
+            raise ConnectionError(f"no hello from gateway {self.host}:{self.port} within {timeout_s} s{hint}")
         challenge = self.server_hello.get("auth")
         if challenge is None:
             self.role = self.server_hello.get("role", auth.OPERATOR)

@@ -47,6 +47,15 @@ class TickUnwrapper:
 
     ``tolerance_s`` bounds how far a sample may sit from the prediction (reordering across sensors, latency jitter,
     drift during a long gap) before it counts as a reset.
+
+    Late delivery is not a reset. After a host stall (CPU starvation, a GC pause) the reader gets bytes that waited
+    in the tty or in the station's buffer, stamped seconds after they were sent: behind the prediction by more than
+    any fixed tolerance, then catching up within one read. So (1) the prediction is anchored on the packet that
+    arrived *earliest relative to its ticks* (each packet says the counter is now at least its ticks plus the host
+    time since), not on the newest one, which may itself be late; and (2) a packet between the newest value seen and
+    the prediction is accepted as late. Without both, a 2 s stall split one boot into two clock epochs (seen on a
+    starved 2-core machine). A reboot's counter lands in that span only by chance, and a new boot id in HELLO
+    restarts the epoch anyway.
     """
 
     def __init__(self, tick_hz: float, tolerance_s: float = 2.0, max_drift_ppm: float = 500.0):
@@ -56,7 +65,8 @@ class TickUnwrapper:
         self.epoch = 0
         self.wraps = 0
         self._ref: int | None = None  # newest unwrapped tick seen
-        self._ref_arrival_s = 0.0
+        self._anchor = 0  # unwrapped ticks of the packet the prediction starts from (see the class doc) ...
+        self._anchor_arrival_s = 0.0  # ... and its host arrival time
 
     def restart(self, tick_hz: float | None = None) -> None:
         """Forget the counter (e.g. a new boot id in HELLO): the next packet starts a new epoch."""
@@ -73,25 +83,32 @@ class TickUnwrapper:
         ``first + i * period`` in unwrapped ticks, so a wrap inside a batch needs no special case."""
         raw = int(raw_ticks)
         reset = False
-        if self._ref is None:
+        first = self._ref is None
+        if first:
             unwrapped = raw
         else:
-            elapsed_s = max(arrival_s - self._ref_arrival_s, 0.0)
-            predicted = self._ref + int(round(elapsed_s * self.tick_hz))
+            elapsed_s = max(arrival_s - self._anchor_arrival_s, 0.0)
+            predicted = self._anchor + int(round(elapsed_s * self.tick_hz))
             delta = (raw - predicted + WRAP_TICKS // 2) % WRAP_TICKS - WRAP_TICKS // 2
             tolerance = self.tick_hz * (self.tolerance_s + elapsed_s * self.max_drift_ppm * 1e-6)
-            if abs(delta) > tolerance:
+            advance = (raw - self._ref + WRAP_TICKS // 2) % WRAP_TICKS - WRAP_TICKS // 2  # from the newest value
+            if abs(delta) <= tolerance:
+                unwrapped = predicted + delta
+            elif predicted - self._ref < WRAP_TICKS // 2 and -tolerance <= advance <= predicted - self._ref:
+                unwrapped = self._ref + advance  # delivered late
+            else:
                 reset = True
                 self.epoch += 1
                 unwrapped = raw
                 self._ref = None
-            else:
-                unwrapped = predicted + delta
         if self._ref is None or unwrapped > self._ref:
             if self._ref is not None and unwrapped // WRAP_TICKS > self._ref // WRAP_TICKS:
                 self.wraps += unwrapped // WRAP_TICKS - self._ref // WRAP_TICKS
             self._ref = unwrapped
-            self._ref_arrival_s = arrival_s
+        # re-anchor on a packet at or ahead of the current bound (allowing the slowest legal crystal): on time
+        slowest = (arrival_s - self._anchor_arrival_s) * self.tick_hz * (1.0 - self.max_drift_ppm * 1e-6)
+        if first or reset or unwrapped - self._anchor >= slowest:
+            self._anchor, self._anchor_arrival_s = unwrapped, arrival_s
         return unwrapped, reset
 
 

@@ -476,7 +476,8 @@ def _export_parser() -> argparse.ArgumentParser:
 
 def load_config(args: argparse.Namespace) -> "CourtConfig":
     """The court config file (or the defaults) with the command line's options applied on top."""
-    from gateway.court_config import CourtConfig, load_court_config, with_overrides
+    from engine.errors import CourtsideError, MalformedFileError
+    from gateway.court_config import CourtConfig, check_consistent, load_court_config, with_overrides
 
     config = load_court_config(args.config, check=False) if args.config else CourtConfig()
     overrides = {key: getattr(args, flag) for flag, key in FLAG_KEYS.items()}
@@ -485,7 +486,15 @@ def load_config(args: argparse.Namespace) -> "CourtConfig":
                 "auth.viewer_secret_file", "auth.tls_cert", "auth.tls_key"):
         if overrides[key] is not None:
             overrides[key] = str(overrides[key])
-    return with_overrides(config, overrides, flags)
+    given = {k: v for k, v in overrides.items() if v is not None}
+    config = with_overrides(config, given, flags) if given else config
+    try:  # the rules across keys, once the flags are in: a file-only problem names the file
+        check_consistent(config)
+    except CourtsideError as exc:
+        if args.config and not given:
+            raise MalformedFileError(args.config, None, str(exc)) from None
+        raise
+    return config
 
 
 def _export_main(argv: list[str]) -> int:

@@ -49,7 +49,8 @@ def client_local_address(client: Any) -> str | None:
 
 class CameraRate:
     """Camera frame rate (EMA over observation times) and dropped frames (gaps in ``frame_index``), counted on
-    every camera message as it arrives — the GUI only ever sees the latest one."""
+    every camera message as it arrives — the GUI only ever sees the latest one. A frame index that goes back is
+    a source that started again (a looping court video, a camera reopened), not -N frames."""
 
     def __init__(self) -> None:
         self.fps = 0.0
@@ -61,6 +62,8 @@ class CameraRate:
             return
         if self._last is not None:
             t_prev, i_prev = self._last
+            if frame_index is not None and i_prev is not None and frame_index <= i_prev:
+                i_prev = frame_index - 1  # the source started again (a looping file, a reopened camera): one frame
             if t_s > t_prev:
                 frames = (frame_index - i_prev) if frame_index is not None and i_prev is not None else 1
                 rate = frames / (t_s - t_prev)

@@ -38,8 +38,8 @@ def _console_parser() -> argparse.ArgumentParser:
     p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
     p.add_argument("--engine", choices=ENGINE_NAMES, default=None,
                    help="synthesis engine (default: motion-graph with --graph, olng with --kb, else by the number "
-                        "of worn sensors: 4 -> olng, 1 -> hmm, which needs gyroscopes the stations do not stream, "
-                        "so motion-graph; otherwise motion-graph; see docs/console.md)")
+                        "of worn sensors: 4 -> olng, 1 -> hmm (an accelerometer-only model trained from the shipped "
+                        "clips: the stations stream no gyroscope), otherwise motion-graph; see docs/console.md)")
     p.add_argument("--graph", type=Path, default=None, metavar="G.npz",
                    help="motion graph from `courtside build-graph` (default: built from the shipped clips, cached)")
     p.add_argument("--kb", type=Path, default=None, metavar="KB.npz",
@@ -156,6 +156,13 @@ def _console(args: argparse.Namespace) -> int:
             print(f"courtside console: cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})",
                   file=sys.stderr)
             return 2
+        if (args.record or args.calibrate) and getattr(client, "role", "operator") == "viewer":
+            client.close()  # refuse before anything runs: the gateway would refuse every step (and the wizard's
+            # refusals would only surface when it timed out, 90 s later)
+            print(f"courtside console: --calibrate/--record need the operator role, but gateway "
+                  f"{args.connect[0]}:{args.connect[1]} accepted this console's secret as a viewer (watch only): "
+                  "give the operator secret file", file=sys.stderr)
+            return 2
         stations = _stations_with_sensors(client)
     try:
         synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out,
@@ -205,6 +212,7 @@ def _client_factory(args: argparse.Namespace):
 def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held_out: list[str], refresh=None):
     """(SynthesisSetup or None, worn sensor -> placement, skeleton parents or None). ``refresh`` re-reads the
     station list (live gateway)."""
+    from engine.errors import CourtsideError
     from engine.stream.databases import engine_spec
     from gui.engine_link import synthesis_setup, worn_sensors
 
@@ -220,9 +228,15 @@ def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held
                                    _pick_synth_station(stations, args.synth_station, len(spec.sensor_names)),
                                    calibration)
     except ValueError as exc:
-        from engine.errors import CourtsideError
-
         raise CourtsideError(str(exc)) from exc
+    if keys is None:
+        if args.graph or args.kb or args.engine:  # asked for by name: refuse rather than run without it
+            candidates = ", ".join(f"{s['station']} ({len(s.get('sensors') or [])} sensors)" for s in stations
+                                   if len(s.get("sensors") or []) >= len(spec.sensor_names)) or "none"
+            raise CourtsideError(f"{spec.label} needs {len(spec.sensor_names)} worn sensors "
+                                 f"({', '.join(spec.sensor_names)}) but nothing says which live sensors those are; "
+                                 f"stations that could carry them: {candidates}. Pass --synth-station ST (its "
+                                 "sensors 0.. in that order) or --calibration RECORD")
     for note in notes:
         log.warning("synthesis: %s", note)
     if keys is None:
@@ -302,8 +316,15 @@ def _run_window(window, duration_s: float | None, screenshots: Path | None) -> i
     from gui.screens import capture_console
 
     if screenshots is not None and duration_s is not None:
-        QtCore.QTimer.singleShot(int(max(0.0, duration_s - 1.5) * 1000),
-                                 lambda: log.info("screenshots: %s", [str(p) for p in capture_console(window, screenshots)]))
+        def capture_then_close() -> None:
+            log.info("screenshots: %s", [str(p) for p in capture_console(window, screenshots)])
+            window.close()
+
+        # one callback, in order: capturing runs nested event loops, and a separate close timer firing inside
+        # one of them (a loaded machine: the grabs take longer than the 1.5 s left) closed the window there,
+        # where the quit on the last window was lost, and the console never exited
+        QtCore.QTimer.singleShot(int(max(0.0, duration_s - 1.5) * 1000), capture_then_close)
+        duration_s = None
     code = run(window, duration_s)
     window.shutdown()
     return code
@@ -314,9 +335,20 @@ def demo_main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if _screenshots_need_duration("demo", args):
         return 2
+    from engine.errors import CourtsideError
+    from gateway.court_config import check_consistent, is_loopback
     from gui.app import application
+    from gui.demo.hardware import demo_court_config
     from gui.demo.session import demo_session
 
+    # the demo's court goes through the config loader's rules before anything starts, so a refusal is one line
+    # here, not a failure in the hardware process; the demo gateway has no secret, so it stays on loopback
+    if not is_loopback(args.listen[0]):
+        raise CourtsideError(f"--listen {args.listen[0]}:{args.listen[1]}: the demo gateway has no authentication, "
+                             "so it listens on loopback only (127.0.0.0/8); for consoles on other machines run "
+                             "`courtside gateway --config court.toml` with an [auth] secret (docs/gateway.md "
+                             "\"Two machines\")")
+    check_consistent(demo_court_config(args.listen, args.record_dir))
     application()
     with demo_session(lag_s=args.lag, listen=args.listen, record_dir=args.record_dir, camera=not args.no_camera,
                       duration_s=args.duration, separate_process=not args.single_process) as session:

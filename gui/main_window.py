@@ -19,6 +19,7 @@ from gui.health import Alarm, Sync, status_alarms
 from gui.playback import Playback
 from gui.ringbuffer import TraceStore
 from gui.synthesis import SynthesisSetup, SynthesisWorker
+from gui.widgets import VIEWER_ONLY
 from gui.widgets.alarms import AlarmBar
 from gui.widgets.camera_pane import CameraPane
 from gui.widgets.device_panel import DevicePanel
@@ -199,8 +200,15 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.client = client
         self._clock_offset_s = clock_offset_s
         hello = getattr(client, "server_hello", {}) or {}
-        self.connection.setText(f"gateway {hello.get('gateway', '')} {client.host}:{client.port}")
+        viewer = getattr(client, "role", "operator") == "viewer"
+        self.connection.setText(f"gateway {hello.get('gateway', '')} {client.host}:{client.port}"
+                                + (" (viewer: watch only)" if viewer else ""))
         self.connection.setStyleSheet("")
+        # the gateway checks the role of every request; a viewer console does not offer what it would refuse
+        self.calibrate_button.setEnabled(not viewer)
+        self.calibrate_button.setToolTip(VIEWER_ONLY if viewer else "")
+        self.recording.set_allowed(not viewer)
+        self.devices.set_commands_allowed(not viewer)
 
     def link_alarms(self) -> list[Alarm]:
         if self.client is None or self.playback is not None or self.client.connected:
@@ -224,6 +232,11 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         client = (self.make_client or GatewayClient)(host, port).connect(timeout_s=1.0)
         try:
             self.bridge.detach()
+            if self.worker is not None:
+                # synthesis starts afresh on the new connection's data (queued before it, in-band): the frames
+                # of the outage would otherwise all be pushed through the engine blind (12 s of them after a
+                # gateway restart, as many as the outage was long)
+                self.worker.reset()
             self.bridge.attach(client)
             return client, gateway_clock_offset_s(client)
         except Exception:
@@ -323,6 +336,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                          + (f", {s.late_samples} samples / {s.late_fixes} camera fixes came after their frames"
                             if s.late_samples or s.late_fixes else "")
                          + (f" ERROR {s.error}" if s.error else ""))
+            behind = s.falling_behind(self.synthesis.engine.rate_hz)
+            if behind:
+                parts.insert(0, behind)  # first: the status line is cut at the window's width
         if self.playback is not None:
             parts.insert(0, f"PLAYBACK {self.playback.path.name}")
         self.status_label.setText("  |  ".join(parts))

@@ -55,7 +55,8 @@ def minmax_decimate(t: np.ndarray, y: np.ndarray, max_points: int) -> tuple[np.n
     Peaks survive (an impact spike of one sample is still drawn), which plain striding would lose.
     Output rows alternate min/max per bin at the bin's first and last time (per channel independently)."""
     n = len(t)
-    y = np.asarray(y).reshape(n, -1)
+    y = np.asarray(y)
+    y = y.reshape(n, -1) if n else y.reshape(0, y.shape[-1] if y.ndim > 1 else 1)  # (0, C): nothing in view
     if n <= max_points or max_points < 4:
         return t, y
     bins = max_points // 2

@@ -9,6 +9,7 @@ same code. A recording start restarts the engine at the take's defined first fra
 gives; a lag change restarts it at the next frame; a reset (playback seek) starts a fresh session."""
 from __future__ import annotations
 
+import logging
 import queue
 import threading
 import time
@@ -21,6 +22,8 @@ import numpy as np
 from engine.stream import EngineSpec, FramePose, StreamSynthesis, take_start_s
 
 SensorKey = tuple[str, int]  # (station id, sensor index), as the gateway names streams
+log = logging.getLogger("courtside.console")
+BEHIND_WARN_S = 2.0  # synthesis this much beyond its lag behind the stream is reported as falling behind
 _RESET = object()
 
 
@@ -52,11 +55,25 @@ class SynthesisStats:
     late_samples: int = 0           # data that arrived after its frames were pushed (see engine.stream.StreamStats)
     late_fixes: int = 0
     start_frame: int | None = None  # first frame of the current session (engine restart)
+    behind_s: float = 0.0           # newest sample minus the last frame pushed while complete frames wait for the
+                                    # engine (engine.stream.StreamSynthesis.behind_s); 0 when nothing waits
     error: str = ""
+
+    def falling_behind(self, rate_hz: float) -> str:
+        """A warning when synthesis trails the stream by more than its lag plus ``BEHIND_WARN_S`` (the engine
+        costs more per frame than a frame period), naming the cost and the budget; else ""."""
+        if self.behind_s <= self.lag_s + BEHIND_WARN_S:
+            return ""
+        budget_ms = 1e3 / rate_hz
+        slower = f" ({self.push_ms / budget_ms:.1f}x slower than real time)" if self.push_ms > budget_ms else ""
+        return (f"FALLING BEHIND: {self.behind_s:.1f} s behind the stream; the engine takes {self.push_ms:.0f} "
+                f"ms/frame, real time needs < {budget_ms:.0f} ms{slower}")
 
 
 class SynthesisWorker(threading.Thread):
     """Background thread: samples and camera fixes in, newest pose out (and optionally every pose)."""
+
+    STEP_S = 0.5  # at most this much stream time of frames per pass (then the inbox and stats are served)
 
     def __init__(self, setup: SynthesisSetup, keep_poses: bool = False) -> None:
         super().__init__(name="console-synthesis", daemon=True)
@@ -69,6 +86,7 @@ class SynthesisWorker(threading.Thread):
         self._poses: list[FramePose] = []
         self._lag_s = setup.lag_s
         self.stats = SynthesisStats(lag_s=setup.lag_s)
+        self._behind_logged = False
 
     # -- inputs (any thread) -----------------------------------------------------------------------------------
     def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
@@ -149,11 +167,17 @@ class SynthesisWorker(threading.Thread):
     def run(self) -> None:
         session = self._new_session()
         window_t0, window_frames, window_cost = time.monotonic(), 0, 0.0
+        # frames pushed per pass: an engine slower than real time (OLNG on a small CPU) must not hold the queue,
+        # the stats and the displayed pose for as long as a whole backlog takes; the frames are the same
+        max_frames = max(1, int(round(self.setup.engine.rate_hz * self.STEP_S)))
+        more = False  # the last pass stopped at max_frames: go on without waiting for new input
         while not self._stopping.is_set():
+            batch = []
             try:
-                batch = [self._inbox.get(timeout=0.1)]
+                batch.append(self._inbox.get_nowait() if more else self._inbox.get(timeout=0.1))
             except queue.Empty:
-                continue
+                if not more:
+                    continue
             while True:  # take everything queued: one resampling pass per wake-up
                 try:
                     batch.append(self._inbox.get_nowait())
@@ -161,17 +185,22 @@ class SynthesisWorker(threading.Thread):
                     break
             for entry in batch:
                 session = self._handle(session, entry)
+            more = False
             if session is None:
                 continue
             t_cost = time.perf_counter()
             frames_before = session.stats.frames_in
             try:
-                poses = session.step()
+                poses = session.step(max_frames)
             except Exception as exc:
                 self.stats.error = f"{type(exc).__name__}: {exc}"
                 continue
             window_cost += time.perf_counter() - t_cost
             window_frames += session.stats.frames_in - frames_before
+            more = session.stats.frames_in - frames_before >= max_frames
+            # behind only while complete frames wait for the engine: frames held back by the data (a sensor or
+            # the camera waited for, a gateway restarting) are not the engine falling behind
+            self.stats.behind_s = session.behind_s if more else 0.0
             s = session.stats
             self.stats.frames_in, self.stats.frames_invalid = s.frames_in, s.frames_invalid
             self.stats.frames_with_camera, self.stats.poses_out = s.frames_with_camera, s.poses_out
@@ -187,3 +216,14 @@ class SynthesisWorker(threading.Thread):
                 self.stats.frames_per_s = window_frames / (now - window_t0)
                 self.stats.push_ms = 1e3 * window_cost / max(1, window_frames)
                 window_t0, window_frames, window_cost = now, 0, 0.0
+                self._log_falling_behind()
+
+    def _log_falling_behind(self) -> None:
+        """One log line when synthesis starts falling behind (an unattended run has no status bar) and one when
+        it has caught up again."""
+        warning = self.stats.falling_behind(self.setup.engine.rate_hz)
+        if warning and not self._behind_logged:
+            log.warning("synthesis (%s): %s", self.setup.engine.label, warning)
+        elif not warning and self._behind_logged:
+            log.info("synthesis (%s) caught up with the stream", self.setup.engine.label)
+        self._behind_logged = bool(warning)

@@ -15,11 +15,11 @@ import time
 import numpy as np
 
 from engine.errors import CourtsideError
-from engine.graph.cli import _add_database_args, database_paths, evaluate_main as leave_one_out_main, load_clips
+from engine.graph.cli import (_add_database_args, add_search_args, database_paths, evaluate_main as leave_one_out_main,
+                              load_clips, weights_from_args)
 from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph, build_from_clips
 from engine.graph.root_fusion import RootFusion
-from engine.graph.viterbi import SearchWeights
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 
@@ -53,8 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--groups", default="walk-left,walk-right", help="loco/loso: contents (styles) to leave out")
     p.add_argument("--test-clips", type=int, default=5, help="loco/loso: clips scored per group (0 = all); "
                                                              "loo: as in the leave-one-out")
-    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
-                   help="motion-graph weights (default 0.5 10 3 with root warping, 0.5 1 1 without)")
+    add_search_args(p)
     p.add_argument("--root-warp", nargs=2, type=float, default=[0.5, 0.25], metavar=("GAIN_P", "GAIN_O"),
                    help="root warping towards the camera for all engines (0 0 = off; engine/graph/warp.py)")
     p.add_argument("--no-root-fusion", action="store_true",
@@ -87,13 +86,12 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
     bad = [s for s in sets if s not in protocols.SENSOR_SETS]
     if bad:
         raise CourtsideError(f"--sensor-sets: {bad} not among {sorted(protocols.SENSOR_SETS)}")
+    warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
     return protocols.EvalConfig(
         sensor_sets=sets, engines=engines,
         camera=CameraModel(args.camera_noise_m, float(np.radians(args.camera_noise_deg)), args.camera_hz),
         error_model=None if args.sensor_noise == "clean" else getattr(SensorErrorModel, args.sensor_noise)(),
-        weights=SearchWeights(*args.weights) if args.weights else (
-            SearchWeights.camera_following() if any(args.root_warp) else SearchWeights()),
-        warp=RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off(),
+        weights=weights_from_args(args, warp), warp=warp,
         fusion=RootFusion.off() if args.no_root_fusion else RootFusion(
             args.camera_noise_m, float(np.radians(args.camera_noise_deg))),
         lag_s=args.lag, seed=args.seed)
@@ -163,7 +161,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"database: {len(db.motions)} clips, {sum(c.n_frames for c in db.clips)} frames at {fps:g} Hz; graph "
           f"{db.graph.n_nodes} nodes, {db.graph.n_edges} edges ({args.graph or 'built: ' + args.variant}); "
           f"motion graph: {'batch search' if args.lag is None else f'fixed lag {args.lag:g} s'}, weights "
-          f"{cfg.weights.acc:g} / {cfg.weights.position:g} / {cfg.weights.heading:g}; root warp gains "
+          f"{cfg.weights.acc:g} / {cfg.weights.position:g} / {cfg.weights.heading:g}, "
+          + (f"forgetting {cfg.weights.forgetting:g} (decided {cfg.weights.decision_frames} samples later, "
+             f"{cfg.weights.blend_paths} paths blended)" if cfg.weights.forgets else "no forgetting (seed 000)")
+          + f"; root warp gains "
           f"{cfg.warp.position_gain:g} / {cfg.warp.heading_gain:g}; sensor noise: {args.sensor_noise}; camera: {args.camera_noise_m * 100:g} cm / "
           f"{args.camera_noise_deg:g} deg at {args.camera_hz:g} Hz; seed {args.seed}")
     if args.protocol == "chained":

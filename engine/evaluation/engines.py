@@ -17,7 +17,7 @@ from engine.graph.confidence import reference_cost_per_sample
 from engine.graph.graph import MotionGraph
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.geometry import rotate_ground
-from engine.graph.poses import world_joint_positions
+from engine.graph.poses import blended_joint_positions, world_joint_positions
 from engine.graph.root_fusion import RootFusion, fuse_track
 from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
 from engine.graph.warp import RootWarp
@@ -67,7 +67,8 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
     if lag_s is None:
         res = ViterbiSearch(graph, weights, warp=warp).run(Observations(acc, pos, head, sensors))
         ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
-        joints = world_joint_positions(graph, res.nodes, ground, heading)
+        joints = world_joint_positions(graph, res.nodes, ground, heading) if res.blend_nodes is None \
+            else blended_joint_positions(graph, res.blend_nodes, ground, heading)
         return Prediction(joints, graph.node_clip[res.nodes].astype(int))
     reference = reference_cost_per_sample(graph, weights, warp, sensors, error_model=error_model,
                                           camera_noise_m=fusion.position_noise_m,

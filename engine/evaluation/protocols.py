@@ -13,7 +13,7 @@ Protocols:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -174,7 +174,7 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                lambda: engines.Prediction(baselines.mean_pose(graph, np.repeat(off[0], take.n_frames, 0),
                                                               np.repeat(off[1], take.n_frames))))
     if "graph" in cfg.engines:
-        w_on, w_off = cfg.weights, SearchWeights(cfg.weights.acc, 0.0, 0.0)
+        w_on, w_off = cfg.weights, replace(cfg.weights, position=0.0, heading=0.0)
         for k, idx in sets:
             for camera, w in ((CAMERA_ON, w_on), (CAMERA_OFF, w_off)):
                 record(Row("motion graph", str(k), camera),
@@ -183,7 +183,7 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                                                     cfg.error_model))
         record(Row("camera only (W_A=0)", "0", CAMERA_ON),
                lambda: engines.motion_graph(graph, None, (), cam.position_m, cam.heading_rad,
-                                            SearchWeights(0.0, cfg.weights.position, cfg.weights.heading), True,
+                                            replace(cfg.weights, acc=0.0), True,
                                             cfg.warp, cfg.lag_s, cfg.fusion, cfg.error_model))
     if "baselines" in cfg.engines:
         for k, idx in sets:

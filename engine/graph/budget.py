@@ -20,15 +20,17 @@ from .warp import RootWarp
 LIVE_RATE_HZ = 30.0
 
 
-def online_rate(graph: MotionGraph, n_samples: int = 90, lag_s: float = 2.0) -> tuple[float, float]:
+def online_rate(graph: MotionGraph, n_samples: int = 90, lag_s: float = 2.0,
+                weights: SearchWeights | None = None) -> tuple[float, float]:
     """Samples per second of `FixedLagSynthesizer` on this graph over `n_samples` pushes (after one warm-up push
     that loads the compiled kernels): (per CPU second -- what the graph costs one core --, per wall second --
-    what this machine gave it just now; lower when other processes share the cores)."""
+    what this machine gave it just now; lower when other processes share the cores). `weights`: the live
+    preset (SearchWeights.camera_following) unless given."""
     rows = graph.node_arrival[np.arange(n_samples + 1) % graph.n_nodes]
     acc = graph.meta_acc_g[rows].astype(float)
     ground = graph.node_ground_m[np.arange(n_samples + 1) % graph.n_nodes]
     heading = graph.node_heading_rad[np.arange(n_samples + 1) % graph.n_nodes]
-    syn = FixedLagSynthesizer(graph, lag_s, SearchWeights.camera_following(), warp=RootWarp(),
+    syn = FixedLagSynthesizer(graph, lag_s, weights or SearchWeights.camera_following(), warp=RootWarp(),
                               confidence_reference=1.0, fusion=RootFusion())  # as live: root fusion on
     syn.push(acc[0], ground[0], heading[0])
     t0, c0 = time.perf_counter(), time.process_time()

@@ -7,6 +7,7 @@ import json
 import re
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -141,9 +142,30 @@ def graph_info_main(argv: list[str]) -> int:
     return 0
 
 
-def _weights(values: list[float]) -> SearchWeights:
-    check_non_negative("--weights", values)
-    return SearchWeights(*values)
+def add_search_args(p: argparse.ArgumentParser) -> None:
+    """--weights and --forgetting, shared by `synthesize` and `evaluate` (read back by `weights_from_args`)."""
+    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
+                   help="search weights (default: 1 1 0.3 with root warping, the paper's 0.5 1 1 without)")
+    p.add_argument("--forgetting", type=float, default=None, metavar="LAMBDA",
+                   help="per-sample fading of every path's accumulated cost, in (0, 1]; 1 = seed 000's Viterbi, "
+                        "one path, unblended (default: 0.9 with root warping, deciding each sample 0.2 s later and "
+                        "blending the 8 best paths; 1 without; engine/graph/viterbi.SearchWeights)")
+
+
+def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights:
+    """The preset that goes with `warp` (warp.default_weights), with --weights / --forgetting replacing its
+    values; a bad value is one line, no traceback."""
+    weights = default_weights(warp)
+    if args.weights:
+        check_non_negative("--weights", args.weights)
+        weights = replace(weights, acc=args.weights[0], position=args.weights[1], heading=args.weights[2])
+    if args.forgetting is not None:
+        if not (np.isfinite(args.forgetting) and 0 < args.forgetting <= 1):
+            raise CourtsideError(f"--forgetting {args.forgetting!r}: must be in (0, 1]")
+        # the blend of the best paths needs per-sample decisions: forgetting 1 is seed 000's search, unblended
+        weights = replace(weights, forgetting=args.forgetting,
+                          blend_paths=weights.blend_paths if args.forgetting < 1 else 1)
+    return weights
 
 
 @cli_command("courtside synthesize")
@@ -154,7 +176,7 @@ def synthesize_main(argv: list[str]) -> int:
     from . import label_constraint
     from .inputs import TIME_COLUMNS, read_take
     from .online import FixedLagSynthesizer
-    from .poses import world_joint_positions
+    from .poses import blended_joint_positions, world_joint_positions
     from .postprocess import path_to_motion
     from .root_fusion import RootFusion, fuse_track
     from .viterbi import ViterbiSearch
@@ -163,8 +185,7 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--graph", required=True, help="graph .npz from build-graph")
     p.add_argument("--input", required=True, help="take .npz (synthesis input format or a gateway export)")
     p.add_argument("-o", "--output", required=True, help="output .bvh")
-    p.add_argument("--weights", nargs=3, type=float, default=None, metavar=("W_A", "W_P", "W_O"),
-                   help="search weights (default: 0.5 10 3 with root warping, the paper's 0.5 1 1 without)")
+    add_search_args(p)
     p.add_argument("--root-warp", nargs=2, type=float, default=[RootWarp().position_gain, RootWarp().heading_gain],
                    metavar=("GAIN_P", "GAIN_O"),
                    help="pull the root towards the camera by these gains per sample, bounded to human speeds "
@@ -219,7 +240,7 @@ def synthesize_main(argv: list[str]) -> int:
         raise MalformedFileError(args.graph, None, "graph holds no skeleton (rebuild it with build-graph)")
     check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, obs.n_samples, graph.config.fps)
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
-    weights = _weights(args.weights) if args.weights else default_weights(warp)  # a bad value: one line, no warning
+    weights = weights_from_args(args, warp)
     fusion = RootFusion.off() if args.no_root_fusion else RootFusion()
     warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
     if warning:
@@ -251,10 +272,11 @@ def synthesize_main(argv: list[str]) -> int:
     counts: dict = {}
     if args.lag is None:
         res = ViterbiSearch(graph, weights, warp=warp).run(obs, constraints)
-        nodes, edges = res.nodes, res.edges
+        nodes, edges, blend_nodes = res.nodes, res.edges, res.blend_nodes
         ground, heading = fuse_track(fusion, fps, obs.position_m, obs.heading_rad, res.ground_m, res.heading_rad)
         broken = res.broken_constraints
-        joints = world_joint_positions(graph, nodes, ground, heading)
+        joints = world_joint_positions(graph, nodes, ground, heading) if blend_nodes is None else \
+            blended_joint_positions(graph, blend_nodes, ground, heading)
         poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
     else:
         made = []
@@ -280,6 +302,8 @@ def synthesize_main(argv: list[str]) -> int:
         nodes = np.array([q.node for q in emitted])
         ground = np.array([q.ground_m for q in emitted])
         heading = np.array([q.heading_rad for q in emitted])
+        blend_nodes = None if not emitted or emitted[0].blend_nodes is None else \
+            np.stack([q.blend_nodes for q in emitted])
         edges = np.full(len(nodes), -1)
         for t in range(1, len(nodes)):
             try:
@@ -288,7 +312,7 @@ def synthesize_main(argv: list[str]) -> int:
                 edges[t] = -1  # the decoder changed its mind: blended like a transition
     elapsed = time.perf_counter() - t0
     motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
-                            foot_ik=not args.no_ik, name=Path(args.input).stem)
+                            foot_ik=not args.no_ik, name=Path(args.input).stem, blend_nodes=blend_nodes)
     write_bvh(args.output, motion)
     if outputs and args.lag is None:  # the batch search decides the whole path at once: stream the written frames
         from engine.livestream.stream_cli import stream_motion

@@ -12,8 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .graph import MotionGraph
-from .poses import world_joint_positions
-from .viterbi import DEFAULT_KERNEL, PRUNE_EVERY, SearchWeights, ViterbiLattice
+from .poses import blended_joint_positions, world_joint_positions
+from .viterbi import (ACC_BATCH, DEFAULT_KERNEL, PRUNE_EVERY, Constraint, Observations, SearchResult,
+                      SearchWeights, ViterbiLattice, constraint_penalties, observation)
 from .confidence import CostHistory, CostWindow, confidence, reference_cost_per_sample
 from .root_fusion import RootFuser, RootFusion
 from .warp import RootWarp
@@ -31,6 +32,9 @@ class EmittedPose:
     ground_m: np.ndarray
     heading_rad: float
     confidence: float = 1.0
+    edge: int = -1  # graph edge from the previous emitted node into `node`; -1: first sample, or the decoder
+    # changed its mind (the previous emitted node is not this edge's source)
+    blend_nodes: np.ndarray | None = None  # (k,) nodes whose mean pose `joint_positions_m` is (blend_paths > 1)
 
 
 class FixedLagSynthesizer:
@@ -56,10 +60,15 @@ class FixedLagSynthesizer:
         if lag_s < 0:
             raise ValueError("lag must be non-negative")
         self.graph = graph
-        self.lag = int(round(lag_s * graph.config.fps))
+        self.lag = int(round(lag_s * graph.config.fps))  # samples between a push and the pose it emits
+        # a forgetting search decides sooner (SearchWeights.decision_frames) and holds the decided samples until
+        # the lag has passed, so the fused root (root_fusion.py) still smooths the camera over the whole lag
+        self.decision_lag = min(self.lag, weights.decision_frames) if weights.forgets else self.lag
         self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp)
         self.next_emit = 0  # first sample not yet emitted
-        self._last: tuple[complex, float, int] | None = None  # the path's (ground, heading, node) at the last emitted
+        self.next_decide = 0  # first sample not yet decided
+        self._decided: list[tuple] = []  # (node, edge, ground, heading, blend nodes) of samples next_emit.. decided
+        self._last: tuple[complex, float, int] | None = None  # the path's (ground, heading, node) at the last decided
         self._fuser = RootFuser(fusion, graph.config.fps)  # the output root (the path's own when fusion is off)
         if confidence_reference is None:
             confidence_reference = reference_cost_per_sample(graph, weights, warp, sensor_indices)
@@ -74,11 +83,12 @@ class FixedLagSynthesizer:
         self.reanchors: list[int] = []  # samples at which the search re-anchored
 
     def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None, heading_rad: float | None = None,
-             penalty: np.ndarray | None = None) -> list[EmittedPose]:
+             penalty: np.ndarray | None = None, rows: np.ndarray | None = None) -> list[EmittedPose]:
         """Consume sample t (acc (S, 3) g, optional ground position (2,) m and heading rad; `penalty` = optional
-        per-node broken-constraint count for this sample); returns the pose of sample t - L once t >= L."""
+        per-node broken-constraint count for this sample; `rows` = this sample's `acc_rows_batch` row if the
+        caller batched them); returns the pose of sample t - L once t >= L."""
         lat = self.lattice
-        lat.step(acc_g, pos_m, heading_rad, penalty)
+        lat.step(acc_g, pos_m, heading_rad, penalty, rows)
         self._fuser.push(pos_m, heading_rad)
         t = lat.t
         per_sample = self._window.push(lat.cost_offset)
@@ -91,55 +101,114 @@ class FixedLagSynthesizer:
             self.reanchors.append(t)
             self._high_for = 0
             self._window.clear()
+        if t - self.decision_lag >= self.next_decide:
+            self._decide(t - self.decision_lag, t - self.decision_lag)
         if t - self.lag < self.next_emit:
             return []
-        return self._emit(t - self.lag, t - self.lag)
+        return self._emit(t - self.lag)
 
     def flush(self) -> list[EmittedPose]:
-        """End of input: emit every sample not yet decided, along the final best path."""
+        """End of input: decide every sample not yet decided, along the final best path, and emit everything."""
         if self.lattice.t < self.next_emit:
             return []
-        self.lattice.prune()
-        return self._emit(self.next_emit, self.lattice.t)
+        if self.lattice.t >= self.next_decide:
+            self.lattice.prune()
+            self._decide(self.next_decide, self.lattice.t)
+        return self._emit(self.lattice.t)
 
-    def _step_after_last_emitted(self, node: int, edge: int) -> int:
-        """Metadata row of the step from the last emitted sample into the first one to emit: the arriving edge if
-        it leaves the last emitted node, else the node's own natural step (the decoder changed its mind; the pose
+    def _step_after_last_decided(self, node: int, edge: int) -> int:
+        """Metadata row of the step from the last decided sample into the first one to decide: the arriving edge if
+        it leaves the last decided node, else the node's own natural step (the decoder changed its mind; the pose
         jumps but the root path stays continuous)."""
         g = self.graph
         return int(g.edge_meta[edge] if edge >= 0 and g.edge_src[edge] == self._last[2] else g.node_arrival[node])
 
-    def _start_after_last_emitted(self, node: int, edge: int) -> tuple[complex, float] | None:
-        """Markov (accelerometer-only) search: the global state of the first sample to emit, continuing from the
-        last emitted one (see `_step_after_last_emitted`)."""
+    def _start_after_last_decided(self, node: int, edge: int) -> tuple[complex, float] | None:
+        """Markov (accelerometer-only) search: the global state of the first sample to decide, continuing from the
+        last decided one (see `_step_after_last_decided`)."""
         if self._last is None:
             return None  # first sample: the lattice's start state
         ground, heading, _ = self._last
-        row = self._step_after_last_emitted(node, edge)
+        row = self._step_after_last_decided(node, edge)
         d = complex(*self.graph.meta_dpos_m[row])
         return ground + d * np.exp(-1j * heading), heading + self.graph.meta_dheading_rad[row]
 
-    def _emit(self, first: int, last: int) -> list[EmittedPose]:
+    def _decide(self, first: int, last: int) -> None:
+        """Samples first..last along the best path now: nodes, arriving edges (-1 where the decoder changed its
+        mind since the last decided sample), the path's root (the warped replay from the last decided sample) and,
+        with `blend_paths` > 1, the nodes of the best paths at each sample."""
         lat = self.lattice
         best = lat.best_node()
         nodes, edges = lat.backtrace(best, lat.t - first)
-        if lat.warp.active:  # replay the warped root from the last emitted sample (or the first input)
+        if lat.warp.active:  # replay the warped root from the last decided sample (or the first input)
             if self._last is None:
                 ground, heading = lat.warped_states(edges, first, lat.start_state, None)
             else:
                 ground, heading = lat.warped_states(edges, first, self._last[:2],
-                                                    self._step_after_last_emitted(int(nodes[0]), int(edges[0])))
+                                                    self._step_after_last_decided(int(nodes[0]), int(edges[0])))
         else:
-            start = None if lat.track_global else self._start_after_last_emitted(int(nodes[0]), int(edges[0]))
+            start = None if lat.track_global else self._start_after_last_decided(int(nodes[0]), int(edges[0]))
             ground, heading = lat.global_states(best, edges, start)
         k = last - first + 1
         nodes, ground, heading = nodes[:k], ground[:k], heading[:k]
-        out_ground, out_heading = self._fuser.decide(ground, heading)
-        joints = world_joint_positions(self.graph, nodes, out_ground, out_heading)
-        self.next_emit = last + 1
+        blend = [None] * k
+        if lat.weights.blend_paths > 1:  # row i: the k best paths at sample first + i
+            blend = list(lat.ancestors(lat.weights.blend_paths, lat.t - first)[::-1][:k])
+        edges = edges[:k].copy()
+        if self._last is not None and edges[0] >= 0 and self.graph.edge_src[edges[0]] != self._last[2]:
+            edges[0] = -1  # the decoder changed its mind since the last decided sample
+        self.next_decide = last + 1
         self._last = (complex(*ground[-1]), float(heading[-1]), int(nodes[-1]))
-        lat.drop_before(self.next_emit)
+        lat.drop_before(self.next_decide)
+        self._decided += [(int(nodes[i]), int(edges[i]), ground[i], float(heading[i]), blend[i]) for i in range(k)]
+
+    def _emit(self, last: int) -> list[EmittedPose]:
+        """The decided samples next_emit..last as poses: the output root (fused from the camera over the lag, or
+        the path's), the joints (the path's pose, or the blend of the best paths'), the confidence."""
+        first = self.next_emit
+        k = last - first + 1
+        out, self._decided = self._decided[:k], self._decided[k:]
+        nodes = np.array([d[0] for d in out], dtype=np.int64)
+        ground = np.array([d[2] for d in out], dtype=float).reshape(-1, 2)
+        heading = np.array([d[3] for d in out], dtype=float)
+        out_ground, out_heading = self._fuser.decide(ground, heading)
+        if out[0][4] is not None:
+            joints = blended_joint_positions(self.graph, np.stack([d[4] for d in out]), out_ground, out_heading)
+        else:
+            joints = world_joint_positions(self.graph, nodes, out_ground, out_heading)
+        self.next_emit = last + 1
         conf = [confidence(self._history.per_sample_around(first + i), self.confidence_reference) for i in range(k)]
         self._history.drop_before(self.next_emit)
-        return [EmittedPose(first + i, int(nodes[i]), joints[i], out_ground[i], float(out_heading[i]), conf[i])
-                for i in range(k)]
+        return [EmittedPose(first + i, int(nodes[i]), joints[i], out_ground[i], float(out_heading[i]), conf[i],
+                            out[i][1], out[i][4]) for i in range(k)]
+
+
+def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Observations,
+                           constraints: list[Constraint] | None = None, prune_every: int = PRUNE_EVERY,
+                           kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> SearchResult:
+    """The batch search of a forgetting search (`ViterbiSearch.run` with `weights.forgets`): the fixed-lag decoder
+    over the whole take with lag `weights.decision_frames`, so offline and live decide every sample the same way
+    (bit for bit: the accelerometer rows are batched as the batch search batches them, identical per row)."""
+    syn = FixedLagSynthesizer(graph, weights.decision_frames / graph.config.fps, weights, obs.sensor_indices,
+                              prune_every, kernel, warp, confidence_reference=float("nan"), reanchor_ratio=0.0)
+    lat = syn.lattice
+    penalties = constraint_penalties(constraints or [], graph.n_nodes, obs.n_samples)
+    batch = lat.kernel == "numba" and obs.acc_g is not None and lat.n_sensors and weights.acc != 0
+    poses: list[EmittedPose] = []
+    rows = None
+    for t in range(obs.n_samples):
+        if batch and t % ACC_BATCH == 0:
+            rows = lat.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
+        acc, pos, head = observation(obs, t)
+        poses += syn.push(acc, pos, head, penalties.get(t), rows[t % ACC_BATCH] if batch and t and acc is not None
+                          else None)
+    best = lat.best_node()
+    cost, broken = lat.cost_of(best), lat.broken_of(best)
+    poses += syn.flush()
+    return SearchResult(nodes=np.array([p.node for p in poses], dtype=np.int64),
+                        edges=np.array([p.edge for p in poses], dtype=np.int64),
+                        ground_m=np.array([p.ground_m for p in poses], dtype=float).reshape(-1, 2),
+                        heading_rad=np.array([p.heading_rad for p in poses], dtype=float), cost=cost,
+                        broken_constraints=broken, compression_ratio=lat.compression_ratio(),
+                        lattice_entries=lat.lattice_entries(),
+                        blend_nodes=None if weights.blend_paths == 1 else np.stack([p.blend_nodes for p in poses]))

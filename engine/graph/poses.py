@@ -30,3 +30,14 @@ def root_local(joints_m: np.ndarray, ground_m: np.ndarray, heading_rad: np.ndarr
     out[..., 2] -= np.asarray(ground_m)[:, 1, None]
     out[..., [0, 2]] = rotate_ground(out[..., [0, 2]], -np.asarray(heading_rad)[:, None])
     return out
+
+
+def blended_joint_positions(graph: MotionGraph, blend_nodes: np.ndarray, ground_m: np.ndarray,
+                            heading_rad: np.ndarray) -> np.ndarray:
+    """(T, J, 3) the mean of the poses of `blend_nodes` (T, k), each placed at the path's (ground, heading) per
+    sample: the k poses averaged in the root frame (placement is linear in the root-frame pose)."""
+    blend_nodes = np.asarray(blend_nodes, dtype=np.intp)
+    t, k = blend_nodes.shape
+    placed = world_joint_positions(graph, blend_nodes.reshape(-1), np.repeat(ground_m, k, axis=0),
+                                   np.repeat(heading_rad, k))
+    return placed.reshape(t, k, -1, 3).mean(axis=1)

@@ -42,6 +42,22 @@ def place_path(graph: MotionGraph, nodes: np.ndarray, ground_m: np.ndarray,
     return root, rots
 
 
+def place_blend(graph: MotionGraph, blend_nodes: np.ndarray, ground_m: np.ndarray,
+                heading_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`place_path` of the mean pose of `blend_nodes` (T, k) (SearchWeights.blend_paths): each column placed on
+    the path, root positions averaged, every joint's rotations averaged as quaternions (each turned into the
+    first column's hemisphere, summed, normalised -- the chordal mean, close to the rotation mean for the
+    nearby poses a blend averages)."""
+    blend_nodes = np.asarray(blend_nodes, dtype=np.intp)
+    placed = [place_path(graph, blend_nodes[:, i], ground_m, heading_rad) for i in range(blend_nodes.shape[1])]
+    root = np.mean([r for r, _ in placed], axis=0)
+    first = placed[0][1]
+    total = np.zeros_like(first)
+    for _, q in placed:
+        total += np.where(np.sum(q * first, axis=-1, keepdims=True) < 0, -q, q)
+    return root, quat.normalize(total)
+
+
 def transition_times(graph: MotionGraph, edges: np.ndarray) -> np.ndarray:
     """Samples t whose arriving edge jumps between clips (transitions, entries/exits of interpolated clips;
     edge -1 after the first sample = no edge at all, as when a fixed-lag decoder changed its mind)."""
@@ -156,10 +172,13 @@ def fix_foot_skate(motion: Motion, contacts: np.ndarray, ease_frames: int = 3) -
 
 def path_to_motion(graph: MotionGraph, skeleton: Skeleton, nodes: np.ndarray, edges: np.ndarray,
                    ground_m: np.ndarray, heading_rad: np.ndarray, blend: bool = True,
-                   foot_ik: bool = True, name: str = "synthesised") -> Motion:
-    """The synthesised Motion for a search result (write it with engine.mocap.write_bvh)."""
+                   foot_ik: bool = True, name: str = "synthesised",
+                   blend_nodes: np.ndarray | None = None) -> Motion:
+    """The synthesised Motion for a search result (write it with engine.mocap.write_bvh); `blend_nodes` (T, k):
+    the search's blended pose (`place_blend`) instead of the path's own nodes."""
     fps = graph.config.fps
-    root, rots = place_path(graph, nodes, ground_m, heading_rad)
+    root, rots = place_path(graph, nodes, ground_m, heading_rad) if blend_nodes is None else \
+        place_blend(graph, blend_nodes, ground_m, heading_rad)
     if blend:
         root, rots = blend_transitions(graph, nodes, edges, root, rots, heading_rad, fps)
     motion = Motion(skeleton, fps, root, rots, name)

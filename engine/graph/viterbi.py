@@ -67,20 +67,49 @@ def _warp_numpy(Px, Pz, O, mx, mz, mh, gp, maxp, gh, maxh) -> None:
 
 @dataclass(frozen=True)
 class SearchWeights:
-    """Weights of eq. 6 (cost units: g^2, metres, radians). Paper's best tennis setting: 0.5 / 1 / 1."""
+    """Weights of eq. 6 (cost units: g^2, metres, radians; paper's best tennis setting: 0.5 / 1 / 1) and the
+    search's memory.
+
+    `forgetting` (per sample, 1 = seed 000's Viterbi) multiplies every path's accumulated cost before the next
+    sample is added, so a path's cost is an exponentially weighted match over the last ~1 / (1 - forgetting)
+    samples instead of over the whole take. Why: a held-out take is never in the database; the globally best
+    path must explain minutes of motion with a few database clips, and on chained Bandai takes its poses were
+    worse than a 0.5 s nearest neighbour on the same sensors (docs/engine-evaluation.md). With forgetting < 1 the
+    search decides each sample `decision_frames` samples later from the best path at that moment (batch search
+    and fixed-lag decoder alike, online.decide_with_forgetting): a back-trace from the end of the take would
+    follow whatever clip the last samples matched."""
 
     acc: float = 0.5
     position: float = 1.0
     heading: float = 1.0
+    forgetting: float = 1.0
+    decision_frames: int = 0
+    blend_paths: int = 1  # output pose = mean root-frame pose of the best this many paths at the decided sample
+
+    def __post_init__(self) -> None:
+        if self.blend_paths < 1 or (self.blend_paths > 1 and not self.forgets):
+            raise ValueError(f"blend_paths must be >= 1, and 1 unless forgetting < 1 (the blend is of the best "
+                             f"paths at each decided sample), got {self.blend_paths}")
+        if not 0.0 < self.forgetting <= 1.0:
+            raise ValueError(f"forgetting must be in (0, 1], got {self.forgetting}")
+        if self.decision_frames < 0:
+            raise ValueError(f"decision_frames must be >= 0, got {self.decision_frames}")
+
+    @property
+    def forgets(self) -> bool:
+        return self.forgetting < 1.0
 
     @classmethod
     def camera_following(cls) -> "SearchWeights":
-        """Weights for a search with root warping (warp.RootWarp): 0.5 / 10 / 3. The warped state sits within a
-        few cm / degrees of the camera, so the position and heading terms see residuals of ~5 cm and ~0.1 rad;
-        at the paper's 1 / 1 they would add ~0.15 per sample beside an accelerometer term of ~0.8 (the 1.6 g^2
-        real-vs-virtual gap at W_A 0.5) and decide nothing. 10 per metre and 3 per radian put a 10 cm / 10 deg
-        mismatch on the scale of that gap (measured: docs/engine-graph.md)."""
-        return cls(0.5, 10.0, 3.0)
+        """The search for a root that follows the camera (warp.RootWarp): weights 1 / 1 / 0.3, forgetting 0.9,
+        decided 6 samples (0.2 s) later, the mean pose of the 8 best paths. With the root warped onto the camera
+        the pose is the accelerometers' to choose: position / heading weights of 10 / 3 made the search pick
+        whatever motion best explained the camera's small displacements (an in-place strike scored worse than
+        the mean pose); 1 / 0.3 keep a loose speed / turning constraint. Forgetting 0.9 makes a path's cost a
+        match over the last ~10 samples (0.85 was best under the small real-sensor gap, 0.93 under seed 000's
+        large one); the blend of 8 paths averages nearly equally good matches (k-NN, as Tautges et al.'s OLNG).
+        Measured on chained held-out Bandai takes: docs/engine-evaluation.md."""
+        return cls(1.0, 1.0, 0.3, forgetting=0.9, decision_frames=6, blend_paths=8)
 
 
 @dataclass(frozen=True)
@@ -124,6 +153,7 @@ class SearchResult:
     broken_constraints: int
     compression_ratio: float
     lattice_entries: int
+    blend_nodes: np.ndarray | None = None  # (T, k) nodes whose mean pose is the output (SearchWeights.blend_paths)
 
 
 @dataclass
@@ -189,7 +219,8 @@ class ViterbiLattice:
         self._graph_dh = graph.meta_dheading_rad[graph.edge_meta]
         self._none32 = np.empty(0, dtype=np.float32)
         self._sc_cost = np.empty(len(self._src) - self.runs.n_run_edges, dtype=np.float32)
-        self.cost_offset = 0.0  # G is float32 kept relative to its minimum (the offset is summed in float64)
+        self.cost_offset = 0.0  # G is float32 kept relative to its minimum (the offset is summed in float64);
+        # with forgetting it is the sum of the per-sample minima (the best local match's cost per sample, undiscounted)
         self.columns: list[_Column] = []
         self.t = -1  # index of the last sample consumed
         self.first_column_time = 1  # time of columns[0]
@@ -313,6 +344,8 @@ class ViterbiLattice:
         best, win = self._spare_G, self._win
         best.fill(np.inf)
         win.fill(-1)
+        if w.forgets:  # the accumulated costs fade (SearchWeights.forgetting); float32, the same for both kernels
+            self._G *= np.float32(w.forgetting)
         if self.kernel == "numba":
             self._fold_compiled(rows, ra, terms, wp, wh, best, win)
         else:
@@ -469,6 +502,25 @@ class ViterbiLattice:
         fewest = self._Gr == self._Gr.min()
         return int(np.argmin(np.where(fewest, self._G, np.inf)))
 
+    def ancestors(self, k: int, n_steps: int) -> np.ndarray:
+        """(n_steps + 1, k) graph nodes: column 0 the best path's (`best_node`), the others the next lowest-cost
+        live nodes now; row i = where each of these paths was i samples ago. For the blended output pose
+        (SearchWeights.blend_paths): k paths that match the recent samples about equally well, each back-traced
+        to the sample being decided."""
+        best = self.best_node()
+        k = min(k, int(np.isfinite(self._G).sum()))
+        G = np.where(self._Gr == self._Gr[best], self._G, np.inf) if self.constrained else self._G.copy()
+        G[best] = -np.inf
+        top = np.argpartition(G, k - 1)[:k]
+        nodes = top[np.argsort(G[top], kind="stable")]
+        n_steps = min(n_steps, len(self.columns))
+        out = np.empty((n_steps + 1, len(nodes)), dtype=np.int64)
+        out[0] = nodes
+        for i in range(n_steps):
+            col = self.columns[len(self.columns) - 1 - i]
+            out[i + 1] = self._graph_src[self.runs.edge_id[self._lookup(col, out[i])]]
+        return out
+
     # ----- path memory --------------------------------------------------------------------------
     def _lookup(self, col: _Column, nodes: np.ndarray) -> np.ndarray:
         """Arriving edge (search index) of each graph node in `nodes` from one column."""
@@ -595,7 +647,8 @@ def constraint_penalties(constraints: list[Constraint], n_nodes: int, n_samples:
     return out
 
 
-def _sample(obs: Observations, t: int) -> tuple[np.ndarray | None, np.ndarray | None, float | None]:
+def observation(obs: Observations, t: int) -> tuple[np.ndarray | None, np.ndarray | None, float | None]:
+    """Sample t of `obs` as the search consumes it: (acc or None, position or None, heading or None)."""
     # a NaN acc row is a sensor dropout (engine.stream marks them): step on the camera alone
     acc = None if obs.acc_g is None or np.isnan(obs.acc_g[t]).any() else obs.acc_g[t]
     pos = None if obs.position_m is None else obs.position_m[t]
@@ -615,6 +668,11 @@ class ViterbiSearch:
         self.warp = warp
 
     def run(self, obs: Observations, constraints: list[Constraint] | None = None) -> SearchResult:
+        if self.weights.forgets:  # decided sample by sample, as the fixed-lag decoder does (SearchWeights)
+            from .online import decide_with_forgetting
+
+            return decide_with_forgetting(self.graph, self.weights, obs, constraints, self.prune_every, self.kernel,
+                                          self.warp)
         lattice = ViterbiLattice(self.graph, self.weights, obs.sensor_indices, self.prune_every, self.kernel,
                                  self.warp)
         penalties = constraint_penalties(constraints or [], self.graph.n_nodes, obs.n_samples)
@@ -623,7 +681,7 @@ class ViterbiSearch:
         for t in range(obs.n_samples):
             if batch and t % ACC_BATCH == 0:  # C_A rows of the next samples in one pass over the metadata
                 rows = lattice.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
-            acc, pos, head = _sample(obs, t)
+            acc, pos, head = observation(obs, t)
             lattice.step(acc, pos, head, penalties.get(t),
                          rows[t % ACC_BATCH] if batch and t and acc is not None else None)
         return finish(lattice)

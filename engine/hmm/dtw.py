@@ -8,6 +8,8 @@ squared Euclidean cost), so the path comes from ``warping_paths_fast`` + ``best_
 (:func:`dtw_reference`) is the fallback without the extra and the reference the tests compare against."""
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 try:
@@ -15,6 +17,8 @@ try:
     from dtaidistance import dtw_ndim as _dtai_ndim
 except ImportError:  # the engine extra is absent: the numpy reference is used
     _dtai = _dtai_ndim = None
+# the library logs two INFO lines per distance computation: dozens per HMM training in the console's log
+logging.getLogger("be.kuleuven.dtai.distance").setLevel(logging.WARNING)
 
 HAVE_DTAIDISTANCE = _dtai_ndim is not None
 

@@ -10,7 +10,7 @@ import numpy as np
 from engine.graph.evaluate import root_local
 from engine.graph.warp import RootWarp, follow_camera
 from engine.hmm.config import HMMConfig
-from engine.hmm.features import align_hemispheres, body_features, decode, imu_features
+from engine.hmm.features import align_hemispheres, body_features, decode, imu_features, stack_imu
 from engine.hmm.model import HierarchicalHMM, TrainingClip
 from engine.hmm.phases import detect_events, label_phases, segments_from_labels
 from engine.hmm.reconstructor import HMMReconstructor
@@ -45,8 +45,8 @@ def training_clip(motion: Motion, imu_names: tuple[str, ...], behaviour: str, co
     acc, gyro = imu_features(motion, standard_placements(motion.skeleton, imu_names))
     err = error_joint_indices(motion.skeleton)
     align = root_local(positions[:, err], positions[:, 0, [0, 2]], heading).reshape(len(positions), -1)
-    return TrainingClip(body_features(motion), np.concatenate([acc, gyro], axis=-1).reshape(len(acc), -1),
-                        align, segments, behaviour)
+    imu = stack_imu(acc, None if config.imu_channels == "acc" else gyro)
+    return TrainingClip(body_features(motion), imu, align, segments, behaviour)
 
 
 def train_model(motions: list[Motion], imu_names: tuple[str, ...] = ("right_foot",), labels: list[str] | None = None,

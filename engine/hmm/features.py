@@ -3,7 +3,7 @@
 X_t = [local joint quaternions (root with its heading removed, w >= 0), root ground displacement since t-1 in
 the heading frame of t-1 with the root height in the vertical slot (m), heading change (rad)]. Joint angular velocities (also in the paper's X) are left
 out: the output only needs poses and root motion, and they would double the regression size.
-Y_t = per IMU [acc (g, sensor frame), gyro (rad/s, sensor frame)].
+Y_t = per IMU [acc (g, sensor frame), gyro (rad/s, sensor frame)], or acc only (`HMMConfig.imu_channels`).
 """
 from __future__ import annotations
 
@@ -50,9 +50,13 @@ def imu_features(motion: Motion, placements: list[SensorPlacement]) -> tuple[np.
     return virtual_accelerometers(motion, placements), virtual_gyroscopes(motion, placements)
 
 
-def stack_imu(acc_g: np.ndarray, gyro_rps: np.ndarray) -> np.ndarray:
-    """(..., S, 3) x 2 -> (..., 6 S) IMU feature vectors."""
-    return np.concatenate([acc_g, gyro_rps], axis=-1).reshape(acc_g.shape[:-2] + (-1,))
+IMU_CHANNELS = {"acc+gyro": 6, "acc": 3}  # feature width per IMU
+
+
+def stack_imu(acc_g: np.ndarray, gyro_rps: np.ndarray | None) -> np.ndarray:
+    """(..., S, 3) x 2 -> (..., 6 S) IMU feature vectors; ``gyro_rps`` None -> (..., 3 S), accelerometer only."""
+    parts = [acc_g] if gyro_rps is None else [acc_g, gyro_rps]
+    return np.concatenate(parts, axis=-1).reshape(acc_g.shape[:-2] + (-1,))
 
 
 def decode(features: np.ndarray, joints: int, root0_m: np.ndarray, heading0_rad: float) -> tuple[np.ndarray, np.ndarray]:

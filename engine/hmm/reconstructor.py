@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.hmm.features import stack_imu
+from engine.hmm.features import IMU_CHANNELS, stack_imu
 from engine.hmm.forward import chain_forward, forward
 from engine.hmm.model import HierarchicalHMM, conditional_mean
 
@@ -61,13 +61,19 @@ class HMMReconstructor:
         self._alpha = alpha
         return alpha
 
-    def push(self, acc_g: np.ndarray, gyro_rps: np.ndarray) -> HMMFrame:
-        """One IMU frame: acc (S, 3) g and gyro (S, 3) rad/s in the model's IMU order."""
+    def push(self, acc_g: np.ndarray, gyro_rps: np.ndarray | None = None) -> HMMFrame:
+        """One IMU frame: acc (S, 3) g and gyro (S, 3) rad/s in the model's IMU order (gyro None, or ignored, for
+        a model trained on accelerometers only: ``config.imu_channels == "acc"``)."""
         t0 = time.perf_counter()
         m, cfg = self.model, self.model.config
-        y = stack_imu(np.asarray(acc_g, float)[None], np.asarray(gyro_rps, float)[None])[0]
+        acc_only = cfg.imu_channels == "acc"
+        if gyro_rps is None and not acc_only:
+            raise ValueError("this model was trained on acc + gyro: give gyro_rps (or train with imu_channels='acc')")
+        y = stack_imu(np.asarray(acc_g, float)[None], None if acc_only else np.asarray(gyro_rps, float)[None])[0]
         if y.shape != m.imu_mean.shape:
-            raise ValueError(f"expected {m.imu_mean.shape[0] // 6} IMU(s) of acc + gyro, got {y.shape[0] // 6}")
+            width = IMU_CHANNELS[cfg.imu_channels]
+            raise ValueError(f"expected {m.imu_mean.shape[0] // width} IMU(s) of {cfg.imu_channels}, "
+                             f"got {y.shape[0] // width}")
         dropped = not np.all(np.isfinite(y))
         y_z = m.zscore(y)
         # sensor drop-out (paper §6): no evidence, so the chains keep moving on their transitions alone

@@ -62,6 +62,10 @@ class LabelingConfig:
         is below repair_ratio x the current one.
     max_recovered_s: a marker recovered from its body for longer than this counts as lost (its position is no
         longer reported nor fed to its Kalman filter): a rigid-body guess drifts as the skin and the body move.
+    reentry_max_age_s, reentry_turn_rad, reentry_settled_rad: a body coming back after a loss, complete at most
+        reentry_max_age_s ago, is relabelled to a shape twin of its labels when the current labels imply it
+        turned by more than reentry_turn_rad and the twin by less than reentry_settled_rad (see
+        OnlineLabeler._orient_reentering_bodies: mirrored heads after a forced loss).
     """
 
     train_frames: int = 50
@@ -96,6 +100,9 @@ class LabelingConfig:
     repair_tol_scale: float = 2.0
     repair_ratio: float = 0.5
     max_recovered_s: float = 0.5
+    reentry_max_age_s: float = 1.0
+    reentry_turn_rad: float = 2.0944  # 120°
+    reentry_settled_rad: float = 1.0472  # 60°
 
     def __post_init__(self) -> None:
         if self.recovery not in ("offsets", "kabsch"):

@@ -5,8 +5,8 @@ same stream, so the protocol lives here once. The protocol (issue 14):
   1. degrade the file's own labelled trajectories (shuffle, noise, gaps ≤ 20 frames, ghosts; scenario.degrade);
   2. train on the first frames, label the rest online;
   3. force losses: every ``forced_every_s`` one rigid body (cycling through them) vanishes for
-     ``forced_duration_s``; the time until all its visible markers are labelled correctly again is the
-     re-acquisition time;
+     ``forced_duration_s``; the time until its visible markers that were labelled correctly before the loss
+     are all labelled correctly again is the re-acquisition time;
   4. score accuracy per ``window_s`` window so a labeler that degrades along a long take shows it, next to the
      one-to-one closest-point baseline on the very same stream.
 """
@@ -86,11 +86,24 @@ def force_losses(stream: Stream, bodies: list[np.ndarray], first: int, fps: floa
 
 
 def reacquisition_s(loss: ForcedLoss, stream: Stream, picks: list[np.ndarray], first: int, fps: float) -> float:
-    """Seconds after the body reappears until every visible marker of it is labelled correctly (inf if never,
-    i.e. not before the take ends or the next forced loss would interfere)."""
+    """Seconds after the body reappears until every visible marker of it that was labelled correctly in the frame
+    before the loss is labelled correctly again (inf if that does not happen before the take ends).
+
+    Why "correct before the loss": a marker the labeler already had wrong or missing before the body was removed
+    (a swap from an earlier gap) would make every later loss of that body read "never", which measures that
+    old error, not re-acquisition; its cost shows in the accuracy. If no marker of the body was correct before
+    the loss, all of its visible markers must be."""
+    labels = loss.labels
+    before = loss.start - 1
+    if before >= first:
+        got = picks[before - first][labels]
+        correct = stream.visible[before, labels] & (got >= 0)
+        correct[correct] = stream.truth[before][got[correct]] == labels[correct]
+        if correct.any():
+            labels = labels[correct]
     for t in range(loss.end, len(stream.clouds)):
         label_point = picks[t - first]
-        vis = loss.labels[stream.visible[t, loss.labels]]
+        vis = labels[stream.visible[t, labels]]
         got = label_point[vis]
         if len(vis) and (got >= 0).all() and (stream.truth[t][got] == vis).all():
             return (t - loss.end) / fps

@@ -135,6 +135,7 @@ class OnlineLabeler:
         self.window = DistanceWindow(len(self.bodies), self._n_max, cfg.window_frames, cfg.sigma_min_m)
         self._disp = np.full((len(self.bodies), self._n_max, self._n_max, 3), np.nan)
         self._template = np.full((len(self.bodies), self._n_max, 3), np.nan)
+        self._template_age = np.zeros(len(self.bodies), int)  # frames since the body was last complete
         for t in range(max(0, n_frames - cfg.window_frames), n_frames):
             self._update_structure(train[t], ~np.isnan(train[t]).any(axis=1))
         self._train_template = self._template.copy()
@@ -230,6 +231,7 @@ class OnlineLabeler:
         untrained = self._padded(np.where(self.trained, 0.0, 1.0)[:, None])[..., 0] == 1.0
         complete = (~np.isnan(body_pos).any(axis=-1) | (self._pad < 0) | untrained).all(axis=1)
         self._template[complete] = body_pos[complete]
+        self._template_age = np.where(complete, 0, self._template_age + 1)
 
     # ---------------------------------------------------------------- online step
     def step(self, points_m: np.ndarray) -> FrameLabels:
@@ -290,6 +292,7 @@ class OnlineLabeler:
         self._second_chance(points, finite, assigned, used, best_score, mean, std)
         if cfg.shape_reacquire:
             self._reacquire_by_shape(points, finite, assigned, mean, std)
+        self._orient_reentering_bodies(points, assigned)
         if cfg.repair_swaps:
             self._repair_swaps(points, assigned)
         return self._finish(points, assigned, mean_candidates)
@@ -351,6 +354,40 @@ class OnlineLabeler:
             if best is not None:
                 assigned[sl] = best
 
+    def _orient_reentering_bodies(self, points: np.ndarray, assigned: np.ndarray) -> None:
+        """Undo a mirrored or flipped re-acquisition of a symmetric body by its last complete pose.
+
+        Why: pair distances, the only thing Eq. 5 and the shape search score, are blind to mirror images and to
+        the symmetries of a body (a head's four markers form a near-planar rectangle: left/right swapped is the
+        same rectangle turned upside down). A body that comes back after a loss is gated around stale
+        predictions, so nothing picks the right one of those twins, and a head re-acquired mirrored stayed
+        mirrored for the rest of the take (cmu_135_02, --degrade 2). For a body coming back (< 3 markers observed
+        last frame, ≥ 3 now, complete within the last second), its points are relabelled one-to-one (Hungarian)
+        against its last complete configuration moved by translation only. The relabelling is kept only when it
+        is a twin of the current labels (proper rigid fits within repair_min_rms_m of each other) and the
+        current labels imply the body turned by more than 120° while the relabelling implies less than 60°.
+        Shape alone is not trusted to decide: on the tennis serve the trunk changes shape as the arm rises, and
+        a relabelling that merely fitted the older template better flipped a correctly labelled trunk.
+        Modifies ``assigned``."""
+        cfg = self.config
+        for b in range(len(self.bodies)):
+            sl, n = slice(self._starts[b], self._starts[b] + self._sizes[b]), self._sizes[b]
+            if self._reliable[sl].sum() >= 3 or self._template_age[b] * self.dt > cfg.reentry_max_age_s:
+                continue
+            current, tmpl = assigned[sl], self._template[b, :n]
+            usable = np.flatnonzero((current >= 0) & ~np.isnan(tmpl).any(axis=1))
+            if len(usable) < 3:
+                continue
+            src, pts = tmpl[usable], points[current[usable]]
+            cost = np.square((src - src.mean(0))[:, None] - (pts - pts.mean(0))[None]).sum(axis=2)
+            _, perm = linear_sum_assignment(cost)
+            if np.array_equal(perm, np.arange(len(usable))):
+                continue
+            (old_turn, old_rms), (new_turn, new_rms) = _turn_and_rms(src, pts), _turn_and_rms(src, pts[perm])
+            twin = abs(new_rms - old_rms) <= cfg.repair_min_rms_m
+            if twin and old_turn > cfg.reentry_turn_rad and new_turn < cfg.reentry_settled_rad:
+                assigned[sl.start + usable] = current[usable][perm]
+
     def _reacquire_by_shape(self, points: np.ndarray, finite: np.ndarray, assigned: np.ndarray, mean: np.ndarray,
                             std: np.ndarray) -> None:
         """Give missing labels leftover points that fit their body's shape, wherever the filters predict them.
@@ -377,6 +414,19 @@ class OnlineLabeler:
             body_pos[have] = points[assigned[sl][have]]
             pick = reacquire_body(points[leftover], body_pos, mean[b, :n, :n], std_shape[b, :n, :n],
                                   cfg.shape_min_support)
+            if have.sum() == 1:
+                # One labelled marker carries no shape evidence: after a loss a stale gate hands it another
+                # marker's point (cmu_135_02: RSHO took CLAV's), and anchored on it the rest is never found. So
+                # the body is also searched from scratch with that point back in the pool; a search finding 4 or
+                # more markers, more than the anchored one, wins (3 points match some body by chance: along an
+                # arm the upper-arm triangle was found in forearm points, cmu_85_02 --degrade 1).
+                lone = sl.start + int(np.flatnonzero(have)[0])
+                pool = np.append(leftover, assigned[lone])
+                alone = reacquire_body(points[pool], np.full((n, 3), np.nan), mean[b, :n, :n],
+                                       std_shape[b, :n, :n], cfg.shape_min_support)
+                found = int(np.sum(alone >= 0))
+                if found >= 4 and found > np.sum(pick >= 0) + 1:
+                    assigned[lone], leftover, pick = -1, pool, alone
             pick[~self.trained[sl]] = -1
             got = np.flatnonzero(pick >= 0)
             if len(got):  # a shape twin (the other hand) fits the body's own links: its neighbours must agree too
@@ -510,10 +560,16 @@ class OnlineLabeler:
         return out
 
 
+def _turn_and_rms(src: np.ndarray, dst: np.ndarray) -> tuple[float, float]:
+    """Rotation angle (rad) and RMS distance of the best rigid fit of src onto dst (paired rows)."""
+    rot, shift = _kabsch(src, dst)
+    angle = float(np.arccos(np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0)))
+    return angle, float(np.sqrt(np.mean(np.sum((src @ rot.T + shift - dst) ** 2, axis=1))))
+
+
 def _rigid_rms(src: np.ndarray, dst: np.ndarray) -> float:
     """RMS distance after the best rigid fit of src onto dst (paired rows)."""
-    rot, shift = _kabsch(src, dst)
-    return float(np.sqrt(np.mean(np.sum((src @ rot.T + shift - dst) ** 2, axis=1))))
+    return _turn_and_rms(src, dst)[1]
 
 
 def _link_support(points: np.ndarray, pid: np.ndarray, which: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:

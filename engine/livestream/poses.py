@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from engine.graph.postprocess import place_path
+from engine.graph.postprocess import place_blend, place_path
 from engine.mocap import Motion
 
 
@@ -39,7 +39,9 @@ class PoseStreamer:
         nodes = np.array([p.node for p in poses])
         ground = np.array([p.ground_m for p in poses])
         heading = np.array([p.heading_rad for p in poses])
-        root, rots = place_path(self.graph, nodes, ground, heading)
+        blend = [p.blend_nodes for p in poses]
+        root, rots = place_path(self.graph, nodes, ground, heading) if blend[0] is None else \
+            place_blend(self.graph, np.stack(blend), ground, heading)  # the search's blended pose (blend_paths)
         motion = Motion(self.skeleton, self.fps, root, rots)
         for f in range(motion.n_frames):
             if self.realtime:

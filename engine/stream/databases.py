@@ -19,7 +19,7 @@ from engine.graph.graph import MotionGraph
 from engine.mocap import (SEED000_SENSORS, SensorCalibrationData, Skeleton, default_cache_dir, load_clip,
                           placements_from_calibration, sample_clips, standard_placements)
 
-from .engines import EngineSpec, default_engine, hmm_spec, motion_graph_spec, olng_spec
+from .engines import EngineMismatchError, EngineSpec, default_engine, hmm_spec, motion_graph_spec, olng_spec
 
 GRAPH_FPS = 30.0
 
@@ -78,27 +78,39 @@ def shipped_olng_spec(exclude: Sequence[str] = ()) -> EngineSpec:
     return olng_spec(build_knowledge_base(clips, KnowledgeBaseConfig()), "shipped CMU clips")
 
 
+def shipped_hmm_spec(exclude: Sequence[str] = (), sensor_names: Sequence[str] = ("right_foot",)) -> EngineSpec:
+    """The hierarchical HMM trained on the shipped subject-16 clips at ``sensor_names`` (one IMU: seed 004's
+    right foot), accelerometer only (the live stream has no gyroscope); trains in a fraction of a second."""
+    from engine.hmm.config import HMMConfig
+    from engine.hmm.evaluation import train_model
+
+    clips = [load_clip(path, fps=GRAPH_FPS) for name, path in sample_clips().items()
+             if name.startswith("16_") and name not in exclude]
+    model = train_model(clips, tuple(sensor_names), config=HMMConfig(imu_channels="acc"))
+    return hmm_spec(model, "shipped CMU clips, accelerometer-only model", sensor_names, clips[0].skeleton)
+
+
 def engine_spec(engine: str | None, *, graph_path: Path | None = None, kb_path: Path | None = None,
                 n_worn: int = 6, exclude: Sequence[str] = (),
                 calibration: SensorCalibrationData | None = None) -> tuple[EngineSpec, list[str]]:
     """The engine the console runs, and notes on what was assumed.
 
     ``engine`` None: a --graph file means the motion graph, a --kb file the OLNG, otherwise
-    `engine.stream.default_engine` of the number of worn sensors — where the HMM it names for one sensor falls
-    back to the motion graph (the live stream has no gyroscope; an explicit ``hmm`` is refused)."""
+    `engine.stream.default_engine` of the number of worn sensors; for one sensor that is the HMM, on an
+    accelerometer-only model trained from the shipped clips at the placement the calibration record names (else
+    the right foot, seed 004's) (`shipped_hmm_spec`)."""
     from engine.olng.knowledge_base import KnowledgeBase
 
     notes: list[str] = []
     if engine is None:
         engine = "motion-graph" if graph_path else "olng" if kb_path else default_engine(n_worn)
-        if engine == "hmm":
-            notes.append(f"{n_worn} worn sensor(s) call for the hmm, which needs gyroscopes the stations do not "
-                         "stream: using the motion graph")
-            engine = "motion-graph"
-        else:
-            notes.append(f"engine {engine} (default for {n_worn} worn sensors)")
+        notes.append(f"engine {engine} (default for {n_worn} worn sensors)")
     if engine == "hmm":
-        return hmm_spec(), notes
+        if graph_path is not None or kb_path is not None:
+            raise EngineMismatchError("--engine hmm trains its model from the shipped clips; --graph and --kb "
+                                      "are databases of the motion graph and the OLNG")
+        worn = tuple(calibration.sensor_ids) if calibration is not None else ()  # segment -> live sensor
+        return shipped_hmm_spec(exclude, worn if len(worn) == 1 else ("right_foot",)), notes
     if engine == "olng":
         if kb_path is not None:
             return olng_spec(KnowledgeBase.load(kb_path), kb_path), notes

@@ -8,9 +8,9 @@ the live sensors (count, placement names, rate) with a message that names both s
 
 Default engine by the number of worn sensors (`default_engine`): 4 -> ``olng`` (Tautges et al.'s OLNG is built for
 wrists + ankles), 1 -> ``hmm`` (the hierarchical HMM is built for one foot IMU), anything else -> ``motion-graph``
-(1-6 sensors plus the camera). The HMM needs gyroscope readings with each accelerometer sample; the base stations
-stream accelerometers only, so the HMM is refused live with that reason (`hmm_spec`) and the 1-sensor default
-falls back to the motion graph (`engine_for_live`)."""
+(1-6 sensors plus the camera). The seed's HMM reads accelerometer + gyroscope; the gateway streams
+accelerometers only, so the live HMM runs a model trained on accelerometers only (`HMMEngine`; its accuracy
+against the paper's acc + gyro model is in docs/console.md)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
@@ -133,11 +133,64 @@ def olng_spec(kb: Any, database: str | Path, sensor_names: Sequence[str] | None 
                       lambda lag_s: OLNGEngine(kb), lag_applies=False)
 
 
-def hmm_spec() -> EngineSpec:
-    """The hierarchical HMM cannot run on the live stream (module doc): always refused, with the reason."""
-    raise EngineMismatchError("the hmm engine needs gyroscope readings with every accelerometer sample (its IMU "
-                              "feature is acc + gyro); the base stations stream accelerometers only. Use "
-                              "`courtside reconstruct --method hmm` on a take with gyro_rps, or --engine motion-graph")
+class HMMEngine:
+    """`engine.hmm.HMMReconstructor` in the `OnlineEngine` protocol, on a model trained on accelerometers only
+    (``HMMConfig.imu_channels == "acc"``: the live stream carries no gyroscope). Each frame is decided at once (no
+    lag); the body features are decoded incrementally (root ground step and heading change integrated from the
+    first frame, as `engine.hmm.features.decode` does for a whole take) and the joints follow by forward
+    kinematics. A camera fix sets the root's ground position for that frame (the stream path gives every frame
+    the fix interpolated at its own time); without one the root is integrated from the last. A dropout frame is
+    the reconstructor's own rule (no evidence: the chains move on their transitions); nothing is emitted before
+    the first complete reading."""
+
+    def __init__(self, model: Any, skeleton: Any) -> None:
+        from engine.hmm.reconstructor import HMMReconstructor
+
+        self.rec = HMMReconstructor(model)
+        self.skeleton = skeleton
+        self.n_sensors = model.imu_mean.shape[0] // 3
+        self.t = -1
+        self._prev: tuple[np.ndarray, np.ndarray, float] | None = None  # (body features, root m, heading rad)
+
+    def push(self, acc_g: np.ndarray | None, pos_m: Any = None, heading_rad: float | None = None) -> list[EnginePose]:
+        from engine.hmm.features import decode
+        from engine.mocap import Motion, forward_kinematics
+
+        self.t += 1
+        if acc_g is None and self._prev is None:
+            return []
+        reading = np.full((self.n_sensors, 3), np.nan) if acc_g is None else np.asarray(acc_g, float)
+        body = self.rec.push(reading).body
+        joints = self.skeleton.n_joints
+        if self._prev is None:  # the first frame: standing where the first decode puts it, facing +z
+            roots, quats = decode(body[None], joints, np.zeros(3), 0.0)
+            heading = 0.0
+        else:
+            prev_body, prev_root, prev_heading = self._prev
+            roots, quats = decode(np.stack([prev_body, body]), joints, prev_root, prev_heading)
+            heading = prev_heading + float(body[-1])
+        root = roots[-1].copy()
+        if pos_m is not None:
+            root[[0, 2]] = np.asarray(pos_m, float)[:2]
+        self._prev = (body, root, heading)
+        positions, _ = forward_kinematics(Motion(self.skeleton, self.rec.model.fps, root[None], quats[-1:]))
+        return [EnginePose(self.t, positions[0])]
+
+    def flush(self) -> list[EnginePose]:
+        return []
+
+
+def hmm_spec(model: Any, database: str, sensor_names: Sequence[str], skeleton: Any) -> EngineSpec:
+    """The hierarchical HMM live, on an accelerometer-only model (see `HMMEngine`); a model that needs gyroscope
+    readings is refused, with the reason."""
+    if model.config.imu_channels != "acc":
+        raise EngineMismatchError(f"{database}: this HMM was trained on accelerometer + gyroscope readings; the "
+                                  "gateway streams accelerometers only (train it with imu_channels='acc')")
+    n = model.imu_mean.shape[0] // 3
+    if len(sensor_names) != n:
+        raise EngineMismatchError(f"{database}: HMM has {n} IMU(s), named {list(sensor_names)}")
+    return EngineSpec("hmm", database, tuple(sensor_names), float(model.fps), np.asarray(skeleton.parents),
+                      lambda lag_s: HMMEngine(model, skeleton), lag_applies=False, skeleton=skeleton)
 
 
 def check_live_sensors(spec: EngineSpec, worn: Sequence[str], nominal_hz: Sequence[float]) -> None:

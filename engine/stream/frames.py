@@ -110,7 +110,8 @@ class FrameResampler:
 
     def start_at(self, t_s: float | None) -> None:
         """Produce frames from the first frame at or after ``t_s`` on (None: from the first frame every sensor's
-        data covers)."""
+        data covers). A start more than ``history_s`` before every sensor's first sample is one this resampler
+        never had data for (it joined later): frames then start where every sensor's data does."""
         self._next = None if t_s is None else frame_at_or_after(t_s, self.rate_hz)
         self._hi_last, self.late_samples = -np.inf, 0  # the frames from here on are produced afresh
 
@@ -125,9 +126,10 @@ class FrameResampler:
         return max((t[-1] for t in self._t.values() if len(t)), default=-np.inf)
 
     # -- output ---------------------------------------------------------------------------------------------------
-    def frames(self, until_s: float = np.inf) -> FrameBatch:
+    def frames(self, until_s: float = np.inf, max_frames: int | None = None) -> FrameBatch:
         """All newly complete frames with ``t <= until_s`` (the caller's other streams, e.g. the camera, may hold
-        frames back); trims history."""
+        frames back), at most ``max_frames`` of them (the rest come on the next call: a live caller whose engine
+        is slower than real time stays responsive); trims history."""
         if any(len(t) == 0 for t in self._t.values()):  # every worn sensor must have spoken once
             return FrameBatch.empty(len(self.sensors))
         rate = self.rate_hz
@@ -137,8 +139,16 @@ class FrameResampler:
         last = int(math.floor(lasts[live].min() * rate - 0.5 + _EPS))
         if until_s < np.inf:
             last = min(last, int(math.floor(until_s * rate + _EPS)))
+        covered = int(math.ceil(max(t[0] for t in self._t.values()) * rate + 0.5 - _EPS))
         if self._next is None:  # first frame whose whole window lies after every sensor's first sample
-            self._next = int(math.ceil(max(t[0] for t in self._t.values()) * rate + 0.5 - _EPS))
+            self._next = covered
+        elif min(t[0] for t in self._t.values()) - self.history_s > self._next / rate:
+            # asked to start before anything this resampler could ever have had (a console that joins a take
+            # minutes after it started): start where the data does, instead of pushing every frame since the
+            # take's start blind (an hour-old take would be 108 000 empty frames before the first real one)
+            self._next = covered
+        if max_frames is not None:
+            last = min(last, self._next + max_frames - 1)
         if last < self._next:
             return FrameBatch.empty(len(self.sensors))
         index = np.arange(self._next, last + 1, dtype=np.int64)

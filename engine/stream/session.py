@@ -115,12 +115,21 @@ class StreamSynthesis:
             self._t_pushed = -np.inf
 
     # -- output ---------------------------------------------------------------------------------------------------
-    def step(self) -> list[FramePose]:
-        """Push every frame that is complete now; returns the poses the engine decided."""
+    def step(self, max_frames: int | None = None) -> list[FramePose]:
+        """Push every frame that is complete now (at most ``max_frames``; the same frames come out however they
+        are sliced); returns the poses the engine decided."""
         until = np.inf
         if not self.camera.empty and self.camera.newest_s >= self.resampler.newest_s - self.camera_wait_s:
             until = self.camera.newest_s  # a live camera holds frames back until the fix after them is in
-        return self.push_frames(self.resampler.frames(until))
+        return self.push_frames(self.resampler.frames(until, max_frames))
+
+    @property
+    def behind_s(self) -> float:
+        """How far the last frame pushed trails the newest sample (s; 0 before the first frame). Live it stays
+        near half a frame plus a batch while the engine keeps up, and grows without bound when the engine
+        costs more per frame than a frame period (the console says so)."""
+        newest = self.resampler.newest_s
+        return max(0.0, newest - self._t_pushed) if np.isfinite(self._t_pushed) and np.isfinite(newest) else 0.0
 
     def finish(self) -> list[FramePose]:
         """End of input (offline): push what remains, then let the engine decide its pending frames.

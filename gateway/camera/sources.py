@@ -112,7 +112,14 @@ class OpenCVCamera(_IterableSource):
         fps: float | None = None, latency_s: float = 0.0,
     ) -> None:
         self.device = device
-        self._cap = cv2.VideoCapture(device, cv2.CAP_V4L2) if isinstance(device, int) else cv2.VideoCapture(device)
+        # OpenCV's own warnings for a camera that is not there ("can't open camera by index") would add two
+        # stderr lines to our one-line refusal: quiet them for the open only
+        level = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+        try:
+            self._cap = cv2.VideoCapture(device, cv2.CAP_V4L2) if isinstance(device, int) else cv2.VideoCapture(device)
+        finally:
+            cv2.utils.logging.setLogLevel(level)
         if not self._cap.isOpened():
             raise FrameSourceError(f"camera {device!r}", "cannot open (not connected, busy, or no permission?)")
         requested = ((cv2.CAP_PROP_FRAME_WIDTH, width), (cv2.CAP_PROP_FRAME_HEIGHT, height), (cv2.CAP_PROP_FPS, fps))

@@ -142,6 +142,21 @@ class SyntheticCourtCamera(_IterableSource):
         self._last_t_s = self._t0_s
         self.dropped = 0
 
+    @property
+    def next_t_true_s(self) -> float | None:
+        """True time of the frame `read` renders next (None after the last one)."""
+        return self._t0_s + self._k / self.nominal_fps if self._k < self._n_frames else None
+
+    def skip_to(self, t_true_s: float) -> int:
+        """Jump ahead without rendering: the next frame is the first at or after ``t_true_s``; returns how many
+        frames were skipped (counted as dropped). Why: a real camera whose consumer falls behind never delivers the
+        frames in between, so a renderer paced to the wall clock that cannot keep up must not fall seconds behind
+        it either. The gait phases integrate over the jump, so the bodies stay continuous in time."""
+        k = min(max(self._k, int(np.ceil((t_true_s - self._t0_s) * self.nominal_fps - 1e-9))), self._n_frames)
+        skipped, self._k = k - self._k, k
+        self.dropped += skipped
+        return skipped
+
     def read(self) -> Frame | None:
         imp = self.imperfections
         while self._k < self._n_frames:

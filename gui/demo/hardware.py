@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from engine.errors import CourtsideError
 from firmware_protocol.emulator import StationConfig, TraceSource
 from gateway.emulation.stations import EmulatedStation, start_emulated_station
 
@@ -57,7 +58,11 @@ class DemoCamera:
     (``TrackerConfig.player_side``) and must not follow the opponent.
 
     Runs as a gateway camera hook (``start(sink)`` / ``stop()``); frames are paced to the wall clock so their
-    times line up with the emulated stations' samples."""
+    times line up with the emulated stations' samples. Like a real camera it never delivers a frame more than
+    ``MAX_LAG_S`` old: when rendering falls behind the wall clock (a CPU-starved machine) it skips ahead instead of
+    publishing seconds-old frames, which the console would get after their synthesis frames were decided."""
+
+    MAX_LAG_S = 0.25
 
     def __init__(self, perf: Performance, t0_monotonic_s: float, duration_s: float, fps: float = 12.0,
                  image_size: tuple[int, int] = (640, 360)) -> None:
@@ -107,6 +112,9 @@ class DemoCamera:
         # path time 0 is the empty-court start; the performance (station time 0) begins empty_s later
         offset = self.t0 - self.empty_s
         while not self._stop.is_set():
+            next_s = self.source.next_t_true_s
+            if next_s is not None and time.monotonic() - (offset + next_s) > self.MAX_LAG_S:
+                self.source.skip_to(time.monotonic() - offset)
             frame = self.source.read()
             if frame is None:
                 return
@@ -150,7 +158,12 @@ def demo_hardware(listen: tuple[str, int], record_dir: Path, camera: bool,
             stack.callback(st.stop)
         t0 = stations[0].wall0_s
         cam = DemoCamera(perf, t0, (duration_s or 3600.0) + 5.0) if camera else None
-        court = build_court(demo_court_config(listen, record_dir), camera=cam, emulators=stations)
+        try:
+            court = build_court(demo_court_config(listen, record_dir), camera=cam, emulators=stations)
+        except OSError as exc:  # e.g. the address is taken by another demo or gateway: one line, not a traceback
+            where = f" ({exc.filename})" if exc.filename else ""
+            raise CourtsideError(f"the demo gateway cannot start on {listen[0]}:{listen[1]}: "
+                                 f"{exc.strerror or exc}{where}") from None
         stack.callback(court.gateway.stop)
         announcer = TruthAnnouncer(court.gateway, perf.clip_names, t0)
         announcer.start()
@@ -185,13 +198,19 @@ class TruthAnnouncer(threading.Thread):
 
 def hardware_main(argv: list[str]) -> int:
     """``python -m gui.demo LISTEN_HOST LISTEN_PORT RECORD_DIR CAMERA(0|1) DURATION_S|-``: run the demo hardware,
-    print ``{"address": [host, port], "t0": s}`` as one JSON line when ready, stop when stdin closes."""
+    print ``{"address": [host, port], "t0": s}`` as one JSON line when ready, stop when stdin closes. If it cannot
+    start (a refused config, the address in use) it prints ``{"error": "..."}`` instead and exits 1, so the
+    console reports one line rather than two tracebacks."""
     host, port, record_dir, camera, duration = argv
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    with demo_hardware((host, int(port)), Path(record_dir), camera == "1",
-                       None if duration == "-" else float(duration)) as (address, t0):
-        print(json.dumps({"address": list(address), "t0": t0}), flush=True)
-        sys.stdin.read()  # until the console closes our stdin (or dies, which closes it too)
+    try:
+        with demo_hardware((host, int(port)), Path(record_dir), camera == "1",
+                           None if duration == "-" else float(duration)) as (address, t0):
+            print(json.dumps({"address": list(address), "t0": t0}), flush=True)
+            sys.stdin.read()  # until the console closes our stdin (or dies, which closes it too)
+    except CourtsideError as exc:  # not started: say why on the pipe the parent reads
+        print(json.dumps({"error": str(exc)}), flush=True)
+        return 1
     return 0
 
 
@@ -209,8 +228,10 @@ def hardware_in_subprocess(listen: tuple[str, int], record_dir: Path, camera: bo
         ready, _, _ = select.select([proc.stdout], [], [], 120.0)
         line = proc.stdout.readline() if ready else ""
         if not line:
-            raise RuntimeError(f"demo hardware process did not start (exit code {proc.poll()})")
+            raise CourtsideError(f"the demo hardware process did not start (exit code {proc.poll()})")
         info = json.loads(line)
+        if "error" in info:
+            raise CourtsideError(info["error"])
         yield (info["address"][0], int(info["address"][1])), float(info["t0"])
     finally:
         try:

@@ -7,6 +7,7 @@ from typing import Any
 from PySide6 import QtCore, QtGui, QtWidgets
 
 from gui.health import Sync, sync_status
+from gui.widgets import VIEWER_ONLY
 
 SYNC_QCOLOR = {Sync.GREEN: QtGui.QColor(40, 170, 70), Sync.AMBER: QtGui.QColor(220, 160, 30),
                Sync.RED: QtGui.QColor(200, 50, 50)}
@@ -104,6 +105,7 @@ class DevicePanel(QtWidgets.QWidget):
         self._items: dict[Any, QtWidgets.QTreeWidgetItem] = {}
         self._new_rows = False
         self.sensor_health: dict[tuple[str, int], Sync] = {}  # last status: per-sensor health light
+        self.commands_allowed = True  # False for a viewer connection: the gateway refuses station commands
         layout = QtWidgets.QHBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.tree, 1)
@@ -114,6 +116,18 @@ class DevicePanel(QtWidgets.QWidget):
         self.mapping_names = dict(mapping)
         self.mapping = {k: (segment_for(v) or v) for k, v in mapping.items()}
 
+    def set_commands_allowed(self, allowed: bool) -> None:
+        """Enable the per-sensor identify buttons only where the gateway would accept them (operator role)."""
+        self.commands_allowed = allowed
+        for item in self._items.values():
+            button = self.tree.itemWidget(item, len(COLUMNS) - 1)
+            if button is not None:
+                self._allow(button)
+
+    def _allow(self, button: QtWidgets.QPushButton) -> None:
+        button.setEnabled(self.commands_allowed)
+        button.setToolTip("" if self.commands_allowed else VIEWER_ONLY)
+
     def _item(self, key: Any, parent: QtWidgets.QTreeWidgetItem | None, label: str,
               sensor: tuple[str, int] | None = None) -> QtWidgets.QTreeWidgetItem:
         item = self._items.get(key)
@@ -123,6 +137,7 @@ class DevicePanel(QtWidgets.QWidget):
             if sensor is not None:
                 button = QtWidgets.QPushButton("identify")
                 button.clicked.connect(lambda _=False, s=sensor: self.identify_requested.emit(*s))
+                self._allow(button)
                 self.tree.setItemWidget(item, len(COLUMNS) - 1, button)
             if parent is not None:
                 parent.setExpanded(True)
@@ -177,6 +192,10 @@ class DevicePanel(QtWidgets.QWidget):
             self.tree.takeTopLevelItem(self.tree.indexOfTopLevelItem(item))
             for child in [k for k in self._items if k[0] == "sensor" and k[1] == key[1]]:
                 self._items.pop(child)
+
+    def identify_button(self, station: str, sensor: int) -> QtWidgets.QPushButton | None:
+        item = self._items.get(("sensor", station, sensor))
+        return None if item is None else self.tree.itemWidget(item, len(COLUMNS) - 1)
 
     def row_texts(self, key: Any) -> list[str]:
         """Texts of one row (("station", id) or ("sensor", id, idx)) — for tests."""

@@ -7,6 +7,8 @@ from typing import Any
 
 from PySide6 import QtCore, QtWidgets
 
+from gui.widgets import VIEWER_ONLY
+
 TAKE_NAME = re.compile(r"^[A-Za-z0-9_.-]{1,100}$")  # what the gateway accepts (docs/gateway.md)
 STREAMING_WITHIN_S = 1.0
 
@@ -56,6 +58,7 @@ class RecordingPanel(QtWidgets.QGroupBox):
         self.stop_button.clicked.connect(self.stop_requested)
         self.required: list[tuple[str, int]] = []
         self.status: dict[str, Any] | None = None
+        self.allowed = True  # False for a viewer connection (the gateway refuses recording requests)
 
     def _start_clicked(self) -> None:
         take = self.take_edit.text().strip()
@@ -69,11 +72,20 @@ class RecordingPanel(QtWidgets.QGroupBox):
         self.message.setText("")
         self.start_requested.emit(take)
 
+    def set_allowed(self, allowed: bool) -> None:
+        """Recording controls only for an operator connection; a viewer sees the counters and why."""
+        self.allowed = allowed
+        for button in (self.start_button, self.stop_button):
+            button.setToolTip("" if allowed else VIEWER_ONLY)
+        self.take_edit.setEnabled(allowed)
+        self.message.setText("" if allowed else "viewer: " + VIEWER_ONLY)
+        self.show_state(None, None)
+
     def show_state(self, state: dict[str, Any] | None, t_now_s: float | None) -> None:
         """Counters from the gateway's ``recording`` message."""
         active = bool(state and state.get("active"))
-        self.start_button.setEnabled(not active)
-        self.stop_button.setEnabled(active)
+        self.start_button.setEnabled(self.allowed and not active)
+        self.stop_button.setEnabled(self.allowed and active)
         if not state:
             return
         if active:

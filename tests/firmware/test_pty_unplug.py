@@ -80,7 +80,9 @@ def test_unplug_while_host_not_reading_counts_exactly_what_it_read(backlog_s):
     finally:
         port.close()
         transport.close()
-    assert UNPLUG_DRAIN_S <= unplug_s < UNPLUG_DRAIN_S + 0.5   # the host got its chance to read, then the cut
+    # the host got its chance to read, then the cut; the upper bound only catches a hang (a starved machine took
+    # 1.46 s here, so + 0.5 s was a timing assert)
+    assert UNPLUG_DRAIN_S <= unplug_s < UNPLUG_DRAIN_S + 10.0
     assert transport.bytes_lost_at_unplug == backlog > 0   # every written byte it did not read died in the kernel
     if backlog_s >= 0.1:
         assert backlog > N_TTY_READ_BUFFER       # ... including the part FIONREAD cannot see

@@ -309,6 +309,9 @@ def test_tls_with_authentication_full_duplex(tmp_path):
             assert closed_within(sock, 5.0)
         finally:
             sock.close()
+        # a plain client (a console without --tls-ca) is told what to do, not just that no hello came
+        with pytest.raises(ConnectionError, match="a TLS gateway waits for a TLS handshake.*--tls-ca"):
+            GatewayClient(*gw.address, secret=operator).connect(timeout_s=0.5)
         # a client that does not trust the certificate refuses the gateway
         (tmp_path / "other").mkdir()
         other_cert, _ = make_certificate(tmp_path / "other")

@@ -30,6 +30,23 @@ def test_reset_far_from_wrap_point_starts_new_epoch():
     assert u.epoch == 1 and u.wraps == 0
 
 
+def test_data_delivered_late_after_a_host_stall_is_not_a_reset():
+    """The reader stalled 5 s (a starved host), then reads in one go what the station sent meanwhile: the first
+    batch 10 ms after the last one seen (5 s behind the host-time prediction), the rest catching up. Late, not
+    rebooted: the old rule (|raw - prediction| <= 2 s, prediction from the newest packet) restarted the clock epoch
+    at the first one or at the catch-up. On-time data then continues the same epoch; a reboot after another
+    stall still is one."""
+    u = TickUnwrapper(tick_hz=1_000_000)
+    start = WRAP_TICKS - 5_000  # the late batches also cross the wrap
+    u.unwrap(start, arrival_s=10.0)
+    for sent_s in (0.01, 1.0, 2.5, 4.99):
+        assert u.unwrap((start + int(sent_s * 1e6)) % WRAP_TICKS, arrival_s=15.0) == (start + int(sent_s * 1e6), False)
+    assert u.unwrap((start + 5_010_000) % WRAP_TICKS, arrival_s=15.01) == (start + 5_010_000, False)  # on time
+    assert u.epoch == 0 and u.wraps == 1
+    assert u.unwrap(1_000, arrival_s=20.0) == (1_000, True)  # rebooted during a stall: counter back near 0
+    assert u.epoch == 1
+
+
 def test_long_gap_is_predicted_from_host_time():
     """After a 50 min gap at 1 MHz the counter wrapped silently; host elapsed time tells it apart from a reset."""
     u = TickUnwrapper(tick_hz=1_000_000)

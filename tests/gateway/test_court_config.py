@@ -182,6 +182,11 @@ def test_cli_refuses_a_bad_config_with_one_line_and_exit_2(tmp_path):
     assert str(path) in result.stderr and "stations.ports" in result.stderr
     result = _gateway_cli("--listen", "0.0.0.0:7766", cwd=tmp_path)
     assert result.returncode == 2 and "needs authentication" in result.stderr and "Traceback" not in result.stderr
+    # a rule across keys broken by the file alone names the file (it did not: only the flag case is nameless)
+    path = write(tmp_path, 'listen = "0.0.0.0:7766"\n')
+    result = _gateway_cli("--config", str(path), cwd=tmp_path)
+    assert result.returncode == 2 and result.stderr.strip().count("\n") == 0, result.stderr
+    assert result.stderr.startswith(f"courtside gateway: {path}: listening on 0.0.0.0:7766 (beyond loopback) needs")
 
 
 def test_shipped_example_config_loads_and_every_key_is_documented():
@@ -225,6 +230,9 @@ def test_cli_exit_1_when_it_cannot_start_now(tmp_path):
     CourtCalibration.fit(clicks, names=names, image_size=camera.image_size).save(tmp_path / "court.json")
     result = _gateway_cli("--camera", "/dev/video63", "--court", "court.json", "--listen", "127.0.0.4:0", cwd=tmp_path)
     assert result.returncode == 1 and "/dev/video63" in result.stderr and "Traceback" not in result.stderr
+    result = _gateway_cli("--camera", "63", "--court", "court.json", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    assert result.returncode == 1 and "camera 63: cannot open" in result.stderr
+    assert "WARN" not in result.stderr, result.stderr  # OpenCV's own "can't open camera by index" lines
     result = _gateway_cli("--camera", "/dev/video63", "--court", "absent.json", cwd=tmp_path)
     assert result.returncode == 2 and "absent.json" in result.stderr
     (tmp_path / "not-a-dir").write_text("")  # the first take cannot be started (as on a full disk)

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import re
-import time
 
 import numpy as np
 import pytest
@@ -37,13 +36,15 @@ def test_gateway_config_runs_a_whole_court(court_dir):
             assert sorted(len(st["sensors"]) for st in status["stations"]) == [5, 6]
             samples = []
             op.add_listener("samples", lambda m: samples.append(m) if m["station"] == "st1" else None)
-            time.sleep(2.0)
-            acc = np.concatenate([m["acc_g"] for m in samples if m["sensor"] == 0])
-            assert len(acc) > 100 and np.linalg.norm(acc, axis=1).std() > 0.1
-            # the camera runs in the gateway: health in status, tracked observations streamed to clients
-            camera = wait_for(lambda: (c := viewer.status()["camera"]) and c["tracked"] > 10 and c)
-            assert camera["state"] == "running" and camera["fps"] > 5 and camera["source"].endswith("court.mp4")
-            observation = viewer.get(timeout_s=5.0, kinds=["camera"])
+            # waits poll until the condition holds (a loaded machine only makes them slower), then judge the data
+            wait_for(lambda: sum(len(m["acc_g"]) for m in list(samples) if m["sensor"] == 0) > 200)
+            acc = np.concatenate([m["acc_g"] for m in list(samples) if m["sensor"] == 0])
+            assert np.linalg.norm(acc, axis=1).std() > 0.1
+            # the camera runs in the gateway: health in status, tracked observations streamed to clients; its rate
+            # is measured over the last 2 s, so a moment of CPU starvation dips it: wait for a healthy window
+            camera = wait_for(lambda: (c := viewer.status()["camera"]) and c["tracked"] > 10 and c["fps"] > 5 and c)
+            assert camera["state"] == "running" and camera["source"].endswith("court.mp4")
+            observation = viewer.get(timeout_s=30.0, kinds=["camera"])
             assert observation is not None and "t_host_s" in observation.header
             # calibration is attached: the operator assigns, the viewer may only look
             for i, site in enumerate(SEED000_SENSORS):

@@ -17,6 +17,24 @@ def test_console_connects_runs_and_saves_screenshots(live_gateway, qapp, tmp_pat
     assert (tmp_path / "shots" / "devices.png").is_file()
 
 
+def test_console_closes_after_its_screenshots_even_when_the_close_falls_inside_the_capture(live_gateway, tmp_path):
+    """--duration 0.5 --screenshots: the capture starts at once and pumps the event loop for 0.8 s, so the close
+    used to fire inside that nested loop, which swallowed the quit: the console never exited (found as a hung
+    suite run on the loaded machine). A subprocess, so the old behaviour shows as a timeout, not a hung test."""
+    import os
+    import subprocess
+    import sys
+
+    gateway, _ = live_gateway(StillSource(6), 6)
+    host, port = gateway.address
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen", COURTSIDE_CACHE_DIR=str(tmp_path / "cache"))
+    proc = subprocess.run([sys.executable, "-m", "gateway.cli", "console", "--connect", f"{host}:{port}",
+                           "--duration", "0.5", "--screenshots", str(tmp_path / "shots")],
+                          capture_output=True, text=True, timeout=60, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert (tmp_path / "shots" / "devices.png").is_file()
+
+
 def test_console_reports_unreachable_gateway(qapp, capsys):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -38,9 +56,10 @@ def test_console_plays_back_a_take_and_rejects_a_bad_one(live_gateway, qapp, tmp
     monkeypatch.setenv("COURTSIDE_CACHE_DIR", str(tmp_path / "cache"))
     gateway, _ = live_gateway(StillSource(6), 6)
     with GatewayClient(*gateway.address).connect() as client:
-        client.start_recording("cli-take")
+        # generous reply deadlines (the default is 5 s): a loaded machine only makes the gateway slower to answer
+        client.request("start_recording", take="cli-take", timeout_s=60.0)
         time.sleep(1.5)
-        take = client.stop_recording()["files"][0]
+        take = client.request("stop_recording", timeout_s=60.0)["files"][0]
     assert console_main(["--playback", take, "--duration", "2", "--screenshots", str(tmp_path / "shots")]) == 0
     assert (tmp_path / "shots" / "main.png").is_file()
     bogus = tmp_path / "bogus.csrec"
@@ -96,12 +115,35 @@ def test_scripted_record_of_an_existing_take_is_refused_with_exit_1(live_gateway
     monkeypatch.setenv("COURTSIDE_CACHE_DIR", str(tmp_path / "cache"))
     gateway, _ = live_gateway(StillSource(6), 6)
     with GatewayClient(*gateway.address).connect() as client:
-        client.start_recording("taken")
+        client.request("start_recording", take="taken", timeout_s=60.0)  # generous deadlines, as above
         time.sleep(0.5)
-        client.stop_recording()
+        client.request("stop_recording", timeout_s=60.0)
     host, port = gateway.address
     code = console_main(["--connect", f"{host}:{port}", "--record", "taken", "--duration", "2",
                          "--save-poses", str(tmp_path / "p.npz")])
     err = capsys.readouterr().err
     assert code == 1 and "recording taken refused" in err and "already exists" in err
     assert console_main(["--connect", f"{host}:{port}", "--record", "x"]) == 2  # a scripted run needs --duration
+
+
+def test_scripted_calibration_with_a_viewer_secret_is_refused_at_once(qapp, tmp_path, monkeypatch, capsys):
+    """A viewer cannot calibrate or record: the console says so in one line right after connecting (before, the
+    wizard's refusals were silent and the run hung until its 90 s calibration timeout)."""
+    from gateway import auth
+    from gateway.daemon import Gateway
+
+    auth.write_secret_file(tmp_path / "operator.secret")
+    auth.write_secret_file(tmp_path / "viewer.secret")
+    monkeypatch.delenv("COURTSIDE_SECRET", raising=False)
+    secrets = auth.Secrets.from_files(tmp_path / "operator.secret", tmp_path / "viewer.secret")
+    gateway = Gateway([], listen=("127.0.0.6", 0), record_dir=tmp_path / "rec", secrets=secrets).start()
+    try:
+        host, port = gateway.address
+        for script in (["--calibrate"], ["--record", "t1"]):
+            code = console_main(["--connect", f"{host}:{port}", "--secret-file", str(tmp_path / "viewer.secret"),
+                                 "--duration", "30", *script])
+            err = capsys.readouterr().err
+            assert code == 2 and "need the operator role" in err and "as a viewer" in err
+        assert not (tmp_path / "rec" / "t1").exists()
+    finally:
+        gateway.stop()

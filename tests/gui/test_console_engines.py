@@ -76,11 +76,9 @@ def test_console_refuses_a_graph_for_other_placements_than_the_calibration_recor
     assert err.count("\n") == 1  # one line, no traceback
 
 
-def test_console_refuses_the_hmm_live_and_an_unreadable_graph(live_gateway, qapp, tmp_path, capsys):
+def test_console_refuses_an_unreadable_graph(live_gateway, qapp, tmp_path, capsys):
     gateway, _ = live_gateway(StillSource(6), 6)
     host, port = gateway.address
-    assert console_main(["--connect", f"{host}:{port}", "--engine", "hmm", "--duration", "1"]) == 2
-    assert "gyroscope" in capsys.readouterr().err
     bad = tmp_path / "not-a-graph.npz"
     bad.write_bytes(b"nope")
     assert console_main(["--connect", f"{host}:{port}", "--graph", str(bad), "--duration", "1"]) == 2
@@ -101,6 +99,24 @@ def test_four_worn_sensors_default_to_the_olng_and_the_status_bar_names_it(live_
     saved = load_poses(tmp_path / "p.npz")
     assert saved.meta["engine"] == "olng" and [s["placement"] for s in saved.meta["sensors"]] == [
         "left_wrist", "right_wrist", "left_ankle", "right_ankle"]
+
+
+def test_one_worn_sensor_defaults_to_the_accelerometer_only_hmm_and_it_runs_live(live_gateway, qapp, tmp_path,
+                                                                                caplog):
+    """The seed-004 HMM reads acc + gyro and the stations stream no gyroscope: live it runs a model trained on
+    accelerometers only (it used to be refused, and a one-sensor court fell back to the motion graph)."""
+    gateway, _ = live_gateway(StillSource(1), 1)
+    host, port = gateway.address
+    with caplog.at_level(logging.INFO, logger="courtside.console"):
+        assert console_main(["--connect", f"{host}:{port}", "--duration", "3",
+                             "--save-poses", str(tmp_path / "p.npz")]) == 0
+    assert "engine hmm (default for 1 worn sensors)" in caplog.text
+    assert "hmm on shipped CMU clips, accelerometer-only model (1 sensors @ 30 Hz)" in caplog.text
+    from engine.stream.poses_file import load_poses
+
+    saved = load_poses(tmp_path / "p.npz")
+    assert saved.meta["engine"] == "hmm" and [s["placement"] for s in saved.meta["sensors"]] == ["right_foot"]
+    assert len(saved.t_s) > 10 and np.isfinite(saved.joint_positions_m).all()
 
 
 def test_status_bar_names_engine_and_database(live_gateway, qtbot, wrist_graph):
@@ -147,3 +163,27 @@ def test_confidence_tints_the_estimate_towards_grey(qtbot):
     assert confident > 30 and is_estimate_colour(img).sum() < confident / 10 and grey.sum() > 30
     view.set_confidence(None)  # the engine reports none: normal colours
     assert view.refresh() and is_estimate_colour(view.last_pixels()).sum() == confident
+
+
+def test_a_named_database_with_no_way_to_tell_the_worn_sensors_is_refused(qapp, tmp_path, wrist_graph, capsys):
+    """Two stations could carry the wrist graph's four sensors and nothing says which: `--graph` was named, so the
+    console refuses in one line naming the candidates and the two ways to say it (before: it ran with synthesis
+    off, exit 0, the graph silently unused)."""
+    from firmware_protocol.emulator import StationConfig
+    from gateway.daemon import Gateway
+    from gateway.emulation.stations import start_emulated_station
+
+    stations_ = [start_emulated_station(StationConfig(station_id=i, n_sensors=n, autostart=True), motion=StillSource(n))
+                 for i, n in ((1, 6), (2, 5))]
+    gateway = Gateway([s.path for s in stations_], listen=("127.0.0.6", 0), record_dir=tmp_path / "rec").start()
+    try:
+        host, port = gateway.address
+        code = console_main(["--connect", f"{host}:{port}", "--graph", str(wrist_graph), "--duration", "1"])
+    finally:
+        gateway.stop()
+        for s in stations_:
+            s.stop()
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "needs 4 worn sensors (left_wrist, right_wrist, left_ankle, right_ankle)" in err
+    assert "st1 (6 sensors), st2 (5 sensors)" in err and "--synth-station" in err

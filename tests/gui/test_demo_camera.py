@@ -1,6 +1,9 @@
 """The demo's synthetic camera shows an opponent on the other half; its tracker follows the performer."""
 from __future__ import annotations
 
+import threading
+import time
+
 import numpy as np
 
 from gui.demo.hardware import DemoCamera
@@ -21,3 +24,26 @@ def test_demo_camera_tracks_the_performer_not_the_opponent():
     assert len(err) > 0.9 * 12.0 * 12  # 12 fps
     assert np.sqrt(np.mean(np.square(err))) < 0.25
     assert opponent_sides == {True}  # the opponent really was on the other half all along
+
+
+def test_demo_camera_that_falls_behind_the_wall_clock_skips_ahead_instead_of_publishing_old_frames():
+    """Started 5 s late (as a renderer on a starved machine ends up), the camera jumps to the present like a real
+    camera, rather than publishing 5 s of stale frames that reach the console after their frames were decided."""
+    cam = DemoCamera(build_performance(), t0_monotonic_s=time.monotonic() - 5.0, duration_s=12.0)
+    published, done = [], threading.Event()
+
+    def sink(obs, jpeg) -> None:
+        published.append((obs, time.monotonic()))
+        if len(published) >= 3:
+            done.set()
+
+    started = time.monotonic()
+    cam.start(sink)
+    try:
+        assert done.wait(60.0), "the camera published nothing"
+    finally:
+        cam.stop()
+    first = published[0][0]
+    assert first["t_host_s"] >= started - cam.MAX_LAG_S  # the old code started 7.5 s in the past (empty court)
+    assert first["frame_index"] >= 5.0 * 12 and cam.source.dropped >= 5.0 * 12  # the skipped frames count as dropped
+    assert [o["frame_index"] for o, _ in published] == sorted({o["frame_index"] for o, _ in published})

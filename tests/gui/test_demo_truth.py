@@ -15,12 +15,12 @@ from gui.main_window import ConsoleWindow
 def test_demo_take_plays_back_with_ground_truth(qtbot, tmp_path):
     with demo_hardware(("127.0.0.1", 0), tmp_path, camera=False, duration_s=30) as (address, t0):
         with GatewayClient(*address).connect() as client:
-            deadline = time.monotonic() + 10
+            deadline = time.monotonic() + 60  # waits poll: a generous deadline costs nothing when all is well
             while not all(s["link"] == "streaming" for s in client.list_stations()) and time.monotonic() < deadline:
                 time.sleep(0.1)
-            client.start_recording("truth-take")
+            client.request("start_recording", take="truth-take", timeout_s=60.0)
             time.sleep(2.5)
-            state = client.stop_recording()
+            state = client.request("stop_recording", timeout_s=60.0)
     window = ConsoleWindow(None, truth_for_take=truth_from_events)  # the demo's hook: the window knows no demo
     qtbot.addWidget(window)
     try:

@@ -159,3 +159,15 @@ def test_sensor_joints_follow_standard_placements():
     expected = [p.joint for p in standard_placements(skeleton, ("left_forearm", "chest"))]
     assert sensor_joints(skeleton, worn) == {("st1", 0): expected[0], ("st1", 1): expected[1]}
     assert skeleton.names[expected[0]].startswith("l")  # a left-arm joint
+
+
+def test_camera_rate_survives_a_source_that_starts_its_frame_index_again():
+    """A looping court video (`[camera] loop = true`) starts its frame index at 0 again: the console showed
+    "camera -22.3 fps"; the rate stays the frame rate and no frames count as dropped."""
+    from gui.bridge import CameraRate
+
+    rate = CameraRate()
+    t = 100.0 + np.arange(60) / 15.0
+    for k, tk in enumerate(t):
+        rate.add(float(tk), k % 20)  # the file has 20 frames: the index wraps at 20 and 40
+    assert rate.fps == pytest.approx(15.0) and rate.dropped == 0

@@ -48,11 +48,11 @@ def test_record_then_play_back_through_the_same_views(live_gateway, qtbot, tmp_p
         window.recording.required = [("st1", 0), ("st1", 1)]
         window.recording.take_edit.setText("rally-01")
         window.recording.start_button.click()
-        qtbot.waitUntil(lambda: (window.bridge.latest("recording") or {}).get("active") is True, timeout=5_000)
+        qtbot.waitUntil(lambda: (window.bridge.latest("recording") or {}).get("active") is True, timeout=30_000)
         qtbot.wait(2500)
-        qtbot.waitUntil(lambda: "REC rally-01" in window.recording.counters.text(), timeout=2_000)
+        qtbot.waitUntil(lambda: "REC rally-01" in window.recording.counters.text(), timeout=30_000)
         window.recording.stop_button.click()
-        qtbot.waitUntil(lambda: (window.bridge.latest("recording") or {}).get("active") is False, timeout=5_000)
+        qtbot.waitUntil(lambda: (window.bridge.latest("recording") or {}).get("active") is False, timeout=30_000)
         files = window.bridge.latest("recording")["files"]
         take_path = files[0]
 
@@ -78,7 +78,7 @@ def test_record_then_play_back_through_the_same_views(live_gateway, qtbot, tmp_p
         assert abs(window.store.latest_time() - pb.cursor_s) < 0.1
         window.back_to_live()
         qtbot.waitUntil(lambda: window.store.latest_time() is not None and window.store.latest_time() > pb.t_end_s,
-                        timeout=5_000)
+                        timeout=30_000)
     finally:
         window.shutdown()
         client.close()

@@ -140,3 +140,35 @@ def test_lag_change_and_reset_rebuild_the_engine(graph_and_clip):
     # initial build, one for the lag change, one for the reset's fresh session (at the new lag)
     assert made == [0.3, 1.0, 1.0]
     assert worker.stats.lag_s == 1.0
+
+
+def test_a_backlog_given_at_once_is_worked_off_in_slices_with_the_offline_poses(graph_and_clip):
+    """Everything at once (a console that was stalled, or an engine slower than real time): the worker pushes at
+    most `STEP_S` of frames per pass, so its stats and displayed pose move while it works the backlog off, and
+    the poses are still exactly the offline ones."""
+    spec, acc30, _ = graph_and_clip
+    sensors = [("st0", k) for k in range(len(spec.sensor_names))]
+    streams = live_streams(acc30, 300.0, sensors)
+    worker = SynthesisWorker(synthesis_setup(spec, sensors, lag_s=0.5), keep_poses=True)
+    worker.start()
+    try:
+        run_worker(worker, streams, [], batch_s=1e3)
+    finally:
+        worker.stop()
+        worker.join(timeout=5)
+    _, live = worker.poses()
+    assert worker.stats.error == "" and worker.stats.behind_s < 0.1
+    offline, _ = synthesize_streams(lambda: spec.make(0.5), RecordedStreams(streams), sensors, spec.rate_hz)
+    by_frame = {p.frame: p for p in offline}
+    assert len(live) > 100
+    for p in live:
+        assert np.array_equal(p.joint_positions_m, by_frame[p.frame].joint_positions_m), p.frame
+
+
+def test_falling_behind_is_reported_with_the_engine_cost_and_the_real_time_budget():
+    from gui.synthesis import SynthesisStats
+
+    slow = SynthesisStats(lag_s=0.5, push_ms=100.0, behind_s=27.0)
+    assert slow.falling_behind(25.0) == ("FALLING BEHIND: 27.0 s behind the stream; the engine takes 100 ms/frame, "
+                                         "real time needs < 40 ms (2.5x slower than real time)")
+    assert SynthesisStats(lag_s=0.5, push_ms=2.0, behind_s=1.2).falling_behind(30.0) == ""

@@ -110,3 +110,24 @@ def test_range_presets_and_many_points_are_decimated(qtbot):
     panel.set_range_g(12.0)
     lo, hi = panel._plots["s0"].viewRange()[1]
     assert lo <= -12.0 and hi >= 12.0 and hi < 13.0
+
+
+def test_a_sensor_silent_for_longer_than_the_window_clears_its_curve_and_the_others_keep_drawing(qtbot):
+    """A sensor that stopped (battery, a gateway restarted without it) has no sample in the time window: its
+    curve is empty, and the sensors after it in the panel still update (before: a ValueError traceback on every
+    GUI tick from the empty slice, and the later sensors' curves froze)."""
+    sensors = ["st1/s0", "st1/s1"]
+    store = TraceStore(history_s=30.0)
+    panel = TracePanel(store, window_s=5.0)
+    qtbot.addWidget(panel)
+    panel.set_groups({"station 1": sensors})
+    t_old = np.arange(0, 100) / RATE_HZ  # s0: one second of data, 19 s before the newest sample
+    store.put(sensors[0], t_old, known_signal(t_old, 0))
+    t_new = np.arange(1900, 2000) / RATE_HZ
+    store.put(sensors[1], t_new, known_signal(t_new, 1))
+    store.drain()
+    panel.refresh()
+    assert len(panel.curve_data(sensors[0], 0)[0]) == 0
+    t, x = panel.curve_data(sensors[1], 0)
+    np.testing.assert_allclose(t, t_new)
+    np.testing.assert_allclose(x, known_signal(t_new, 1)[:, 0])

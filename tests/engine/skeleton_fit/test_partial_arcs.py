@@ -11,7 +11,7 @@ import pytest
 from scipy.optimize import least_squares
 
 from engine.skeleton_fit.frames import frame_from_three, to_local
-from engine.skeleton_fit.gdke import JointFitConfig, JointType, fit_joint, refine_centre, sphere_fit
+from engine.skeleton_fit.gdke import JointFitConfig, JointType, _inverse_small, fit_joint, refine_centre, sphere_fit
 from engine.skeleton_fit.score import cluster_poses, score_centre
 from engine.skeleton_fit.synthetic import functional_trial, random_rotation, spherical_cap
 
@@ -50,15 +50,19 @@ def test_refinement_reaches_the_geometric_least_squares_optimum():
 
 
 def test_full_sphere_error_stays_in_the_eq7_band_after_refinement():
-    """The refinement must not spoil the full-sphere case: |c − c0|·√N/σ mean 2.6-3.1 (spec 002 §5)."""
+    """The refinement must not spoil the full-sphere case. Spec 002 §5 test 4's protocol (N ~ U{4..1000}, σ/R in
+    [1e-4, 0.05]): |c − c0|·√N/σ mean in [2.6, 3.1], std in [1.0, 1.45]. At a fixed small N the factor is larger for
+    every estimator (N = 10: 3.4 for the closed form and for iterative least squares alike, spec and bench), so the
+    band is a statement about the spec's mix of N, not about N = 10."""
     rng = np.random.default_rng(7)
     errors = []
     for _ in range(400):
-        n = int(rng.integers(20, 1001))
-        centre = rng.normal(0, 0.5, 3)
-        pts = spherical_cap(rng, n, 180.0, RADIUS, SIGMA, centre)
-        errors.append(np.linalg.norm(fit_joint(pts, REFINED).centre - centre) * np.sqrt(n) / SIGMA)
+        n = int(rng.integers(4, 1001))
+        centre, sigma = rng.normal(0, 0.5, 3), RADIUS * rng.uniform(1e-4, 0.05)
+        pts = spherical_cap(rng, n, 180.0, RADIUS, sigma, centre)
+        errors.append(np.linalg.norm(fit_joint(pts, REFINED).centre - centre) * np.sqrt(n) / sigma)
     assert 2.6 <= np.mean(errors) <= 3.1, np.mean(errors)
+    assert 1.0 <= np.std(errors) <= 1.45, np.std(errors)
 
 
 def test_reported_arc_and_expected_error_match_the_data():
@@ -121,3 +125,14 @@ def test_score_is_exact_without_noise():
     child = cluster_poses(trial.child)
     world = child[0] + np.einsum("fij,j->fi", child[1], centre_child)
     assert np.abs(world - trial.centre_world).max() < 1e-9
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_small_inverse_equals_numpy_and_refuses_a_singular_matrix(dim):
+    rng = np.random.default_rng(dim)
+    for _ in range(20):
+        a = rng.normal(size=(dim, dim))
+        m = a @ a.T + 0.1 * np.eye(dim)
+        assert np.allclose(_inverse_small(m), np.linalg.inv(m), rtol=1e-10, atol=1e-12)
+    with pytest.raises(np.linalg.LinAlgError):
+        _inverse_small(np.zeros((dim, dim)))

@@ -130,6 +130,21 @@ def test_start_at_rewinds_within_history_and_until_holds_frames_back():
     assert again.index[0] == 20 and np.allclose(again.acc_g[:, 0, 0], np.arange(20, 30) / 10.0)
 
 
+def test_a_start_long_before_any_data_begins_where_the_data_does():
+    """A console that joins a take 40 s after it started is told the take's start: it must not push 1 200 empty
+    frames (an hour-old take: 108 000) through the engine before the first real one; a start within the
+    history (a late recording notice) still rewinds exactly as offline."""
+    streams = jittered_streams()  # every sensor starts at about 100 s
+    res = FrameResampler(list(streams), rate_hz=30.0)
+    res.start_at(60.0)
+    got = feed(res, streams, 10)
+    assert got.valid.all() and got.index[0] == int(np.ceil(max(s[0] for s in streams.values()) * 30 + 0.5))
+    near = FrameResampler(list(streams), rate_hz=30.0)
+    near.start_at(99.0)  # within history_s of the data: the frames before it are dropouts, as offline
+    early = feed(near, streams, 10)
+    assert early.index[0] == 99 * 30 and not early.valid[:30].any() and early.valid[-100:].all()
+
+
 def test_box_filter_suppresses_aliasing_that_point_sampling_lets_through():
     """A 40 Hz tone sampled at 100 Hz, taken to 30 Hz: point sampling folds it to 10 Hz at nearly full amplitude;
     the resampler's box average keeps less than a quarter of it."""

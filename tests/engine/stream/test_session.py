@@ -111,3 +111,31 @@ def test_a_take_whose_camera_track_ends_before_its_samples_ends_there_as_live_di
     assert (len(offline_log) + offline.first_frame) / 30.0 <= stop - 0.4 + 1 / 30
     for (a1, p1, _), (a2, p2, _) in zip(live_log, offline_log):
         assert np.array_equal(a1, a2) and (p1 is None) == (p2 is None) and (p1 is None or np.array_equal(p1, p2))
+
+
+def test_frames_pushed_in_slices_are_the_offline_frames_and_the_backlog_is_measured():
+    """A live caller whose engine is slower than real time pushes at most ``max_frames`` per step, so it can serve
+    its inputs and report how far it trails the stream (`behind_s`) between slices; the frames are unchanged."""
+    rec = recorded()
+    logs = []
+    make = lambda: logs.append(InputLog()) or logs[-1]  # noqa: E731
+    live = StreamSynthesis(make, [0, 1, 2], 30.0, start_s=take_start_s(rec.started_t_host_s))
+    for k, (t, a) in rec.samples.items():
+        live.add_samples(k, t, a)
+    for fix in rec.camera:
+        live.add_camera(*fix)
+    assert live.behind_s == 0.0  # nothing pushed yet
+    live.step(max_frames=10)
+    newest = max(t[-1] for t, _ in rec.samples.values())
+    first_t = live.first_frame / 30.0
+    assert len(logs[-1].pushed) == 10
+    assert live.behind_s == pytest.approx(newest - (first_t + 9 / 30.0))  # ~5 s of stream still to push
+    while live.step(max_frames=10):
+        pass
+    sliced = logs[-1].pushed
+    assert live.behind_s < 0.5  # caught up: only the frames the camera / the window ends hold back
+    _, offline = synthesize_streams(make, rec, [0, 1, 2], 30.0)
+    assert offline.first_frame == live.first_frame and len(sliced) == len(logs[-1].pushed) > 100
+    for (a1, p1, _), (a2, p2, _) in zip(sliced, logs[-1].pushed):
+        assert (a1 is None) == (a2 is None) and (a1 is None or np.array_equal(a1, a2))
+        assert (p1 is None) == (p2 is None) and (p1 is None or np.array_equal(p1, p2))
