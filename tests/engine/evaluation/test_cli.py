@@ -40,6 +40,23 @@ def test_chained_takes_with_all_engines_and_baselines(tmp_path, capsys):
     assert "per-second global joint error" in out
 
 
+def test_online_rows_report_their_confidence_and_share_the_fused_root(tmp_path, capsys):
+    """--lag: the online decoder's rows print how their confidence predicts the per-second error (and save it in
+    the JSON); with the camera every row stands on the fused root, so the accelerometers-vs-camera-only line is
+    an equality."""
+    out_json = tmp_path / "eval.json"
+    assert courtside(["evaluate", "--protocol", "chained", "--sample", "--takes", "1", "--take-seconds", "3",
+                      "--engines", "graph", "--sensor-sets", "6", "--lag", "0.5", "--json", str(out_json)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"motion graph, 6 sensors, camera yes: confidence vs per-second global error over \d+ s: "
+                     r"Spearman [-+ ]?[\d.n]+a?n?, AUC", out), out
+    rows = table_rows(out)
+    graph, camera_only = rows[("motion graph", "6", "yes")], rows[("camera only (W_A=0)", "0", "yes")]
+    assert graph[3:5] == camera_only[3:5]  # root position and heading, as printed
+    saved = json.loads(out_json.read_text())["groups"]["chained"]
+    assert {"spearman", "auc", "seconds"} <= set(next(r for r in saved if r["camera"] == "yes")["confidence"])
+
+
 def test_leave_one_content_out_holds_out_every_clip_of_the_content(capsys):
     assert courtside(["evaluate", "--protocol", "loco", "--sample", "--groups", "16_01,16_35",
                       "--engines", "graph,baselines", "--sensor-sets", "6"]) == 0
