@@ -134,7 +134,7 @@ class Ximu3Emulator(PtyDeviceEmulator):
                 line, buffer = buffer.split(b"\n", 1)
                 try:
                     command = json.loads(line.strip() or b"null")
-                except json.JSONDecodeError:
+                except ValueError:  # not JSON, or not UTF-8 (line noise as a port opens): ignored like a device does
                     continue
                 if not isinstance(command, dict) or len(command) != 1:
                     continue
