@@ -14,13 +14,18 @@ from engine.graph.viterbi import SearchWeights
 from engine.mocap import SEED000_SENSORS, forward_kinematics, root_heading, standard_placements
 
 
-def test_fixed_lag_covering_the_take_equals_the_batch_search(motions):
+def _held_out_take(motions):
+    """Clips 2 and 3 chained into a take and removed from the graph: (graph, take, accelerations, camera track)."""
     cfg = GraphConfig(msv=True, sensor_names=list(SEED000_SENSORS))
     clips = clips_from_motions(motions, standard_placements(motions[0].skeleton), cfg)
     graph = build_from_clips(clips, cfg).without_clips([2, 3])
     take = chain_clips(motions, [2, 3], [m.name for m in motions])
     acc, _ = accelerometers(take, SEED000_SENSORS, None, np.random.default_rng(0))
-    cam = camera_track(take, CameraModel(), np.random.default_rng(1))
+    return graph, take, acc, camera_track(take, CameraModel(), np.random.default_rng(1))
+
+
+def test_fixed_lag_covering_the_take_equals_the_batch_search(motions):
+    graph, take, acc, cam = _held_out_take(motions)
     for camera in (True, False):
         args = (graph, acc, (0, 1), cam.position_m, cam.heading_rad, SearchWeights(0.5, 1, 1), camera)
         batch = engines.motion_graph(*args)
@@ -59,12 +64,7 @@ def test_with_the_camera_every_sensor_set_gets_the_same_fused_root(motions):
     from engine.graph.root_fusion import RootFusion
     from engine.graph.warp import RootWarp
 
-    cfg = GraphConfig(msv=True, sensor_names=list(SEED000_SENSORS))
-    clips = clips_from_motions(motions, standard_placements(motions[0].skeleton), cfg)
-    graph = build_from_clips(clips, cfg).without_clips([2, 3])
-    take = chain_clips(motions, [2, 3], [m.name for m in motions])
-    acc, _ = accelerometers(take, SEED000_SENSORS, None, np.random.default_rng(0))
-    cam = camera_track(take, CameraModel(), np.random.default_rng(1))
+    graph, take, acc, cam = _held_out_take(motions)
     for fusion, same in ((RootFusion(), True), (RootFusion.off(), False)):
         rows = [engines.motion_graph(graph, a, idx, cam.position_m, cam.heading_rad, w, True, RootWarp(),
                                      fusion=fusion).joints_m
