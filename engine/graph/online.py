@@ -13,8 +13,8 @@ import numpy as np
 
 from .graph import MotionGraph
 from .poses import blended_joint_positions, world_joint_positions
-from .viterbi import (ACC_BATCH, DEFAULT_KERNEL, PRUNE_EVERY, Constraint, Observations, SearchResult,
-                      SearchWeights, ViterbiLattice, constraint_penalties, observation)
+from .viterbi import (DEFAULT_KERNEL, PRUNE_EVERY, Constraint, Observations, SearchResult, SearchWeights,
+                      ViterbiLattice, step_arguments)
 from .confidence import CostHistory, CostWindow, confidence, reference_cost_per_sample
 from .root_fusion import RootFuser, RootFusion
 from .warp import RootWarp
@@ -188,20 +188,13 @@ def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Obse
                            kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> SearchResult:
     """The batch search of a forgetting search (`ViterbiSearch.run` with `weights.forgets`): the fixed-lag decoder
     over the whole take with lag `weights.decision_frames`, so offline and live decide every sample the same way
-    (bit for bit: the accelerometer rows are batched as the batch search batches them, identical per row)."""
+    (bit for bit: both step through `viterbi.step_arguments`)."""
     syn = FixedLagSynthesizer(graph, weights.decision_frames / graph.config.fps, weights, obs.sensor_indices,
                               prune_every, kernel, warp, confidence_reference=float("nan"), reanchor_ratio=0.0)
     lat = syn.lattice
-    penalties = constraint_penalties(constraints or [], graph.n_nodes, obs.n_samples)
-    batch = lat.kernel == "numba" and obs.acc_g is not None and lat.n_sensors and weights.acc != 0
     poses: list[EmittedPose] = []
-    rows = None
-    for t in range(obs.n_samples):
-        if batch and t % ACC_BATCH == 0:
-            rows = lat.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
-        acc, pos, head = observation(obs, t)
-        poses += syn.push(acc, pos, head, penalties.get(t), rows[t % ACC_BATCH] if batch and t and acc is not None
-                          else None)
+    for step in step_arguments(lat, obs, constraints):
+        poses += syn.push(*step)
     best = lat.best_node()
     cost, broken = lat.cost_of(best), lat.broken_of(best)
     poses += syn.flush()

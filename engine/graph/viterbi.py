@@ -675,16 +675,24 @@ class ViterbiSearch:
                                           self.warp)
         lattice = ViterbiLattice(self.graph, self.weights, obs.sensor_indices, self.prune_every, self.kernel,
                                  self.warp)
-        penalties = constraint_penalties(constraints or [], self.graph.n_nodes, obs.n_samples)
-        batch = lattice.kernel == "numba" and obs.acc_g is not None and lattice.n_sensors and self.weights.acc != 0
-        rows = None
-        for t in range(obs.n_samples):
-            if batch and t % ACC_BATCH == 0:  # C_A rows of the next samples in one pass over the metadata
-                rows = lattice.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
-            acc, pos, head = observation(obs, t)
-            lattice.step(acc, pos, head, penalties.get(t),
-                         rows[t % ACC_BATCH] if batch and t and acc is not None else None)
+        for step in step_arguments(lattice, obs, constraints):
+            lattice.step(*step)
         return finish(lattice)
+
+
+def step_arguments(lattice: ViterbiLattice, obs: Observations, constraints: list[Constraint] | None = None):
+    """Per sample of `obs`, the arguments of `lattice.step` (acc, position, heading, constraint penalty, C_A row).
+    The compiled kernel's accelerometer rows are computed `ACC_BATCH` samples at a time in one pass over the
+    metadata (identical per row), so every whole-take caller -- the batch search and the forgetting search's
+    fixed-lag replay -- steps bit for bit alike. Lazy: each batch is computed just before its first sample."""
+    penalties = constraint_penalties(constraints or [], lattice.graph.n_nodes, obs.n_samples)
+    batch = lattice.kernel == "numba" and obs.acc_g is not None and lattice.n_sensors and lattice.weights.acc != 0
+    rows = None
+    for t in range(obs.n_samples):
+        if batch and t % ACC_BATCH == 0:
+            rows = lattice.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
+        acc, pos, head = observation(obs, t)
+        yield acc, pos, head, penalties.get(t), rows[t % ACC_BATCH] if batch and t and acc is not None else None
 
 
 def finish(lattice: ViterbiLattice) -> SearchResult:
