@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import MalformedFileError, cli_command
+from engine.errors import CourtsideError, MalformedFileError, cli_command
 from engine.stream.offline import acc_in_sensor_order
 
 SAMPLE_PREFIX = "16_"
@@ -35,7 +35,7 @@ def _database_paths(args: argparse.Namespace) -> list[Path]:
     if args.mocap_dir:
         paths += [Path(p) for p in sorted(glob.glob(str(Path(args.mocap_dir) / args.pattern)))]
     if not paths:
-        raise SystemExit("courtside reconstruct: no clips: give clip files, --sample, or --mocap-dir with --pattern")
+        raise CourtsideError("no clips: give clip files, --sample, or --mocap-dir with --pattern")
     return paths
 
 
@@ -141,7 +141,7 @@ def _reconstruct_motion_graph(args: argparse.Namespace) -> int:
     from engine.graph.cli import synthesize_main
 
     if not args.graph:
-        raise SystemExit("courtside reconstruct --method motion-graph needs --graph (from `courtside build-graph`)")
+        raise CourtsideError("--method motion-graph needs --graph (from `courtside build-graph`)")
     return synthesize_main(["--graph", args.graph, "--input", args.input, "-o", args.output])
 
 
@@ -238,8 +238,7 @@ def main(argv: list[str]) -> int:
     if args.evaluate:
         return _evaluate(args)
     if not args.input or not args.output:
-        print("courtside reconstruct: --input and -o are required (or use --evaluate)", file=sys.stderr)
-        return 2
+        raise CourtsideError("--input and -o are required (or use --evaluate)")
     if args.method == "motion-graph":
         return _reconstruct_motion_graph(args)
     summary = _reconstruct_olng(args) if args.method == "olng" else _reconstruct_hmm(args)

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 import firmware_protocol as fp
+from engine.errors import CourtsideError, MalformedFileError, cli_command
 from gateway import auth, wire
 from gateway.device_checks import I32_MAX, I32_MIN, command_int
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
@@ -476,7 +477,6 @@ def _export_parser() -> argparse.ArgumentParser:
 
 def load_config(args: argparse.Namespace) -> "CourtConfig":
     """The court config file (or the defaults) with the command line's options applied on top."""
-    from engine.errors import CourtsideError, MalformedFileError
     from gateway.court_config import CourtConfig, check_consistent, load_court_config, with_overrides
 
     config = load_court_config(args.config, check=False) if args.config else CourtConfig()
@@ -497,11 +497,11 @@ def load_config(args: argparse.Namespace) -> "CourtConfig":
     return config
 
 
+@cli_command("courtside gateway export")
 def _export_main(argv: list[str]) -> int:
     args = _export_parser().parse_args(argv)
     if not args.npz and not args.csv_dir and not args.xdf:
-        print("courtside gateway export: give --npz, --csv-dir and/or --xdf", file=sys.stderr)
-        return 2
+        raise CourtsideError("give --npz, --csv-dir and/or --xdf")
     if args.npz:  # a bad recording raises RecordingError: the courtside dispatcher reports it in one line
         print(f"wrote {export_npz(args.recording, args.npz)}")
     if args.csv_dir:
@@ -514,6 +514,7 @@ def _export_main(argv: list[str]) -> int:
     return 0
 
 
+@cli_command("courtside gateway new-secret")
 def _new_secret_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="courtside gateway new-secret",
                                 description="Write a new random secret to FILE (mode 600; never overwrites).")
@@ -522,8 +523,7 @@ def _new_secret_main(argv: list[str]) -> int:
     try:
         auth.write_secret_file(args.file)
     except OSError as exc:
-        print(f"courtside gateway new-secret: {args.file}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        raise CourtsideError(f"{args.file}: {exc.strerror or exc}") from None
     print(f"wrote {args.file} (copy it to each console machine, mode 600)")
     return 0
 

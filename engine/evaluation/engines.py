@@ -19,7 +19,8 @@ from engine.graph.online import FixedLagSynthesizer
 from engine.graph.geometry import rotate_ground
 from engine.graph.poses import blended_joint_positions, world_joint_positions
 from engine.graph.root_fusion import RootFusion, fuse_track
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
+from engine.graph.search import ViterbiSearch
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel, Skeleton, forward_kinematics, quaternions
 from engine.stream import EngineSpec, drive_frames

@@ -21,8 +21,8 @@ from .graph import MotionGraph, build_from_clips
 from .input_checks import check_database, check_lag, check_non_negative, check_path_length, parse_sensor_map
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .report import coverage_warning, format_report, graph_report, motion_range
-from .viterbi import SearchWeights
-from .warp import RootWarp, default_weights
+from .viterbi import SearchWeights, default_weights
+from .warp import RootWarp
 
 _BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+")
 
@@ -180,7 +180,7 @@ def synthesize_main(argv: list[str]) -> int:
     from .poses import blended_joint_positions, world_joint_positions
     from .postprocess import path_to_motion
     from .root_fusion import RootFusion, fuse_track
-    from .viterbi import ViterbiSearch
+    from .search import ViterbiSearch
 
     from engine.stream.registry import engine_names
 
@@ -264,11 +264,9 @@ def synthesize_main(argv: list[str]) -> int:
                                                                                 * graph.config.fps)),
                                         args.require_tolerance) for r in args.require]
     except (KeyError, ValueError, IndexError) as exc:
-        print(f"error: bad --require {args.require}: {exc}", file=sys.stderr)
-        return 2
+        raise CourtsideError(f"bad --require {args.require}: {exc}") from None
     if constraints and args.lag is not None:
-        print("error: --require needs the batch search (no --lag)", file=sys.stderr)
-        return 2
+        raise CourtsideError("--require needs the batch search (no --lag)")
     stream, outputs = None, []
     if args.stream_bvh:
         from engine.livestream.stream_cli import open_stream

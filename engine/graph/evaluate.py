@@ -18,7 +18,8 @@ from .clips import ClipData
 from .geometry import wrap_angle
 from .graph import MotionGraph
 from .poses import root_local, world_joint_positions
-from .viterbi import Observations, SearchWeights, ViterbiSearch
+from .viterbi import Observations, SearchWeights
+from .search import ViterbiSearch
 
 
 @dataclass(frozen=True)
