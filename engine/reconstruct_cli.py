@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import CourtsideError, MalformedFileError, cli_command
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, cli_command
 from engine.stream.offline import acc_in_sensor_order
 
 SAMPLE_PREFIX = "16_"
@@ -204,8 +204,8 @@ def _motion_graph_rows(args: argparse.Namespace, motions, tests) -> dict[str, di
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside reconstruct", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(prog="courtside reconstruct", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("clips", nargs="*", help="database clips (.bvh or .amc, one skeleton)")
     p.add_argument("--method", choices=["olng", "hmm", "motion-graph"], default="olng")
     p.add_argument("--input", help="take .npz")

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 import firmware_protocol as fp
-from engine.errors import CourtsideError, MalformedFileError, cli_command
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, cli_command
 from gateway import auth, wire
 from gateway.device_checks import I32_MAX, I32_MIN, command_int
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
@@ -413,7 +413,7 @@ FLAG_KEYS = {
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog="courtside gateway", description=__doc__.split("\n")[0],
         epilog="Every option can come from --config court.toml (keys in docs/gateway.md); options given here win. "
                "Also: courtside gateway export <take dir> [--npz F] [--csv-dir D] [--xdf F]; "
@@ -467,7 +467,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _export_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside gateway export", description="Export a recording to npz and/or CSV")
+    p = ArgumentParser(prog="courtside gateway export", description="Export a recording to npz and/or CSV")
     p.add_argument("recording", type=Path, help="take directory or its take.csrec")
     p.add_argument("--npz", type=Path, help="output .npz file")
     p.add_argument("--csv-dir", type=Path, help="output directory for CSV files")
@@ -516,8 +516,8 @@ def _export_main(argv: list[str]) -> int:
 
 @cli_command("courtside gateway new-secret")
 def _new_secret_main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="courtside gateway new-secret",
-                                description="Write a new random secret to FILE (mode 600; never overwrites).")
+    p = ArgumentParser(prog="courtside gateway new-secret",
+                       description="Write a new random secret to FILE (mode 600; never overwrites).")
     p.add_argument("file", type=Path)
     args = p.parse_args(argv)
     try:

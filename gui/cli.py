@@ -11,7 +11,7 @@ import logging
 import sys
 from pathlib import Path
 
-from engine.errors import CourtsideError, cli_command
+from engine.errors import ArgumentParser, CourtsideError, cli_command
 
 log = logging.getLogger("courtside.console")
 
@@ -26,8 +26,8 @@ def _host_port(text: str) -> tuple[str, int]:
 def _console_parser() -> argparse.ArgumentParser:
     from engine.stream.registry import engine_names
 
-    p = argparse.ArgumentParser(prog="courtside console", description="Operator console for a Courtside gateway.",
-                                epilog="Unattended capture: courtside console --connect HOST:PORT --calibrate "
+    p = ArgumentParser(prog="courtside console", description="Operator console for a Courtside gateway.",
+                       epilog="Unattended capture: courtside console --connect HOST:PORT --calibrate "
                                        "--record TAKE --duration 60 --save-poses take.poses.npz (no window needed: "
                                        "QT_QPA_PLATFORM=offscreen).")
     p.add_argument("--connect", type=_host_port, default=("127.0.0.1", 7766), metavar="HOST:PORT",
@@ -76,7 +76,7 @@ def _console_parser() -> argparse.ArgumentParser:
 
 
 def _demo_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside demo", description=__doc__.split("\n")[0])
+    p = ArgumentParser(prog="courtside demo", description=__doc__.split("\n")[0])
     p.add_argument("--duration", type=float, default=None, help="exit after this many seconds (default: run until closed)")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs of the views before exiting")
     p.add_argument("--lag", type=float, default=0.5, help="synthesis fixed lag, seconds (default 0.5)")

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from engine.errors import CourtsideError
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError
 from engine.graph.cli import (_add_database_args, add_search_args, database_paths, evaluate_main as leave_one_out_main,
                               load_clips, weights_from_args)
 from engine.graph.config import GraphConfig
@@ -33,8 +33,8 @@ PROTOCOLS = ("loo", "chained", "loco", "loso")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside evaluate", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(prog="courtside evaluate", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
     _add_database_args(p)
     p.add_argument("--protocol", choices=PROTOCOLS, default="loo")
@@ -137,23 +137,37 @@ def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.R
         json.dump(out, fh, indent=1)
 
 
+def load_report(path: str) -> dict:
+    """A `--json` report for `--compare`: read, and its structure checked (every row's keys and compared values),
+    so a file of another shape is one line naming it, not a KeyError in the table."""
+    try:
+        with open(path) as fh:
+            report = json.load(fh)
+    except (OSError, ValueError) as exc:
+        raise MalformedFileError(path, None, f"not a readable --json report ({exc})") from None
+    groups = report.get("groups") if isinstance(report, dict) else None
+    if not isinstance(groups, dict) or not all(isinstance(rows, list) for rows in groups.values()):
+        raise MalformedFileError(path, None, "not a --json report: no 'groups' object of row lists")
+    numbers = [field for field, _ in table.COMPARED]
+    for group, rows in groups.items():
+        for row in rows:
+            if not (isinstance(row, dict) and all(isinstance(row.get(k), str) for k in ("engine", "sensors", "camera"))
+                    and all(isinstance(row.get(k), (int, float)) for k in numbers)):
+                raise MalformedFileError(path, None, f"group {group!r}: a row without engine/sensors/camera strings "
+                                                     f"and {', '.join(numbers)} numbers")
+    return report
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    first = argparse.ArgumentParser(add_help=False)
+    first = ArgumentParser(add_help=False)
     first.add_argument("--protocol", choices=PROTOCOLS, default="loo")
     known, rest = first.parse_known_args(argv)
     if known.protocol == "loo" and not {"-h", "--help", "--compare"} & set(argv):
         return leave_one_out_main(rest)  # seed 000 Tables 2/3, with its own options (--variants ...)
     args = build_parser().parse_args(argv)
     if args.compare:
-        reports = []
-        for path in args.compare:
-            try:
-                with open(path) as fh:
-                    reports.append(json.load(fh))
-            except (OSError, ValueError) as exc:
-                raise CourtsideError(f"{path}: not a readable --json report ({exc})") from exc
-        print(table.format_comparison(*reports))
+        print(table.format_comparison(*(load_report(path) for path in args.compare)))
         return 0
     if not (args.clips or args.sample or args.mocap_dir):
         args.sample = True

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load_sensor_calibration,
                           placements_from_calibration, sample_clips, standard_placements, write_bvh)
 
@@ -78,7 +78,7 @@ def load_clips(args: argparse.Namespace, config: GraphConfig):
 
 @cli_command("courtside build-graph")
 def build_graph_main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="courtside build-graph", description="Build a motion graph from mocap clips.")
+    p = ArgumentParser(prog="courtside build-graph", description="Build a motion graph from mocap clips.")
     p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
     _add_database_args(p)
     p.add_argument("-o", "--output", required=True, help="graph .npz (a .json summary is written beside it)")
@@ -134,8 +134,8 @@ def build_graph_main(argv: list[str]) -> int:
 
 
 def graph_info_main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="courtside graph-info",
-                                description="What a motion graph can do: size, strongly connected components, "
+    p = ArgumentParser(prog="courtside graph-info",
+                       description="What a motion graph can do: size, strongly connected components, "
                                             "dead ends, clips reachable, turn rates and speeds covered.")
     p.add_argument("graph", help="graph .npz from build-graph")
     print(format_report(graph_report(MotionGraph.load(p.parse_args(argv).graph))))
@@ -184,7 +184,7 @@ def synthesize_main(argv: list[str]) -> int:
 
     from engine.stream.registry import engine_names
 
-    p = argparse.ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
+    p = ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
     p.add_argument("--engine", choices=engine_names(), default="motion-graph",
                    help="synthesis engine (engine.stream.registry); every engine but the motion graph runs online "
                         "(as the console) and writes joint positions: -o OUT.npz, the --save-poses format")
@@ -377,8 +377,8 @@ def _synthesize_online(args: argparse.Namespace) -> int:
 def evaluate_main(argv: list[str]) -> int:
     from .evaluate import Setting, leave_one_out, summarise
 
-    p = argparse.ArgumentParser(prog="courtside evaluate",
-                                description="Leave-one-out evaluation (seed 000 Tables 2/3) on real mocap.")
+    p = ArgumentParser(prog="courtside evaluate",
+                       description="Leave-one-out evaluation (seed 000 Tables 2/3) on real mocap.")
     p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
     _add_database_args(p)
     p.add_argument("--variants", default="plain,msv", help="comma list of plain, msv, interp, msv+interp")

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import json
 import logging
-import zipfile
 from pathlib import Path
 
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from engine.array_checks import READ_ERRORS
 from engine.errors import CourtsideError, MalformedFileError
 
 log = logging.getLogger(__name__)
@@ -30,7 +30,7 @@ def open_npz(path: Path) -> np.lib.npyio.NpzFile:
     """An .npz opened without pickle; anything else (empty, truncated, .npy, a pickle) is a MalformedFileError."""
     try:
         data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except READ_ERRORS as exc:
         hint = ("; a device recording (CSV/TSV, Xsens, x-IMU3) becomes a take with `courtside import-imu`"
                 if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx") else "")
         raise MalformedFileError(path, None, f"not a readable .npz ({exc}){hint}") from None
@@ -45,7 +45,7 @@ def array(path: Path, data, name: str, ndim: int | None = None, kind: str = "flo
         value = data[name]
     except ValueError as exc:  # object arrays need pickle, which is never allowed
         raise MalformedFileError(path, None, f"'{name}' cannot be read without pickle ({exc})") from None
-    except (OSError, EOFError, zipfile.BadZipFile) as exc:  # a damaged member of the archive
+    except READ_ERRORS as exc:  # a damaged member of the archive
         raise MalformedFileError(path, None, f"'{name}' is damaged ({exc})") from None
     if kind == "str":
         if value.dtype.kind not in "US":

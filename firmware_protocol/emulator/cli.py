@@ -13,7 +13,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from engine.errors import CourtsideError, cli_command
+from engine.errors import ArgumentParser, CourtsideError, cli_command
 
 from .link import EmulatorLink
 from .motion import MocapSource, MotionSource, TraceSource
@@ -23,8 +23,8 @@ from .station import BaseStation, StationConfig
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside emulate", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(prog="courtside emulate", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--stations", type=int, default=1, help="number of stations (ids 1..N, seed + id - 1)")
     for name, (field, _, help_text) in STATION_OPTIONS.items():
         if name == "autostart":

@@ -7,14 +7,13 @@ The take is an `import-imu` file, or the gateway's own recording (`courtside gat
 station each, and no station holds all the worn sensors)."""
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from engine.errors import CourtsideError, MalformedFileError
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError
 from engine.graph.input_checks import open_npz, parse_sensor_map
 from engine.mocap import STANDARD_SENSORS
 from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, calibrate_recording,
@@ -90,7 +89,7 @@ def _windows(texts: list[str] | None) -> dict[str, tuple[float, float]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="courtside calibrate", description=__doc__)
+    p = ArgumentParser(prog="courtside calibrate", description=__doc__)
     p.add_argument("take", help="take .npz from `courtside import-imu`, or a gateway recording exported with "
                                 "`courtside gateway export --npz` (with --sensor-map)")
     p.add_argument("--sensor-map", nargs="+", default=None, metavar="STATION/SENSOR=PLACEMENT",
