@@ -22,8 +22,8 @@ READ_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
 
 
 def load_npz(path: str | Path, what: str) -> dict[str, np.ndarray]:
-    """Every array of an .npz (no pickle), read now; a file that cannot be read as one is refused, naming
-    ``what`` it should have been."""
+    """Every array of an .npz (no pickle), read now; a file that cannot be read as one is refused: "cannot read
+    <what> (<why>)"."""
     try:
         npz = np.load(path, allow_pickle=False)
         if not isinstance(npz, np.lib.npyio.NpzFile):
@@ -31,18 +31,18 @@ def load_npz(path: str | Path, what: str) -> dict[str, np.ndarray]:
         with npz:
             return {key: npz[key] for key in npz.files}
     except READ_ERRORS as exc:
-        raise MalformedFileError(path, None, f"not {what} ({exc})") from None
+        raise MalformedFileError(path, None, f"cannot read {what} ({exc})") from None
 
 
 def load_npy(path: str | Path, what: str) -> np.ndarray:
-    """One array saved with numpy.save (no pickle); anything else is refused, naming ``what`` it should be."""
+    """One array saved with numpy.save (no pickle); anything else is refused: "cannot read <what> (<why>)"."""
     try:
         value = np.load(path, allow_pickle=False)
     except READ_ERRORS as exc:
-        raise MalformedFileError(path, None, f"not {what} ({exc})") from None
+        raise MalformedFileError(path, None, f"cannot read {what} ({exc})") from None
     if not isinstance(value, np.ndarray):
         value.close()
-        raise MalformedFileError(path, None, f"not {what} (an .npz archive, not one array)")
+        raise MalformedFileError(path, None, f"cannot read {what} (an .npz archive, not one array)")
     return value
 
 KINDS = {"f": ("real numbers", "fiu"), "i": ("integers", "iu"), "b": ("booleans", "b"), "U": ("strings", "U")}

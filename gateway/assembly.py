@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Callable
 from engine.errors import CourtsideError
 from gateway import auth
 from gateway.court_config import CameraConfig, CourtConfig, check_consistent
-from gateway.daemon import Gateway
+from gateway.daemon.core import Gateway
 from gateway.names import free_name
 from gateway.server import RequestError
 

@@ -18,6 +18,7 @@ from scipy.sparse.csgraph import connected_components
 
 from engine.array_checks import READ_ERRORS
 from engine.errors import CourtsideError, MalformedFileError
+from engine.export_format import ACC_G, MESSAGES, T_HOST_S, sensor_key
 
 log = logging.getLogger(__name__)
 
@@ -96,21 +97,22 @@ def check_synthesis_file(path: Path, data, graph_sensors: list[str]) -> None:
 def check_gateway_export(path: Path, data, keys: list[str]) -> None:
     """The export layout: per recorded sensor ``<key>/acc_g`` (N, 3) and ``<key>/t_host_s`` (N,) increasing."""
     for key in keys:
-        if f"{key}/t_host_s" not in data.files:
-            raise MalformedFileError(path, None, f"'{key}/acc_g' has no '{key}/t_host_s' beside it")
-        acc = array(path, data, f"{key}/acc_g", 2)
-        t = array(path, data, f"{key}/t_host_s", 1)
+        acc_key, t_key = sensor_key(key, ACC_G), sensor_key(key, T_HOST_S)
+        if t_key not in data.files:
+            raise MalformedFileError(path, None, f"'{acc_key}' has no '{t_key}' beside it")
+        acc = array(path, data, acc_key, 2)
+        t = array(path, data, t_key, 1)
         if acc.shape[1] != 3 or len(acc) != len(t):
             raise MalformedFileError(path, None, f"'{key}': acc_g {acc.shape} and t_host_s {t.shape} must be "
                                                  "(N, 3) and (N,)")
         # a real recording may step back now and then (the online clock map re-fits; engine.stream drops samples
         # that are not after every earlier one, live and offline alike), but overall its times must increase
         if len(t) < 2 or not np.all(np.isfinite(t)) or not t[-1] > t[0] or np.mean(np.diff(t) > 0) < 0.5:
-            raise MalformedFileError(path, None, f"'{key}/t_host_s' must hold at least 2 finite, increasing times")
-        _check_finite(path, f"{key}/acc_g", acc[:, None], 1.0 / float(np.median(np.diff(t))))
-    if "messages" in data.files:
+            raise MalformedFileError(path, None, f"'{t_key}' must hold at least 2 finite, increasing times")
+        _check_finite(path, acc_key, acc[:, None], 1.0 / float(np.median(np.diff(t))))
+    if MESSAGES in data.files:
         try:
-            messages = json.loads(str(array(path, data, "messages", 0, kind="str")))
+            messages = json.loads(str(array(path, data, MESSAGES, 0, kind="str")))
         except json.JSONDecodeError as exc:
             raise MalformedFileError(path, None, f"'messages' is not JSON ({exc})") from None
         if not isinstance(messages, list) or not all(isinstance(m, dict) for m in messages):

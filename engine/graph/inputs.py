@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.export_format import ACC_G, MESSAGES, META, TIME_COLUMNS, recorded_sensors, sensor_key
 from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
 from engine.stream import CameraTrack, FrameBatch, FrameResampler, RecordedStreams, resample_uniform, take_start_s
 
@@ -34,7 +35,6 @@ from .input_checks import check_gateway_export, check_observations, check_sensor
 from .viterbi import Observations
 
 HEURISTIC_SPEED_MPS = SEED_HEADING_SPEED_MPS
-TIME_COLUMNS = ("t_host_s", "t_realigned_s")
 
 
 @dataclass
@@ -104,7 +104,7 @@ def recorded_streams(path: Path, data, graph_sensors: list[str], sensor_map: dic
     column). Columns are in graph-sensor order, as the console feeds them live."""
     if times not in TIME_COLUMNS:
         raise ValueError(f"times must be one of {TIME_COLUMNS}, not {times!r}")
-    keys = sorted({k.rsplit("/", 1)[0] for k in data.files if k.endswith("/acc_g")})
+    keys = recorded_sensors(data.files)
     if not keys:
         raise MalformedFileError(path, None, "no 'acc_g' array and no '<station>/<sensor>/acc_g' arrays")
     check_gateway_export(path, data, keys)
@@ -117,13 +117,13 @@ def recorded_streams(path: Path, data, graph_sensors: list[str], sensor_map: dic
     used = sorted(mapping, key=lambda k: graph_sensors.index(mapping[k]))
     samples = {}
     for k in used:
-        if f"{k}/{times}" not in data.files:
+        if sensor_key(k, times) not in data.files:
             raise MalformedFileError(path, None, f"sensor {k} has no '{times}' array")
-        samples[k] = (np.asarray(data[f"{k}/{times}"], float), np.asarray(data[f"{k}/acc_g"], float))
-    meta = _json(path, data, "meta", {})
+        samples[k] = (np.asarray(data[sensor_key(k, times)], float), np.asarray(data[sensor_key(k, ACC_G)], float))
+    meta = _json(path, data, META, {})
     if not isinstance(meta, dict):
         raise MalformedFileError(path, None, "'meta' must be a JSON object (the recording's header)")
-    cams = [m for m in _json(path, data, "messages", []) if m.get("kind") == "camera" and m.get("t_host_s") is not None]
+    cams = [m for m in _json(path, data, MESSAGES, []) if m.get("kind") == "camera" and m.get("t_host_s") is not None]
     cams.sort(key=lambda m: float(m["t_host_s"]))
     camera = [(float(m["t_host_s"]), m.get("position_m"), m.get("heading_rad")) for m in cams]
     streams = RecordedStreams(samples, camera, meta.get("started_t_host_s"))

@@ -36,11 +36,6 @@ def frame_at_or_after(t_s: float, rate_hz: float) -> int:
     return int(math.ceil(t_s * rate_hz - _EPS))
 
 
-def frame_times(first: int, count: int, rate_hz: float) -> np.ndarray:
-    """Times (s) of frames ``first .. first + count - 1``: ``k / rate_hz`` exactly as every caller computes it."""
-    return np.arange(first, first + count, dtype=np.int64) / rate_hz
-
-
 @dataclass
 class FrameBatch:
     """Frames ``index`` (F,) int64 at ``t_s`` (F,), accelerations ``acc_g`` (F, S, 3) (NaN where invalid) and

@@ -76,7 +76,7 @@ class TraceSource:
     @classmethod
     def from_npy(cls, path: str | Path, fps: float) -> TraceSource:
         """Load an (F, S, 3) g trace saved with numpy.save; errors name the file."""
-        acc = load_npy(path, "an (F, S, 3) g trace saved with numpy.save")
+        acc = load_npy(path, "trace")
         try:
             return cls(acc, fps)
         except ValueError as exc:

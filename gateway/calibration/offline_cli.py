@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import ArgumentParser, CourtsideError, MalformedFileError
+from engine.export_format import recorded_sensors
 from engine.graph.input_checks import open_npz, parse_sensor_map
 from engine.mocap import STANDARD_SENSORS
 from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, calibrate_recording,
@@ -48,7 +49,7 @@ def _read_take(path: Path, sensor_map: dict[str, str] | None = None) -> tuple[np
     """acc_g (T, S, 3), fps, placement names, sensor ids (source labels) of a synthesis-input take, or of a
     gateway export when ``sensor_map`` is given."""
     with open_npz(path) as data:
-        is_export = "acc_g" not in data.files and any(k.endswith("/acc_g") for k in data.files)
+        is_export = "acc_g" not in data.files and bool(recorded_sensors(data.files))  # engine.export_format
     if is_export:
         if not sensor_map:
             raise MalformedFileError(path, None, "a gateway recording: say which sensor is worn where with "
