@@ -16,6 +16,7 @@ A take's synthesis starts at a frame fixed by the take itself: ``TAKE_START_MARG
 sensor's first recorded batch arrive, so the take holds the samples bracketing the first frame's window."""
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -30,11 +31,15 @@ TAKE_START_MARGIN_S = 0.5
 
 class OnlineEngine(Protocol):
     """What the path drives: one frame per `push` (acc (S, 3) g or None for a dropout, court position (2,) m or
-    None, heading rad or None); returns decided poses, each with ``t`` (0-based push index) and
-    ``joint_positions_m`` (J, 3), optionally ``confidence``. `flush` decides what is still pending (end of input)."""
+    None, heading rad or None, and keyword-only the sensors' orientations ``quat_wxyz`` (S, 4) sensor -> device
+    earth (Z up, yaw per sensor) and angular rates ``gyro_rps`` (S, 3), None when not streamed, NaN rows where a
+    sensor has none); returns decided poses, each with ``t`` (0-based push index) and ``joint_positions_m``
+    (J, 3), optionally ``confidence``. `flush` decides what is still pending (end of input). An engine that
+    cannot use a channel ignores it."""
 
     def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None,
-             heading_rad: float | None = None) -> list[Any]: ...
+             heading_rad: float | None = None, *, quat_wxyz: np.ndarray | None = None,
+             gyro_rps: np.ndarray | None = None) -> list[Any]: ...
 
     def flush(self) -> list[Any]: ...
 
@@ -55,6 +60,8 @@ class StreamStats:
     frames_in: int = 0          # frames pushed to the engine since the (re)start
     frames_invalid: int = 0     # ... of which without accelerations (a sensor dropout)
     frames_with_camera: int = 0  # ... of which with a camera position
+    frames_with_orientation: int = 0  # ... of which with some sensor's orientation (a non-NaN quaternion)
+    frames_with_gyro: int = 0  # ... of which with some sensor's angular rate
     poses_out: int = 0
     # data that arrived after the frames it belongs to were pushed (later than the waits): while both are 0 (and
     # the gateway dropped nothing for this client), these poses are exactly what offline synthesis of the take gives
@@ -96,8 +103,9 @@ class StreamSynthesis:
         self.restart(start_s)
 
     # -- input ----------------------------------------------------------------------------------------------------
-    def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
-        self.resampler.add(sensor, t_s, acc_g)
+    def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray, quat_wxyz: np.ndarray | None = None,
+                    gyro_rps: np.ndarray | None = None) -> None:
+        self.resampler.add(sensor, t_s, acc_g, quat_wxyz, gyro_rps)
         self.stats.late_samples = self.resampler.late_samples
 
     def add_camera(self, t_s: float, position_m: Any, heading_rad: float | None = None) -> None:
@@ -108,6 +116,7 @@ class StreamSynthesis:
         """A fresh engine (e.g. after a lag change) whose first frame is the first at or after ``start_s``; up to
         ``history_s`` (2 s) of buffered data can be revisited. None: carry on from the next frame."""
         self.engine = self._make()
+        self._engine_channels = engine_channels(self.engine)
         self.first_frame = None
         self.stats = StreamStats()
         if start_s is not None:
@@ -149,10 +158,14 @@ class StreamSynthesis:
                 self.first_frame = int(batch.index[k])
             p = None if np.isnan(pos[k]).any() else pos[k]
             h = None if not self.use_camera_heading or np.isnan(head[k]) else float(head[k])
-            poses += self._poses(self.engine.push(batch.acc_g[k] if batch.valid[k] else None, p, h))
+            channels = _channels(batch, k)
+            poses += self._poses(self.engine.push(batch.acc_g[k] if batch.valid[k] else None, p, h,
+                                                  **{n: v for n, v in channels.items() if n in self._engine_channels}))
             self.stats.frames_in += 1
             self.stats.frames_invalid += int(not batch.valid[k])
             self.stats.frames_with_camera += int(p is not None)
+            self.stats.frames_with_orientation += int(_has_values(channels.get("quat_wxyz")))
+            self.stats.frames_with_gyro += int(_has_values(channels.get("gyro_rps")))
         self._t_pushed = float(batch.t_s[-1])
         self.camera.trim_before(self._t_pushed)
         return poses
@@ -168,12 +181,39 @@ class StreamSynthesis:
         return out
 
 
+def _channels(batch: FrameBatch, k: int) -> dict[str, np.ndarray]:
+    """Frame k's orientation / angular-rate keywords for `OnlineEngine.push`: only the channels that stream (an
+    accelerometer-only take pushes exactly what it always did), None on an invalid frame."""
+    out = {}
+    for name in ("quat_wxyz", "gyro_rps"):
+        values = getattr(batch, name)
+        if values is not None:
+            out[name] = values[k] if batch.valid[k] else None
+    return out
+
+
+def engine_channels(engine: Any) -> frozenset[str]:
+    """Which of ``quat_wxyz`` / ``gyro_rps`` the engine's `push` names as parameters: an engine written before
+    the orientation channels existed is still driven, without them (so a take with orientations never breaks
+    an engine that cannot use them)."""
+    try:
+        names = inspect.signature(engine.push).parameters
+    except (TypeError, ValueError):
+        return frozenset()
+    return frozenset(n for n in ("quat_wxyz", "gyro_rps") if n in names)
+
+
+def _has_values(values: np.ndarray | None) -> bool:
+    return values is not None and not np.isnan(values).all()
+
+
 @dataclass
 class RecordedStreams:
-    """A take's raw inputs as the gateway recorded them: per live sensor (t_host_s (N,), acc_g (N, 3)), camera
-    fixes (t_host_s, position_m or None, heading_rad or None) in time order, and the recorder's start time."""
+    """A take's raw inputs as the gateway recorded them: per live sensor (t_host_s (N,), acc_g (N, 3)[,
+    quat_wxyz (N, 4) or None, gyro_rps (N, 3) or None]), camera fixes (t_host_s, position_m or None, heading_rad
+    or None) in time order, and the recorder's start time."""
 
-    samples: dict[Hashable, tuple[np.ndarray, np.ndarray]]
+    samples: dict[Hashable, tuple[np.ndarray, ...]]
     camera: list[tuple[float, Any, float | None]] = field(default_factory=list)
     started_t_host_s: float | None = None
 
@@ -188,8 +228,7 @@ def synthesize_streams(make_engine: Callable[[], OnlineEngine], streams: Recorde
     session = StreamSynthesis(make_engine, sensors, rate_hz, start_s=start_s, max_gap_s=max_gap_s,
                               camera_max_gap_s=camera_max_gap_s, use_camera_heading=use_camera_heading)
     for key in sensors:
-        t, acc = streams.samples[key]
-        session.add_samples(key, t, acc)
+        session.add_samples(key, *streams.samples[key])
     for t, pos, heading in streams.camera:
         session.add_camera(t, pos, heading)
     return session.finish(), session
