@@ -139,3 +139,60 @@ def test_frames_pushed_in_slices_are_the_offline_frames_and_the_backlog_is_measu
     for (a1, p1, _), (a2, p2, _) in zip(sliced, logs[-1].pushed):
         assert (a1 is None) == (a2 is None) and (a1 is None or np.array_equal(a1, a2))
         assert (p1 is None) == (p2 is None) and (p1 is None or np.array_equal(p1, p2))
+
+
+class ChannelLog(InputLog):
+    """An engine that takes orientation and angular rate (the issue-18 protocol) and keeps them."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.channels: list[tuple] = []
+
+    def push(self, acc_g, pos_m=None, heading_rad=None, *, quat_wxyz=None, gyro_rps=None):
+        self.channels.append((None if quat_wxyz is None else quat_wxyz.copy(),
+                              None if gyro_rps is None else gyro_rps.copy()))
+        return super().push(acc_g, pos_m, heading_rad)
+
+
+def with_orientation(rec: RecordedStreams) -> RecordedStreams:
+    """The same take with every sensor also streaming a turning orientation (sign flips as devices send them)
+    and its angular rate."""
+    samples = {}
+    for k, (t, acc) in rec.samples.items():
+        half = 0.5 * (1.0 + k) * t
+        quat = np.c_[np.cos(half), np.sin(half), np.zeros((len(t), 2))] * np.where(np.arange(len(t)) % 3, 1, -1)[:, None]
+        samples[k] = (t, acc, quat, np.tile([1.0 + k, 0.0, 0.0], (len(t), 1)))
+    return RecordedStreams(samples, rec.camera, rec.started_t_host_s)
+
+
+def test_live_orientations_equal_offline_bit_for_bit():
+    rec = with_orientation(recorded())
+    logs = []
+    make = lambda: logs.append(ChannelLog()) or logs[-1]  # noqa: E731
+    live = StreamSynthesis(make, [0, 1, 2], 30.0, start_s=take_start_s(rec.started_t_host_s))
+    for t_end in np.arange(50.1, 57.6, 0.1):
+        for k, (t, a, q, g) in rec.samples.items():
+            sl = (t > t_end - 0.1) & (t <= t_end)
+            live.add_samples(k, t[sl], a[sl], q[sl], g[sl])
+        for fix in [c for c in rec.camera if t_end - 0.1 < c[0] <= t_end]:
+            live.add_camera(*fix)
+        live.step()
+    live_log = logs[-1].channels
+    _, offline = synthesize_streams(make, rec, [0, 1, 2], 30.0)
+    offline_log = logs[-1].channels
+    assert live.stats.reproducible and len(live_log) > 100
+    assert offline.stats.frames_with_orientation == offline.stats.frames_with_gyro > 100
+    n = min(len(live_log), len(offline_log))
+    for (q1, g1), (q2, g2) in zip(live_log[:n], offline_log[:n]):
+        assert (q1 is None) == (q2 is None)   # None: the dropout frames, as for the accelerations
+        assert q1 is None or (np.array_equal(q1, q2) and np.array_equal(g1, g2))
+    assert sum(q is None for q, _ in live_log) > 10
+    valid = [q for q, _ in live_log if q is not None]
+    np.testing.assert_allclose(np.linalg.norm(valid, axis=-1), 1.0, atol=1e-12)
+
+
+def test_an_engine_without_the_channels_is_pushed_what_it_always_was():
+    rec = with_orientation(recorded(2.0))
+    logs = []
+    _, session = synthesize_streams(lambda: logs.append(InputLog()) or logs[-1], rec, [0, 1, 2], 30.0)
+    assert len(logs[-1].pushed) > 20 and session.stats.frames_with_orientation > 20
