@@ -78,14 +78,22 @@ class TraceStore:
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self.history_s = history_s
         self.rings: dict[Hashable, SampleRing] = {}
+        # (sensor, "quat_wxyz" | "gyro_rps") -> ring, for sensors that stream orientation / angular rate
+        self.channel_rings: dict[tuple[Hashable, str], SampleRing] = {}
+        self._channel_queue: queue.SimpleQueue = queue.SimpleQueue()
         # (sequence number, t_s, label): numbered so a view can tell which markers it already drew; events older
         # than the history are dropped like samples, so markers never pile up over a long session
         self.events: list[tuple[int, float, str]] = []
         self._event_seq = 0
 
-    def put(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
-        """Enqueue a batch of samples for one sensor (any thread; never blocks)."""
+    def put(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray, quat_wxyz: np.ndarray | None = None,
+            gyro_rps: np.ndarray | None = None) -> None:
+        """Enqueue a batch of samples for one sensor, with its orientation / angular rate when it streams them
+        (any thread; never blocks)."""
         self._queue.put((sensor, t_s, acc_g))
+        for name, values in (("quat_wxyz", quat_wxyz), ("gyro_rps", gyro_rps)):
+            if values is not None:
+                self._channel_queue.put(((sensor, name), t_s, values))
 
     def put_event(self, t_s: float, label: str) -> None:
         self._queue.put((None, t_s, label))
@@ -107,6 +115,16 @@ class TraceStore:
             if ring is None:
                 ring = self.rings[sensor] = SampleRing(self.capacity, 3)
             ring.append(t_s, payload)
+        while n < max_batches:
+            try:
+                key, t_s, values = self._channel_queue.get_nowait()
+            except queue.Empty:
+                break
+            n += 1
+            ring = self.channel_rings.get(key)
+            if ring is None:
+                ring = self.channel_rings[key] = SampleRing(self.capacity, np.shape(values)[-1])
+            ring.append(t_s, values)
         latest = self.latest_time()
         if latest is not None and self.events and self.events[0][1] < latest - self.history_s:
             self.events = [e for e in self.events if e[1] >= latest - self.history_s]

@@ -44,6 +44,7 @@ class EngineSpec:
     lag_applies: bool = True        # False: the engine decides each frame at once (OLNG)
     graph: Any = None               # the motion graph (motion-graph engine): what pose streaming needs
     skeleton: Any = None            # engine.mocap.Skeleton of the emitted poses, when known
+    inputs: tuple[str, ...] = ("acc",)  # channels the engine uses: "acc", "orientation", "gyro" (status bar)
 
     @property
     def label(self) -> str:
