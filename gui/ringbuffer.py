@@ -101,30 +101,21 @@ class TraceStore:
     def drain(self, max_batches: int = 5000) -> int:
         """Move queued batches into the rings (GUI thread). Bounded so one tick cannot stall the UI."""
         n = 0
-        while n < max_batches:
-            try:
-                sensor, t_s, payload = self._queue.get_nowait()
-            except queue.Empty:
-                break
-            n += 1
-            if sensor is None:
-                self._event_seq += 1
-                self.events.append((self._event_seq, float(t_s), str(payload)))
-                continue
-            ring = self.rings.get(sensor)
-            if ring is None:
-                ring = self.rings[sensor] = SampleRing(self.capacity, 3)
-            ring.append(t_s, payload)
-        while n < max_batches:
-            try:
-                key, t_s, values = self._channel_queue.get_nowait()
-            except queue.Empty:
-                break
-            n += 1
-            ring = self.channel_rings.get(key)
-            if ring is None:
-                ring = self.channel_rings[key] = SampleRing(self.capacity, np.shape(values)[-1])
-            ring.append(t_s, values)
+        for source, rings in ((self._queue, self.rings), (self._channel_queue, self.channel_rings)):
+            while n < max_batches:
+                try:
+                    key, t_s, payload = source.get_nowait()
+                except queue.Empty:
+                    break
+                n += 1
+                if key is None:
+                    self._event_seq += 1
+                    self.events.append((self._event_seq, float(t_s), str(payload)))
+                    continue
+                ring = rings.get(key)
+                if ring is None:
+                    ring = rings[key] = SampleRing(self.capacity, np.shape(payload)[-1])
+                ring.append(t_s, payload)
         latest = self.latest_time()
         if latest is not None and self.events and self.events[0][1] < latest - self.history_s:
             self.events = [e for e in self.events if e[1] >= latest - self.history_s]

@@ -8,31 +8,17 @@ orientation and angular rate, and the engine's `EngineSpec.inputs`."""
 from __future__ import annotations
 
 import os
-import re
 import signal
 import subprocess
 import sys
-import time
 
 import pytest
 
 from engine.stream.poses_file import load_poses
+from tests.gateway.court_setup import start_gateway
 
 HOST = "127.0.0.7"
 CLIP = "16_01"
-
-
-def _start_gateway(cwd, *args: str) -> tuple[subprocess.Popen, int]:
-    proc = subprocess.Popen([sys.executable, "-m", "gateway.cli", "gateway", *args], cwd=cwd,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        line = proc.stdout.readline()
-        assert line, f"gateway exited early ({proc.poll()}): {proc.stderr.read()[-2000:]}"
-        if match := re.match(rf"gateway listening on {re.escape(HOST)}:(\d+)", line):
-            return proc, int(match[1])
-    proc.kill()
-    raise AssertionError("gateway did not start")
 
 
 @pytest.mark.slow
@@ -42,8 +28,8 @@ def test_console_process_receives_and_pushes_orientations(tmp_path):
 
     clips = sample_clips()
     assert build_graph_main([str(clips["16_11"]), str(clips[CLIP]), "-o", str(tmp_path / "g.npz")]) == 0
-    gateway, port = _start_gateway(tmp_path, "--emulate", "2", "--emulate-orientation", "--emulate-clip", CLIP,
-                                   "--listen", f"{HOST}:0")
+    gateway, port = start_gateway(tmp_path, "--emulate", "2", "--emulate-orientation", "--emulate-clip", CLIP,
+                                  "--listen", f"{HOST}:0", mode="no authentication: loopback only")
     try:
         env = dict(os.environ, QT_QPA_PLATFORM="offscreen", COURTSIDE_CACHE_DIR=str(tmp_path / "cache"))
         console = subprocess.run([sys.executable, "-m", "gateway.cli", "console", "--connect", f"{HOST}:{port}",
