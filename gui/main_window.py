@@ -331,7 +331,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             conf = "" if pose is None or pose.confidence is None else f", confidence {pose.confidence:.2f}"
             lag = f"lag {s.lag_s:.2f} s, " if self.synthesis.engine.lag_applies else ""
             parts.append(f"{self.synthesis.engine.label}: {lag}{s.frames_per_s:.0f} frames/s, "
-                         f"{input_summary(self.synthesis.engine.inputs, s)}, "
+                         f"{streamed_summary(s)}, "
                          f"{s.push_ms:.1f} ms/frame{conf}"
                          + (f", {s.frames_invalid} frames without a sensor" if s.frames_invalid else "")
                          + (f", {s.late_samples} samples / {s.late_fixes} camera fixes came after their frames"
@@ -485,9 +485,10 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.client.close()
 
 
-def input_summary(engine_inputs: tuple[str, ...], stats: Any) -> str:
-    """What the engine uses and what the sensors stream, e.g. ``uses acc+orientation (streamed: acc+orientation+
-    gyro)``: so an operator sees at once that orientations arrive and whether this engine listens to them."""
+def streamed_summary(stats: Any) -> str:
+    """The channels the frames pushed so far carried, e.g. ``streamed acc+orientation+gyro``; beside the engine
+    label, which ends with the channels the engine uses (`EngineSpec.label`), an operator sees at once that
+    orientations arrive and whether this engine listens to them."""
     streamed = ["acc"] + [name for name, frames in (("orientation", stats.frames_with_orientation),
                                                      ("gyro", stats.frames_with_gyro)) if frames]
-    return f"uses {'+'.join(engine_inputs)} (streamed: {'+'.join(streamed)})"
+    return f"streamed {'+'.join(streamed)}"

@@ -16,32 +16,17 @@ A take's synthesis starts at a frame fixed by the take itself: ``TAKE_START_MARG
 sensor's first recorded batch arrive, so the take holds the samples bracketing the first frame's window."""
 from __future__ import annotations
 
-import inspect
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from .camera import CameraTrack
+from .engines import OnlineEngine
 from .frames import FrameBatch, FrameResampler
 
 TAKE_START_MARGIN_S = 0.5
-
-
-class OnlineEngine(Protocol):
-    """What the path drives: one frame per `push` (acc (S, 3) g or None for a dropout, court position (2,) m or
-    None, heading rad or None, and keyword-only the sensors' orientations ``quat_wxyz`` (S, 4) sensor -> device
-    earth (Z up, yaw per sensor) and angular rates ``gyro_rps`` (S, 3), None when not streamed, NaN rows where a
-    sensor has none); returns decided poses, each with ``t`` (0-based push index) and ``joint_positions_m``
-    (J, 3), optionally ``confidence``. `flush` decides what is still pending (end of input). An engine that
-    cannot use a channel ignores it."""
-
-    def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None,
-             heading_rad: float | None = None, *, quat_wxyz: np.ndarray | None = None,
-             gyro_rps: np.ndarray | None = None) -> list[Any]: ...
-
-    def flush(self) -> list[Any]: ...
 
 
 @dataclass(frozen=True)
@@ -116,7 +101,6 @@ class StreamSynthesis:
         """A fresh engine (e.g. after a lag change) whose first frame is the first at or after ``start_s``; up to
         ``history_s`` (2 s) of buffered data can be revisited. None: carry on from the next frame."""
         self.engine = self._make()
-        self._engine_channels = engine_channels(self.engine)
         self.first_frame = None
         self.stats = StreamStats()
         if start_s is not None:
@@ -159,13 +143,12 @@ class StreamSynthesis:
             p = None if np.isnan(pos[k]).any() else pos[k]
             h = None if not self.use_camera_heading or np.isnan(head[k]) else float(head[k])
             channels = _channels(batch, k)
-            poses += self._poses(self.engine.push(batch.acc_g[k] if batch.valid[k] else None, p, h,
-                                                  **{n: v for n, v in channels.items() if n in self._engine_channels}))
+            poses += self._poses(self.engine.push(batch.acc_g[k] if batch.valid[k] else None, p, h, **channels))
             self.stats.frames_in += 1
             self.stats.frames_invalid += int(not batch.valid[k])
             self.stats.frames_with_camera += int(p is not None)
-            self.stats.frames_with_orientation += int(_has_values(channels.get("quat_wxyz")))
-            self.stats.frames_with_gyro += int(_has_values(channels.get("gyro_rps")))
+            self.stats.frames_with_orientation += int(channels["quat_wxyz"] is not None)
+            self.stats.frames_with_gyro += int(channels["gyro_rps"] is not None)
         self._t_pushed = float(batch.t_s[-1])
         self.camera.trim_before(self._t_pushed)
         return poses
@@ -181,30 +164,16 @@ class StreamSynthesis:
         return out
 
 
-def _channels(batch: FrameBatch, k: int) -> dict[str, np.ndarray]:
-    """Frame k's orientation / angular-rate keywords for `OnlineEngine.push`: only the channels that stream (an
-    accelerometer-only take pushes exactly what it always did), None on an invalid frame."""
+def _channels(batch: FrameBatch, k: int) -> dict[str, np.ndarray | None]:
+    """Frame k's ``quat_wxyz`` / ``gyro_rps`` keywords for `OnlineEngine.push`: None when the take does not
+    stream the channel, on an invalid frame (a dropout, as for the accelerations) and when no sensor has a value
+    (the rule `engine.stream.drive_frames` applies offline); else the (S, ...) row, NaN for sensors without."""
     out = {}
     for name in ("quat_wxyz", "gyro_rps"):
         values = getattr(batch, name)
-        if values is not None:
-            out[name] = values[k] if batch.valid[k] else None
+        usable = values is not None and batch.valid[k] and not np.isnan(values[k]).all()
+        out[name] = values[k] if usable else None
     return out
-
-
-def engine_channels(engine: Any) -> frozenset[str]:
-    """Which of ``quat_wxyz`` / ``gyro_rps`` the engine's `push` names as parameters: an engine written before
-    the orientation channels existed is still driven, without them (so a take with orientations never breaks
-    an engine that cannot use them)."""
-    try:
-        names = inspect.signature(engine.push).parameters
-    except (TypeError, ValueError):
-        return frozenset()
-    return frozenset(n for n in ("quat_wxyz", "gyro_rps") if n in names)
-
-
-def _has_values(values: np.ndarray | None) -> bool:
-    return values is not None and not np.isnan(values).all()
 
 
 @dataclass

@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from engine.stream.poses_file import load_poses
@@ -51,11 +52,14 @@ def test_console_process_receives_and_pushes_orientations(tmp_path):
 def test_status_bar_names_the_engine_inputs_and_the_streamed_channels():
     from types import SimpleNamespace
 
-    from gui.main_window import input_summary
+    from engine.stream.engines import EngineSpec
+    from gui.main_window import streamed_summary
 
-    streaming = SimpleNamespace(frames_with_orientation=10, frames_with_gyro=10)
-    assert input_summary(("acc",), streaming) == "uses acc (streamed: acc+orientation+gyro)"
-    assert input_summary(("acc", "orientation"), SimpleNamespace(frames_with_orientation=3, frames_with_gyro=0)) \
-        == "uses acc+orientation (streamed: acc+orientation)"
-    assert input_summary(("acc",), SimpleNamespace(frames_with_orientation=0, frames_with_gyro=0)) == \
-        "uses acc (streamed: acc)"
+    spec = EngineSpec("motion-graph", "g.npz", ("chest",), 30.0, np.zeros(1, int), lambda lag: None,
+                      inputs=("acc", "orientation"))
+    assert spec.label.endswith("acc+orientation)")  # what the engine uses, in the status bar's engine label
+    assert streamed_summary(SimpleNamespace(frames_with_orientation=10, frames_with_gyro=10)) == \
+        "streamed acc+orientation+gyro"
+    assert streamed_summary(SimpleNamespace(frames_with_orientation=3, frames_with_gyro=0)) == \
+        "streamed acc+orientation"
+    assert streamed_summary(SimpleNamespace(frames_with_orientation=0, frames_with_gyro=0)) == "streamed acc"
