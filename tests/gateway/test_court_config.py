@@ -169,9 +169,18 @@ def test_flags_override_the_file_and_are_checked_the_same_way(tmp_path):
     assert with_overrides(file_only, {"auth.operator_secret_file": "s"}).authenticated
 
 
-def _gateway_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+def _gateway_cli(*args: str, cwd: Path, preexec_fn=None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "gateway.cli", "gateway", *args], cwd=cwd, capture_output=True,
-                          text=True, timeout=60)
+                          text=True, timeout=60, preexec_fn=preexec_fn)
+
+
+def _no_file_writes() -> None:
+    """In the child: every write to a file fails with EFBIG, as on a full disk (a full quota)."""
+    import resource
+    import signal
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (0, 0))
 
 
 def test_cli_refuses_a_bad_config_with_one_line_and_exit_2(tmp_path):
@@ -235,9 +244,18 @@ def test_cli_exit_1_when_it_cannot_start_now(tmp_path):
     assert "WARN" not in result.stderr, result.stderr  # OpenCV's own "can't open camera by index" lines
     result = _gateway_cli("--camera", "/dev/video63", "--court", "absent.json", cwd=tmp_path)
     assert result.returncode == 2 and "absent.json" in result.stderr
-    (tmp_path / "not-a-dir").write_text("")  # the first take cannot be started (as on a full disk)
-    result = _gateway_cli("--record-dir", "not-a-dir", "--record", "x", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    # the first take cannot be started now (a full disk): exit 1, a restart may help
+    result = _gateway_cli("--record-dir", "rec", "--record", "x", "--listen", "127.0.0.4:0", cwd=tmp_path,
+                          preexec_fn=_no_file_writes)
     assert result.returncode == 1 and "cannot start recording" in result.stderr and "Traceback" not in result.stderr
+    # a record_dir that is a file is a bad config, not a passing fault (issue 22: it exited 1): exit 2, one line
+    (tmp_path / "not-a-dir").write_text("")
+    result = _gateway_cli("--record-dir", "not-a-dir", "--record", "x", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert "--record-dir: " in result.stderr and "not-a-dir exists and is not a directory" in result.stderr
+    config = write(tmp_path, 'record_dir = "not-a-dir"\n')
+    result = _gateway_cli("--config", str(config), "--duration", "0", cwd=tmp_path)
+    assert result.returncode == 2 and f"{config}, line 1: record_dir: " in result.stderr, result.stderr
 
 
 def test_a_config_built_in_code_is_checked_too(tmp_path):

@@ -1,0 +1,95 @@
+"""The one way user files' JSON and TOML are parsed: depth-safe, every failure a `MalformedFileError`.
+
+Why one place (issue 22): ``[[[[…`` 100 000 deep as a calibration record or a court JSON ended in a
+`RecursionError` traceback, because each loader caught only the decode errors it knew about. Both `json` and
+`tomllib` recurse per nesting level, and a 5 000-digit integer raises a plain `ValueError`. Every JSON/TOML
+document that comes from a user's file (calibration records, court calibrations, clicks, court configs, the JSON
+inside a graph or take) goes through these functions, so the whole class fails as one line naming the file.
+
+Documents are also refused when nested deeper than `MAX_DEPTH` (checked without recursion): nothing the project
+writes is deeper than a few levels, and a bound keeps any later recursive walk of the document safe.
+"""
+from __future__ import annotations
+
+import json
+import re
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from engine.errors import MalformedFileError
+
+MAX_DEPTH = 64  # deepest nesting accepted; the project's own documents use at most ~5 levels
+
+
+def _depth_ok(doc: Any) -> bool:
+    """True when ``doc`` nests lists/dicts at most `MAX_DEPTH` deep (iterative: safe on any depth)."""
+    stack: list[tuple[Any, int]] = [(doc, 1)]
+    while stack:
+        item, depth = stack.pop()
+        children = item.values() if isinstance(item, dict) else item if isinstance(item, list) else None
+        if children is None:
+            continue
+        if depth > MAX_DEPTH:
+            return False
+        stack.extend((child, depth + 1) for child in children)
+    return True
+
+
+def _too_deep(path: str | Path) -> MalformedFileError:
+    return MalformedFileError(path, None, f"nested more than {MAX_DEPTH} levels deep (not a Courtside document)")
+
+
+def parse_json(text: str | bytes, path: str | Path) -> Any:
+    """``text`` as JSON; any problem (syntax, depth, huge integers, not UTF-8) is a `MalformedFileError` naming
+    ``path`` (the file the text came from, or e.g. ``"g.npz: header_json"``)."""
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise MalformedFileError(path, exc.lineno, f"not JSON ({exc.msg})") from None
+    except UnicodeDecodeError:
+        raise MalformedFileError(path, None, "not a text file (not UTF-8)") from None
+    except RecursionError:
+        raise _too_deep(path) from None
+    except ValueError as exc:  # e.g. an integer of more than 4300 digits
+        raise MalformedFileError(path, None, f"not usable JSON ({str(exc)[:120]})") from None
+    if not _depth_ok(doc):
+        raise _too_deep(path)
+    return doc
+
+
+def read_bytes(path: str | Path) -> bytes:
+    """The file's bytes; an unreadable file (missing, a directory, no permission) is a `MalformedFileError`."""
+    try:
+        return Path(path).read_bytes()
+    except OSError as exc:
+        raise MalformedFileError(path, None, f"cannot read: {exc.strerror or exc}") from None
+
+
+def read_json(path: str | Path) -> Any:
+    """The JSON document in the file ``path`` (see `parse_json`)."""
+    return parse_json(read_bytes(path), path)
+
+
+def parse_toml(text: str, path: str | Path) -> dict[str, Any]:
+    """``text`` as TOML; syntax errors keep their line (``MalformedFileError.line``), depth is bounded."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MalformedFileError(path, *_toml_where(str(exc))) from None
+    except RecursionError:
+        raise _too_deep(path) from None
+    except ValueError as exc:  # e.g. an integer of more than 4300 digits
+        raise MalformedFileError(path, None, f"not valid TOML ({str(exc)[:120]})") from None
+    if not _depth_ok(doc):
+        raise _too_deep(path)
+    return doc
+
+
+def _toml_where(message: str) -> tuple[int | None, str]:
+    """(line, problem) from a TOMLDecodeError message (Python 3.11 has no ``lineno`` attribute)."""
+    where = re.search(r"\(at line (\d+), column (\d+)\)", message)
+    if where is None:
+        return None, f"not valid TOML: {message.strip()}"
+    problem = message.replace(where[0], f"(column {where[2]})").strip()
+    return int(where[1]), f"not valid TOML: {problem}"
