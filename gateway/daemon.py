@@ -85,6 +85,7 @@ class Gateway:
         handshake_timeout_s: float = 5.0,
         tls: "ssl.SSLContext | None" = None,
         sample_sinks: tuple[Callable[[SampleBlock], None], ...] = (),
+        server_options: dict[str, Any] | None = None,  # more StreamServer limits (e.g. queue_budget_bytes)
     ):
         self.name = name
         self.sample_sinks = tuple(sample_sinks)  # e.g. gateway.lsl.LslPublisher.on_block: every block, reader thread
@@ -101,7 +102,7 @@ class Gateway:
         self.server = StreamServer(self.handle_request, host=listen[0], port=listen[1], hello=self._hello,
                                    display_queue_frames=display_queue_frames, secrets=secrets,
                                    max_clients=max_clients, handshake_timeout_s=handshake_timeout_s, name=name,
-                                   tls=tls)
+                                   tls=tls, **(server_options or {}))
         # discovery functions polled for hot-plugged stations (True = USB serial + HID by VID:PID)
         self.discoverers = [discover_serial, discover_hid] if discover is True else list(discover or [])
         self.samples_in = 0
