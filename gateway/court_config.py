@@ -177,6 +177,8 @@ def _strings(value: Any) -> tuple[str, ...]:
     for i, item in enumerate(value):
         if not isinstance(item, str) or not item.strip():
             raise _Bad(f"item {i} is {_describe(item)}, expected a non-empty string")
+        if "\x00" in item:
+            raise _Bad(f"item {i} contains a NUL byte (\\u0000)")
     return tuple(value)
 
 

@@ -29,7 +29,7 @@ import firmware_protocol as fp
 from gateway import auth, wire
 from gateway.device_checks import I32_MAX, I32_MIN, command_int
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
-from gateway.recorder import Recorder, export_csv, export_npz
+from gateway.recorder import Recorder, export_take
 from gateway.names import BadNameError, check_name
 from gateway.server import RequestError, StreamServer
 from gateway.station import SampleBlock, StationReader
@@ -503,10 +503,8 @@ def _export_main(argv: list[str]) -> int:
     if not args.npz and not args.csv_dir and not args.xdf:
         print("courtside gateway export: give --npz, --csv-dir and/or --xdf", file=sys.stderr)
         return 2
-    if args.npz:  # a bad recording raises RecordingError: the courtside dispatcher reports it in one line
-        print(f"wrote {export_npz(args.recording, args.npz)}")
-    if args.csv_dir:
-        for path in export_csv(args.recording, args.csv_dir):
+    if args.npz or args.csv_dir:  # a bad recording raises RecordingError: the dispatcher reports it in one line
+        for path in export_take(args.recording, args.npz, args.csv_dir):
             print(f"wrote {path}")
     if args.xdf:
         from gateway.xdf import export_xdf

@@ -114,6 +114,14 @@ def test_an_empty_file_gives_the_defaults(tmp_path):
     ('record = ".."\n', 1, "starts with a dot"),
     ('max_clients = 0\n', 1, "max_clients: 0 is out of range 1..1024"),
     ('handshake_timeout_s = 0\n', 1, "handshake_timeout_s: 0 is out of range"),
+    # issue 22: every duration and rate has a physical bound; NUL bytes are refused naming the key
+    ('handshake_timeout_s = 1e-300\n', 1, "handshake_timeout_s: 1e-300 is out of range (>= 0.1"),
+    ('status_interval_s = 1e-9\n', 1, "status_interval_s: 1e-09 is out of range (>= 0.05"),
+    ('[camera]\nfps = 1e-300\n', 2, "camera.fps: 1e-300 is out of range (>= 1"),
+    ('record_dir = "rec\\u0000ordings"\n', 1, "record_dir: contains a NUL byte"),
+    ('[auth]\noperator_secret_file = "a\\u0000b"\n', 2, "auth.operator_secret_file: contains a NUL byte"),
+    ('[stations]\nports = ["/dev/tty\\u0000S0"]\n', 2, "stations.ports: item 0"),
+    ('name = "court\\u0000"\n', 1, "name: contains a NUL byte"),
     ('status_interval_s = nan\n', 1, "status_interval_s: nan is out of range"),
     ('[camera]\nsource = -2\ncourt = "c.json"\n', 2, "camera.source: -2 is out of range 0..63"),
     ('[camera]\nsource = "x.mp4"\ncourt = "c.json"\nplayer_side = "left"\n', 4, "camera.player_side: expected one of"),
@@ -139,6 +147,8 @@ def test_refusals_name_the_file_line_and_key(tmp_path, text, line, fragment):
     ('[camera]\nsource = "clip.mp4"\n', "camera.court is not"),
     ('[auth]\nviewer_secret_file = "v"\n', "needs auth.operator_secret_file"),
     ('[auth]\noperator_secret_file = "o"\ntls_cert = "c.pem"\n', "TLS needs both"),
+    ('[auth]\noperator_secret_file = "s"\nviewer_secret_file = "./s"\n',
+     "auth.viewer_secret_file and auth.operator_secret_file are the same file"),
 ])
 def test_rules_across_keys(tmp_path, text, fragment):
     with pytest.raises(MalformedFileError, match=fragment):
@@ -264,3 +274,24 @@ def test_a_config_built_in_code_is_checked_too(tmp_path):
 
     with pytest.raises(CourtsideError, match="beyond loopback"):
         build_court(CourtConfig(listen=("0.0.0.0", 0), record_dir=tmp_path))
+
+
+def test_record_dir_that_is_a_file_is_a_bad_config(tmp_path):
+    (tmp_path / "file").write_text("")
+    path = write(tmp_path, 'record_dir = "file"\n\n[calibration]\nrecords_dir = "."\n')
+    with pytest.raises(MalformedFileError, match=r"line 1: record_dir: .*file exists and is not a directory"):
+        load_court_config(path)
+    with pytest.raises(CourtsideError, match="--record-dir: .* is not a directory"):
+        with_overrides(CourtConfig(), {"record_dir": str(tmp_path / "file")}, {"record_dir": "--record-dir"})
+
+
+def test_one_secret_in_two_files_is_refused_naming_both(tmp_path):
+    from gateway import auth
+
+    auth.write_secret_file(tmp_path / "op")
+    (tmp_path / "viewer").write_bytes((tmp_path / "op").read_bytes())
+    (tmp_path / "viewer").chmod(0o600)
+    with pytest.raises(MalformedFileError) as info:
+        auth.Secrets.from_files(tmp_path / "op", tmp_path / "viewer")
+    assert info.value.path == str(tmp_path / "viewer") and str(tmp_path / "op") in str(info.value)
+    assert "viewer_secret_file holds the same secret as operator_secret_file" in str(info.value)
