@@ -23,6 +23,7 @@ import numpy as np
 import firmware_protocol as fp
 from gateway.clock import ClockEstimator, TickUnwrapper
 from gateway.device_checks import batch_problem, hello_problem
+from gateway.device_text import EventThrottle, escape as escape_device_text
 from gateway.links import Link, LinkError, SerialLink
 from gateway.stats import SensorStats
 
@@ -32,6 +33,8 @@ PRE_HELLO_FRAMES = 5000
 HELLO_RETRY_S = 1.0
 CLOCK_PROBE_INTERVAL_S = 0.1
 REFUSAL_EVENT_INTERVAL_S = 10.0  # at most one event per kind of refused message in this time (counts are exact)
+ERROR_EVENT_BURST = 3  # station ERROR messages: this many events at once, then one per interval (all counted)
+ERROR_EVENT_INTERVAL_S = 10.0
 
 
 @dataclass
@@ -118,6 +121,9 @@ class StationReader:
         self.invalid_fields = 0  # HELLO / SAMPLE_BATCH messages refused for impossible field values
         self.last_invalid: str | None = None
         self._refusal_event_s: dict[str, float] = {}
+        self.device_errors = 0  # ERROR messages from the station (events for them are throttled)
+        self.last_device_error: str | None = None  # escaped
+        self._error_throttle = EventThrottle(ERROR_EVENT_BURST, ERROR_EVENT_INTERVAL_S)
         self.link_error: str | None = None  # why the link cannot be opened (None once it is open)
         self._last_ticks: dict[object, float] = {}  # per sensor (last sample) and "sync": newest unwrapped ticks
         self.connected_at_s: float | None = None
@@ -311,7 +317,17 @@ class StationReader:
                 pending.reply = msg
                 pending.event.set()
         elif isinstance(msg, fp.Error):
-            self.sink.on_station_event(self.name, "warning", f"station error {msg.code}: {msg.text}")
+            self._on_device_error(msg)
+
+    def _on_device_error(self, msg: fp.Error) -> None:
+        """A station's ERROR: its text escaped (no forged log lines, no bidi tricks) and events throttled; every
+        one is counted in status (``device_errors``, ``last_device_error``)."""
+        self.device_errors += 1
+        self.last_device_error = f"{msg.code}: {escape_device_text(str(msg.text))}"
+        if self._error_throttle.allow(time.monotonic()):
+            held = self._error_throttle.take_suppressed()
+            self.sink.on_station_event(self.name, "warning", f"station error {self.last_device_error}"
+                                       + (f" ({held} more station errors not shown)" if held else ""))
 
     def _sensor(self, sensor_id: int) -> SensorStats:
         stats = self.sensors.get(sensor_id)
@@ -454,6 +470,8 @@ class StationReader:
                 "boot_id": hello.boot_id if hello else None, "tick_hz": hello.tick_rate_hz if hello else None,
                 "reconnects": self.reconnects, "internal_errors": self.internal_errors, "battery_pct": self.station_battery_pct,
                 "invalid_fields": self.invalid_fields, "last_invalid": self.last_invalid, "link_error": self.link_error,
+                "device_errors": self.device_errors, "last_device_error": self.last_device_error,
+                "device_error_events_suppressed": self._error_throttle.suppressed_total,
                 "buffered_samples": self.station_buffered_samples, **counts,
                 "clock": clock, "sensors": sensors,
             }

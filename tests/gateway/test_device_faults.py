@@ -204,3 +204,56 @@ def test_command_values_that_do_not_fit_the_wire_get_a_clear_error(tmp_path, arg
         assert "struct" not in str(info.value)
     finally:
         gw.server.close()
+
+
+FORGED = "buffer overflow\n2026-12-02 12:00:00 CRITICAL gateway: operator secret rotated\r\x1b[2J\u202egnp.exe\u200b"
+
+
+def test_station_error_text_is_escaped_and_its_events_throttled(caplog):
+    """Issue 22: a station's ERROR text went into events and logs unchanged (a newline forged a log line, U+202E
+    reversed the text) and 500 ERROR frames made 500 events. Through a real Gateway's event path (which logs)."""
+    from gateway.device_text import escape
+
+    gw = Gateway([], listen=("127.0.0.8", 0), record_dir="/nonexistent-never-written")
+    sink = Sink()
+    reader = StationReader("replay", sink)
+    reader.sink = _Tee(sink, gw)
+    frames = _Frames()
+    try:
+        with caplog.at_level("INFO", logger="gateway"):
+            reader.feed(frames(HELLO, *[fp.Error(1, FORGED)] * 500), 1.0)
+    finally:
+        gw.server.close()
+    errors = [e for e in sink.events if "station error" in e[2]]
+    assert len(errors) == 3  # the burst; the rest counted
+    status = reader.status()
+    assert status["device_errors"] == 500 and status["device_error_events_suppressed"] == 497
+    for text in [e[2] for e in errors] + [status["last_device_error"]] + [r.getMessage() for r in caplog.records]:
+        assert text.isprintable() and "\u202e" not in text and "\x1b" not in text, repr(text)
+    assert "\\n2026-12-02 12:00:00 CRITICAL" in errors[0][2] and "\\u202e" in errors[0][2] and "\\x1b[2J" in errors[0][2]
+    assert escape("a\\nb") == "a\\\\nb"  # a backslash in the text cannot forge an escape
+    assert escape("x" * 500).endswith("... (300 more characters)") and len(escape("x" * 500)) < 230
+
+
+class _Tee:
+    """Station events to the test's sink and to a real gateway's publish/log path."""
+
+    def __init__(self, sink, gateway):
+        self.sink, self.gateway = sink, gateway
+
+    def on_samples(self, block):
+        self.sink.on_samples(block)
+
+    def on_station_event(self, station, level, message, details=None):
+        self.sink.on_station_event(station, level, message, details)
+        self.gateway.on_station_event(station, level, message, details)
+
+
+def test_event_throttle_lets_a_burst_through_then_one_per_interval_and_counts_the_rest():
+    from gateway.device_text import EventThrottle
+
+    throttle = EventThrottle(burst=3, interval_s=10.0)
+    assert [throttle.allow(0.0) for _ in range(5)] == [True, True, True, False, False]
+    assert not throttle.allow(9.0) and throttle.suppressed == 3
+    assert throttle.allow(11.0) and throttle.take_suppressed() == 3 and throttle.suppressed_total == 3
+    assert not throttle.allow(11.5)
