@@ -6,8 +6,9 @@ Why one place (issue 22): ``[[[[…`` 100 000 deep as a calibration record or a 
 document that comes from a user's file (calibration records, court calibrations, clicks, court configs, the JSON
 inside a graph or take) goes through these functions, so the whole class fails as one line naming the file.
 
-Documents are also refused when nested deeper than `MAX_DEPTH` (checked without recursion): nothing the project
-writes is deeper than a few levels, and a bound keeps any later recursive walk of the document safe.
+Documents are also refused when nested deeper than `MAX_DEPTH` (checked without recursion: nothing the project
+writes is deeper than a few levels, and a bound keeps any later recursive walk of the document safe) or when a
+key or string holds a NUL character.
 """
 from __future__ import annotations
 
@@ -22,22 +23,34 @@ from engine.errors import MalformedFileError
 MAX_DEPTH = 64  # deepest nesting accepted; the project's own documents use at most ~5 levels
 
 
-def _depth_ok(doc: Any) -> bool:
-    """True when ``doc`` nests lists/dicts at most `MAX_DEPTH` deep (iterative: safe on any depth)."""
+def _structure_problem(doc: Any) -> str | None:
+    """Why ``doc`` is refused: nested deeper than `MAX_DEPTH`, or a NUL character in a key or string (no path,
+    name or label may hold one; the OS would cut or refuse it later, far from this file). Iterative: safe on
+    any depth."""
     stack: list[tuple[Any, int]] = [(doc, 1)]
     while stack:
         item, depth = stack.pop()
-        children = item.values() if isinstance(item, dict) else item if isinstance(item, list) else None
+        if isinstance(item, str):
+            if "\x00" in item:
+                return f"a string holds a NUL character (\\u0000): {item[:40]!r}"
+            continue
+        children = [*item.keys(), *item.values()] if isinstance(item, dict) else item if isinstance(item, list) else None
         if children is None:
             continue
         if depth > MAX_DEPTH:
-            return False
+            return f"nested more than {MAX_DEPTH} levels deep (not a Courtside document)"
         stack.extend((child, depth + 1) for child in children)
-    return True
+    return None
 
 
 def _too_deep(path: str | Path) -> MalformedFileError:
     return MalformedFileError(path, None, f"nested more than {MAX_DEPTH} levels deep (not a Courtside document)")
+
+
+def _check_structure(doc: Any, path: str | Path) -> None:
+    problem = _structure_problem(doc)
+    if problem:
+        raise MalformedFileError(path, None, problem)
 
 
 def parse_json(text: str | bytes, path: str | Path) -> Any:
@@ -53,8 +66,7 @@ def parse_json(text: str | bytes, path: str | Path) -> Any:
         raise _too_deep(path) from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
         raise MalformedFileError(path, None, f"not usable JSON ({str(exc)[:120]})") from None
-    if not _depth_ok(doc):
-        raise _too_deep(path)
+    _check_structure(doc, path)
     return doc
 
 
@@ -81,8 +93,7 @@ def parse_toml(text: str, path: str | Path) -> dict[str, Any]:
         raise _too_deep(path) from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
         raise MalformedFileError(path, None, f"not valid TOML ({str(exc)[:120]})") from None
-    if not _depth_ok(doc):
-        raise _too_deep(path)
+    _check_structure(doc, path)
     return doc
 
 
