@@ -69,7 +69,8 @@ class SampleBlock:
 class StationSink(Protocol):
     """Where a reader delivers its output (the `Gateway`). Called on the reader thread: must not block.
     Optional: ``on_clock_point(station, epoch, raw_ticks, ticks, arrival_s, tick_hz)`` for every CLOCK_SYNC,
-    so the recorder can keep the raw clock evidence for an offline re-fit."""
+    so the recorder can keep the raw clock evidence for an offline re-fit; ``claim_station_name(reader, wanted)
+    -> name`` once, at a link's first frame, so two links announcing one station id get different names."""
 
     def on_samples(self, block: SampleBlock) -> None: ...
 
@@ -115,6 +116,7 @@ class StationReader:
         self.link_state = "connecting"
         self.transport = "hid" if source.startswith("hid:") else "serial"
         self.station_id: int | None = None
+        self._claimed_name: str | None = None
         self.hello: fp.Hello | None = None
         self.reconnects = 0
         self.internal_errors = 0
@@ -142,8 +144,9 @@ class StationReader:
     # -- naming -----------------------------------------------------------------------------------------------
     @property
     def name(self) -> str:
-        """Station id used everywhere downstream (``st<frame station id>``); the source until a frame arrives."""
-        return f"st{self.station_id}" if self.station_id is not None else self.source
+        """Station id used everywhere downstream (``st<frame station id>``, or ``st<id>-dup<n>`` when another
+        link already uses that id: `StationSink.claim_station_name`); the source until a frame arrives."""
+        return self._claimed_name or self.source
 
     # -- thread -----------------------------------------------------------------------------------------------
     def start(self) -> "StationReader":
@@ -277,6 +280,11 @@ class StationReader:
 
     def _handle(self, frame: fp.DecodedFrame, arrival_s: float) -> None:
         if self.station_id is None:
+            # the sink may re-key a station whose id another link already uses (issue 22: two stations with one
+            # id were merged into one stream that could not be separated afterwards)
+            claim = getattr(self.sink, "claim_station_name", None)
+            wanted = f"st{frame.station_id}"
+            self._claimed_name = claim(self, wanted) if claim is not None else wanted
             self.station_id = frame.station_id
         elif frame.station_id != self.station_id:
             log.warning("%s: frame from station id %d on a link of station %d; ignored",
