@@ -415,8 +415,8 @@ class StationReader:
         self.clock.add(float(device_s[-1]), arrival_s)  # newest sample: least delivery latency
         stats = self._sensor(batch.sensor_id)
         stats.on_batch(batch.first_sample_counter, n, arrival_s)
-        t_host = self.clock.to_host(device_s)
-        stats.last_t_host_s = float(t_host[-1])
+        t_host = stats.monotonic_host_times(self.clock.to_host(device_s),  # never steps back (issue 22)
+                                            batch.sample_period_ticks / self.hello.tick_rate_hz)
         self.sink.on_samples(SampleBlock(
             station=self.name, sensor=batch.sensor_id, nominal_hz=stats.nominal_hz,
             clock_locked=self.clock.state.locked, epoch=self.unwrapper.epoch,

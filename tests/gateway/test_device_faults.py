@@ -257,3 +257,30 @@ def test_event_throttle_lets_a_burst_through_then_one_per_interval_and_counts_th
     assert not throttle.allow(9.0) and throttle.suppressed == 3
     assert throttle.allow(11.0) and throttle.take_suppressed() == 3 and throttle.suppressed_total == 3
     assert not throttle.allow(11.5)
+
+
+def test_host_time_never_steps_back_across_an_epoch_restart_or_a_warm_up_refit():
+    """Issue 22, item 10: the host time of a sample comes from the clock estimate, which restarts at a new epoch
+    and re-fits while warming up; either stepped a stream's recorded time back (2-16 ms, up to 9 ms in
+    warm-up). Each stream's t_host_s must increase; the raw ticks, arrivals and epoch stay as they were."""
+    sink = Sink()
+    reader = _reader(sink)
+    frames = _Frames()
+    t = 100.0
+    reader.feed(frames(HELLO), t)
+    # warm-up: single-sample batches 10 ms apart arriving 30 ms late, then one with no delivery latency: the
+    # lower-envelope fit moves 30 ms earlier at once, which put that sample 20 ms before its predecessor
+    for i in range(20):
+        reader.feed(frames(batch(0, i, 1_000_000 + i * 10_000, 1)), t + 0.01 * i + 0.030)
+    reader.feed(frames(batch(0, 20, 1_000_000 + 20 * 10_000, 1)), t + 0.20)
+    # a new epoch: the device clock steps back; its first batch (10 samples, 90 ms) arrives 50 ms after the last
+    last_arrival = t + 0.20
+    reader.feed(frames(batch(0, 21, 1_000_000 + 21 * 10_000 - 900_000, 10)), last_arrival + 0.05)
+    assert reader.unwrapper.epoch == 1
+    t_host = np.concatenate([b.t_host_s for b in sink.blocks])
+    assert np.all(np.diff(t_host) > 0), np.diff(t_host)
+    held = reader.status()["sensors"][0]["host_time_held"]
+    assert held >= 2  # the warm-up step and the new epoch's earliest samples
+    # what was held is not rewritten: the evidence for the offline re-fit is intact
+    assert np.array_equal(np.concatenate([b.arrival_s for b in sink.blocks])[-10:], np.full(10, last_arrival + 0.05))
+    assert [b.epoch for b in sink.blocks][-2:] == [0, 1]
