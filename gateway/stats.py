@@ -12,7 +12,7 @@ import numpy as np
 
 COUNTER_MODULUS = 1 << 32
 _HALF = COUNTER_MODULUS // 2
-MIN_STEP_OF_PERIOD = 0.5  # a held sample follows its predecessor by at least half the sample period
+MIN_STEP_OF_PERIOD = 0.1  # a held sample follows its predecessor by at least a tenth of the sample period
 
 
 @dataclass
@@ -54,9 +54,10 @@ class SensorStats:
         Why (issue 22): the host time of a sample comes from the station's clock estimate, which is re-fitted as
         it warms up and restarted at a new clock epoch; either stepped a stream's time back by 2-16 ms. Consumers
         (engine.stream, exports) need each stream's time to increase, so a sample the estimate puts less than
-        half a sample period (``period_s``) after its predecessor is held there, and the next ones follow at
-        that spacing until the estimate passes them (a slew, as NTP does, never a step back; each held sample is
-        counted in ``host_time_held``). The recording keeps each sample's raw ticks, arrival and epoch, so the
+        a tenth of a sample period (``period_s``) after its predecessor is held there, and the next ones follow
+        at that spacing until the estimate passes them (a slew, as NTP does, never a step back; each held sample
+        is counted in ``host_time_held``). A tenth, not more: an emulated station at 4x real time delivers its
+        samples a quarter period apart on the host clock, and the hold must still catch up. The recording keeps each sample's raw ticks, arrival and epoch, so the
         offline re-fit (``t_realigned_s``) is unaffected."""
         t = np.asarray(t_host_s, dtype=float)
         min_step_s = MIN_STEP_OF_PERIOD * period_s if period_s > 0 else 1e-6
