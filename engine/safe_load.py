@@ -16,7 +16,7 @@ import json
 import re
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from engine.errors import MalformedFileError
 
@@ -53,21 +53,29 @@ def _check_structure(doc: Any, path: str | Path) -> None:
         raise MalformedFileError(path, None, problem)
 
 
-def parse_json(text: str | bytes, path: str | Path) -> Any:
-    """``text`` as JSON; any problem (syntax, depth, huge integers, not UTF-8) is a `MalformedFileError` naming
-    ``path`` (the file the text came from, or e.g. ``"g.npz: header_json"``)."""
+def _parse(loads: Callable[[Any], Any], text: str | bytes, path: str | Path) -> Any:
+    """``loads(text)`` with every way it fails (syntax, depth, huge integers, not UTF-8) as one
+    `MalformedFileError` naming ``path``; then the structure check."""
     try:
-        doc = json.loads(text)
+        doc = loads(text)
     except json.JSONDecodeError as exc:
         raise MalformedFileError(path, exc.lineno, f"not JSON ({exc.msg})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise MalformedFileError(path, *_toml_where(str(exc))) from None
     except UnicodeDecodeError:
         raise MalformedFileError(path, None, "not a text file (not UTF-8)") from None
     except RecursionError:
         raise _too_deep(path) from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
-        raise MalformedFileError(path, None, f"not usable JSON ({str(exc)[:120]})") from None
+        raise MalformedFileError(path, None, f"not usable ({str(exc)[:120]})") from None
     _check_structure(doc, path)
     return doc
+
+
+def parse_json(text: str | bytes, path: str | Path) -> Any:
+    """``text`` as JSON; any problem is a `MalformedFileError` naming ``path`` (the file the text came from, or
+    e.g. ``"g.npz: 'header_json'"``)."""
+    return _parse(json.loads, text, path)
 
 
 def read_bytes(path: str | Path) -> bytes:
@@ -85,16 +93,7 @@ def read_json(path: str | Path) -> Any:
 
 def parse_toml(text: str, path: str | Path) -> dict[str, Any]:
     """``text`` as TOML; syntax errors keep their line (``MalformedFileError.line``), depth is bounded."""
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise MalformedFileError(path, *_toml_where(str(exc))) from None
-    except RecursionError:
-        raise _too_deep(path) from None
-    except ValueError as exc:  # e.g. an integer of more than 4300 digits
-        raise MalformedFileError(path, None, f"not valid TOML ({str(exc)[:120]})") from None
-    _check_structure(doc, path)
-    return doc
+    return _parse(tomllib.loads, text, path)
 
 
 def _toml_where(message: str) -> tuple[int | None, str]:

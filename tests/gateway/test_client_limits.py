@@ -12,6 +12,8 @@ from gateway.client import GatewayClient
 from gateway.daemon import Gateway
 from gateway.server import StreamServer
 
+from .test_station_reader import wait_for
+
 HOST = "127.0.0.7"
 
 
@@ -19,15 +21,6 @@ def _secret(tmp_path, name):
     path = tmp_path / name
     auth.write_secret_file(path)
     return auth.read_secret_file(path), path
-
-
-def _wait(predicate, timeout_s=10.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return False
 
 
 def test_viewers_filling_the_gateway_cannot_lock_the_operator_out(tmp_path):
@@ -47,12 +40,12 @@ def test_viewers_filling_the_gateway_cannot_lock_the_operator_out(tmp_path):
         # the operator gets in: the viewer that came first is told why and disconnected
         with GatewayClient(*gw.address, secret=operator_secret) as operator:
             assert operator.role == auth.OPERATOR and operator.start_recording("t1")["active"]
-            assert _wait(lambda: not viewers[0].connected)
+            assert wait_for(lambda: not viewers[0].connected, 10.0)
             assert viewers[1].connected and viewers[2].connected
             assert viewers[1].request("ping") and gw.server.authenticated_clients() == 3
             # a second operator finds the next viewer's slot
             with GatewayClient(*gw.address, secret=operator_secret) as second:
-                assert second.role == auth.OPERATOR and _wait(lambda: not viewers[1].connected)
+                assert second.role == auth.OPERATOR and wait_for(lambda: not viewers[1].connected, 10.0)
             operator.stop_recording()
         event = next((m for m in viewers[0].drain() if m.kind == "event"), None)
         assert event is not None and "operator needs this viewer's slot" in event["message"]
@@ -104,7 +97,7 @@ def test_clients_that_ask_without_reading_stay_within_the_byte_budget(tmp_path):
             assert reader.status()["n_clients"] >= 1 and reader.connected
         assert 0 < peak[0] <= budget, peak[0]
         # the non-readers were cut off (the kernel's buffers held only a few replies each)
-        assert _wait(lambda: len(gw.server.client_stats()) == 0), gw.server.client_stats()
+        assert wait_for(lambda: len(gw.server.client_stats()) == 0, 10.0), gw.server.client_stats()
         assert gw.server.queued_bytes == 0
         for sock in sockets:
             sock.close()
@@ -119,7 +112,7 @@ def test_display_frames_of_a_stalled_client_stay_within_its_byte_limit():
     try:
         sock = socket.create_connection(server.address, timeout=5)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-        assert _wait(lambda: server.authenticated_clients() == 1)
+        assert wait_for(lambda: server.authenticated_clients() == 1, 10.0)
         payload = {"x": os.urandom(4000).hex()}
         for _ in range(2000):  # 16 MB of display frames at a client that never reads
             server.publish("samples", payload)

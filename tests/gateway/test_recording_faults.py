@@ -174,15 +174,21 @@ def test_disk_full_closes_the_take_cleanly_and_recording_restarts_when_space_is_
     assert again.end["reason"] == "stopped"
 
 
-def test_disk_full_end_record_names_the_fault(tmp_path):
+def _take_ended_by_a_full_disk(record_dir) -> Recorder:
+    """Take "t" in ``record_dir``, recorded (flushed by hand) until a 40 kB disk is full."""
     disk = SimulatedDisk(free_bytes=40_000)
-    rec = Recorder(tmp_path, flush_interval_s=3600, opener=disk.open)
+    rec = Recorder(record_dir, flush_interval_s=3600, opener=disk.open)
     rec.start("t")
     i = 0
     while rec.active:
         rec.put_samples("st1", 0, _batch(i * 100, 100))
         rec._flush()
         i += 1
+    return rec
+
+
+def test_disk_full_end_record_names_the_fault(tmp_path):
+    rec = _take_ended_by_a_full_disk(tmp_path)
     state = rec.state()  # the backlog was freed with the take: its figures say 0, not their last value
     assert state["fault"] and state["samples_lost"] > 0 and state["backlog_bytes"] == state["samples_backlog"] == 0
     contents = read_recording(tmp_path / "t")
@@ -368,14 +374,7 @@ def test_export_of_a_faulted_take_warns_once(tmp_path, caplog):
     """`courtside gateway export --npz --csv-dir` of a take ended by a full disk: one warning (it was two)."""
     from gateway.daemon import main
 
-    disk = SimulatedDisk(free_bytes=40_000)
-    rec = Recorder(tmp_path, flush_interval_s=3600, opener=disk.open)
-    rec.start("t")
-    i = 0
-    while rec.active:
-        rec.put_samples("st1", 0, _batch(i * 100, 100))
-        rec._flush()
-        i += 1
+    _take_ended_by_a_full_disk(tmp_path)
     caplog.clear()
     with caplog.at_level("WARNING"):
         assert main(["export", str(tmp_path / "t"), "--npz", str(tmp_path / "o.npz"), "--csv-dir",

@@ -184,7 +184,7 @@ def test_odd_request_fields_are_refused_by_name(tmp_path, traced_errors, request
     assert traced_errors() == []
 
 
-def _impostor(proof: str) -> tuple[socket.socket, threading.Thread]:
+def impostor_gateway(proof: str) -> tuple[socket.socket, threading.Thread]:
     """A server without the secret that greets with a challenge and 'accepts' with ``proof``."""
     listener = socket.create_server((HOST, 0))
 
@@ -203,7 +203,7 @@ def _impostor(proof: str) -> tuple[socket.socket, threading.Thread]:
 
 
 def test_an_impostor_with_a_non_ascii_proof_is_an_authentication_error(tmp_path):
-    listener, thread = _impostor("é" * 64)
+    listener, thread = impostor_gateway("é" * 64)
     try:
         with pytest.raises(auth.AuthenticationError, match="could not prove it holds the secret"):
             GatewayClient(*listener.getsockname()[:2], secret=auth.read_secret_file(_secret(tmp_path, "s"))).connect()
@@ -212,8 +212,8 @@ def test_an_impostor_with_a_non_ascii_proof_is_an_authentication_error(tmp_path)
         listener.close()
 
 
-def test_the_console_exits_2_with_one_line_on_an_impostor(tmp_path):
-    listener, thread = _impostor("ü" * 64)
+def test_the_console_exits_2_with_one_line_on_animpostor_gateway(tmp_path):
+    listener, thread = impostor_gateway("ü" * 64)
     host, port = listener.getsockname()[:2]
     try:
         done = subprocess.run([sys.executable, "-m", "gateway.cli", "console", "--connect", f"{host}:{port}",
