@@ -229,8 +229,11 @@ def silent_asker(address: tuple[str, int], stop: threading.Event, tally: dict[st
         with sock:
             try:
                 while not stop.is_set():
-                    sock.sendall(request)
-            except OSError:  # cut off by the gateway (not reading), or the socket stalled: start again
+                    try:
+                        sock.sendall(request)
+                    except socket.timeout:  # the gateway is slow to read our requests: keep the connection
+                        continue
+            except OSError:  # cut off by the gateway (not reading): start again
                 with lock:
                     tally["silent asker cut off"] = tally.get("silent asker cut off", 0) + 1
         stop.wait(0.2)
