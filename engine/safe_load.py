@@ -7,8 +7,8 @@ document that comes from a user's file (calibration records, court calibrations,
 inside a graph or take) goes through these functions, so the whole class fails as one line naming the file.
 
 Documents are also refused when nested deeper than `MAX_DEPTH` (checked without recursion: nothing the project
-writes is deeper than a few levels, and a bound keeps any later recursive walk of the document safe) or when a
-key or string holds a NUL character.
+writes is deeper than a few levels, and a bound keeps any later recursive walk of the document safe) or, for
+JSON, when a key or string holds a NUL character (the TOML config's schema refuses those naming the key).
 """
 from __future__ import annotations
 
@@ -23,15 +23,15 @@ from engine.errors import MalformedFileError
 MAX_DEPTH = 64  # deepest nesting accepted; the project's own documents use at most ~5 levels
 
 
-def _structure_problem(doc: Any) -> str | None:
-    """Why ``doc`` is refused: nested deeper than `MAX_DEPTH`, or a NUL character in a key or string (no path,
-    name or label may hold one; the OS would cut or refuse it later, far from this file). Iterative: safe on
-    any depth."""
+def _structure_problem(doc: Any, nul_ok: bool) -> str | None:
+    """Why ``doc`` is refused: nested deeper than `MAX_DEPTH`, or (unless ``nul_ok``) a NUL character in a key or
+    string (no path, name or label may hold one; the OS would cut or refuse it later, far from this file).
+    Iterative: safe on any depth."""
     stack: list[tuple[Any, int]] = [(doc, 1)]
     while stack:
         item, depth = stack.pop()
         if isinstance(item, str):
-            if "\x00" in item:
+            if "\x00" in item and not nul_ok:
                 return f"a string holds a NUL character (\\u0000): {item[:40]!r}"
             continue
         children = [*item.keys(), *item.values()] if isinstance(item, dict) else item if isinstance(item, list) else None
@@ -47,13 +47,13 @@ def _too_deep(path: str | Path) -> MalformedFileError:
     return MalformedFileError(path, None, f"nested more than {MAX_DEPTH} levels deep (not a Courtside document)")
 
 
-def _check_structure(doc: Any, path: str | Path) -> None:
-    problem = _structure_problem(doc)
+def _check_structure(doc: Any, path: str | Path, nul_ok: bool) -> None:
+    problem = _structure_problem(doc, nul_ok)
     if problem:
         raise MalformedFileError(path, None, problem)
 
 
-def _parse(loads: Callable[[Any], Any], text: str | bytes, path: str | Path) -> Any:
+def _parse(loads: Callable[[Any], Any], text: str | bytes, path: str | Path, nul_ok: bool = False) -> Any:
     """``loads(text)`` with every way it fails (syntax, depth, huge integers, not UTF-8) as one
     `MalformedFileError` naming ``path``; then the structure check."""
     try:
@@ -68,7 +68,7 @@ def _parse(loads: Callable[[Any], Any], text: str | bytes, path: str | Path) -> 
         raise _too_deep(path) from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
         raise MalformedFileError(path, None, f"not usable ({str(exc)[:120]})") from None
-    _check_structure(doc, path)
+    _check_structure(doc, path, nul_ok)
     return doc
 
 
@@ -92,8 +92,9 @@ def read_json(path: str | Path) -> Any:
 
 
 def parse_toml(text: str, path: str | Path) -> dict[str, Any]:
-    """``text`` as TOML; syntax errors keep their line (``MalformedFileError.line``), depth is bounded."""
-    return _parse(tomllib.loads, text, path)
+    """``text`` as TOML; syntax errors keep their line (``MalformedFileError.line``), depth is bounded. NUL
+    characters are left to the caller's schema, which can name the key (`gateway.court_config` does)."""
+    return _parse(tomllib.loads, text, path, nul_ok=True)
 
 
 def _toml_where(message: str) -> tuple[int | None, str]:
