@@ -447,12 +447,13 @@ class StationReader:
             counts = dict(self.decoder_totals)
             for key, value in self._decoder_counts(self._decoder).items():
                 counts[key] = counts.get(key, 0) + value
+            hello = self.hello
+            kinds = {s.sensor_id: s.kind for s in hello.sensors} if hello else {}
             sensors = []
             for sensor_id in sorted(self.sensors):
                 stats = self.sensors[sensor_id]
                 stats.update_rate(now_s, rate_window_s)
-                sensors.append(stats.as_dict())
-            hello = self.hello
+                sensors.append({**stats.as_dict(), "channels": sensor_channels(kinds.get(sensor_id))})
             clock = self.clock.state.as_dict()
             if self.unwrapper is not None:
                 clock["wraps"] = self.unwrapper.wraps
@@ -467,6 +468,15 @@ class StationReader:
                 "buffered_samples": self.station_buffered_samples, **counts,
                 "clock": clock, "sensors": sensors,
             }
+
+
+def sensor_channels(kind: int | None) -> list[str]:
+    """The channels a HELLO sensor kind announces (`firmware_protocol.SensorKind` bits), in `EngineSpec.inputs`
+    names: ``["acc"]``, ``["acc", "orientation", "gyro"]`` ...; a sensor not in the HELLO streams accelerations."""
+    kind = fp.SensorKind.ACCELEROMETER if kind is None else kind
+    bits = ((fp.SensorKind.ACCELEROMETER, "acc"), (fp.SensorKind.ORIENTATION, "orientation"),
+            (fp.SensorKind.ANGULAR_RATE, "gyro"))
+    return [name for bit, name in bits if kind & bit]
 
 
 def _float32_or_none(values: np.ndarray | None) -> np.ndarray | None:
