@@ -22,6 +22,7 @@ from engine.graph.graph import MotionGraph, build_from_clips
 from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
+from engine.safe_load import read_json
 
 from . import protocols, table
 from .labels import clip_label
@@ -140,11 +141,7 @@ def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.R
 def load_report(path: str) -> dict:
     """A `--json` report for `--compare`: read, and its structure checked (every row's keys and compared values),
     so a file of another shape is one line naming it, not a KeyError in the table."""
-    try:
-        with open(path) as fh:
-            report = json.load(fh)
-    except (OSError, ValueError) as exc:
-        raise MalformedFileError(path, None, f"not a readable --json report ({exc})") from None
+    report = read_json(path)  # depth-safe (engine.safe_load): an unreadable or non-JSON file is one line
     groups = report.get("groups") if isinstance(report, dict) else None
     if not isinstance(groups, dict) or not all(isinstance(rows, list) for rows in groups.values()):
         raise MalformedFileError(path, None, "not a --json report: no 'groups' object of row lists")

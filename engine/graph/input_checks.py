@@ -19,6 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from engine.array_checks import READ_ERRORS
 from engine.errors import CourtsideError, MalformedFileError
 from engine.export_format import ACC_G, GYRO_RPS, MESSAGES, QUAT_WXYZ, T_HOST_S, sensor_key
+from engine.safe_load import parse_json
 
 log = logging.getLogger(__name__)
 
@@ -143,10 +144,7 @@ def check_gateway_export(path: Path, data, keys: list[str]) -> None:
         _check_finite(path, acc_key, acc[:, None], 1.0 / float(np.median(np.diff(t))))
         check_channels(path, data, sensor_key(key, ""), (len(acc),))
     if MESSAGES in data.files:
-        try:
-            messages = json.loads(str(array(path, data, MESSAGES, 0, kind="str")))
-        except json.JSONDecodeError as exc:
-            raise MalformedFileError(path, None, f"'messages' is not JSON ({exc})") from None
+        messages = parse_json(str(array(path, data, MESSAGES, 0, kind="str")), f"{path}: '{MESSAGES}'")
         if not isinstance(messages, list) or not all(isinstance(m, dict) for m in messages):
             raise MalformedFileError(path, None, "'messages' must be a JSON list of objects")
         for i, m in enumerate(messages):

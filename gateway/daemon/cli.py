@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, cli_command
 from gateway import auth
-from gateway.recorder import export_csv, export_npz
+from gateway.recorder import export_take
 
 from .core import DEFAULT_LISTEN
 
@@ -137,10 +137,8 @@ def _export_main(argv: list[str]) -> int:
     args = _export_parser().parse_args(argv)
     if not args.npz and not args.csv_dir and not args.xdf:
         raise CourtsideError("give --npz, --csv-dir and/or --xdf")
-    if args.npz:  # a bad recording raises RecordingError: the courtside dispatcher reports it in one line
-        print(f"wrote {export_npz(args.recording, args.npz)}")
-    if args.csv_dir:
-        for path in export_csv(args.recording, args.csv_dir):
+    if args.npz or args.csv_dir:  # a bad recording raises RecordingError: the dispatcher reports it in one line
+        for path in export_take(args.recording, args.npz, args.csv_dir):
             print(f"wrote {path}")
     if args.xdf:
         from gateway.xdf import export_xdf
