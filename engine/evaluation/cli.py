@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from engine.progress import add_quiet_argument
 from engine.errors import CourtsideError
 from engine.graph.cli import (_add_database_args, add_search_args, database_paths, evaluate_main as leave_one_out_main,
                               load_clips, weights_from_args)
@@ -73,6 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--compare", nargs=2, metavar=("BEFORE.json", "AFTER.json"),
                    help="print two --json reports side by side (before -> after) and exit")
+    add_quiet_argument(p)
     return p
 
 

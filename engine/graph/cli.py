@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine.progress import add_quiet_argument
 from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load_sensor_calibration,
                           placements_from_calibration, sample_clips, standard_placements, write_bvh)
@@ -23,6 +24,7 @@ from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .report import coverage_warning, format_report, graph_report, motion_range
 from .viterbi import SearchWeights
 from .warp import RootWarp, default_weights
+from engine import progress
 
 _BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+")
 
@@ -90,6 +92,7 @@ def build_graph_main(argv: list[str]) -> int:
     p.add_argument("--calibration", metavar="RECORD",
                    help="sensor-calibration record (.calibration.json from the gateway's calibration workflow): "
                         "virtual sensors use its measured sensor-to-segment rotations")
+    add_quiet_argument(p)
     args = p.parse_args(argv)
     check_non_negative("--threshold", [args.threshold], positive=True)
     config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold,
@@ -221,6 +224,7 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--stream-wait", type=float, default=5.0, help="--stream-bvh: wait this long for a client (s)")
     p.add_argument("--stream-vmc", metavar="[HOST:]PORT", help="also send the poses as VMC (OSC over UDP, e.g. 39539; "
                    "127.0.0.1 unless a host is given) to Unity/Blender/VSeeFace VMC receivers")
+    add_quiet_argument(p)
     args = p.parse_args(argv)
     graph = MotionGraph.load(args.graph)
     sensor_map = parse_sensor_map(args.sensor_map, graph.config.sensor_names)
@@ -344,7 +348,7 @@ def _fixed_lag_over_frames(synthesizer, take) -> list:
         return [FramePose(first + q.t, (first + q.t) / fps, q.joint_positions_m,
                           getattr(q, "confidence", None), q) for q in emitted]
 
-    for t in range(obs.n_samples):
+    for t in progress.bar(range(obs.n_samples), desc="synthesis", unit="frame"):
         acc = None if obs.acc_g is None or np.isnan(obs.acc_g[t]).any() else obs.acc_g[t]
         out += frame_poses(synthesizer.push(acc, None if obs.position_m is None else obs.position_m[t],
                                             None if obs.heading_rad is None else float(obs.heading_rad[t])))
@@ -362,6 +366,7 @@ def evaluate_main(argv: list[str]) -> int:
     p.add_argument("--variants", default="plain,msv", help="comma list of plain, msv, interp, msv+interp")
     p.add_argument("--test-clips", type=int, default=0, help="evaluate on N clips spread over the set (0 = all)")
     p.add_argument("--seed", type=int, default=0)
+    add_quiet_argument(p)
     args = p.parse_args(argv)
     if not (args.clips or args.sample or args.mocap_dir):
         args.sample = True
