@@ -13,7 +13,9 @@ Three phases in the same run, so the numbers can be read as ratios on whatever m
 Measured: ticks/s of the refresh timer, trace redraws/s and skeleton frames/s (each tick does at most one of
 them, gui/main_window.py), GUI-thread cost per tick (mean, p95, max) and its stages, event-loop latency (a probe
 thread emits a queued signal every 20 ms; latency = emit -> slot on the GUI thread), and the age of the newest
-sample on screen (gateway clock now - newest sample time, at each tick).
+sample on screen (gateway clock now - newest sample time, at each tick). CPU time of the GUI thread and of the
+whole process (per second of the phase, and the GUI thread's per heavy redraw) reads the cost without the queue
+for the CPU that a loaded machine adds to every wall-clock rate.
 """
 from __future__ import annotations
 
@@ -80,6 +82,7 @@ def stats_ms(values_s: list[float]) -> tuple[float, float, float]:
 
 
 def baseline(seconds: float) -> dict:
+    nan = float("nan")
     ticks: list[float] = []
     timer = QtCore.QTimer()
     timer.setTimerType(QtCore.Qt.PreciseTimer)
@@ -90,7 +93,8 @@ def baseline(seconds: float) -> dict:
     pump(seconds)
     probe.stop()
     timer.stop()
-    return {"fps": (len(ticks) - 1) / (ticks[-1] - ticks[0]), "tick": (0.0, 0.0, 0.0),
+    return {"fps": (len(ticks) - 1) / (ticks[-1] - ticks[0]), "tick": (0.0, 0.0, 0.0), "gui_cpu_ms_per_s": nan,
+            "cpu_ms_per_s": nan, "gui_cpu_ms_per_redraw": nan,
             "latency": stats_ms(probe.latencies_s), "age": (float("nan"),) * 3, "stages": {},
             "traces_per_s": float("nan"), "skeleton_per_s": float("nan"), "samples_per_s": float("nan"),
             "synthesis_fps": float("nan")}
@@ -133,7 +137,9 @@ def console(seconds: float, port: int, synthesizers: int) -> dict:
     window.stats.stage_n.clear()
     probe = LatencyProbe()
     probe.start()
+    gui_cpu0, cpu0 = time.thread_time(), time.process_time()
     pump(seconds)
+    gui_cpu_s, cpu_s = time.thread_time() - gui_cpu0, time.process_time() - cpu0
     probe.stop()
     n = len(costs)
     span_s = tick_times[-1] - tick_times[0]
@@ -143,6 +149,9 @@ def console(seconds: float, port: int, synthesizers: int) -> dict:
               "traces_per_s": window.stats.stage_n.get("traces", 0) / span_s,
               "skeleton_per_s": window.stats.stage_n.get("skeleton", 0) / span_s,
               "samples_per_s": window.bridge.samples_received / (seconds + 3.0),
+              "gui_cpu_ms_per_s": 1e3 * gui_cpu_s / seconds, "cpu_ms_per_s": 1e3 * cpu_s / seconds,
+              "gui_cpu_ms_per_redraw": 1e3 * gui_cpu_s / max(1, window.stats.stage_n.get("traces", 0)
+                                                              + window.stats.stage_n.get("skeleton", 0)),
               "synthesis_fps": min([window.worker.stats.frames_per_s] + [w.stats.frames_per_s for w in extra])}
     for worker in extra:
         worker.stop()
@@ -178,6 +187,9 @@ def report(seconds: float, base: dict, runs: dict[str, dict]) -> None:
               + "".join(f"{r['stages'].get(name, 0.0):10.2f}{'-':>7s}" for r in runs.values()))
     for k, label in enumerate(("mean", "p95", "max")):
         row(f"newest sample age {label} ms", "age", k, ratio=False)
+    row("GUI thread CPU ms per s", "gui_cpu_ms_per_s", ratio=False)
+    row("GUI CPU ms per redraw", "gui_cpu_ms_per_redraw", ratio=False)
+    row("process CPU ms per s", "cpu_ms_per_s", ratio=False)
     row("samples/s received", "samples_per_s", fmt="10.0f", ratio=False)
     row("synthesis frames/s (min)", "synthesis_fps", ratio=False)
 
