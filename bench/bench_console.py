@@ -36,7 +36,7 @@ from PySide6 import QtCore  # noqa: E402
 
 from gateway.client import GatewayClient  # noqa: E402
 from gui.app import application, pump  # noqa: E402
-from engine.stream.databases import shipped_graph_spec  # noqa: E402
+from engine.stream.registry import adapter  # noqa: E402
 from gui.engine_link import synthesis_setup  # noqa: E402
 from gui.main_window import TICK_MS, ConsoleWindow  # noqa: E402
 from gui.synthesis import SynthesisWorker  # noqa: E402
@@ -107,7 +107,7 @@ def console(seconds: float, port: int, synthesizers: int) -> dict:
         if time.monotonic() > deadline:
             raise RuntimeError(f"gateway stations not streaming: {client.list_stations()}")
         time.sleep(0.2)
-    setup = synthesis_setup(shipped_graph_spec(), [("st1", i) for i in range(6)])
+    setup = synthesis_setup(adapter("motion-graph").shipped_spec(), [("st1", i) for i in range(6)])
     window = ConsoleWindow(client, synthesis=setup)
     extra = [SynthesisWorker(setup) for _ in range(synthesizers - 1)]  # more synthesizers on the same stream
     for worker in extra:

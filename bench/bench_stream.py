@@ -25,7 +25,7 @@ from engine.stream import RecordedStreams, StreamSynthesis, synthesize_streams
 
 
 class NullEngine:
-    def push(self, acc_g, pos_m=None, heading_rad=None) -> list:
+    def push(self, acc_g, pos_m=None, heading_rad=None, *, quat_wxyz=None, gyro_rps=None) -> list:
         return []
 
     def flush(self) -> list:
@@ -89,14 +89,14 @@ def main() -> None:
     _, session = synthesize_streams(NullEngine, rec, list(rec.samples), rate)
     offline_s, offline_cpu_s = time.perf_counter() - t0, time.process_time() - c0
 
-    from engine.stream.databases import shipped_graph_spec, shipped_hmm_spec, shipped_olng_spec  # console defaults
+    from engine.stream.registry import adapter  # the console's default databases
 
-    spec = shipped_graph_spec()
+    spec = adapter("motion-graph").shipped_spec()
     graph = run_live(lambda: spec.make(0.5), rec, spec.rate_hz)
-    olng = shipped_olng_spec(exclude=(HELD_OUT,))  # the console's `--engine olng` default: 4 sensors at 25 Hz
+    olng = adapter("olng").shipped_spec(exclude=(HELD_OUT,))  # the console's `--engine olng` default: 4 sensors at 25 Hz
     olng_rec = worn_streams(HELD_OUT, olng.sensor_names, min(args.seconds, args.olng_seconds))
     olng_run = run_live(lambda: olng.make(0.5), olng_rec, olng.rate_hz)
-    hmm = shipped_hmm_spec(exclude=(HELD_OUT,))  # the console's 1-sensor default: accelerometer-only HMM
+    hmm = adapter("hmm").shipped_spec(exclude=(HELD_OUT,))  # the console's 1-sensor default: accelerometer-only HMM
     hmm_run = run_live(lambda: hmm.make(0.5), worn_streams(HELD_OUT, hmm.sensor_names, args.seconds), hmm.rate_hz)
     load = os.getloadavg()[0]
     print(f"stream bench: 6 sensors x 100 Hz + 12 fps camera, {args.seconds:g} s -> {frames} frames at 30 Hz, "

@@ -20,7 +20,7 @@ def evaluated(tmp_path_factory):
     out = tmp_path_factory.mktemp("plot")
     png, report = out / "eval.png", out / "eval.json"
     assert courtside(["evaluate", "--protocol", "chained", "--sample", "--takes", "1", "--take-seconds", "3",
-                      "--engines", "graph,baselines", "--sensor-sets", "6,1", "--json", str(report),
+                      "--engines", "motion-graph,baselines", "--sensor-sets", "6,1", "--json", str(report),
                       "--plot", str(png)]) == 0
     return png, json.loads(report.read_text())
 
