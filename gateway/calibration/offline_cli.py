@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.progress import add_quiet_argument
 from engine.errors import CourtsideError, MalformedFileError
 from engine.graph.input_checks import open_npz, parse_sensor_map
 from engine.mocap import STANDARD_SENSORS
@@ -105,7 +104,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-std", type=float, default=RecordingCalibrationConfig.max_std_g,
                    help="windows stiller than this (g) count as quasi-static")
     p.add_argument("--subject", default="")
-    add_quiet_argument(p)
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
     acc, fps, names, labels = _read_take(path, parse_sensor_map(args.sensor_map, list(STANDARD_SENSORS),
