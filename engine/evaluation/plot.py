@@ -75,9 +75,11 @@ def figure(report: dict[str, Any], group: str | None = None, take: int = 0):
             ax.legend(fontsize=7)
     bottom = fig.add_subplot(grid[1, :])
     x = np.arange(len(rows))
-    bottom.bar(x, plotted.bars_cm, color=colours)
+    bars = bottom.bar(x, plotted.bars_cm, color=colours)
+    bottom.bar_label(bars, fmt="%.1f", fontsize=7)
+    bottom.set_yscale("log")  # camera rows (centimetres) and first-fix rows (metres) on one readable axis
     bottom.set_xticks(x, plotted.labels, rotation=30, ha="right", fontsize=7)
-    bottom.set_ylabel("mean global error (cm)")
+    bottom.set_ylabel("mean global error (cm, log scale)")
     bottom.set_title("the table: mean global error over every frame of every take", fontsize=10)
     bottom.grid(axis="y", alpha=0.3)
     return fig, plotted
