@@ -5,7 +5,8 @@ Six sensors at 100 Hz (jittered) plus a 12 fps camera, 60 s, resampled to 30 Hz 
 (as `courtside synthesize`), the path driving the real fixed-lag motion graph (shipped clips, lag 0.5 s), and
 the path driving the OLNG (shipped-clip knowledge base without the walk 16_32, fed that walk's virtual
 accelerometers at the 4 seed-003 sites, 100 Hz, 25 Hz frames), and the accelerometer-only HMM on that walk's
-right-foot sensor. Times are per frame; the ratio
+right-foot sensor; plus the path alone with every sensor also streaming an orientation quaternion and an angular
+rate (issue 18), against the accelerations-only path in the same run. Times are per frame; the ratio
 column is against the path's live run, measured in this process; "x real time" is the frame period over the CPU
 cost per frame (below 1 the engine falls behind a live stream even on an idle core: the console then says
 FALLING BEHIND). CPU time (this process, all threads) is printed beside wall time because on a shared, loaded
@@ -43,6 +44,16 @@ def streams(seconds: float, n_sensors: int = 6, seed: int = 0) -> RecordedStream
     return RecordedStreams(samples, camera, None)
 
 
+def with_orientation(rec: RecordedStreams) -> RecordedStreams:
+    """The same streams, each sensor also turning (a unit quaternion per sample) with its angular rate."""
+    samples = {}
+    for k, (t, acc) in rec.samples.items():
+        half = 0.5 * (1.0 + 0.1 * k) * (t - t[0])
+        quat = np.c_[np.cos(half), np.sin(half), np.zeros((len(t), 2))]
+        samples[k] = (t, acc, quat, np.tile([1.0 + 0.1 * k, 0.0, 0.0], (len(t), 1)))
+    return RecordedStreams(samples, rec.camera, rec.started_t_host_s)
+
+
 HELD_OUT = "16_32"  # a walk, left out of the OLNG knowledge base
 
 
@@ -62,14 +73,14 @@ def worn_streams(clip: str, sensor_names, seconds: float) -> RecordedStreams:
 def run_live(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, int]:
     """(wall s, CPU s of this process, frames pushed) for the stream fed in 100 ms batches."""
     session = StreamSynthesis(make, list(rec.samples), rate_hz)
-    t_end_all = max(t[-1] for t, _ in rec.samples.values())
+    t_end_all = max(s[0][-1] for s in rec.samples.values())
     cam = iter(rec.camera)
     pending = next(cam, None)
     t0, c0 = time.perf_counter(), time.process_time()
     for t_end in np.arange(1000.1, t_end_all + 0.1, 0.1):
-        for key, (t, a) in rec.samples.items():
+        for key, (t, *values) in rec.samples.items():
             sl = slice(np.searchsorted(t, t_end - 0.1, "right"), np.searchsorted(t, t_end, "right"))
-            session.add_samples(key, t[sl], a[sl])
+            session.add_samples(key, t[sl], *(v[sl] for v in values))
         while pending is not None and pending[0] <= t_end:
             session.add_camera(*pending)
             pending = next(cam, None)
@@ -88,6 +99,7 @@ def main() -> None:
     t0, c0 = time.perf_counter(), time.process_time()
     _, session = synthesize_streams(NullEngine, rec, list(rec.samples), rate)
     offline_s, offline_cpu_s = time.perf_counter() - t0, time.process_time() - c0
+    oriented = run_live(NullEngine, with_orientation(rec), rate)
 
     from engine.stream.registry import adapter  # the console's default databases
 
@@ -106,6 +118,7 @@ def main() -> None:
     for name, (wall, cpu, n), rate in (("path alone, live 100 ms batches", (live_s, live_cpu_s, frames), 30.0),
                                        ("path alone, offline one pass",
                                         (offline_s, offline_cpu_s, session.stats.frames_in), 30.0),
+                                       ("path alone, live, + orientation + rate", oriented, 30.0),
                                        ("path + motion graph (lag 0.5 s), live", graph, spec.rate_hz),
                                        ("path + OLNG (4 sensors, 25 Hz), live", olng_run, olng.rate_hz),
                                        ("path + HMM acc-only (1 sensor), live", hmm_run, hmm.rate_hz)):

@@ -49,6 +49,9 @@ class SampleBlock:
     arrival_s: np.ndarray  # (N,) float64 host monotonic time the batch was read (same for the whole batch)
     t_host_s: np.ndarray  # (N,) float64 sample latch time on the gateway clock (online estimate)
     acc_g: np.ndarray  # (N, 3) float32
+    # a sensor that streams them (protocol v2 MOTION_BATCH, x-IMU3 quaternions, Shimmer3 gyroscope); else None
+    quat_wxyz: np.ndarray | None = None  # (N, 4) float32 unit quaternion sensor -> device earth (Z up), NaN = none
+    gyro_rps: np.ndarray | None = None  # (N, 3) float32 angular rate, rad/s, sensor frame
 
     def header(self) -> dict[str, Any]:
         """The ``samples`` message header. With `arrays` this is the one definition of a samples message:
@@ -57,10 +60,16 @@ class SampleBlock:
                 "clock_locked": self.clock_locked}
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Every per-sample array (raw ticks + arrival times allow offline re-alignment)."""
-        return {"counter": self.counter, "epoch": np.full(len(self.counter), self.epoch, np.uint32),
-                "raw_ticks": self.raw_ticks, "ticks": self.ticks,
-                "arrival_s": self.arrival_s, "t_host_s": self.t_host_s, "acc_g": self.acc_g}
+        """Every per-sample array (raw ticks + arrival times allow offline re-alignment); ``quat_wxyz`` and
+        ``gyro_rps`` only when the sensor streams them (a sensor's batches all carry the same channels)."""
+        arrays = {"counter": self.counter, "epoch": np.full(len(self.counter), self.epoch, np.uint32),
+                  "raw_ticks": self.raw_ticks, "ticks": self.ticks,
+                  "arrival_s": self.arrival_s, "t_host_s": self.t_host_s, "acc_g": self.acc_g}
+        if self.quat_wxyz is not None:
+            arrays["quat_wxyz"] = self.quat_wxyz
+        if self.gyro_rps is not None:
+            arrays["gyro_rps"] = self.gyro_rps
+        return arrays
 
 
 class StationSink(Protocol):
@@ -400,6 +409,7 @@ class StationReader:
             raw_ticks=(batch.first_sample_ticks + np.round(offsets).astype(np.int64)).astype(np.uint32),
             ticks=ticks, arrival_s=np.full(n, arrival_s), t_host_s=t_host,
             acc_g=batch.samples.astype(np.float32) * np.float32(batch.scale_g_per_lsb),
+            quat_wxyz=_float32_or_none(batch.quat_wxyz()), gyro_rps=_float32_or_none(batch.gyro_rps()),
         ))
 
     # -- commands ---------------------------------------------------------------------------------------------
@@ -457,3 +467,7 @@ class StationReader:
                 "buffered_samples": self.station_buffered_samples, **counts,
                 "clock": clock, "sensors": sensors,
             }
+
+
+def _float32_or_none(values: np.ndarray | None) -> np.ndarray | None:
+    return None if values is None else values.astype(np.float32)
