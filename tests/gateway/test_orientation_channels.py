@@ -46,6 +46,8 @@ def test_orientation_station_reaches_recording_client_and_exports(tmp_path):
             assert done.wait(20.0)
         time.sleep(1.0)
         gw.recorder.stop()
+        channels = {s["station"]: [x["channels"] for x in s["sensors"]] for s in gw.list_stations()}
+    assert channels == {"st1": [["acc", "orientation", "gyro"]] * 2, "st2": [["acc"]]}  # from each HELLO
     assert {m["station"] for m in got} == {"st1", "st2"}
     for m in got:  # the client sees the channels exactly when the station streams them
         assert ("quat_wxyz" in m.arrays) == (m["station"] == "st1") == ("gyro_rps" in m.arrays), m.header
