@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.errors import ArgumentParser, MalformedFileError, check_output_dir, cli_command
+from engine.progress import add_quiet_argument
 from engine.mocap import read_c3d, write_bvh
 
 from .gdke import DegenerateFitError, JointFitConfig
@@ -39,6 +40,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--max-samples", type=int, default=None, help="frames per joint fit (default: all)")
     parser.add_argument("--refine-iterations", type=int, default=JointFitConfig.refine_iterations,
                         help="geometric refinement steps after the closed form (0 = GDKE only)")
+    add_quiet_argument(parser)
     args = parser.parse_args(argv)
     check_output_dir(args.output)
     try:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, cli_command
+from engine.progress import add_quiet_argument
 from gateway import auth
 from gateway.recorder import export_take
 
@@ -107,6 +108,7 @@ def _export_parser() -> argparse.ArgumentParser:
     p.add_argument("--npz", type=Path, help="output .npz file")
     p.add_argument("--csv-dir", type=Path, help="output directory for CSV files")
     p.add_argument("--xdf", type=Path, help="output .xdf file (Lab Streaming Layer format, one stream per station)")
+    add_quiet_argument(p)
     return p
 
 
