@@ -74,9 +74,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="motion graph rows: comma list of acc (accelerations only) and acc+ori (accelerations + "
                         "orientation quaternions under OrientationErrorModel.realistic(): per-sensor yaw, drift, "
                         "tilt noise, misalignment)")
-    p.add_argument("--orientation-weight", type=float, default=1.0,
-                   help="acc+ori rows: weight of the orientation term relative to the accelerations' "
-                        "(engine/graph/orientation_term.py)")
     p.add_argument("--orientation-noise", choices=["realistic", "clean"], default="realistic",
                    help="acc+ori rows: the orientation filter's error model (clean = a shared north, no error)")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
@@ -103,7 +100,7 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
     if not inputs or set(inputs) - set(protocols.INPUTS):
         raise CourtsideError(f"--inputs: expected a comma list of {', '.join(protocols.INPUTS)}, got {args.inputs!r}")
     return protocols.EvalConfig(
-        inputs=inputs, orientation_weight=args.orientation_weight,
+        inputs=inputs, orientation_weight=1.0 if args.orientation_weight is None else args.orientation_weight,
         orientation_model=getattr(OrientationErrorModel, args.orientation_noise)(),
         sensor_sets=sets, engines=engines,
         camera=CameraModel(args.camera_noise_m, float(np.radians(args.camera_noise_deg)), args.camera_hz),

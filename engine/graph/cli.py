@@ -150,6 +150,9 @@ def add_search_args(p: argparse.ArgumentParser) -> None:
                    help="per-sample fading of every path's accumulated cost, in (0, 1]; 1 = seed 000's Viterbi, "
                         "one path, unblended (default: 0.9 with root warping, deciding each sample 0.2 s later and "
                         "blending the 8 best paths; 1 without; engine/graph/viterbi.SearchWeights)")
+    p.add_argument("--orientation-weight", type=float, default=None, metavar="W",
+                   help="weight of the orientation term (takes with quat_wxyz; engine/graph/orientation_term.py) "
+                        "relative to the accelerations' (default 1 with root warping, 0 = orientations ignored)")
 
 
 def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights:
@@ -165,6 +168,9 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
         # the blend of the best paths needs per-sample decisions: forgetting 1 is seed 000's search, unblended
         weights = replace(weights, forgetting=args.forgetting,
                           blend_paths=weights.blend_paths if args.forgetting < 1 else 1)
+    if args.orientation_weight is not None:
+        check_non_negative("--orientation-weight", [args.orientation_weight])
+        weights = replace(weights, orientation=args.orientation_weight)
     return weights
 
 
@@ -347,7 +353,8 @@ def _fixed_lag_over_frames(synthesizer, take) -> list:
     for t in range(obs.n_samples):
         acc = None if obs.acc_g is None or np.isnan(obs.acc_g[t]).any() else obs.acc_g[t]
         out += frame_poses(synthesizer.push(acc, None if obs.position_m is None else obs.position_m[t],
-                                            None if obs.heading_rad is None else float(obs.heading_rad[t])))
+                                            None if obs.heading_rad is None else float(obs.heading_rad[t]),
+                                            quat_wxyz=None if obs.quat_wxyz is None else obs.quat_wxyz[t]))
     return out + frame_poses(synthesizer.flush())
 
 

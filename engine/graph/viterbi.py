@@ -111,8 +111,10 @@ class SearchWeights:
         the mean pose); 1 / 0.3 keep a loose speed / turning constraint. Forgetting 0.9 makes a path's cost a
         match over the last ~10 samples (0.85 was best under the small real-sensor gap, 0.93 under seed 000's
         large one); the blend of 8 paths averages nearly equally good matches (k-NN, as Tautges et al.'s OLNG).
-        Measured on chained held-out Bandai takes: docs/engine-evaluation.md."""
-        return cls(1.0, 1.0, 0.3, forgetting=0.9, decision_frames=6, blend_paths=8)
+        Measured on chained held-out Bandai takes: docs/engine-evaluation.md. Orientation term weight 1
+        (orientation_term.py: at 1 its database spread equals the accelerations'); a take without orientations
+        searches exactly as with 0."""
+        return cls(1.0, 1.0, 0.3, forgetting=0.9, decision_frames=6, blend_paths=8, orientation=1.0)
 
 
 @dataclass(frozen=True)
