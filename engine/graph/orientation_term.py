@@ -42,7 +42,6 @@ REFERENCE_SENSOR = "lower_back"
 OFFSET_TIME_CONSTANT_S = 30.0  # the yaw-offset estimate's memory: long enough to average out wrongly decided
 # poses, short enough to follow a filter's drift (OrientationErrorModel.realistic: 3 deg/min)
 MIN_LEARNED_S = 1.0  # decided samples (in seconds) before the heading part is used
-HEADING_SCALE = 1.0
 UP = np.array([0.0, 1.0, 0.0])
 
 
@@ -83,17 +82,18 @@ def row_nodes(graph: MotionGraph) -> np.ndarray:
     return out
 
 
-def features(quat_world: np.ndarray, reference: int | None, offset_rad: np.ndarray | None) -> np.ndarray:
+def features(quat_world: np.ndarray, reference: int | None, offset_rad: np.ndarray | None,
+             heading_share: float = 1.0) -> np.ndarray:
     """(..., K, 3) orientation features of sensor orientations (..., S, 4) in the engine world: the tilt part
     (S rows: each sensor's up axis in its frame), then -- with a `reference` sensor and known per-sensor yaw
-    offsets `offset_rad` (S,) -- the heading part (2S rows, see the module docstring)."""
+    offsets `offset_rad` (S,) -- the heading part (2S rows, see the module docstring) times `heading_share`."""
     q = np.asarray(quat_world, float)
     tilt = quat.rotate(quat.conjugate(q), UP)  # (..., S, 3) = row 1 of the matrix below
     if reference is None or offset_rad is None:
         return tilt
     psi_ref = twist_yaw(q[..., reference, :])[..., None]
     mats = quat.to_matrix(quat.multiply(yaw_about_up(-(psi_ref + offset_rad)), q))  # (..., S, 3, 3)
-    heading = HEADING_SCALE * mats[..., [0, 2], :].reshape(q.shape[:-2] + (2 * q.shape[-2], 3))
+    heading = heading_share * mats[..., [0, 2], :].reshape(q.shape[:-2] + (2 * q.shape[-2], 3))
     return np.concatenate([tilt, heading], axis=-2)
 
 
@@ -101,10 +101,11 @@ class OrientationTerm:
     """The database side of the term for one sensor selection: scaled feature rows (3K, M) float32 to append to
     the lattice's acc metadata, each node's relative yaws, and encoders for observed device-earth quaternions."""
 
-    def __init__(self, graph: MotionGraph, sensor_indices: list[int], weight: float,
+    def __init__(self, graph: MotionGraph, sensor_indices: list[int], weight: float, heading_share: float = 0.0,
                  offset_time_constant_s: float = OFFSET_TIME_CONSTANT_S) -> None:
         names = [graph.config.sensor_names[i] for i in sensor_indices]
-        self.reference = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else None
+        self.heading_share = heading_share  # 0: the tilt part alone (no reference, nothing to learn)
+        self.reference = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names and heading_share > 0 else None
         self.n_sensors = len(sensor_indices)
         self.alpha = 1.0 / max(1.0, offset_time_constant_s * graph.config.fps)
         self.min_learned = MIN_LEARNED_S * graph.config.fps
@@ -114,7 +115,7 @@ class OrientationTerm:
         psi = twist_yaw(q_nodes)
         self.node_rel_yaw = psi - psi[:, [self.reference or 0]]  # (N, S) d_i of every node (unused: no reference)
         zero = None if self.reference is None else np.zeros(self.n_sensors)
-        f = features(q_nodes[np.where(used, nodes, 0)], self.reference, zero)  # (M, K, 3)
+        f = features(q_nodes[np.where(used, nodes, 0)], self.reference, zero, heading_share)  # (M, K, 3)
         f[~used] = 0.0
         acc = np.asarray(graph.meta_acc_g, float)[:, sensor_indices][used]
         acc_var = acc.reshape(len(acc), -1).var(axis=0).sum()
@@ -158,7 +159,7 @@ class OrientationEncoder:
             if self._weight >= self.term.min_learned:
                 offset = np.angle(self._sum)
                 offset[ref] = 0.0
-        return features(q, ref, offset) * self.term.scale
+        return features(q, ref, offset, self.term.heading_share) * self.term.scale
 
     def learn(self, first: int, nodes: np.ndarray) -> None:
         """Samples first.. were decided as database `nodes`: each one's observed minus decided relative yaw joins

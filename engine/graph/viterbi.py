@@ -88,6 +88,8 @@ class SearchWeights:
     blend_paths: int = 1  # output pose = mean root-frame pose of the best this many paths at the decided sample
     orientation: float = 0.0  # weight of the orientation term relative to C_A (orientation_term.py); 0 = off,
     # and the term is skipped for samples without orientations (an acc-only take searches exactly as before)
+    orientation_heading: float = 0.0  # share of its heading-relative-to-the-pelvis part (learnt yaw offsets)
+    # against its tilt part; 0 = tilt alone (measured best: docs/engine-evaluation.md, "Orientations")
 
     def __post_init__(self) -> None:
         if self.blend_paths < 1 or (self.blend_paths > 1 and not self.forgets):
@@ -204,7 +206,7 @@ class ViterbiLattice:
         acc_t = np.asarray(graph.meta_acc_g, dtype=np.float32)[:, sel, :].transpose(1, 2, 0).reshape(-1, m)
         # the orientation term's features are extra rows of the same squared distance (orientation_term.py);
         # a sample without orientations uses the first 3S rows alone (a contiguous view)
-        self.orientation = OrientationTerm(graph, sel, weights.orientation) \
+        self.orientation = OrientationTerm(graph, sel, weights.orientation, weights.orientation_heading) \
             if weights.orientation > 0 and self.n_sensors and places_sensors(graph) else None
         self._encoder = None if self.orientation is None else self.orientation.encoder()
         self._meta_acc_t = np.ascontiguousarray(

@@ -14,7 +14,8 @@ from engine.mocap import quaternions as quat
 from engine.mocap import standard_placements, virtual_accelerometers
 from engine.mocap.orientation import to_device_earth, virtual_orientations, yaw_about_up
 
-WEIGHTS = SearchWeights(1.0, 0.0, 0.0, forgetting=0.9, decision_frames=6, blend_paths=4, orientation=1.0)
+WEIGHTS = SearchWeights(1.0, 0.0, 0.0, forgetting=0.9, decision_frames=6, blend_paths=4, orientation=1.0,
+                        orientation_heading=1.0)
 YAWS = np.array([2.0, -1.3, 0.4, 3.0, -2.5, 1.1])  # per-sensor device yaw offsets (rad), the pelvis's is -2.5
 
 
@@ -52,12 +53,13 @@ def test_features_need_no_north(take):
 
 def test_database_rows_are_the_features_of_the_clip_poses(graph, take):
     _, q_world, _ = take
-    term = OrientationTerm(graph, list(range(6)), 1.0)
+    term = OrientationTerm(graph, list(range(6)), 1.0, 1.0)
     nodes = np.flatnonzero((graph.node_clip == 0) & (graph.node_kind == NODE_ORIGINAL))
     rows = term.meta_rows_t[:, graph.node_arrival[nodes]].T
     want = features(q_world[graph.node_frame[nodes].astype(int)], 4, np.zeros(6)).reshape(len(nodes), -1)
     assert np.allclose(rows, want * term.scale, atol=1e-5)
     assert term.meta_rows_t.shape[0] == 9 * 6  # tilt (3 per sensor) + heading (6 per sensor)
+    assert OrientationTerm(graph, list(range(6)), 1.0, 0.0).meta_rows_t.shape[0] == 3 * 6  # tilt alone
 
 
 def test_yaw_offsets_are_learnt_from_the_decided_samples(graph, take):

@@ -18,7 +18,9 @@ from gateway.cli import main as courtside
 
 FPS = 30.0
 HELD_OUT = "16_11"  # a walk; the graph holds the other shipped subject-16 clips
-WEIGHTS = SearchWeights(1.0, 0.0, 0.0, forgetting=0.9, decision_frames=6, blend_paths=8, orientation=1.0)
+# the heading part on (the tilt part alone needs no north at all: equal by construction)
+WEIGHTS = SearchWeights(1.0, 0.0, 0.0, forgetting=0.9, decision_frames=6, blend_paths=8, orientation=1.0,
+                        orientation_heading=0.5)
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +78,7 @@ def test_random_per_sensor_yaws_synthesise_as_well_as_aligned_ones(setup, tmp_pa
     res = ViterbiSearch(graph, acc_only).run(Observations(acc))
     baseline = frame_errors(blended_joint_positions(graph, res.blend_nodes, res.ground_m, res.heading_rad), truth,
                             take.skeleton).root_relative_cm.mean()
-    assert errors["random"] < baseline  # and the orientations help (measured 1.95 vs 2.96 cm)
+    assert errors["random"] < baseline  # and the orientations help (measured 1.92 vs 2.96 cm)
     print(f"root-relative error: aligned {errors['aligned']:.2f} cm, random yaws {errors['random']:.2f} cm, "
           f"accelerations only {baseline:.2f} cm")
 
