@@ -6,7 +6,9 @@ sensor's yaw is arbitrary and drifts (engine/mocap/orientation.py). So the term 
 
 * **tilt** (yaw-free, always on): each sensor's up axis in its own frame, from the quaternion -- clean, unlike
   the low-passed accelerations in dynamic motion;
-* **heading relative to the pelvis** (the lower_back sensor): the horizontal components of the sensor's axes in
+* **heading relative to the pelvis** (the lower_back sensor; its share is `SearchWeights.orientation_heading`,
+  default 0 -- measured no better than tilt alone on held-out gestures and worse on chained takes, where the
+  offsets learnt from wrong decisions lock the search onto them; docs/engine-evaluation.md): the horizontal components of the sensor's axes in
   the pelvis's heading frame, after removing the sensor's yaw offset. ψ_i = the twist of sensor i's orientation
   about the vertical (q = twist(ψ) * swing; a yaw offset of the device's earth frame adds to ψ exactly), d_i =
   ψ_i - ψ_pelvis. The offset of sensor i is estimated ONLINE from the search's own decisions: the exponentially
