@@ -46,6 +46,7 @@ from typing import Any, BinaryIO, Callable
 
 import numpy as np
 
+from engine import progress
 from engine.errors import CourtsideError
 from gateway import codec
 from gateway.clock import realign_offline
@@ -153,6 +154,28 @@ class ChunkFile:
         return ok
 
 
+def _remove_leftovers(take_dir: Path, made_dir: bool) -> None:
+    """After a refused start: the take file (checked absent before, so ours, at most a partial header) and the
+    take directory if this start made it; a refused take leaves nothing behind (issue 22)."""
+    try:
+        (take_dir / RECORDING_FILE).unlink(missing_ok=True)
+        if made_dir:
+            take_dir.rmdir()
+    except OSError as exc:
+        log.warning("%s: cannot remove what a refused start left: %s", take_dir, exc.strerror or exc)
+
+
+def _same_array_runs(batches: list[dict[str, np.ndarray]]) -> list[list[dict[str, np.ndarray]]]:
+    """Consecutive batches carrying the same arrays, in order (each run becomes one chunk)."""
+    runs: list[list[dict[str, np.ndarray]]] = []
+    for batch in batches:
+        if runs and list(runs[-1][0]) == list(batch):
+            runs[-1].append(batch)
+        else:
+            runs.append([batch])
+    return runs
+
+
 def describe_os_error(exc: BaseException) -> str:
     """``"disk full (ENOSPC)"``-style text for an OSError, the exception text otherwise."""
     if isinstance(exc, OSError) and exc.errno is not None:
@@ -224,10 +247,12 @@ class Recorder:
             started_s = time.monotonic()
             full_meta = {"take": take, "started_t_host_s": started_s,
                          "started_unix_s": time.time(), "format": "courtside-csrec-1", **(meta or {})}
+            made_dir = not take_dir.exists()
             try:
                 take_dir.mkdir(parents=True, exist_ok=True)
                 self._file = ChunkFile(take_dir / RECORDING_FILE, full_meta, self.opener)
             except OSError as exc:
+                _remove_leftovers(take_dir, made_dir)
                 raise RecorderRefused(f"cannot start take {take!r} in {self.record_dir}: "
                                       f"{describe_os_error(exc)}") from exc
             self._started_s = started_s
@@ -317,10 +342,11 @@ class Recorder:
         try:
             bodies = [(body, 0) for body in pending.others]
             for (kind, station, sensor), batches in pending.rows.items():
-                arrays = {name: np.concatenate([b[name] for b in batches]) for name in batches[0]}
                 header = {**pending.headers.get((kind, station, sensor), {}), "station": station, "sensor": sensor}
-                n = len(next(iter(arrays.values()))) if kind == "samples" else 0
-                bodies.append((codec.encode(kind, header, arrays), n))
+                for run in _same_array_runs(batches):  # a sensor that starts/stops streaming orientation
+                    arrays = {name: np.concatenate([b[name] for b in run]) for name in run[0]}
+                    n = len(next(iter(arrays.values()))) if kind == "samples" else 0
+                    bodies.append((codec.encode(kind, header, arrays), n))
             for body, n in bodies:
                 chunk_file.append(body)
                 written_samples += n
@@ -345,7 +371,9 @@ class Recorder:
             lost = self._samples_queued - self._samples_written
             self._fault = fault
             state = self.state_locked()
-            state.update(active=False, files=[str(chunk_file.path)], samples_lost=lost)
+            # the backlog was freed (its samples are counted as lost): the figures say so (issue 22)
+            state.update(active=False, files=[str(chunk_file.path)], samples_lost=lost, samples_backlog=0,
+                         backlog_bytes=0)
             self._last = state
             self._file = None
             self._pending = _Pending()
@@ -494,7 +522,9 @@ def read_recording(path: Path | str) -> RecordingContents:
     tail: str | None = None
     end: dict[str, Any] | None = None
     intact = pos
+    meter = progress.bar(total=len(data), desc=f"reading {path.parent.name}", unit="B")
     while pos < len(data):
+        meter.update(pos - meter.n)
         where = _chunk_at(data, pos)
         if isinstance(where, str):
             nxt = _resync(data, pos + 1)
@@ -517,6 +547,7 @@ def read_recording(path: Path | str) -> RecordingContents:
         else:
             messages.append(msg)
         pos = intact = stop
+    meter.close()
     if meta is None:
         raise RecordingError(path, f"{header_problem} and no intact copy of it in the first chunk")
     problems = [f"{header_problem}; meta recovered from its copy"] if header_problem else []
@@ -565,12 +596,25 @@ def _stream_key(path: Path, msg: codec.Message, required: tuple[str, ...]) -> tu
     return station, sensor
 
 
+OPTIONAL_CHANNELS = {"quat_wxyz": 4, "gyro_rps": 3}
+"""Per-sample arrays a sensor may stream in some chunks only (e.g. an IMU whose filter was switched on): rows of
+chunks without them read NaN."""
+
+
 def _concatenate(path: Path, what: str, msgs: list[codec.Message]) -> dict[str, np.ndarray]:
     names = list(msgs[0].arrays)
-    if any(list(m.arrays) != names for m in msgs):
+    for m in msgs:
+        names += [name for name in m.arrays if name not in names]
+    if any([n for n in names if n in m.arrays or n not in OPTIONAL_CHANNELS] != list(m.arrays) for m in msgs):
         raise RecordingError(path, f"{what}: chunks carry different arrays")
+
+    def rows(m: codec.Message, name: str) -> np.ndarray:
+        if name in m.arrays:
+            return m.arrays[name]
+        return np.full((len(next(iter(m.arrays.values()))), OPTIONAL_CHANNELS[name]), np.nan, np.float32)
+
     try:
-        return {name: np.concatenate([m.arrays[name] for m in msgs]) for name in names}
+        return {name: np.concatenate([rows(m, name) for m in msgs]) for name in names}
     except ValueError as exc:
         raise RecordingError(path, f"{what}: chunks do not concatenate ({exc})") from exc
 
@@ -635,12 +679,22 @@ def _exportable(path: Path | str) -> Take:
     return take
 
 
-def export_npz(path: Path | str, out: Path | str) -> Path:
+def export_take(path: Path | str, npz: Path | str | None = None, csv_dir: Path | str | None = None) -> list[Path]:
+    """`export_npz` and/or `export_csv` from one reading of the take, so its warnings (never closed, ended by a
+    disk fault) are printed once (issue 22: twice with --npz and --csv-dir). Returns the files written."""
+    if npz is not None:
+        _check_output_dir(Path(npz).parent)  # before any work or warning
+    take = _exportable(path)
+    written = [export_npz(path, npz, take=take)] if npz is not None else []
+    return written + (export_csv(path, csv_dir, take=take) if csv_dir is not None else [])
+
+
+def export_npz(path: Path | str, out: Path | str, *, take: Take | None = None) -> Path:
     """One npz: ``<station>/<sensor>/<array>`` keys for samples (plus ``t_realigned_s``, the offline clock re-fit),
-    ``meta`` and ``messages`` as JSON strings."""
+    ``meta`` and ``messages`` as JSON strings. ``take``: the take at ``path`` when already loaded."""
     out = Path(out)
     _check_output_dir(out.parent)  # before any work or warning
-    take = _exportable(path)
+    take = take or _exportable(path)
     realigned = realign_take(take)
     arrays: dict[str, Any] = {}
     for (station, sensor), cols in take.samples.items():
@@ -664,10 +718,10 @@ def _check_output_dir(directory: Path) -> None:
         raise CourtsideError(f"{directory}: output directory does not exist")
 
 
-def export_csv(path: Path | str, out_dir: Path | str) -> list[Path]:
+def export_csv(path: Path | str, out_dir: Path | str, *, take: Take | None = None) -> list[Path]:
     """One CSV per sensor (``<station>_<sensor>.csv``: one row per sample, vector arrays split into columns, plus
     ``t_realigned_s``) and ``messages.csv`` (t_host_s, kind, JSON header) for everything else."""
-    take = _exportable(path)
+    take = take or _exportable(path)
     realigned = realign_take(take)
     out_dir = Path(out_dir)
     try:
@@ -682,7 +736,7 @@ def export_csv(path: Path | str, out_dir: Path | str) -> list[Path]:
             if value.shape[1] == 1:
                 names.append(name)
             else:
-                suffixes = "xyz" if value.shape[1] == 3 else [str(i) for i in range(value.shape[1])]
+                suffixes = {3: "xyz", 4: "wxyz"}.get(value.shape[1], [str(i) for i in range(value.shape[1])])
                 names.extend(f"{name}_{suffix}" for suffix in suffixes)
             columns.append(value.astype(np.float64))  # exact for u32 counters and ticks < 2**53
         file = out_dir / f"{station}_{sensor}.csv"

@@ -14,7 +14,9 @@ import time
 
 import numpy as np
 
-from engine.errors import CourtsideError
+from engine.errors import CourtsideError, check_output_dir
+from engine.progress import add_quiet_argument
+from engine.safe_load import read_json
 from engine.graph.cli import (_add_database_args, add_search_args, database_paths, evaluate_main as leave_one_out_main,
                               load_clips, weights_from_args)
 from engine.graph.config import GraphConfig
@@ -24,7 +26,7 @@ from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 from engine.mocap.orientation import OrientationErrorModel
 
-from . import protocols, table
+from . import plot, protocols, table
 from .labels import clip_label
 from .confidence_quality import ConfidenceQuality, confidence_quality
 from .simulate import CameraModel
@@ -43,8 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "(default: build one here, see --variant)")
     p.add_argument("--variant", default="msv", choices=["plain", "msv", "interp", "msv+interp"],
                    help="graph to build when no --graph is given")
-    p.add_argument("--engines", default=",".join(protocols.ENGINES),
-                   help=f"comma list of {', '.join(protocols.ENGINES)}")
+    p.add_argument("--engines", default=",".join(protocols.engine_choices()),
+                   help=f"comma list of {', '.join(protocols.engine_choices())} (engine.stream.registry)")
     p.add_argument("--sensor-sets", default="6,4,2,1", help="worn-sensor counts for the graph and the NN")
     p.add_argument("--takes", type=int, default=3, help="chained: number of takes")
     p.add_argument("--take-seconds", type=float, default=60.0, help="chained: minimum take length (s)")
@@ -77,17 +79,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--orientation-noise", choices=["realistic", "clean"], default="realistic",
                    help="acc+ori rows: the orientation filter's error model (clean = a shared north, no error)")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
+    p.add_argument("--plot", metavar="OUT.png", help="draw the first take's per-second error of every row and the "
+                                                     "table as bars (needs the plot extra: courtside[plot])")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--compare", nargs=2, metavar=("BEFORE.json", "AFTER.json"),
                    help="print two --json reports side by side (before -> after) and exit")
+    add_quiet_argument(p)
     return p
 
 
 def _config(args: argparse.Namespace) -> protocols.EvalConfig:
     engines = tuple(e for e in args.engines.split(",") if e)
-    unknown = sorted(set(engines) - set(protocols.ENGINES))
+    known = protocols.engine_choices()
+    unknown = sorted(set(engines) - set(known))
     if unknown:
-        raise CourtsideError(f"--engines: unknown {', '.join(unknown)} (known: {', '.join(protocols.ENGINES)})")
+        raise CourtsideError(f"--engines: unknown {', '.join(unknown)} (known: {', '.join(known)})")
     try:
         sets = tuple(int(s) for s in args.sensor_sets.split(",") if s)
     except ValueError:
@@ -133,8 +139,8 @@ def _confidence(scores: protocols.RowScores, fps: float) -> ConfidenceQuality:
     return confidence_quality(scores.confidence, [e.global_cm for e in scores.errors], fps)
 
 
-def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.RowScores]], fps: float,
-                 extra: dict) -> None:
+def _report(per_group: dict[str, dict[protocols.Row, protocols.RowScores]], fps: float, extra: dict) -> dict:
+    """The --json report (also what --plot draws)."""
     from .metrics import summary
 
     out = {**extra, "groups": {}}
@@ -144,8 +150,7 @@ def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.R
                                  "seconds": s.seconds, "per_second": protocols.traces(s, fps),
                                  **({"confidence": vars(_confidence(s, fps))} if s.confidence else {})}
                                 for r, s in results.items()]
-    with open(path, "w") as fh:
-        json.dump(out, fh, indent=1)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -153,21 +158,22 @@ def main(argv: list[str] | None = None) -> int:
     first = argparse.ArgumentParser(add_help=False)
     first.add_argument("--protocol", choices=PROTOCOLS, default="loo")
     known, rest = first.parse_known_args(argv)
+    if known.protocol == "loo" and "--plot" in argv:
+        raise CourtsideError("--plot draws the chained, loco and loso protocols (give --protocol)")
     if known.protocol == "loo" and not {"-h", "--help", "--compare"} & set(argv):
         return leave_one_out_main(rest)  # seed 000 Tables 2/3, with its own options (--variants ...)
     args = build_parser().parse_args(argv)
     if args.compare:
         reports = []
         for path in args.compare:
-            try:
-                with open(path) as fh:
-                    reports.append(json.load(fh))
-            except (OSError, ValueError) as exc:
-                raise CourtsideError(f"{path}: not a readable --json report ({exc})") from exc
+            reports.append(read_json(path))  # depth-safe; a bad file is one line naming it
         print(table.format_comparison(*reports))
         return 0
     if not (args.clips or args.sample or args.mocap_dir):
         args.sample = True
+    if args.plot:
+        check_output_dir(args.plot)
+        plot.require_matplotlib()
     cfg = _config(args)
     t0 = time.perf_counter()
     db = _database(args)
@@ -224,6 +230,11 @@ def main(argv: list[str] | None = None) -> int:
                 print("\n".join(table.group_verdict(f"{key} {g}", results)))
         extra = {}
     print(f"total {time.perf_counter() - t0:.0f} s")
+    report = _report(per_group, fps, {"protocol": args.protocol, "argv": argv, **extra})
     if args.json:
-        _report_json(args.json, per_group, fps, {"protocol": args.protocol, "argv": argv, **extra})
+        with open(args.json, "w") as fh:
+            json.dump(report, fh, indent=1)
+    if args.plot:
+        drawn = plot.save(report, args.plot)
+        print(f"wrote {args.plot}: {len(drawn.labels)} rows of {drawn.group}, take {drawn.take + 1}")
     return 0
