@@ -42,14 +42,13 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from engine.mocap import seed_heading_rule
+from gateway.athletes import DEFAULT_ATHLETE
 from gateway.camera.court_calibration import CourtCalibration
 from gateway.camera.foreground import Blob, CourtForeground
 from gateway.camera.kalman import ConstantVelocityKalman
 from gateway.camera.paths import RUNNING_SPEED_MPS
 from gateway.camera.sources import Frame
 
-#: The athlete name when there is one (CONTRACTS: the default single athlete needs no configuration).
-DEFAULT_ATHLETE = "player"
 SIDES = ("near", "far")
 
 
@@ -214,8 +213,8 @@ class MultiPlayerTracker:
                 break
         return out
 
-    def update(self, frame: Frame, imu_headings_rad: Mapping[str, float] | None = None
-               ) -> dict[str, TrackRecord | None]:
+    def update_all(self, frame: Frame, imu_headings_rad: Mapping[str, float] | None = None
+                   ) -> dict[str, TrackRecord | None]:
         """Process one frame. Returns each athlete's record (None during warm-up, while searching and when lost).
         ``imu_headings_rad``: trunk IMU yaw per athlete (CONTRACTS convention), overriding the heading rule."""
         mask = self.detector.foreground(frame.image)
@@ -247,6 +246,8 @@ class MultiPlayerTracker:
                                         headings.get(tr.name)) if tr.live(t) else None
         return out
 
+    update = update_all  # several athletes: a dict per frame (PlayerTracker's update returns the one record)
+
     def _record(self, tr: _Track, t_s: float, blob: Blob | None, raw_m: np.ndarray | None, clutter_px: int,
                 imu_heading_rad: float | None) -> TrackRecord:
         x, y, vx, vy = tr.kalman.state
@@ -275,4 +276,4 @@ class PlayerTracker(MultiPlayerTracker):
     def update(self, frame: Frame, imu_heading_rad: float | None = None) -> TrackRecord | None:  # type: ignore[override]
         """Process one frame; ``imu_heading_rad`` (trunk IMU yaw, CONTRACTS convention) overrides the rule."""
         name = self.tracks[0].name
-        return super().update(frame, None if imu_heading_rad is None else {name: imu_heading_rad})[name]
+        return self.update_all(frame, None if imu_heading_rad is None else {name: imu_heading_rad})[name]
