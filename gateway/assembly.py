@@ -133,8 +133,11 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
         from gateway.emulation.stations import start_court_stations  # the emulator only when asked for
 
         try:
-            started, _ = start_court_stations(config.stations.emulate, config.stations.emulate_motion,
-                                              config.stations.emulate_clips)
+            if config.athletes and config.stations.emulate_motion == "mocap":
+                started = start_athlete_stations(config)
+            else:
+                started, _ = start_court_stations(config.stations.emulate, config.stations.emulate_motion,
+                                                  config.stations.emulate_clips)
         except Exception:
             if camera is not None:
                 camera.source.close()
@@ -173,6 +176,43 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
             court.stop()
             raise
     return court
+
+
+def athlete_station_motion(config: CourtConfig, station_id: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(worn sites by sensor index, clips) that emulated station ``station_id`` replays: the sites and clips of
+    the athlete wearing its sensors (``"st<id>:<i>"``; sites from the athlete's placements, else the engine's six
+    seed-000 sensors), else the default station's."""
+    from gateway.emulation.stations import worn_sensor_sites
+
+    for athlete in config.athletes:
+        refs = sorted((ref.index, k) for k, ref in enumerate(athlete.sensors)
+                      if ref.key == "st" and ref.station == station_id)
+        if refs:
+            sites = worn_sensor_sites(0)
+            worn = tuple(athlete.placements[k] if athlete.placements else sites[i % len(sites)] for i, k in refs)
+            return worn, athlete.clips or config.stations.emulate_clips
+    return worn_sensor_sites(station_id - 1), config.stations.emulate_clips
+
+
+def start_athlete_stations(config: CourtConfig, seed: int = 0) -> list[EmulatedStation]:
+    """``stations.emulate`` emulated stations (ids 1..n) each replaying its athlete's clips on its athlete's
+    worn sites (`athlete_station_motion`): two athletes moving differently, each on their own sensors."""
+    import numpy as np
+
+    from gateway.emulation.stations import demo_config, mocap_traces, start_emulated_station
+
+    rng = np.random.default_rng(seed)
+    stations: list[EmulatedStation] = []
+    try:
+        for i in range(config.stations.emulate):
+            worn, clips = athlete_station_motion(config, i + 1)
+            (trace,) = mocap_traces(clips, [worn])
+            stations.append(start_emulated_station(demo_config(i, rng, n_sensors=trace.n_sensors), motion=trace))
+    except Exception:
+        for station in stations:
+            station.stop()
+        raise
+    return stations
 
 
 def start_recording_fresh(gateway: Gateway, take: str) -> str:

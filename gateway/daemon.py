@@ -263,7 +263,14 @@ class Gateway:
         return status
 
     def _hello(self) -> dict[str, Any]:
-        return {"gateway": self.name, "t_host_s": time.monotonic(), "stations": self.list_stations()}
+        return {"gateway": self.name, "t_host_s": time.monotonic(), "stations": self.list_stations(),
+                "athletes": self.athletes_info()}
+
+    def athletes_info(self) -> list[dict[str, Any]]:
+        """Who wears what (consoles set up one synthesis per athlete from it): name, side, sensors
+        (``"st1:0"`` / ``"sn<serial>:0"``; [] = every sensor), placements."""
+        return [{"name": a.name, "side": a.side, "sensors": [str(r) for r in a.sensors],
+                 "placements": list(a.placements)} for a in self.athletes.athletes]
 
     def discover_stations(self) -> list[str]:
         """Hot-plug: add every base station found by USB VID:PID (serial and HID) that is not read yet.
