@@ -40,7 +40,10 @@ class AthleteCalibrations:
         return {**states[self.default], "athlete": self.default, "athletes": states}
 
     def handle(self, action: str, args: dict[str, Any]) -> Any:
-        """``args["athlete"]`` picks the wizard (default: the first athlete); the rest goes to that wizard."""
+        """``args["athlete"]`` picks the wizard (default: the first athlete); the rest goes to that wizard.
+        ``state`` without an athlete is the whole state (every athlete's snapshot)."""
+        if action == "state" and "athlete" not in args:
+            return self.state()
         args = dict(args)
         name = str(args.pop("athlete", self.default))
         service = self.services.get(name)
