@@ -1,6 +1,6 @@
 """Console frame rate and GUI-thread latency with 4 stations x 6 sensors x 100 Hz.
 
-    QT_QPA_PLATFORM=offscreen .venv/bin/python bench/bench_console.py [--seconds 20]
+    QT_QPA_PLATFORM=offscreen .venv/bin/python bench/bench_console.py [--seconds 20] [--two-athletes]
 
 A real gateway (`courtside gateway --emulate 4`: four real-time emulated base stations on ptys, 6 sensors each at
 100 Hz) runs in its own process, as it would beside the court; this process runs the console window (1500x950,
@@ -91,14 +91,19 @@ def baseline(seconds: float) -> dict:
             "latency": stats_ms(probe.latencies_s), "age": (float("nan"),) * 3, "stages": {}}
 
 
-def console(seconds: float, port: int) -> dict:
+def console(seconds: float, port: int, second_station: str | None = None) -> dict:
+    """The console on the live gateway; ``second_station``: a second athlete (issue 20) synthesised from that
+    station's six sensors by a second worker, drawn as a second skeleton."""
     client = GatewayClient("127.0.0.1", port).connect()
     deadline = time.monotonic() + 20
     while len(client.list_stations()) < 4 or any(s["link"] != "streaming" for s in client.list_stations()):
         if time.monotonic() > deadline:
             raise RuntimeError(f"gateway stations not streaming: {client.list_stations()}")
         time.sleep(0.2)
-    window = ConsoleWindow(client, synthesis=synthesis_setup(shipped_graph_spec(), [("st1", i) for i in range(6)]))
+    spec = shipped_graph_spec()
+    more = {"opponent": synthesis_setup(spec, [(second_station, i) for i in range(6)])} if second_station else None
+    window = ConsoleWindow(client, synthesis=synthesis_setup(spec, [("st1", i) for i in range(6)]),
+                           athlete="player" if more else None, more_athletes=more)
     window.resize(1500, 950)
     window.show()
     pump(3.0)  # warm up: groups appear, plots are created
@@ -128,7 +133,8 @@ def console(seconds: float, port: int) -> dict:
               "latency": stats_ms(probe.latencies_s), "age": stats_ms(ages),
               "stages": {k: 1e3 * v / n for k, v in window.stats.stage_s.items()},
               "samples_per_s": window.bridge.samples_received / (seconds + 3.0),
-              "synthesis_fps": window.worker.stats.frames_per_s if window.worker else 0.0}
+              "synthesis_fps": min([w.stats.frames_per_s for w in [window.worker, *window.other_workers.values()]
+                                    if w is not None], default=0.0)}
     window.shutdown()
     window.close()
     client.close()
@@ -138,6 +144,8 @@ def console(seconds: float, port: int) -> dict:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--two-athletes", action="store_true",
+                        help="also measure the console with two synthesizers (st1 and st3: two athletes, issue 20)")
     args = parser.parse_args()
     application()
     port = free_port()
@@ -154,6 +162,7 @@ def main() -> int:
                     time.sleep(0.1)
             base = baseline(args.seconds / 2)
             full = console(args.seconds, port)
+            two = console(args.seconds, port, second_station="st3") if args.two_athletes else None
         finally:
             gateway.terminate()
             gateway.wait(10)
@@ -172,6 +181,12 @@ def main() -> int:
         print(f"{'newest sample age ' + label + ' ms':28s}{'-':>12s}{full['age'][k]:12.1f}")
     print(f"{'samples/s received':28s}{'-':>12s}{full['samples_per_s']:12.0f}")
     print(f"{'synthesis frames/s':28s}{'-':>12s}{full['synthesis_fps']:12.1f}")
+    if two is not None:
+        print(f"two athletes (two synthesizers, two skeletons), same gateway, {args.seconds:g} s:")
+        print(f"{'refresh ticks/s':28s}{base['fps']:12.1f}{two['fps']:12.1f}{two['fps'] / base['fps']:8.2f}")
+        print(f"{'GUI tick cost mean/p95 ms':28s}{'-':>12s}{two['tick'][0]:7.2f} / {two['tick'][1]:.2f}")
+        print(f"{'newest sample age mean ms':28s}{'-':>12s}{two['age'][0]:12.1f}")
+        print(f"{'synthesis frames/s (slower)':28s}{'-':>12s}{two['synthesis_fps']:12.1f}")
     return 0
 
 

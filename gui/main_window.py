@@ -113,6 +113,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.traces = TracePanel(self.store)
         self.devices = DevicePanel()
         self.devices.set_mapping(sensor_segments or {})
+        self.devices.sensor_athletes = self.bridge.sensor_athletes
         self.devices.identify_requested.connect(self._identify)
         self.recording = RecordingPanel()
         self.recording.required = sorted(sensor_segments or {})

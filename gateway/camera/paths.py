@@ -10,9 +10,8 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
-from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
+from engine.heading import SEED_HEADING_SPEED_MPS, seed_heading_rule
 from gateway.camera.court import HALF_DOUBLES_M, HALF_LENGTH_M
 
 GRAVITY_MPS2 = 9.80665
@@ -105,6 +104,8 @@ def jump_lift_m(t_s: np.ndarray, jumps: tuple[tuple[float, float], ...], contact
         inside = (tau >= 0) & (tau <= flight_s)
         lift[inside] = np.sqrt(2 * GRAVITY_MPS2 * apex_m) * tau[inside] - 0.5 * GRAVITY_MPS2 * tau[inside] ** 2
     if len(t) > 1 and jumps:
+        from scipy.ndimage import gaussian_filter1d  # lazy: the board's gateway never synthesises jumps
+
         lift = gaussian_filter1d(lift, contact_s / float(np.median(np.diff(t))), mode="nearest")
     return lift
 

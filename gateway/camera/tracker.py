@@ -36,12 +36,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
+from itertools import product
 
 import cv2
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
-from engine.mocap import seed_heading_rule
+from engine.heading import seed_heading_rule
 from gateway.athletes import DEFAULT_ATHLETE
 from gateway.camera.court_calibration import CourtCalibration
 from gateway.camera.foreground import Blob, CourtForeground
@@ -150,6 +150,23 @@ class _Track:
         self.confidence = float(np.clip(1.0 - innovation / gate_m, 0.1, 1.0))
 
 
+def _min_distance_assignment(dist_m: np.ndarray, gate_m: float) -> dict[int, int]:
+    """Row -> column of the assignment with the most pairs inside the gate, then the least total distance.
+
+    Exhaustive over the blobs inside each track's gate: a court has a handful of athletes and each gate holds
+    one or two blobs, so this is a few dozen candidates (and spares the board scipy.optimize's ~30 MB)."""
+    candidates = [[int(b) for b in np.flatnonzero(row <= gate_m)] + [-1] for row in dist_m]
+    best: tuple[int, float, tuple[int, ...]] = (0, 0.0, tuple(-1 for _ in candidates))
+    for combo in product(*candidates):
+        taken = [b for b in combo if b >= 0]
+        if len(set(taken)) != len(taken):
+            continue
+        score = (len(taken), -sum(dist_m[r, b] for r, b in enumerate(combo) if b >= 0))
+        if score > best[:2]:
+            best = (*score, combo)
+    return {r: b for r, b in enumerate(best[2]) if b >= 0}
+
+
 class MultiPlayerTracker:
     """Tracks several athletes with one detector: ``athletes`` maps each name to the side ("near"/"far", or None
     for anywhere) where it is first acquired. Feed frames in time order with :meth:`update`."""
@@ -184,8 +201,7 @@ class MultiPlayerTracker:
         if not live or not points:
             return {}, set()
         dist = np.array([[self.tracks[i].kalman.innovation_distance_m(p) for p in points] for i in live])
-        rows, cols = linear_sum_assignment(np.where(dist <= cfg.gate_m, dist, 1e6))
-        chosen = {live[r]: int(c) for r, c in zip(rows, cols) if dist[r, c] <= cfg.gate_m}
+        chosen = {live[r]: b for r, b in _min_distance_assignment(dist, cfg.gate_m).items()}
         merged = set()
         for r, i in enumerate(live):
             if i in chosen:
