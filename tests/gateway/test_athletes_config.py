@@ -2,13 +2,13 @@
 and the sample -> athlete map the gateway tags samples with."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
 from engine.errors import MalformedFileError
 from gateway.athletes import AthleteConfig, AthleteMap, SensorRef
 from gateway.court_config import CourtConfig, load_court_config
+from tests.gateway.test_court_config import test_refusals_name_the_file_line_and_key as refused_naming_file_line_and_key
+from tests.gateway.test_court_config import write
 
 TWO = """\
 [camera]
@@ -29,12 +29,6 @@ name = "bob"
 side = "far"
 sensors = ["sn0xC0DE0002:0", "st2:1"]
 """
-
-
-def write(tmp_path: Path, text: str) -> Path:
-    path = tmp_path / "court.toml"
-    path.write_text(text)
-    return path
 
 
 def test_two_athletes_are_read(tmp_path):
@@ -67,11 +61,7 @@ def test_no_athletes_means_one_player_wearing_everything(tmp_path):
     ('athletes = 3\n', 1, "expected [[athletes]] tables"),
 ])
 def test_bad_athlete_keys_name_file_line_and_key(tmp_path, text, line, fragment):
-    path = write(tmp_path, text)
-    with pytest.raises(MalformedFileError) as info:
-        load_court_config(path)
-    assert info.value.path == str(path) and info.value.line == line, str(info.value)
-    assert fragment in str(info.value), str(info.value)
+    refused_naming_file_line_and_key(tmp_path, text, line, fragment)  # the same check as every other key
 
 
 @pytest.mark.parametrize("text, fragment", [

@@ -22,11 +22,11 @@ def test_second_athlete_drawn_in_its_own_colour_beside_the_first(qtbot):
     from gui.widgets.skeleton_view import SkeletonView
 
     view = SkeletonView()
-    qtbot.addWidget(view)
-    view.resize(480, 320)
-    view.show()
-    view.set_skeleton(PARENTS)
     view.athlete = "alice"
+    view.set_skeleton(PARENTS)
+    view.resize(480, 320)
+    qtbot.addWidget(view)
+    view.show()
     view.set_poses(POSE, POSE)
     assert view.refresh() and is_second_athlete_colour(view.last_pixels()).sum() == 0
     far_away = POSE + [0.0, 0.0, 20.0]  # the engine's own world: drawn beside the first athlete anyway

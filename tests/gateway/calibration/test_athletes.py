@@ -3,8 +3,6 @@
 wizard never sees alice's sensors, and alice's saved record names her."""
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -19,14 +17,7 @@ from gateway.client import GatewayClient, GatewayRequestError
 from gateway.daemon import Gateway
 from gateway.emulation.stations import start_emulated_station
 
-
-def wait_for(predicate, timeout_s: float = 15.0) -> bool:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return False
+from .test_gateway_hook import wait_for
 
 
 def test_one_wizard_per_athlete_while_the_other_streams(tmp_path, specs, subject):
