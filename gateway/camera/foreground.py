@@ -49,6 +49,7 @@ class CourtForeground:
         if self.ground_point == "auto":
             self.ground_point = "centroid" if calibration.has_pose else "foot"
         self._mog = cv2.createBackgroundSubtractorMOG2(config.history, config.var_threshold, detectShadows=True)
+        self._mog.setNMixtures(config.mixtures)
         width, height = calibration.image_size
         self._roi = np.zeros((height, width), np.uint8)
         outline = calibration.court_to_image(court_outline_m(config.court_margin_m))
