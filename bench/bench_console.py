@@ -32,7 +32,7 @@ from PySide6 import QtCore  # noqa: E402
 
 from gateway.client import GatewayClient  # noqa: E402
 from gui.app import application, pump  # noqa: E402
-from engine.stream.databases import shipped_graph_spec  # noqa: E402
+from engine.stream.registry import adapter  # noqa: E402
 from gui.engine_link import synthesis_setup  # noqa: E402
 from gui.main_window import ConsoleWindow  # noqa: E402
 
@@ -100,7 +100,7 @@ def console(seconds: float, port: int, second_station: str | None = None) -> dic
         if time.monotonic() > deadline:
             raise RuntimeError(f"gateway stations not streaming: {client.list_stations()}")
         time.sleep(0.2)
-    spec = shipped_graph_spec()
+    spec = adapter("motion-graph").shipped_spec()
     more = {"opponent": synthesis_setup(spec, [(second_station, i) for i in range(6)])} if second_station else None
     window = ConsoleWindow(client, synthesis=synthesis_setup(spec, [("st1", i) for i in range(6)]),
                            athlete="player" if more else None, more_athletes=more)

@@ -5,7 +5,8 @@ Six sensors at 100 Hz (jittered) plus a 12 fps camera, 60 s, resampled to 30 Hz 
 (as `courtside synthesize`), the path driving the real fixed-lag motion graph (shipped clips, lag 0.5 s), and
 the path driving the OLNG (shipped-clip knowledge base without the walk 16_32, fed that walk's virtual
 accelerometers at the 4 seed-003 sites, 100 Hz, 25 Hz frames), and the accelerometer-only HMM on that walk's
-right-foot sensor. Times are per frame; the ratio
+right-foot sensor; plus the path alone with every sensor also streaming an orientation quaternion and an angular
+rate (issue 18), against the accelerations-only path in the same run. Times are per frame; the ratio
 column is against the path's live run, measured in this process; "x real time" is the frame period over the CPU
 cost per frame (below 1 the engine falls behind a live stream even on an idle core: the console then says
 FALLING BEHIND). CPU time (this process, all threads) is printed beside wall time because on a shared, loaded
@@ -25,7 +26,7 @@ from engine.stream import RecordedStreams, StreamSynthesis, synthesize_streams
 
 
 class NullEngine:
-    def push(self, acc_g, pos_m=None, heading_rad=None) -> list:
+    def push(self, acc_g, pos_m=None, heading_rad=None, *, quat_wxyz=None, gyro_rps=None) -> list:
         return []
 
     def flush(self) -> list:
@@ -41,6 +42,16 @@ def streams(seconds: float, n_sensors: int = 6, seed: int = 0) -> RecordedStream
     tc = np.arange(1000.0, 1000.0 + seconds, 1 / 12)
     camera = [(float(x), [0.5 * (x - 1000.0), -5.0], None) for x in tc]
     return RecordedStreams(samples, camera, None)
+
+
+def with_orientation(rec: RecordedStreams) -> RecordedStreams:
+    """The same streams, each sensor also turning (a unit quaternion per sample) with its angular rate."""
+    samples = {}
+    for k, (t, acc) in rec.samples.items():
+        half = 0.5 * (1.0 + 0.1 * k) * (t - t[0])
+        quat = np.c_[np.cos(half), np.sin(half), np.zeros((len(t), 2))]
+        samples[k] = (t, acc, quat, np.tile([1.0 + 0.1 * k, 0.0, 0.0], (len(t), 1)))
+    return RecordedStreams(samples, rec.camera, rec.started_t_host_s)
 
 
 HELD_OUT = "16_32"  # a walk, left out of the OLNG knowledge base
@@ -62,14 +73,14 @@ def worn_streams(clip: str, sensor_names, seconds: float) -> RecordedStreams:
 def run_live(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, int]:
     """(wall s, CPU s of this process, frames pushed) for the stream fed in 100 ms batches."""
     session = StreamSynthesis(make, list(rec.samples), rate_hz)
-    t_end_all = max(t[-1] for t, _ in rec.samples.values())
+    t_end_all = max(s[0][-1] for s in rec.samples.values())
     cam = iter(rec.camera)
     pending = next(cam, None)
     t0, c0 = time.perf_counter(), time.process_time()
     for t_end in np.arange(1000.1, t_end_all + 0.1, 0.1):
-        for key, (t, a) in rec.samples.items():
+        for key, (t, *values) in rec.samples.items():
             sl = slice(np.searchsorted(t, t_end - 0.1, "right"), np.searchsorted(t, t_end, "right"))
-            session.add_samples(key, t[sl], a[sl])
+            session.add_samples(key, t[sl], *(v[sl] for v in values))
         while pending is not None and pending[0] <= t_end:
             session.add_camera(*pending)
             pending = next(cam, None)
@@ -88,15 +99,16 @@ def main() -> None:
     t0, c0 = time.perf_counter(), time.process_time()
     _, session = synthesize_streams(NullEngine, rec, list(rec.samples), rate)
     offline_s, offline_cpu_s = time.perf_counter() - t0, time.process_time() - c0
+    oriented = run_live(NullEngine, with_orientation(rec), rate)
 
-    from engine.stream.databases import shipped_graph_spec, shipped_hmm_spec, shipped_olng_spec  # console defaults
+    from engine.stream.registry import adapter  # the console's default databases
 
-    spec = shipped_graph_spec()
+    spec = adapter("motion-graph").shipped_spec()
     graph = run_live(lambda: spec.make(0.5), rec, spec.rate_hz)
-    olng = shipped_olng_spec(exclude=(HELD_OUT,))  # the console's `--engine olng` default: 4 sensors at 25 Hz
+    olng = adapter("olng").shipped_spec(exclude=(HELD_OUT,))  # the console's `--engine olng` default: 4 sensors at 25 Hz
     olng_rec = worn_streams(HELD_OUT, olng.sensor_names, min(args.seconds, args.olng_seconds))
     olng_run = run_live(lambda: olng.make(0.5), olng_rec, olng.rate_hz)
-    hmm = shipped_hmm_spec(exclude=(HELD_OUT,))  # the console's 1-sensor default: accelerometer-only HMM
+    hmm = adapter("hmm").shipped_spec(exclude=(HELD_OUT,))  # the console's 1-sensor default: accelerometer-only HMM
     hmm_run = run_live(lambda: hmm.make(0.5), worn_streams(HELD_OUT, hmm.sensor_names, args.seconds), hmm.rate_hz)
     load = os.getloadavg()[0]
     print(f"stream bench: 6 sensors x 100 Hz + 12 fps camera, {args.seconds:g} s -> {frames} frames at 30 Hz, "
@@ -106,6 +118,7 @@ def main() -> None:
     for name, (wall, cpu, n), rate in (("path alone, live 100 ms batches", (live_s, live_cpu_s, frames), 30.0),
                                        ("path alone, offline one pass",
                                         (offline_s, offline_cpu_s, session.stats.frames_in), 30.0),
+                                       ("path alone, live, + orientation + rate", oriented, 30.0),
                                        ("path + motion graph (lag 0.5 s), live", graph, spec.rate_hz),
                                        ("path + OLNG (4 sensors, 25 Hz), live", olng_run, olng.rate_hz),
                                        ("path + HMM acc-only (1 sensor), live", hmm_run, hmm.rate_hz)):

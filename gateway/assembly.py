@@ -137,7 +137,8 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
                 started = start_athlete_stations(config)
             else:
                 started, _ = start_court_stations(config.stations.emulate, config.stations.emulate_motion,
-                                                  config.stations.emulate_clips)
+                                                  config.stations.emulate_clips,
+                                                  orientation=config.stations.emulate_orientation)
         except Exception:
             if camera is not None:
                 camera.source.close()
@@ -196,7 +197,8 @@ def athlete_station_motion(config: CourtConfig, station_id: int) -> tuple[tuple[
 
 def start_athlete_stations(config: CourtConfig, seed: int = 0) -> list[EmulatedStation]:
     """``stations.emulate`` emulated stations (ids 1..n) each replaying its athlete's clips on its athlete's
-    worn sites (`athlete_station_motion`): two athletes moving differently, each on their own sensors."""
+    worn sites (`athlete_station_motion`): two athletes moving differently, each on their own sensors. With
+    ``stations.emulate_orientation`` they also stream orientation and angular rate (protocol v2)."""
     import numpy as np
 
     from gateway.emulation.stations import demo_config, mocap_traces, start_emulated_station
@@ -206,8 +208,10 @@ def start_athlete_stations(config: CourtConfig, seed: int = 0) -> list[EmulatedS
     try:
         for i in range(config.stations.emulate):
             worn, clips = athlete_station_motion(config, i + 1)
-            (trace,) = mocap_traces(clips, [worn])
-            stations.append(start_emulated_station(demo_config(i, rng, n_sensors=trace.n_sensors), motion=trace))
+            orientation = config.stations.emulate_orientation
+            (trace,) = mocap_traces(clips, [worn], orientation_seed=seed + i if orientation else None)
+            stations.append(start_emulated_station(
+                demo_config(i, rng, n_sensors=trace.n_sensors, orientation=orientation), motion=trace))
     except Exception:
         for station in stations:
             station.stop()
