@@ -7,6 +7,7 @@ calibration, clips) is opened *before* anything starts, so a bad config stops wi
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -203,19 +204,18 @@ def start_athlete_stations(config: CourtConfig, seed: int = 0) -> list[EmulatedS
 
     from gateway.emulation.stations import demo_config, mocap_traces, start_emulated_station
 
+    orientation = config.stations.emulate_orientation
     rng = np.random.default_rng(seed)
     stations: list[EmulatedStation] = []
-    try:
+    with contextlib.ExitStack() as undo:  # a failure part-way stops the stations already started
         for i in range(config.stations.emulate):
             worn, clips = athlete_station_motion(config, i + 1)
-            orientation = config.stations.emulate_orientation
             (trace,) = mocap_traces(clips, [worn], orientation_seed=seed + i if orientation else None)
-            stations.append(start_emulated_station(
-                demo_config(i, rng, n_sensors=trace.n_sensors, orientation=orientation), motion=trace))
-    except Exception:
-        for station in stations:
-            station.stop()
-        raise
+            station = start_emulated_station(demo_config(i, rng, n_sensors=trace.n_sensors, orientation=orientation),
+                                             motion=trace)
+            undo.callback(station.stop)
+            stations.append(station)
+        undo.pop_all()
     return stations
 
 
