@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from engine.errors import CourtsideError
+from engine.safe_load import read_json
 from engine.graph.cli import (_add_database_args, add_search_args, database_paths, evaluate_main as leave_one_out_main,
                               load_clips, weights_from_args)
 from engine.graph.config import GraphConfig
@@ -148,11 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.compare:
         reports = []
         for path in args.compare:
-            try:
-                with open(path) as fh:
-                    reports.append(json.load(fh))
-            except (OSError, ValueError) as exc:
-                raise CourtsideError(f"{path}: not a readable --json report ({exc})") from exc
+            reports.append(read_json(path))  # depth-safe; a bad file is one line naming it
         print(table.format_comparison(*reports))
         return 0
     if not (args.clips or args.sample or args.mocap_dir):
