@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 import firmware_protocol as fp
+from engine.progress import add_quiet_argument
 from gateway import auth, wire
 from gateway.athletes import AthleteConfig, AthleteMap
 from gateway.device_checks import I32_MAX, I32_MIN, command_int
@@ -518,6 +519,7 @@ def _export_parser() -> argparse.ArgumentParser:
     p.add_argument("--npz", type=Path, help="output .npz file")
     p.add_argument("--csv-dir", type=Path, help="output directory for CSV files")
     p.add_argument("--xdf", type=Path, help="output .xdf file (Lab Streaming Layer format, one stream per station)")
+    add_quiet_argument(p)
     return p
 
 

@@ -46,6 +46,7 @@ from typing import Any, BinaryIO, Callable
 
 import numpy as np
 
+from engine import progress
 from engine.errors import CourtsideError
 from gateway import codec
 from gateway.clock import realign_offline
@@ -521,7 +522,9 @@ def read_recording(path: Path | str) -> RecordingContents:
     tail: str | None = None
     end: dict[str, Any] | None = None
     intact = pos
+    meter = progress.bar(total=len(data), desc=f"reading {path.parent.name}", unit="B")
     while pos < len(data):
+        meter.update(pos - meter.n)
         where = _chunk_at(data, pos)
         if isinstance(where, str):
             nxt = _resync(data, pos + 1)
@@ -544,6 +547,7 @@ def read_recording(path: Path | str) -> RecordingContents:
         else:
             messages.append(msg)
         pos = intact = stop
+    meter.close()
     if meta is None:
         raise RecordingError(path, f"{header_problem} and no intact copy of it in the first chunk")
     problems = [f"{header_problem}; meta recovered from its copy"] if header_problem else []

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine import progress
 from engine.mocap import (SEED003_SENSORS, Motion, SensorErrorModel, forward_kinematics, resample,
                           standard_placements, virtual_accelerometers)
 from engine.olng.config import KnowledgeBaseConfig, OLNGConfig
@@ -59,7 +60,7 @@ def leave_one_out(motions: list[Motion], test_indices: list[int], variants: list
                   seed: int = 0) -> dict[str, list[ClipErrors]]:
     """Scores per variant over the test clips, each reconstructed from a database without itself."""
     out: dict[str, list[ClipErrors]] = {v.name: [] for v in variants}
-    for ti in test_indices:
+    for ti in progress.bar(test_indices, desc="olng leave-one-out", unit="clip"):
         kb = build_knowledge_base([m for i, m in enumerate(motions) if i != ti], kb_config)
         test = resample(motions[ti], kb.fps)
         acc = simulate_readings(test, kb, error_model, np.random.default_rng([seed, ti]))
