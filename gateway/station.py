@@ -25,6 +25,7 @@ from gateway.clock import ClockEstimator, TickUnwrapper
 from gateway.device_checks import batch_problem, hello_problem
 from gateway.device_text import EventThrottle, escape as escape_device_text
 from gateway.links import Link, LinkError, SerialLink
+from gateway.reader_thread import ReaderThread
 from gateway.stats import SensorStats
 
 log = logging.getLogger(__name__)
@@ -92,8 +93,8 @@ class _Pending:
     reply: fp.Ack | fp.Nack | None = None
 
 
-class StationReader:
-    """Reads one link (serial path or URL, or any `Link` factory) on its own thread."""
+class StationReader(ReaderThread):
+    """Reads one link (serial path or URL, or any `Link` factory) on its own thread (`ReaderThread`)."""
 
     def __init__(
         self,
@@ -157,37 +158,35 @@ class StationReader:
         link already uses that id: `StationSink.claim_station_name`); the source until a frame arrives."""
         return self._claimed_name or self.source
 
-    # -- thread -----------------------------------------------------------------------------------------------
-    def start(self) -> "StationReader":
-        self._thread = threading.Thread(target=self._run, name=f"gw-station-{self.source}", daemon=True)
-        self._thread.start()
-        return self
+    # -- thread (ReaderThread hooks) ---------------------------------------------------------------------------
+    @property
+    def thread_name(self) -> str:
+        return f"gw-station-{self.source}"
 
-    def stop(self, timeout_s: float = 2.0) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout_s)
-        self._close_link("stopped")
+    def _is_open(self) -> bool:
+        return self._link is not None
 
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            if self._link is None and not self.connect():
-                self._stop.wait(self.reconnect_interval_s)
-                continue
+    def _open(self) -> bool:
+        return self.connect()
+
+    def _close(self, reason: str) -> None:
+        self._close_link(reason)
+
+    def _serve(self) -> None:
+        try:
+            data = self._link.read(65536)
+        except LinkError as exc:
+            self._close_link(str(exc))
+            return
+        now = time.monotonic()
+        if data:
+            self.last_data_s = now
             try:
-                data = self._link.read(65536)
-            except LinkError as exc:
-                self._close_link(str(exc))
-                continue
-            now = time.monotonic()
-            if data:
-                self.last_data_s = now
-                try:
-                    self.feed(data, now)
-                except Exception:  # a bug downstream must not stop acquisition of the next bytes
-                    self.internal_errors += 1
-                    log.exception("%s: processing failed", self.name)
-            self._update_link_state(now)
+                self.feed(data, now)
+            except Exception:  # a bug downstream must not stop acquisition of the next bytes
+                self.internal_errors += 1
+                log.exception("%s: processing failed", self.name)
+        self._update_link_state(now)
 
     def connect(self) -> bool:
         """Open the link now and greet the station (the thread calls this; virtual-time harnesses call it

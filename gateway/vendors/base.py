@@ -16,6 +16,7 @@ import numpy as np
 
 from gateway.clock import ClockEstimator
 from gateway.links import LinkError
+from gateway.reader_thread import ReaderThread
 from gateway.station import SampleBlock
 from gateway.stats import SensorStats
 
@@ -24,7 +25,7 @@ STALE_AFTER_S = 0.5
 RATE_LEARN_SAMPLES = 20
 
 
-class CallbackStationReader:
+class CallbackStationReader(ReaderThread):
     """Base of the vendor readers (same surface as `gateway.station.StationReader`: ``start``, ``stop``,
     ``name``, ``source``, ``status``, ``command``). Subclasses implement :meth:`_connect` (open the device
     through its library, learn its identity, register :meth:`_on_sample`) and :meth:`_disconnect`."""
@@ -70,44 +71,45 @@ class CallbackStationReader:
     def _extra_status(self) -> dict[str, Any]:
         return {}
 
-    # -- thread -----------------------------------------------------------------------------------------------
-    def start(self) -> "CallbackStationReader":
-        self._thread = threading.Thread(target=self._run, name=f"gw-{self.device}-{self.source}", daemon=True)
-        self._thread.start()
-        return self
+    # -- thread (ReaderThread hooks) ---------------------------------------------------------------------------
+    @property
+    def thread_name(self) -> str:
+        return f"gw-{self.device}-{self.source}"
 
-    def stop(self, timeout_s: float = 2.0) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout_s)
+    def _is_open(self) -> bool:
+        return self._connected
+
+    def _open(self) -> bool:
+        try:
+            self._connect()
+        except LinkError as exc:
+            changed, self.link_error = str(exc) != self.link_error, str(exc)
+            if changed:
+                self.sink.on_station_event(self.source, "alarm", f"cannot open link: {exc}")
+            return False
+        self._connected, self.link_error = True, None
+        self.reconnects += self._ever_connected
+        self._ever_connected = True
+        self.sink.on_station_event(self.name, "info", f"{self.device} {self.identity} open on {self.source}")
+        return True
+
+    def _close(self, reason: str) -> None:
         if self._connected:
             self._disconnect()
             self._connected = False
-        self.link_state = "stopped"
+        self.link_state = reason
 
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            if not self._connected:
-                try:
-                    self._connect()
-                except LinkError as exc:
-                    changed, self.link_error = str(exc) != self.link_error, str(exc)
-                    if changed:
-                        self.sink.on_station_event(self.source, "alarm", f"cannot open link: {exc}")
-                    self._stop.wait(self.reconnect_interval_s)
-                    continue
-                self._connected, self.link_error = True, None
-                self.reconnects += self._ever_connected
-                self._ever_connected = True
-                self.sink.on_station_event(self.name, "info", f"{self.device} {self.identity} open on {self.source}")
-            self._stop.wait(self.batch_s)
-            try:
-                self._flush()
-            except Exception:  # a bug downstream must not stop acquisition
-                self.internal_errors += 1
-                log.exception("%s: processing failed", self.name)
-            fresh = self._last_arrival is not None and time.monotonic() - self._last_arrival < STALE_AFTER_S
-            self.link_state = "streaming" if fresh else "stale"
+    def _serve(self) -> None:
+        """The library delivers samples on its own thread (`_on_sample`): every ``batch_s`` the queued ones are
+        flushed to the sink as blocks."""
+        self._stop.wait(self.batch_s)
+        try:
+            self._flush()
+        except Exception:  # a bug downstream must not stop acquisition
+            self.internal_errors += 1
+            log.exception("%s: processing failed", self.name)
+        fresh = self._last_arrival is not None and time.monotonic() - self._last_arrival < STALE_AFTER_S
+        self.link_state = "streaming" if fresh else "stale"
 
     # -- samples ----------------------------------------------------------------------------------------------
     def _on_sample(self, ticks: int, acc_g: np.ndarray, gyro_rps: np.ndarray | None = None,
