@@ -22,6 +22,7 @@ from engine.olng.energy import FrameProblem, KernelEnergy
 from engine.olng.graph import OnlineLazyNeighbourhoodGraph, path_weights
 from engine.olng.knowledge_base import KnowledgeBase
 from engine.olng.pose import UP, fk_root_frame, pose_quats, quat_to_matrix, yaw_quat
+from engine.olng.threads import single_blas_thread
 
 G_MPS2 = 9.80665
 
@@ -71,6 +72,7 @@ class OLNGReconstructor:
         self.dropped_readings = 0   # non-finite input axes replaced by the previous reading
         self._root = np.zeros(3)
         self._heading = 0.0
+        self._one_thread = single_blas_thread()
 
     def reset_root(self, root_pos_m: np.ndarray, heading_rad: float) -> None:
         """Place the (unsensed) root, e.g. at the camera's position estimate."""
@@ -111,7 +113,13 @@ class OLNGReconstructor:
     def push(self, acc_g: np.ndarray, camera_position_m: np.ndarray | None = None,
              camera_heading_rad: float | None = None) -> ReconstructedPose:
         """Reconstruct the pose for this input frame. acc_g: (S, 3) readings in g, sensor order of the database;
-        optional camera fix: ground position (x, z) m and body heading rad (NaN / None = no fix this frame)."""
+        optional camera fix: ground position (x, z) m and body heading rad (NaN / None = no fix this frame).
+        BLAS runs on one thread during the step (engine/olng/threads.py: tiny matrices, 15x faster)."""
+        with self._one_thread():
+            return self._push(acc_g, camera_position_m, camera_heading_rad)
+
+    def _push(self, acc_g: np.ndarray, camera_position_m: np.ndarray | None,
+              camera_heading_rad: float | None) -> ReconstructedPose:
         alpha = np.asarray(acc_g, dtype=float).reshape(-1)
         if alpha.shape != (self.kb.alpha_g.shape[1],):
             raise ValueError(f"expected {self.kb.alpha_g.shape[1] // 3} sensors x 3 axes, got shape {np.shape(acc_g)}")
