@@ -1,7 +1,7 @@
 """Motion-capture data for the engine: readers (BVH, ASF/AMC, C3D), Skeleton/Motion and vectorised forward
-kinematics, resampling and mirroring, joint roles, heading and foot contacts, virtual accelerometers and
-gyroscopes with a sensor-error model, placements calibrated from a sensor-calibration record, and the CMU
-clips shipped in engine/data.
+kinematics, resampling and mirroring, joint roles, heading and foot contacts, virtual accelerometers,
+gyroscopes and orientation filters with sensor-error models, placements calibrated from a sensor-calibration
+record, and the CMU clips shipped in engine/data.
 
 Conventions: world Y up, metres, seconds, quaternions (w, x, y, z), accelerations in g (docs/CONTRACTS.md)."""
 from engine.errors import MalformedFileError
@@ -19,12 +19,13 @@ from engine.mocap.roles import ERROR_ROLES, ROLES, error_joint_indices, joint_ro
 from engine.mocap.sensors import (GRAVITY_MPS2, SEED000_SENSORS, SEED003_SENSORS, SEED004_SENSORS,
                                   STANDARD_SENSORS, SensorErrorModel, SensorPlacement, mean_squared_error_g2,
                                   standard_placements, virtual_accelerometers, virtual_gyroscopes)
+from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
 from engine.mocap.skeleton import Motion, Skeleton, forward_kinematics
 from engine.mocap.transform import mirror, resample
 
 __all__ = [
     "AsfSkeleton", "CMU_UNIT_M", "ContactThresholds", "DATA_DIR", "ERROR_ROLES", "GRAVITY_MPS2", "KNOWN_UNITS",
-    "MalformedFileError", "MarkerData", "Motion", "ROLES", "SEED000_SENSORS", "SEED003_SENSORS",
+    "MalformedFileError", "MarkerData", "Motion", "OrientationErrorModel", "ROLES", "SEED000_SENSORS", "SEED003_SENSORS",
     "SEED004_SENSORS", "STANDARD_SENSORS", "SensorCalibrationData", "SensorErrorModel", "SensorPlacement",
     "Skeleton", "calibrated_placements", "load_sensor_calibration", "placements_from_calibration",
     "reading_corrections",
@@ -32,6 +33,6 @@ __all__ = [
     "heading_from_positions", "joint_roles", "left_right_pairs", "load_clip", "load_database",
     "mean_squared_error_g2", "mirror", "read_amc", "read_asf", "read_bvh", "read_c3d", "rebase_to_tpose", "resample",
     "root_heading", "sample_clips", "standard_placements", "tpose_bases", "tpose_skeleton",
-    "virtual_accelerometers", "virtual_gyroscopes",
+    "virtual_accelerometers", "virtual_gyroscopes", "virtual_orientations",
     "wrap_angle", "write_bvh",
 ]
