@@ -21,6 +21,9 @@ class GraphConfig:
     skip_penalty: float = 1.0     # multiplier on that skip cost
     i_best: int = 256             # I: paths that become hypotheses for the energy (paper: 256)
     leafsize: int = 32            # cKDTree leaf size
+    tilt_weight: float = 1.0      # orientation channel: weight of each sensor's up vector (g-equivalent; 1 = the
+                                  # gravity part of an acc reading), engine/olng/channels.py
+    gyro_weight_s: float = 0.1    # gyro channel: rad/s -> g-equivalent (5 rad/s weighs like 0.5 g)
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.mocap import (SEED003_SENSORS, Motion, SensorPlacement, Skeleton, joint_roles, mirror, resample,
-                          standard_placements, virtual_accelerometers)
+from engine.mocap import (SEED003_SENSORS, Motion, SensorPlacement, Skeleton, forward_kinematics, joint_roles, mirror,
+                          resample, standard_placements, virtual_accelerometers, virtual_gyroscopes)
+from engine.mocap.orientation import virtual_orientations
+from engine.olng.channels import tilt_from_world
 from engine.olng.config import KnowledgeBaseConfig
 from engine.olng.knowledge_base import ClipArrays, KnowledgeBase, SensorRig
 from engine.olng.pose import Rig
@@ -96,8 +98,12 @@ def augment(motions: list[Motion], config: KnowledgeBaseConfig) -> list[Motion]:
 
 
 def clip_arrays(motion: Motion, placements: list[SensorPlacement]) -> ClipArrays:
-    """Readings are simulated from the (augmented) motion itself, as spec A2.1 recommends."""
-    return ClipArrays(motion.rotations, motion.root_positions_m, virtual_accelerometers(motion, placements), motion.name)
+    """Readings are simulated from the (augmented) motion itself, as spec A2.1 recommends: accelerations, and
+    each sensor's tilt and angular rate (the orientation / gyro channels, `engine.olng.channels`), from one FK."""
+    fk = forward_kinematics(motion)
+    return ClipArrays(motion.rotations, motion.root_positions_m, virtual_accelerometers(motion, placements, fk=fk),
+                      motion.name, tilt=tilt_from_world(virtual_orientations(motion, placements, fk=fk)),
+                      gyro_rps=virtual_gyroscopes(motion, placements, fk=fk))
 
 
 def build_knowledge_base(motions: list[Motion], config: KnowledgeBaseConfig = KnowledgeBaseConfig(),
