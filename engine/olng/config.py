@@ -24,6 +24,8 @@ class GraphConfig:
     tilt_weight: float = 1.0      # orientation channel: weight of each sensor's up vector (g-equivalent; 1 = the
                                   # gravity part of an acc reading), engine/olng/channels.py
     gyro_weight_s: float = 0.1    # gyro channel: rad/s -> g-equivalent (5 rad/s weighs like 0.5 g)
+    yaw_weight: float = 0.5       # orientation channel: weight of each sensor's yaw relative to sensor 0 (chord
+                                  # length, <= 2), once its device offset is estimated (engine/olng/yaw.py); 0 = off
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,7 @@ class ClipArrays:
     name: str = ""
     tilt: np.ndarray | None = None
     gyro_rps: np.ndarray | None = None
+    yaw_rad: np.ndarray | None = None     # (F, S) each sensor's yaw (twist about up) in the world, engine/olng/yaw.py
 
 
 def within_clip_derivatives(values: np.ndarray, clip_id: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -83,6 +84,7 @@ class KnowledgeBase:
     clip_names: tuple[str, ...] = ()
     tilt: np.ndarray | None = None      # (N, S*3) up direction in each sensor's axes (orientation channel)
     gyro_rps: np.ndarray | None = None  # (N, S*3) angular rate in each sensor's axes (gyro channel)
+    yaw_rad: np.ndarray | None = None   # (N, S) each sensor's yaw about up (orientation channel: relative yaw)
     _tree: cKDTree | None = None
     _searches: dict | None = None       # (channels, weights) -> (features (N, D), kd-tree)
 
@@ -171,7 +173,7 @@ class KnowledgeBase:
         )
         alpha = np.concatenate([clip.acc_g.reshape(len(clip.acc_g), -1) for clip in clips])
         extra = {}
-        for channel in ("tilt", "gyro_rps"):
+        for channel in ("tilt", "gyro_rps", "yaw_rad"):
             given = [getattr(clip, channel) is not None for clip in clips]
             if any(given) and not all(given):
                 raise ValueError(f"{channel}: some clips have it and some not (the database searches on one channel set)")
@@ -196,7 +198,8 @@ class KnowledgeBase:
             fps=self.fps, q=self.q, x_m=self.x_m, v_mps=self.v_mps, a_mps2=self.a_mps2, alpha_g=self.alpha_g,
             clip_id=self.clip_id, root_vel_heading_mps=self.root_vel_heading_mps, yaw_rate_rps=self.yaw_rate_rps,
             root_height_m=self.root_height_m, clip_names=np.array(self.clip_names),
-            **{k: v for k, v in (("tilt", self.tilt), ("gyro_rps", self.gyro_rps)) if v is not None},
+            **{k: v for k, v in (("tilt", self.tilt), ("gyro_rps", self.gyro_rps), ("yaw_rad", self.yaw_rad))
+               if v is not None},
         )
 
     @classmethod
@@ -210,7 +213,7 @@ class KnowledgeBase:
             sensors = SensorRig(data["sensor_bone"], data["sensor_local_rot"], data["sensor_tip"])
             fields = {k: data[k] for k in ("q", "x_m", "v_mps", "a_mps2", "alpha_g", "clip_id",
                                            "root_vel_heading_mps", "yaw_rate_rps", "root_height_m")}
-            fields.update({k: data[k] for k in ("tilt", "gyro_rps") if k in data.files})   # optional channels
+            fields.update({k: data[k] for k in ("tilt", "gyro_rps", "yaw_rad") if k in data.files})  # optional
             return cls(rig=rig, sensors=sensors, fps=float(data["fps"]), clip_names=tuple(str(n) for n in data["clip_names"]), **fields)
         except (KeyError, ValueError, OSError) as exc:
             raise MalformedFileError(path, None, f"not an OLNG knowledge base: {exc}") from exc

@@ -25,6 +25,7 @@ from engine.olng.graph import OnlineLazyNeighbourhoodGraph, path_weights
 from engine.olng.knowledge_base import KnowledgeBase
 from engine.olng.pose import UP, fk_root_frame, pose_quats, quat_to_matrix, yaw_quat
 from engine.olng.threads import single_blas_thread
+from engine.olng.yaw import YawOffsets, relative_yaw
 
 G_MPS2 = 9.80665
 
@@ -69,6 +70,7 @@ class OLNGReconstructor:
         self.graph: OnlineLazyNeighbourhoodGraph | None = None   # built once the channels are known
         self._tree = None
         self._query_prev: np.ndarray | None = None
+        self._yaw: YawOffsets | None = None      # relative-yaw term (orientation channel, engine/olng/yaw.py)
         self.energy = KernelEnergy(kb.rig, kb.sensors.tip, config.energy)
         self.timings = StepTimings()
         self._k = config.graph.k_neighbours
@@ -145,6 +147,10 @@ class OLNGReconstructor:
             gc = self.config.graph
             table, self._tree = self.kb.search(self.channels, gc.tilt_weight, gc.gyro_weight_s)
             self.graph = OnlineLazyNeighbourhoodGraph(self.kb.clip_id, gc, table)
+            if "orientation" in self.channels and self.kb.yaw_rad is not None and gc.yaw_weight > 0 and n > 1:
+                self._yaw = YawOffsets(relative_yaw(self.kb.yaw_rad.astype(float)), self.kb.fps, gc.yaw_weight)
+        if self._yaw is not None:
+            self._yaw.observe(None if quat_wxyz is None else np.asarray(quat_wxyz, float).reshape(n, 4))
         tilt = None if quat_wxyz is None else tilt_from_device_earth(np.asarray(quat_wxyz, float).reshape(n, 4))
         gyro = None if gyro_rps is None else np.asarray(gyro_rps, float).reshape(n, 3)
         if "orientation" in self.channels and tilt is None:
@@ -174,10 +180,14 @@ class OLNGReconstructor:
         t0 = time.perf_counter()
         query = self._query(alpha, quat_wxyz, gyro_rps)
         idx, dist = self.kb.neighbours(query, self._k, self._tree)
+        if self._yaw is not None:
+            dist = self._yaw.distances(idx, dist)
         t1 = time.perf_counter()
         self.graph.push(idx, dist, query)
         nodes, costs = self.graph.best(self._i_best)
         weights = path_weights(costs)
+        if self._yaw is not None:
+            self._yaw.update(nodes, weights)
         t2 = time.perf_counter()
         problem = self._problem(nodes, weights, alpha.reshape(-1, 3))
         q = problem.start_pose if not self._x_hist else self.energy.solve(problem)
