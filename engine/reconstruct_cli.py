@@ -190,10 +190,11 @@ def _evaluate(args: argparse.Namespace) -> int:
         for imus in (("right_foot",), ("right_foot", "right_wrist")):
             scores = hmm_loo(motions, tests, imu_names=imus, error_model=error_model, seed=args.seed)
             rows[f"hmm ({len(imus)} imu)"] = summarise(scores)
-            if args.orientations:  # the accelerometer-only model beside the paper's acc + gyro one
-                scores = hmm_loo(motions, tests, imu_names=imus, error_model=error_model, seed=args.seed,
-                                 config=HMMConfig(imu_channels="acc"))
-                rows[f"hmm ({len(imus)} imu, acc only)"] = summarise(scores)
+            if args.orientations:  # acc only, and with the tilt of a realistic filter, beside the paper's acc + gyro
+                for channels in ("acc", "acc+gyro+tilt"):
+                    scores = hmm_loo(motions, tests, imu_names=imus, error_model=error_model, seed=args.seed,
+                                     config=HMMConfig(imu_channels=channels))
+                    rows[f"hmm ({len(imus)} imu, {channels})"] = summarise(scores)
     if "motion-graph" in methods:
         rows.update(_motion_graph_rows(args, motions, tests))
     print(format_table(rows))
