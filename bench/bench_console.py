@@ -32,7 +32,7 @@ from PySide6 import QtCore  # noqa: E402
 
 from gateway.client import GatewayClient  # noqa: E402
 from gui.app import application, pump  # noqa: E402
-from engine.stream.databases import shipped_graph_spec  # noqa: E402
+from engine.stream.registry import adapter  # noqa: E402
 from gui.engine_link import synthesis_setup  # noqa: E402
 from gui.main_window import ConsoleWindow  # noqa: E402
 
@@ -98,7 +98,7 @@ def console(seconds: float, port: int) -> dict:
         if time.monotonic() > deadline:
             raise RuntimeError(f"gateway stations not streaming: {client.list_stations()}")
         time.sleep(0.2)
-    window = ConsoleWindow(client, synthesis=synthesis_setup(shipped_graph_spec(), [("st1", i) for i in range(6)]))
+    window = ConsoleWindow(client, synthesis=synthesis_setup(adapter("motion-graph").shipped_spec(), [("st1", i) for i in range(6)]))
     window.resize(1500, 950)
     window.show()
     pump(3.0)  # warm up: groups appear, plots are created

@@ -25,7 +25,7 @@ from engine.stream import RecordedStreams, StreamSynthesis, synthesize_streams
 
 
 class NullEngine:
-    def push(self, acc_g, pos_m=None, heading_rad=None) -> list:
+    def push(self, acc_g, pos_m=None, heading_rad=None, *, quat_wxyz=None, gyro_rps=None) -> list:
         return []
 
     def flush(self) -> list:
@@ -93,11 +93,11 @@ def main() -> None:
     path_live = run_live(NullEngine, rec, 30.0)
     path_offline = run_offline(NullEngine, rec, 30.0)
 
-    from engine.stream.databases import shipped_graph_spec, shipped_hmm_spec, shipped_olng_spec  # console defaults
+    from engine.stream.registry import adapter  # the console's default databases
 
-    graph = shipped_graph_spec()
-    olng = shipped_olng_spec(exclude=(HELD_OUT,))  # the console's default for 4 worn sensors: K 4096, I 256, 25 Hz
-    hmm = shipped_hmm_spec(exclude=(HELD_OUT,))    # the console's 1-sensor default: accelerometer-only HMM
+    graph = adapter("motion-graph").shipped_spec()
+    olng = adapter("olng").shipped_spec(exclude=(HELD_OUT,))  # the console's default for 4 worn sensors, 25 Hz
+    hmm = adapter("hmm").shipped_spec(exclude=(HELD_OUT,))    # the console's 1-sensor default: acc-only HMM
     olng_rec = worn_streams(HELD_OUT, olng.sensor_names, min(args.seconds, args.olng_seconds))
     hmm_rec = worn_streams(HELD_OUT, hmm.sensor_names, args.seconds)
     engines = [("motion graph (lag 0.5 s)", lambda: graph.make(0.5), rec, graph.rate_hz),

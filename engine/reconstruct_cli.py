@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError, cli_command
+from engine.stream.offline import acc_in_sensor_order
 
 SAMPLE_PREFIX = "16_"
 
@@ -71,7 +72,8 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
 
     kb = _olng_knowledge_base(args)
     obs = load_take(args.input, list(SEED003_SENSORS), kb.fps)
-    acc = _acc_in_order(args.input, obs, len(SEED003_SENSORS), f"the OLNG needs all four sensors {list(SEED003_SENSORS)}")
+    acc = acc_in_sensor_order(args.input, obs, len(SEED003_SENSORS),
+                              f"the OLNG needs all four sensors {list(SEED003_SENSORS)}")
     rec = OLNGReconstructor(kb, _olng_config(args))
     t0 = time.perf_counter()
     cam_pos, cam_head = _camera(obs, len(acc))
@@ -92,7 +94,7 @@ def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     model = train_model(motions, imu_names=tuple(args.imus))
     take = read_take(args.input, list(args.imus), model.fps)
     obs = take.obs
-    acc = _acc_in_order(args.input, obs, len(args.imus), f"the HMM needs the IMUs {args.imus}")
+    acc = acc_in_sensor_order(args.input, obs, len(args.imus), f"the HMM needs the IMUs {args.imus}")
     gyro = _take_gyro(args.input, take.frame, model.fps, list(args.imus))
     skeleton = motions[0].skeleton
     start = resample(motions[0], model.fps)
@@ -111,14 +113,6 @@ def _camera(obs, n: int) -> tuple[np.ndarray, np.ndarray]:
     pos = np.full((n, 2), np.nan) if obs.position_m is None else np.asarray(obs.position_m, float)[:n]
     head = np.full(n, np.nan) if obs.heading_rad is None else np.asarray(obs.heading_rad, float)[:n]
     return pos, head
-
-
-def _acc_in_order(path: str, obs, n: int, need: str) -> np.ndarray:
-    """The take's acc columns in the method's sensor order (a take may list its sensors in any order)."""
-    indices = tuple(obs.sensor_indices) if obs.sensor_indices is not None else tuple(range(n))
-    if obs.acc_g is None or sorted(indices) != list(range(n)):
-        raise MalformedFileError(path, None, need)
-    return obs.acc_g[:, np.argsort(indices)]
 
 
 def _take_gyro(path: str, frames: np.ndarray, fps: float, imus: list[str]) -> np.ndarray:

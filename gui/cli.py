@@ -22,7 +22,7 @@ def _host_port(text: str) -> tuple[str, int]:
 
 
 def _console_parser() -> argparse.ArgumentParser:
-    from engine.stream.engines import ENGINE_NAMES
+    from engine.stream.registry import engine_names
 
     p = argparse.ArgumentParser(prog="courtside console", description="Operator console for a Courtside gateway.",
                                 epilog="Unattended capture: courtside console --connect HOST:PORT --calibrate "
@@ -36,7 +36,7 @@ def _console_parser() -> argparse.ArgumentParser:
     p.add_argument("--tls-ca", type=Path, default=None, metavar="CERT",
                    help="connect with TLS, trusting this certificate (the gateway's cert.pem or its CA)")
     p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
-    p.add_argument("--engine", choices=ENGINE_NAMES, default=None,
+    p.add_argument("--engine", choices=engine_names(), default=None,
                    help="synthesis engine (default: motion-graph with --graph, olng with --kb, else by the number "
                         "of worn sensors: 4 -> olng, 1 -> hmm (an accelerometer-only model trained from the shipped "
                         "clips: the stations stream no gyroscope), otherwise motion-graph; see docs/console.md)")

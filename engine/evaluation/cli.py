@@ -42,8 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "(default: build one here, see --variant)")
     p.add_argument("--variant", default="msv", choices=["plain", "msv", "interp", "msv+interp"],
                    help="graph to build when no --graph is given")
-    p.add_argument("--engines", default=",".join(protocols.ENGINES),
-                   help=f"comma list of {', '.join(protocols.ENGINES)}")
+    p.add_argument("--engines", default=",".join(protocols.engine_choices()),
+                   help=f"comma list of {', '.join(protocols.engine_choices())} (engine.stream.registry)")
     p.add_argument("--sensor-sets", default="6,4,2,1", help="worn-sensor counts for the graph and the NN")
     p.add_argument("--takes", type=int, default=3, help="chained: number of takes")
     p.add_argument("--take-seconds", type=float, default=60.0, help="chained: minimum take length (s)")
@@ -78,9 +78,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _config(args: argparse.Namespace) -> protocols.EvalConfig:
     engines = tuple(e for e in args.engines.split(",") if e)
-    unknown = sorted(set(engines) - set(protocols.ENGINES))
+    known = protocols.engine_choices()
+    unknown = sorted(set(engines) - set(known))
     if unknown:
-        raise CourtsideError(f"--engines: unknown {', '.join(unknown)} (known: {', '.join(protocols.ENGINES)})")
+        raise CourtsideError(f"--engines: unknown {', '.join(unknown)} (known: {', '.join(known)})")
     try:
         sets = tuple(int(s) for s in args.sensor_sets.split(",") if s)
     except ValueError:

@@ -1,4 +1,4 @@
-"""The three engines run on a take's simulated inputs, each returning world joint positions on the take's
+"""The engines run on a take's simulated inputs, each returning world joint positions on the take's
 frame grid, so one scorer (metrics.frame_errors) judges them all.
 
 Start state: every engine starts from the camera's first fix (root ground position and heading); without a
@@ -22,6 +22,7 @@ from engine.graph.root_fusion import RootFusion, fuse_track
 from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel, Skeleton, forward_kinematics, quaternions
+from engine.stream import EngineSpec, drive_frames
 
 from .metrics import hips_heading
 from .simulate import CameraTrack
@@ -75,10 +76,7 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
                                           camera_noise_rad=fusion.heading_noise_rad)
     syn = FixedLagSynthesizer(graph, lag_s, weights, sensors, warp=warp, fusion=fusion,
                               confidence_reference=reference)
-    poses = []
-    for t in range(len(pos)):
-        poses += syn.push(None if acc is None else acc[t], pos[t], float(head[t]))
-    poses += syn.flush()
+    poses = drive_frames(syn, acc, pos, head)
     return Prediction(np.stack([p.joint_positions_m for p in poses]),
                       graph.node_clip[np.array([p.node for p in poses])].astype(int),
                       np.array([p.confidence for p in poses]))
@@ -127,6 +125,19 @@ def olng(kb, config, acc_g: np.ndarray, times_s: np.ndarray, take: Take, root0_m
     world, _, _ = reconstruct(kb, config, acc_g, root0_m, root_quat0, cam, warp)
     joints = on_take_grid(world, times_s, take)
     return Prediction(joints if fixes is None else fused_joints(joints, take, fixes, fusion))
+
+
+def online(spec: EngineSpec, acc_g: np.ndarray, times_s: np.ndarray, take: Take,
+           camera: tuple[np.ndarray, np.ndarray] | None, fixes: CameraTrack, fusion: RootFusion,
+           lag_s: float | None = None) -> Prediction:
+    """Any registered engine through the `engine.stream.OnlineEngine` protocol (`drive_frames`, the push loop
+    every driver uses) on its own sensors at its own rate (``acc_g`` (T', S, 3) at ``times_s``); ``camera`` =
+    (ground (T, 2), heading (T,)) on the take's frames gives every frame its fix and the output root is fused
+    (`fused_joints`), else it gets no fix at all. ``lag_s`` None: the engine's shortest (0)."""
+    pos, head = (None, None) if camera is None else _camera_at(camera, times_s, take)
+    poses = drive_frames(spec.make(0.0 if lag_s is None else lag_s), acc_g, pos, head)
+    joints = on_take_grid(np.stack([p.joint_positions_m for p in poses]), times_s[[p.t for p in poses]], take)
+    return Prediction(joints if camera is None else fused_joints(joints, take, fixes, fusion))
 
 
 def hmm(model, acc_g: np.ndarray, gyro_rps: np.ndarray, skeleton: Skeleton, take: Take, root0_m: np.ndarray,

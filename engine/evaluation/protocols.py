@@ -25,6 +25,8 @@ from engine.graph.viterbi import SearchWeights
 from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SEED003_SENSORS, Motion, SensorErrorModel
+from engine.stream import EngineSpec, engine_names
+from engine.stream.registry import adapter
 
 from . import baselines, engines, simulate
 from .labels import ClipLabel
@@ -39,7 +41,8 @@ SENSOR_SETS: dict[int, tuple[str, ...]] = {
     1: ("right_forearm",),
 }
 HMM_IMUS: dict[int, tuple[str, ...]] = {1: ("right_foot",), 2: ("right_foot", "right_wrist")}
-ENGINES = ("graph", "baselines", "olng", "hmm")
+BASELINES = "baselines"  # the mean pose and the nearest neighbour: rows beside the engines, not an engine
+OWN_ROWS = ("motion-graph", "olng", "hmm", BASELINES)  # run by their own row code below; other engines generically
 
 CAMERA_ON, CAMERA_OFF = "yes", "no"
 
@@ -69,7 +72,7 @@ class EvalConfig:
     """What to run and with which inputs."""
 
     sensor_sets: tuple[int, ...] = (6, 4, 2, 1)
-    engines: tuple[str, ...] = ENGINES
+    engines: tuple[str, ...] = field(default_factory=lambda: engine_choices())
     camera: simulate.CameraModel = simulate.CameraModel()
     error_model: SensorErrorModel | None = field(default_factory=SensorErrorModel.seed000)
     weights: SearchWeights = field(default_factory=SearchWeights.camera_following)
@@ -102,6 +105,7 @@ class HeldOut:
         self.train = [i for i in range(len(db.motions)) if i not in set(clip_ids)]
         self._nn: dict[tuple[int, ...], baselines.NearestNeighbour] = {}
         self._hmm: dict[tuple[str, ...], object] = {}
+        self._specs: dict[str, EngineSpec] = {}
 
     def nearest_neighbour(self, sensors: tuple[int, ...], window: int) -> baselines.NearestNeighbour:
         if sensors not in self._nn:
@@ -122,6 +126,20 @@ class HeldOut:
             self._hmm[imus] = train_model([self.db.motions[i] for i in self.train], imus,
                                           [self.db.labels[i].content for i in self.train])
         return self._hmm[imus]
+
+
+    def engine_spec(self, name: str) -> EngineSpec:
+        """A registered engine on the training clips, by its adapter's database builder (`engine.stream.registry`)."""
+        if name not in self._specs:
+            self._specs[name] = adapter(name).build_spec([self.db.motions[i] for i in self.train],
+                                                         f"{len(self.train)} training clips")
+        return self._specs[name]
+
+
+def engine_choices() -> tuple[str, ...]:
+    """What --engines may name: every registered engine, and the baselines."""
+    names = engine_names()
+    return (*names[:1], BASELINES, *names[1:])
 
 
 def graph_sensor_indices(graph: MotionGraph, count: int) -> tuple[int, ...]:
@@ -165,15 +183,15 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
         scores.longest_run_s.append(longest)
 
     sets = [(k, graph_sensor_indices(graph, k)) for k in cfg.sensor_sets] if (
-        "graph" in cfg.engines or "baselines" in cfg.engines) else []
+        "motion-graph" in cfg.engines or BASELINES in cfg.engines) else []
     off = (cam_pos[:1], cam_head[:1])
-    if "baselines" in cfg.engines:
+    if BASELINES in cfg.engines:
         record(Row("mean pose", "-", CAMERA_ON),
                lambda: engines.Prediction(baselines.mean_pose(graph, cam_pos, cam_head)))
         record(Row("mean pose", "-", CAMERA_OFF),
                lambda: engines.Prediction(baselines.mean_pose(graph, np.repeat(off[0], take.n_frames, 0),
                                                               np.repeat(off[1], take.n_frames))))
-    if "graph" in cfg.engines:
+    if "motion-graph" in cfg.engines:
         w_on, w_off = cfg.weights, replace(cfg.weights, position=0.0, heading=0.0)
         for k, idx in sets:
             for camera, w in ((CAMERA_ON, w_on), (CAMERA_OFF, w_off)):
@@ -185,7 +203,7 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                lambda: engines.motion_graph(graph, None, (), cam.position_m, cam.heading_rad,
                                             replace(cfg.weights, acc=0.0), True,
                                             cfg.warp, cfg.lag_s, cfg.fusion, cfg.error_model))
-    if "baselines" in cfg.engines:
+    if BASELINES in cfg.engines:
         for k, idx in sets:
             nn = held.nearest_neighbour(idx, cfg.nn_window)
             for camera in (CAMERA_ON, CAMERA_OFF):
@@ -216,6 +234,15 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
             record(Row(f"hmm ({'+'.join(imus)})", str(k), CAMERA_ON),
                    lambda: engines.hmm(model, imu_acc, gyro, skeleton, take, root0, quat0, (cam_pos, cam_head),
                                        cfg.warp, cam, cfg.fusion))
+    for name in (e for e in cfg.engines if e not in OWN_ROWS):
+        spec = held.engine_spec(name)
+        acc_s, times = simulate.accelerometers(take, spec.sensor_names, cfg.error_model,
+                                               np.random.default_rng([*rng_seed, 11]), fps=spec.rate_hz)
+        for camera in (CAMERA_OFF, CAMERA_ON):
+            record(Row(name, str(len(spec.sensor_names)), camera),
+                   lambda spec=spec, acc_s=acc_s, times=times, camera=camera: engines.online(
+                       spec, acc_s, times, take, (cam_pos, cam_head) if camera == CAMERA_ON else None,
+                       cam, cfg.fusion, cfg.lag_s))
 
 
 def chained_takes(db: Database, takes: list[list[int]], cfg: EvalConfig, max_clip_s: float | None = None

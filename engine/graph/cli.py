@@ -171,6 +171,7 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
 @cli_command("courtside synthesize")
 def synthesize_main(argv: list[str]) -> int:
     from engine.stream import FramePose, synthesize_streams
+    from engine.stream.offline import drive_take
     from engine.stream.poses_file import save_poses
 
     from . import label_constraint
@@ -181,10 +182,18 @@ def synthesize_main(argv: list[str]) -> int:
     from .root_fusion import RootFusion, fuse_track
     from .viterbi import ViterbiSearch
 
+    from engine.stream.registry import engine_names
+
     p = argparse.ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
-    p.add_argument("--graph", required=True, help="graph .npz from build-graph")
+    p.add_argument("--engine", choices=engine_names(), default="motion-graph",
+                   help="synthesis engine (engine.stream.registry); every engine but the motion graph runs online "
+                        "(as the console) and writes joint positions: -o OUT.npz, the --save-poses format")
+    p.add_argument("--graph", help="graph .npz from build-graph (the motion-graph engine; required for it)")
+    p.add_argument("--database", default=None, metavar="FILE",
+                   help="--engine other than motion-graph: its database file (OLNG: a knowledge base from "
+                        "`courtside reconstruct --save-kb`); default: built from the shipped clips")
     p.add_argument("--input", required=True, help="take .npz (synthesis input format or a gateway export)")
-    p.add_argument("-o", "--output", required=True, help="output .bvh")
+    p.add_argument("-o", "--output", required=True, help="output .bvh (motion graph) or .npz (other engines)")
     add_search_args(p)
     p.add_argument("--root-warp", nargs=2, type=float, default=[RootWarp().position_gain, RootWarp().heading_gain],
                    metavar=("GAIN_P", "GAIN_O"),
@@ -222,6 +231,10 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--stream-vmc", metavar="[HOST:]PORT", help="also send the poses as VMC (OSC over UDP, e.g. 39539; "
                    "127.0.0.1 unless a host is given) to Unity/Blender/VSeeFace VMC receivers")
     args = p.parse_args(argv)
+    if args.engine != "motion-graph":
+        return _synthesize_online(args)
+    if not args.graph:
+        raise CourtsideError("courtside synthesize: the motion-graph engine needs --graph (from build-graph)")
     graph = MotionGraph.load(args.graph)
     sensor_map = parse_sensor_map(args.sensor_map, graph.config.sensor_names)
     check_lag(args.lag, graph.config.fps)
@@ -295,7 +308,7 @@ def synthesize_main(argv: list[str]) -> int:
                                                 use_camera_heading=args.camera_heading)
             counts = vars(session.stats)
         else:
-            poses = _fixed_lag_over_frames(make(), take)
+            poses = drive_take(make(), obs.acc_g, obs, int(take.frame[0]), fps)
         counts.update(confidence_mean=round(float(np.mean([q.confidence for q in poses])), 3) if poses else None,
                       reanchors=len(made[-1].reanchors))
         emitted = [q.source for q in poses]
@@ -331,24 +344,35 @@ def synthesize_main(argv: list[str]) -> int:
     return 0
 
 
-def _fixed_lag_over_frames(synthesizer, take) -> list:
-    """Fixed-lag decoding of frames already on the clock (a synthesis-input file): one push per frame, a NaN
-    row (dropout) pushed without accelerations, as the live path does."""
-    from engine.stream import FramePose
+def _synthesize_online(args: argparse.Namespace) -> int:
+    """`courtside synthesize --engine NAME` for an engine other than the motion graph: its spec from the registry
+    (a --database file, else the shipped clips), the take through the live path, the poses saved to -o."""
+    from engine.stream.offline import synthesize_take
+    from engine.stream.poses_file import save_poses
+    from engine.stream.registry import adapter
 
-    obs, out = take.obs, []
-    first = int(take.frame[0])
-    fps = synthesizer.graph.config.fps
-
-    def frame_poses(emitted):
-        return [FramePose(first + q.t, (first + q.t) / fps, q.joint_positions_m,
-                          getattr(q, "confidence", None), q) for q in emitted]
-
-    for t in range(obs.n_samples):
-        acc = None if obs.acc_g is None or np.isnan(obs.acc_g[t]).any() else obs.acc_g[t]
-        out += frame_poses(synthesizer.push(acc, None if obs.position_m is None else obs.position_m[t],
-                                            None if obs.heading_rad is None else float(obs.heading_rad[t])))
-    return out + frame_poses(synthesizer.flush())
+    if not args.output.lower().endswith(".npz"):
+        raise CourtsideError(f"-o {args.output}: --engine {args.engine} writes joint positions; give -o OUT.npz")
+    check_output_dir(args.output)
+    module = adapter(args.engine)
+    if args.database is not None and module.load_spec is None:
+        raise CourtsideError(f"--database: the {args.engine} engine has no database file (it builds its own)")
+    spec = module.shipped_spec() if args.database is None else module.load_spec(args.database)
+    lag = 0.0 if args.lag is None else args.lag
+    check_lag(lag, spec.rate_hz)
+    t0 = time.perf_counter()
+    poses = synthesize_take(spec, args.input, lag, sensor_map=parse_sensor_map(args.sensor_map, spec.sensor_names),
+                            use_camera_heading=args.camera_heading, times=args.times, start_s=args.start)
+    elapsed = time.perf_counter() - t0
+    meta = {"engine": spec.name, "database": spec.database, "lag_s": lag, "rate_hz": spec.rate_hz,
+            "start_frame": int(poses[0].frame) if poses else None, "input": str(args.input),
+            "use_camera_heading": args.camera_heading}
+    save_poses(args.output, poses, spec.parents, meta)
+    if args.save_poses:
+        save_poses(args.save_poses, poses, spec.parents, meta)
+    print(json.dumps({"engine": spec.name, "frames": len(poses), "search_s": round(elapsed, 3),
+                      "output": args.output}))
+    return 0
 
 
 @cli_command("courtside evaluate")

@@ -83,10 +83,12 @@ class FixedLagSynthesizer:
         self.reanchors: list[int] = []  # samples at which the search re-anchored
 
     def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None, heading_rad: float | None = None,
-             penalty: np.ndarray | None = None, rows: np.ndarray | None = None) -> list[EmittedPose]:
+             penalty: np.ndarray | None = None, rows: np.ndarray | None = None, *,
+             quat_wxyz: np.ndarray | None = None, gyro_rps: np.ndarray | None = None) -> list[EmittedPose]:
         """Consume sample t (acc (S, 3) g, optional ground position (2,) m and heading rad; `penalty` = optional
         per-node broken-constraint count for this sample; `rows` = this sample's `acc_rows_batch` row if the
-        caller batched them); returns the pose of sample t - L once t >= L."""
+        caller batched them); returns the pose of sample t - L once t >= L. The accelerometer graph has no use
+        for ``quat_wxyz``/``gyro_rps`` (the `engine.stream.OnlineEngine` protocol's other channels): ignored."""
         lat = self.lattice
         lat.step(acc_g, pos_m, heading_rad, penalty, rows)
         self._fuser.push(pos_m, heading_rad)

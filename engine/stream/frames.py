@@ -44,12 +44,15 @@ def frame_times(first: int, count: int, rate_hz: float) -> np.ndarray:
 @dataclass
 class FrameBatch:
     """Frames ``index`` (F,) int64 at ``t_s`` (F,), accelerations ``acc_g`` (F, S, 3) (NaN where invalid) and
-    ``valid`` (F,) bool (False: some sensor's window touches a dropout)."""
+    ``valid`` (F,) bool (False: some sensor's window touches a dropout); ``quat_wxyz`` (F, S, 4) and ``gyro_rps``
+    (F, S, 3) when some sensor streams them (None otherwise; NaN where invalid)."""
 
     index: np.ndarray
     t_s: np.ndarray
     acc_g: np.ndarray
     valid: np.ndarray
+    quat_wxyz: np.ndarray | None = None
+    gyro_rps: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.index)

@@ -18,25 +18,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from .camera import CameraTrack
+from .engines import OnlineEngine
 from .frames import FrameBatch, FrameResampler
 
 TAKE_START_MARGIN_S = 0.5
-
-
-class OnlineEngine(Protocol):
-    """What the path drives: one frame per `push` (acc (S, 3) g or None for a dropout, court position (2,) m or
-    None, heading rad or None); returns decided poses, each with ``t`` (0-based push index) and
-    ``joint_positions_m`` (J, 3), optionally ``confidence``. `flush` decides what is still pending (end of input)."""
-
-    def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None,
-             heading_rad: float | None = None) -> list[Any]: ...
-
-    def flush(self) -> list[Any]: ...
 
 
 @dataclass(frozen=True)
@@ -149,7 +139,10 @@ class StreamSynthesis:
                 self.first_frame = int(batch.index[k])
             p = None if np.isnan(pos[k]).any() else pos[k]
             h = None if not self.use_camera_heading or np.isnan(head[k]) else float(head[k])
-            poses += self._poses(self.engine.push(batch.acc_g[k] if batch.valid[k] else None, p, h))
+            poses += self._poses(self.engine.push(
+                batch.acc_g[k] if batch.valid[k] else None, p, h,
+                quat_wxyz=None if batch.quat_wxyz is None else batch.quat_wxyz[k],
+                gyro_rps=None if batch.gyro_rps is None else batch.gyro_rps[k]))
             self.stats.frames_in += 1
             self.stats.frames_invalid += int(not batch.valid[k])
             self.stats.frames_with_camera += int(p is not None)

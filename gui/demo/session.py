@@ -32,13 +32,13 @@ def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
     """Start the demo hardware (by default in a child process) and open the console window on it."""
     from gateway.client import GatewayClient
 
-    from engine.stream.databases import shipped_graph_spec
+    from engine.stream.registry import adapter
     from gui.engine_link import sensor_joints, synthesis_setup
     from gui.main_window import ConsoleWindow
 
     hardware = hardware_in_subprocess if separate_process else demo_hardware
     perf = build_performance()  # deterministic: the same frames the stations replay, for ground truth here
-    spec = shipped_graph_spec(exclude=perf.clip_names)
+    spec = adapter("motion-graph").shipped_spec(exclude=perf.clip_names)
     log.info("%s, minus held-out %s", spec.label, ", ".join(perf.clip_names))
     with contextlib.ExitStack() as stack:
         address, t0 = stack.enter_context(hardware(listen, record_dir, camera, duration_s))

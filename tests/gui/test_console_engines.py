@@ -41,7 +41,7 @@ def test_default_engine_rule():
 
 def test_live_sensor_check_refuses_count_names_rate_and_missing(wrist_graph):
     from engine.graph.graph import MotionGraph
-    from engine.stream.engines import motion_graph_spec
+    from engine.graph.online_engine import motion_graph_spec
 
     from gui.engine_link import check_worn_sensors
 
@@ -93,7 +93,7 @@ def test_four_worn_sensors_default_to_the_olng_and_the_status_bar_names_it(live_
         assert console_main(["--connect", f"{host}:{port}", "--duration", "2",
                              "--save-poses", str(tmp_path / "p.npz")]) == 0
     assert "engine olng (default for 4 worn sensors)" in caplog.text
-    assert "olng on shipped CMU clips (4 sensors @ 25 Hz)" in caplog.text
+    assert "olng on shipped CMU clips (4 sensors @ 25 Hz, acc)" in caplog.text
     from engine.stream.poses_file import load_poses
 
     saved = load_poses(tmp_path / "p.npz")
@@ -111,7 +111,7 @@ def test_one_worn_sensor_defaults_to_the_accelerometer_only_hmm_and_it_runs_live
         assert console_main(["--connect", f"{host}:{port}", "--duration", "3",
                              "--save-poses", str(tmp_path / "p.npz")]) == 0
     assert "engine hmm (default for 1 worn sensors)" in caplog.text
-    assert "hmm on shipped CMU clips, accelerometer-only model (1 sensors @ 30 Hz)" in caplog.text
+    assert "hmm on shipped CMU clips, accelerometer-only model (1 sensors @ 30 Hz, acc)" in caplog.text
     from engine.stream.poses_file import load_poses
 
     saved = load_poses(tmp_path / "p.npz")
@@ -122,7 +122,7 @@ def test_one_worn_sensor_defaults_to_the_accelerometer_only_hmm_and_it_runs_live
 def test_status_bar_names_engine_and_database(live_gateway, qtbot, wrist_graph):
     from gateway.client import GatewayClient
     from engine.graph.graph import MotionGraph
-    from engine.stream.engines import motion_graph_spec
+    from engine.graph.online_engine import motion_graph_spec
 
     from gui.engine_link import synthesis_setup
     from gui.main_window import ConsoleWindow
@@ -136,7 +136,7 @@ def test_status_bar_names_engine_and_database(live_gateway, qtbot, wrist_graph):
             qtbot.waitUntil(lambda: window.worker.stats.frames_in > 0, timeout=10_000)
             window.tick()
             text = window.status_label.text()
-            assert f"motion-graph on {wrist_graph} (4 sensors @ 30 Hz)" in text and "lag 0.50 s" in text
+            assert f"motion-graph on {wrist_graph} (4 sensors @ 30 Hz, acc)" in text and "lag 0.50 s" in text
         finally:
             window.shutdown()
 

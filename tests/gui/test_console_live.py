@@ -181,7 +181,7 @@ def test_synthesis_starts_afresh_after_a_reconnect_instead_of_stepping_through_t
     frames after a real restart, reported as FALLING BEHIND while the engine worked them off)."""
     import time
 
-    from engine.stream.databases import shipped_hmm_spec
+    from engine.stream.registry import adapter
     from firmware_protocol.emulator import StationConfig
     from gateway.daemon import Gateway
     from gateway.emulation.stations import start_emulated_station
@@ -196,7 +196,7 @@ def test_synthesis_starts_afresh_after_a_reconnect_instead_of_stepping_through_t
     station, gateway = court(("127.0.0.6", 0))
     address = gateway.address
     window = ConsoleWindow(GatewayClient(*address).connect(),
-                           synthesis=synthesis_setup(shipped_hmm_spec(), [("st1", 0)], lag_s=0.5))
+                           synthesis=synthesis_setup(adapter("hmm").shipped_spec(), [("st1", 0)], lag_s=0.5))
     qtbot.addWidget(window)
     try:
         qtbot.waitUntil(lambda: window.worker.stats.frames_in > 30, timeout=30_000)

@@ -13,8 +13,8 @@ import pytest
 
 from engine.mocap import SEED000_SENSORS, forward_kinematics, load_clip, sample_clips, standard_placements, virtual_accelerometers
 from engine.stream import RecordedStreams, synthesize_streams, take_start_s
-from engine.stream.engines import motion_graph_spec
-from engine.stream.databases import GRAPH_FPS, load_or_build_graph
+from engine.graph.online_engine import load_or_build_graph, motion_graph_spec
+from engine.stream.databases import GRAPH_FPS
 from gui.engine_link import synthesis_setup
 from gui.synthesis import SynthesisWorker
 

@@ -46,7 +46,7 @@ def test_online_rows_report_their_confidence_and_share_the_fused_root(tmp_path, 
     an equality."""
     out_json = tmp_path / "eval.json"
     assert courtside(["evaluate", "--protocol", "chained", "--sample", "--takes", "1", "--take-seconds", "3",
-                      "--engines", "graph", "--sensor-sets", "6", "--lag", "0.5", "--json", str(out_json)]) == 0
+                      "--engines", "motion-graph", "--sensor-sets", "6", "--lag", "0.5", "--json", str(out_json)]) == 0
     out = capsys.readouterr().out
     assert re.search(r"motion graph, 6 sensors, camera yes: confidence vs per-second global error over \d+ s: "
                      r"Spearman [-+ ]?[\d.n]+a?n?, AUC", out), out
@@ -59,7 +59,7 @@ def test_online_rows_report_their_confidence_and_share_the_fused_root(tmp_path, 
 
 def test_leave_one_content_out_holds_out_every_clip_of_the_content(capsys):
     assert courtside(["evaluate", "--protocol", "loco", "--sample", "--groups", "16_01,16_35",
-                      "--engines", "graph,baselines", "--sensor-sets", "6"]) == 0
+                      "--engines", "motion-graph,baselines", "--sensor-sets", "6"]) == 0
     out = capsys.readouterr().out
     assert "[content 16_01]" in out and "[content 16_35]" in out
     assert len(table_rows(out)) == 7  # mean x2, graph x2, camera only, NN x2 (both groups share the keys)

@@ -157,7 +157,8 @@ def test_accelerometer_only_model_for_the_live_stream(motions):
 
 
 def test_the_live_hmm_refuses_a_model_that_needs_gyroscopes(motions):
-    from engine.stream.engines import EngineMismatchError, hmm_spec
+    from engine.hmm.online_engine import hmm_spec
+    from engine.stream.engines import EngineMismatchError
 
     model = train_model([motions[i] for i in WALKS])
     with pytest.raises(EngineMismatchError, match="gateway streams accelerometers only"):

@@ -125,7 +125,7 @@ def test_console_setup_streams_what_its_synthesizer_emits(tmp_path):
     from engine.graph.cli import build_graph_main
     from engine.livestream.console import streaming_engine
     from engine.mocap import SEED000_SENSORS, resample, standard_placements, virtual_accelerometers
-    from engine.stream.engines import motion_graph_spec
+    from engine.graph.online_engine import motion_graph_spec
 
     assert build_graph_main(["--sample", "-o", str(tmp_path / "g.npz")]) == 0
     graph = MotionGraph.load(tmp_path / "g.npz")

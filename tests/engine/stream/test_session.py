@@ -15,7 +15,7 @@ class InputLog:
     def __init__(self) -> None:
         self.pushed: list[tuple] = []
 
-    def push(self, acc_g, pos_m=None, heading_rad=None):
+    def push(self, acc_g, pos_m=None, heading_rad=None, *, quat_wxyz=None, gyro_rps=None):
         self.pushed.append((None if acc_g is None else acc_g.copy(), None if pos_m is None else pos_m.copy(),
                             heading_rad))
         return [EnginePose(len(self.pushed) - 1, np.zeros((1, 3)))]

@@ -176,7 +176,7 @@ def test_build_graph_cli_uses_the_record(scenario, tmp_path, capsys):
 
 
 def test_console_graph_is_built_and_cached_per_calibration(scenario, tmp_path):
-    from engine.stream.databases import load_or_build_graph
+    from engine.graph.online_engine import load_or_build_graph
 
     plain, _, plain_cache = load_or_build_graph(exclude=["16_32", "16_36"], cache_dir=tmp_path)
     cal, _, cal_cache = load_or_build_graph(exclude=["16_32", "16_36"], cache_dir=tmp_path,

@@ -1,0 +1,76 @@
+"""OLNG in the engine registry (`engine.stream.registry`): its spec, database builder (a knowledge base) and
+`OnlineEngine` adapter."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.stream.engines import EngineMismatchError, EnginePose, EngineSpec
+
+
+class OLNGEngine:
+    """`engine.olng.OLNGReconstructor` in the `OnlineEngine` protocol. It decides each frame at once (no lag), its
+    integrated root follows the camera fix when there is one; a dropout frame holds the last reading (the
+    reconstructor's own rule), and nothing is emitted until the first complete reading. It reads accelerometers
+    only (orientation and angular rate are ignored)."""
+
+    def __init__(self, kb: Any) -> None:
+        from .reconstructor import OLNGReconstructor
+
+        self.rec = OLNGReconstructor(kb)
+        self.n_sensors = kb.alpha_g.shape[1] // 3
+        self.t = -1
+        self.started = False
+
+    def push(self, acc_g: np.ndarray | None, pos_m: Any = None, heading_rad: float | None = None, *,
+             quat_wxyz: np.ndarray | None = None, gyro_rps: np.ndarray | None = None) -> list[EnginePose]:
+        self.t += 1
+        if acc_g is None and not self.started:
+            return []
+        self.started = True
+        reading = np.full((self.n_sensors, 3), np.nan) if acc_g is None else acc_g
+        return [EnginePose(self.t, self.rec.push(reading, pos_m, heading_rad).joints_world_m)]
+
+    def flush(self) -> list[EnginePose]:
+        return []
+
+
+def olng_spec(kb: Any, database: str | Path, sensor_names: Sequence[str] | None = None) -> EngineSpec:
+    """OLNG over a knowledge base (`courtside reconstruct --save-kb`, or built from the shipped clips). A saved
+    knowledge base does not name its sensors; it is built at the seed-003 placements unless told otherwise."""
+    from engine.mocap import SEED003_SENSORS
+
+    from .mocap_bridge import skeleton_from_rig
+
+    names = tuple(sensor_names or SEED003_SENSORS)
+    n = kb.alpha_g.shape[1] // 3
+    if len(names) != n:
+        raise EngineMismatchError(f"{database}: knowledge base has {n} sensors, named {list(names)}")
+    return EngineSpec("olng", str(database), names, float(kb.fps), np.asarray(skeleton_from_rig(kb.rig).parents),
+                      lambda lag_s: OLNGEngine(kb), lag_applies=False)
+
+
+def build_spec(motions: Sequence[Any], database: str) -> EngineSpec:
+    """OLNG on a knowledge base built from ``motions`` (about a second for the shipped clips; not cached)."""
+    from .config import KnowledgeBaseConfig
+    from .mocap_bridge import build_knowledge_base
+
+    return olng_spec(build_knowledge_base(list(motions), KnowledgeBaseConfig()), database)
+
+
+def shipped_spec(exclude: Sequence[str] = (), calibration: Any = None) -> EngineSpec:
+    """OLNG on the shipped subject-16 clips (the knowledge base's sensors are the seed-003 placements; a
+    calibration record does not change them)."""
+    from engine.stream.databases import shipped_motions
+
+    return build_spec(shipped_motions(exclude), "shipped CMU clips")
+
+
+def load_spec(path: str | Path) -> EngineSpec:
+    """OLNG on a knowledge base saved by `courtside reconstruct --save-kb`."""
+    from .knowledge_base import KnowledgeBase
+
+    return olng_spec(KnowledgeBase.load(path), path)
