@@ -332,6 +332,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             lag = f"lag {s.lag_s:.2f} s, " if self.synthesis.engine.lag_applies else ""
             parts.append(f"{self.synthesis.engine.label}: {lag}{s.frames_per_s:.0f} frames/s, "
                          f"{s.push_ms:.1f} ms/frame{conf}"
+                         + (f", {s.engine_status}" if s.engine_status else "")
                          + (f", {s.frames_invalid} frames without a sensor" if s.frames_invalid else "")
                          + (f", {s.late_samples} samples / {s.late_fixes} camera fixes came after their frames"
                             if s.late_samples or s.late_fixes else "")

@@ -161,8 +161,31 @@ def test_the_live_hmm_refuses_a_model_that_needs_gyroscopes(motions):
     from engine.stream.engines import EngineMismatchError
 
     model = train_model([motions[i] for i in WALKS])
-    with pytest.raises(EngineMismatchError, match="gateway streams accelerometers only"):
+    with pytest.raises(EngineMismatchError, match="a live stream may carry accelerometers only"):
         hmm_spec(model, "walks", ("right_foot",), motions[0].skeleton)
+
+
+def test_the_live_hmm_runs_the_richest_model_the_stream_feeds(motions):
+    """Issue 18: with angular rate and orientation streamed the live HMM runs acc + gyro + tilt, with angular
+    rate only the paper's acc + gyro, with accelerations only the accelerometer model; the spec says which
+    channels it can use."""
+    from engine.hmm.features import imu_features, imu_orientations
+    from engine.hmm.online_engine import build_spec
+    from engine.mocap import resample, standard_placements
+    from engine.mocap.orientation import to_device_earth
+
+    spec = build_spec([motions[i] for i in WALKS if i != 5], "walks")
+    assert spec.inputs == ("acc", "orientation", "gyro")
+    test = resample(motions[5], spec.rate_hz)
+    placements = standard_placements(test.skeleton, ("right_foot",))
+    acc, gyro = imu_features(test, placements)
+    quats = to_device_earth(imu_orientations(test, placements), 1.3)
+    for kwargs, channels in (({"quat_wxyz": quats, "gyro_rps": gyro}, "acc+gyro+tilt"),
+                             ({"gyro_rps": gyro}, "acc+gyro"), ({}, "acc")):
+        engine = spec.make(0.0)
+        poses = [engine.push(acc[t], **{k: v[t] for k, v in kwargs.items()}) for t in range(40)]
+        assert engine.channels == channels
+        assert all(len(p) == 1 and np.isfinite(p[0].joint_positions_m).all() for p in poses)
 
 
 def test_tilt_channel_ignores_the_device_yaw_and_runs_with_realistic_orientations(motions):

@@ -132,3 +132,25 @@ def test_device_yaw_offsets_are_estimated_online(kb, take) -> None:
     truth = np.angle(np.exp(1j * (yaws[1:] - yaws[0])))
     error_deg = np.degrees(np.abs(np.angle(np.exp(1j * (rec._yaw.offsets_rad - truth)))))
     assert np.all(error_deg < 10.0), error_deg   # measured 3.5-6.2 degrees
+
+
+def test_online_engine_uses_the_streamed_channels_and_live_keeps_up(kb, take) -> None:
+    """The registry adapter: the spec names the channels the knowledge base can search on, a session searches on
+    what its first frame brings; only the live engine times itself, and when frames cost more than its budget
+    it narrows the search and says so (budget forced tiny here, so the step down is certain)."""
+    from engine.olng.keep_up import KeepUp, effort_levels
+    from engine.olng.online_engine import olng_spec
+
+    acc, q_world, gyro = take
+    spec = olng_spec(kb, "walks")
+    assert spec.inputs == ("acc", "orientation", "gyro")
+    offline = spec.make(0.0)
+    offline.push(acc[0], quat_wxyz=to_device_earth(q_world[0], 0.4), gyro_rps=gyro[0])
+    assert offline.channels == ("acc", "orientation", "gyro") and offline.keep_up is None and offline.status == ""
+    live = spec.live(0.0)
+    live.keep_up = KeepUp(effort_levels(4096, 256), frame_period_s=1e-6, window=5)
+    for a in acc[:12]:
+        assert np.isfinite(live.push(a)[0].joint_positions_m).all()
+    assert live.channels == ("acc",)
+    assert live.keep_up.level == 2 and live.rec._k == 1024 and live.rec._i_best == 64
+    assert live.status.startswith("olng cheaper setting to keep up: K 1024 / I 64 instead of K 4096 / I 256")
