@@ -37,6 +37,10 @@ class EnergyConfig:
     w_pose: float = 0.6
     w_motion: float = 0.2
     w_smooth: float = 0.2
+    w_tilt: float = 1.0                  # orientation channel (issue 18, not in the paper): each sensor's measured tilt
+                                         # against the tilt the pose gives it (engine/olng/energy.py)
+    tilt_lever_m: float = 0.25           # a unit tilt difference weighs like this position error (a forearm's length:
+                                         # a small tilt error of a rad moves its far end about that much)
     epsilon: float = 1e-3                # pseudo-Huber floor inside sqrt(|r|): sqrt has infinite slope at 0
     variance_kept: float = 0.99          # weighted-PCA subspace keeps this fraction of the weighted variance
     min_components: int = 3              # guard when all weight sits on one pose

@@ -71,7 +71,8 @@ class OLNGReconstructor:
         self._tree = None
         self._query_prev: np.ndarray | None = None
         self._yaw: YawOffsets | None = None      # relative-yaw term (orientation channel, engine/olng/yaw.py)
-        self.energy = KernelEnergy(kb.rig, kb.sensors.tip, config.energy)
+        self.energy = KernelEnergy(kb.rig, kb.sensors.tip, config.energy, (kb.sensors.bone, kb.sensors.local_rot))
+        self._tilt_now: np.ndarray | None = None   # this frame's measured sensor tilts (orientation channel)
         self.timings = StepTimings()
         self._k = config.graph.k_neighbours
         self._i_best = config.graph.i_best
@@ -107,7 +108,8 @@ class OLNGReconstructor:
         kb, dt, scale = self.kb, self.kb.dt_s, self._scale
         pose_targets = kb.q[nodes]
         if not self._x_hist:
-            return FrameProblem(weights, pose_targets, None, None, None, start_pose=weights @ pose_targets)
+            return FrameProblem(weights, pose_targets, None, None, None, start_pose=weights @ pose_targets,
+                                tilt_targets=self._tilt_targets(len(nodes)))
         x_t = self._x_hist[-1]
         acc = kb.a_mps2[nodes].reshape(len(nodes), -1) * scale
         # velocity of the database frame before each path's last frame, so (velocity, weight) share a path (A6.3)
@@ -123,7 +125,15 @@ class OLNGReconstructor:
             vel = kb.v_mps[nodes].reshape(len(nodes), -1) * scale
             motion = x_t + vel * dt + 0.5 * acc * dt**2
             smooth = 2 * x_t - self._x_hist[-2] + acc * dt**2
-        return FrameProblem(weights, pose_targets, motion, smooth, control, start_pose=self._q_prev)
+        return FrameProblem(weights, pose_targets, motion, smooth, control, start_pose=self._q_prev,
+                            tilt_targets=self._tilt_targets(len(nodes)))
+
+    def _tilt_targets(self, count: int) -> np.ndarray | None:
+        """The measured tilts as the tilt term's target for every hypothesis (None without orientations)."""
+        if self._tilt_now is None:
+            return None
+        lever = self.config.energy.tilt_lever_m / self.config.energy.length_unit_m
+        return np.broadcast_to(self._tilt_now.reshape(-1) * lever, (count, self._tilt_now.size))
 
     def push(self, acc_g: np.ndarray, camera_position_m: np.ndarray | None = None,
              camera_heading_rad: float | None = None, *, quat_wxyz: np.ndarray | None = None,
@@ -164,6 +174,8 @@ class OLNGReconstructor:
                 raise ValueError(f"the first frame must bring every channel searched on ({', '.join(self.channels)})")
             query = np.where(np.isfinite(query), query, self._query_prev)
         self._query_prev = query
+        if "orientation" in self.channels:   # for the energy's tilt term; a missing sensor holds its last tilt
+            self._tilt_now = tilt if self._tilt_now is None else np.where(np.isfinite(tilt), tilt, self._tilt_now)
         return query
 
     def _push(self, acc_g: np.ndarray, camera_position_m: np.ndarray | None, camera_heading_rad: float | None,

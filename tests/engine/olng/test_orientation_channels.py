@@ -154,3 +154,15 @@ def test_online_engine_uses_the_streamed_channels_and_live_keeps_up(kb, take) ->
     assert live.channels == ("acc",)
     assert live.keep_up.level == 2 and live.rec._k == 1024 and live.rec._i_best == 64
     assert live.status.startswith("olng cheaper setting to keep up: K 1024 / I 64 instead of K 4096 / I 256")
+
+
+def test_energy_tilt_of_a_database_pose_is_the_database_tilt(kb) -> None:
+    """The tilt term's FK (root tilt, bone rotation, sensor mounting) gives every database pose exactly the tilt
+    the knowledge base simulated for it from the clip's world FK."""
+    from engine.olng.energy import KernelEnergy
+
+    energy = KernelEnergy(kb.rig, kb.sensors.tip, CONFIG.energy, (kb.sensors.bone, kb.sensors.local_rot))
+    frames = np.arange(0, kb.size, max(1, kb.size // 40))
+    lever_units = CONFIG.energy.tilt_lever_m / CONFIG.energy.length_unit_m
+    predicted = energy.features(kb.q[frames].astype(float))["tilt"] / lever_units
+    assert np.allclose(predicted, kb.tilt[frames], atol=2e-3)
