@@ -170,8 +170,8 @@ def _evaluate(args: argparse.Namespace) -> int:
                     Variant("olng no time warp", OLNGConfig(graph=GraphConfig(k_neighbours=args.k, i_best=args.i_best,
                                                                               window=args.window, max_column_step=1, max_warp=1)))]
         if args.orientations:  # issue 18: the channels a real IMU streams, orientations through a realistic filter
-            variants += [Variant("olng (4 acc + tilt)", base, ("acc", "orientation")),
-                         Variant("olng (4 acc + tilt + gyro)", base, ("acc", "orientation", "gyro"))]
+            variants += [Variant("olng (4 acc + orientation)", base, ("acc", "orientation")),
+                         Variant("olng (4 acc + ori + gyro)", base, ("acc", "orientation", "gyro"))]
         kb_config = KnowledgeBaseConfig(mirror=args.mirror, reverse=args.reverse)
         scores = leave_one_out(motions, tests, variants, kb_config, error_model, seed=args.seed)
         rows.update({k: summarise(v) for k, v in scores.items()})

@@ -26,6 +26,7 @@ class GraphConfig:
     gyro_weight_s: float = 0.1    # gyro channel: rad/s -> g-equivalent (5 rad/s weighs like 0.5 g)
     yaw_weight: float = 0.5       # orientation channel: weight of each sensor's yaw relative to sensor 0 (chord
                                   # length, <= 2), once its device offset is estimated (engine/olng/yaw.py); 0 = off
+    yaw_min_frames: int = 50      # frames of offset samples before the yaw term may act (2 s at 25 Hz)
 
 
 @dataclass(frozen=True)

@@ -158,7 +158,8 @@ class OLNGReconstructor:
             table, self._tree = self.kb.search(self.channels, gc.tilt_weight, gc.gyro_weight_s)
             self.graph = OnlineLazyNeighbourhoodGraph(self.kb.clip_id, gc, table)
             if "orientation" in self.channels and self.kb.yaw_rad is not None and gc.yaw_weight > 0 and n > 1:
-                self._yaw = YawOffsets(relative_yaw(self.kb.yaw_rad.astype(float)), self.kb.fps, gc.yaw_weight)
+                self._yaw = YawOffsets(relative_yaw(self.kb.yaw_rad.astype(float)), self.kb.fps, gc.yaw_weight,
+                                       min_frames=gc.yaw_min_frames)
         if self._yaw is not None:
             self._yaw.observe(None if quat_wxyz is None else np.asarray(quat_wxyz, float).reshape(n, 4))
         tilt = None if quat_wxyz is None else tilt_from_device_earth(np.asarray(quat_wxyz, float).reshape(n, 4))
