@@ -77,6 +77,31 @@ def run_live(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, 
     return time.perf_counter() - t0, time.process_time() - c0, session.stats.frames_in
 
 
+def worn_channels(clip: str, sensor_names, rate_hz: float, seconds: float):
+    """The clip's virtual (acc_g, quat_wxyz sensor -> device earth with a realistic filter's errors, gyro_rps) at
+    the engine's rate, looped to ``seconds``: the channels a real IMU streams (issue 18)."""
+    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers, virtual_gyroscopes
+    from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
+
+    motion = load_clip(sample_clips()[clip], fps=rate_hz)
+    placements = standard_placements(motion.skeleton, list(sensor_names))
+    quats = OrientationErrorModel.realistic().apply(virtual_orientations(motion, placements), rate_hz,
+                                                    np.random.default_rng(2))
+    rows = np.arange(int(seconds * rate_hz)) % motion.n_frames
+    return (virtual_accelerometers(motion, placements)[rows], quats[rows],
+            virtual_gyroscopes(motion, placements)[rows])
+
+
+def run_engine(engine, channels) -> tuple[float, float, int]:
+    """(wall s, CPU s, frames) of pushing every frame of ``channels`` straight into ``engine`` (no stream path:
+    the stream does not carry orientations yet)."""
+    acc, quats, gyro = channels
+    t0, c0 = time.perf_counter(), time.process_time()
+    for a, q, g in zip(acc, quats, gyro):
+        engine.push(a, quat_wxyz=q, gyro_rps=g)
+    return time.perf_counter() - t0, time.process_time() - c0, len(acc)
+
+
 def run_offline(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, int]:
     """(wall s, CPU s, frames) for the same stream synthesised in one pass (as `courtside synthesize`)."""
     t0, c0 = time.perf_counter(), time.process_time()
@@ -104,6 +129,11 @@ def main() -> None:
                ("OLNG (4 sensors)", lambda: olng.make(0.5), olng_rec, olng.rate_hz),
                ("HMM acc-only (1 sensor)", lambda: hmm.make(0.5), hmm_rec, hmm.rate_hz)]
     runs = [(name, run_live(make, r, hz), run_offline(make, r, hz), hz) for name, make, r, hz in engines]
+    worn = worn_channels(HELD_OUT, olng.sensor_names, olng.rate_hz, min(args.seconds, args.olng_seconds))
+    # no stream path for orientations yet: both columns push the frames straight into a full-effort engine, twice
+    # (their ratio is the run-to-run spread)
+    runs.append(("OLNG acc+ori+gyro (engine)", run_engine(olng.make(0.5), worn), run_engine(olng.make(0.5), worn),
+                 olng.rate_hz))
     load = os.getloadavg()[0]
     print(f"stream bench: 6 sensors x 100 Hz + 12 fps camera, {args.seconds:g} s -> {path_live[2]} frames at 30 Hz, "
           f"load avg {load:.1f} on {os.cpu_count()} cores")

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from engine.olng.config import EnergyConfig
-from engine.olng.pose import Rig, fk_root_frame, local_matrices
+from engine.olng.pose import Rig, fk_root_frame, root_matrices
 
 _UP = np.array([0.0, 1.0, 0.0])
 
@@ -127,7 +127,7 @@ class KernelEnergy:
         out = {"pose": q / self.config.angle_unit_rad}
         if self.sensor_frames is not None:
             bone, local_rot = self.sensor_frames
-            root_tilt = local_matrices(self.rig, q)[:, 0]                              # (B, 3, 3) world <- root
+            root_tilt = root_matrices(self.rig, q)                                     # (B, 3, 3) world <- root
             up_root = np.einsum("bji,j->bi", root_tilt, _UP)                           # up in the root frame
             up = np.einsum("sji,bskj,bk->bsi", local_rot, rot[:, bone], up_root)       # up in each sensor's axes
             out["tilt"] = up.reshape(len(q), -1) * (self.config.tilt_lever_m / self.config.length_unit_m)

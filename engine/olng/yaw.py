@@ -7,7 +7,7 @@ rho_s = psi_s - psi_0, is body-intrinsic up to one constant per sensor, o_s (the
 norths; it drifts by a few degrees a minute). The database knows the true rho of every frame. So each frame, after
 the search, the measured rho minus the rho of the chosen hypotheses (Eq. 1 weights, a circular mean) is a sample
 of o_s; an exponentially forgetting circular mean (`time_constant_s`) estimates it. Once the estimate is steady
-(resultant length >= `min_resultant`, after `min_frames`), every candidate's node distance gains
+(resultant length >= `min_resultant`, after `min_frames` = `GraphConfig.yaw_min_frames`), every candidate's node distance gains
 ``yaw_weight * |exp(i rho_db) - exp(i (rho_meas - o))|`` per sensor, so the search can tell apart poses whose
 segments lean alike but point differently.
 
@@ -41,7 +41,7 @@ class YawOffsets:
     """Online estimate of each sensor's yaw offset relative to sensor 0, and the yaw term of the search."""
 
     def __init__(self, database_rel: np.ndarray, fps: float, yaw_weight: float, time_constant_s: float = 20.0,
-                 min_frames: int = 50, min_resultant: float = 0.7) -> None:
+                 min_frames: int = 10, min_resultant: float = 0.7) -> None:
         self.db = database_rel                     # (N, S-1) complex
         self.weight = yaw_weight
         self.forget = 1.0 - 1.0 / max(time_constant_s * fps, 1.0)
