@@ -5,7 +5,8 @@
     .venv/bin/python bench/bench_gateway.py --acceptance-minutes 10   # issue 4's acceptance run only (3x: ~3.5 min)
 
 Every table carries a baseline measured in the same run so numbers compare across machines:
-* throughput: the bare protocol decoder (`StreamDecoder.feed`) on the same bytes;
+* throughput: the bare protocol decoder (`StreamDecoder.feed`) on the same bytes; run twice, accelerations only
+  and with orientation + angular rate on (protocol v2 MOTION_BATCH), with the ratio of the two;
 * latency: the emulated station's own share (sample latched -> frame on the USB wire: radio batching + jitter);
 * clock: naive timestamping (each sample stamped with its batch's host arrival time) on the same run.
 
@@ -52,8 +53,9 @@ class _NullSink:
         pass
 
 
-def _station_bytes(seconds: float) -> tuple[bytes, int]:
-    station = BaseStation(StationConfig(autostart=True, drift_ppm=37.0, tick_offset=123_456_789))
+def _station_bytes(seconds: float, orientation: bool = False) -> tuple[bytes, int]:
+    station = BaseStation(StationConfig(autostart=True, drift_ppm=37.0, tick_offset=123_456_789,
+                                        orientation=orientation))
     data = station.advance(seconds)
     return data, int(station.truth.samples().delivered.sum())
 
@@ -64,10 +66,12 @@ def _feed_all(reader: StationReader, data: bytes, seconds: float, chunk: int = 4
         reader.feed(data[start:start + chunk], 1000.0 + seconds * (start + chunk) / n)
 
 
-def bench_throughput(seconds: float = 60.0, repeats: int = 3) -> None:
-    data, n_samples = _station_bytes(seconds)
-    print(f"\n== throughput: {seconds:.0f} s of one 6-sensor 100 Hz station ({len(data)} bytes, {n_samples} samples),"
-          f" best of {repeats} ==")
+def bench_throughput(seconds: float = 60.0, repeats: int = 3, orientation: bool = False) -> list[float]:
+    """Prints the table; returns samples/s of each path (decoder, reader, whole gateway)."""
+    data, n_samples = _station_bytes(seconds, orientation)
+    channels = "accelerations + orientation + angular rate" if orientation else "accelerations only"
+    print(f"\n== throughput: {seconds:.0f} s of one 6-sensor 100 Hz station, {channels} ({len(data)} bytes, "
+          f"{n_samples} samples), best of {repeats} ==")
 
     def best(fn) -> float:
         times = []
@@ -109,6 +113,7 @@ def bench_throughput(seconds: float = 60.0, repeats: int = 3) -> None:
     for name, t in rows:
         print(f"{name:<46}{n_samples / t:>12.0f}{seconds / t:>20.1f}{t / base:>18.2f}")
     print(f"(client received {received[0]} samples in the last path runs: display path kept up or dropped)")
+    return [n_samples / t for _, t in rows]
 
 
 def bench_latency(duration_s: float = 20.0, n_stations: int = 4) -> None:
@@ -253,7 +258,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"machine: {os.cpu_count()} cores, load average {load1:.1f} / {load5:.1f} (1 / 5 min) at start; "
           "real-time latency percentiles depend on it, virtual-time clock numbers do not")
     if "throughput" in parts:
-        bench_throughput()
+        plain = bench_throughput()
+        with_orientation = bench_throughput(orientation=True)
+        names = ("decoder", "reader", "gateway + recording + client")
+        print("orientation + angular rate on / accelerations only, samples/s: " +
+              ", ".join(f"{n} {b / a:.2f}" for n, a, b in zip(names, plain, with_orientation)))
     if "latency" in parts:
         bench_latency(args.latency_s)
     if "clock" in parts:

@@ -5,10 +5,13 @@ Six sensors at 100 Hz (jittered) plus a 12 fps camera, 60 s, resampled to 30 Hz 
 (as `courtside synthesize`), the path driving the real fixed-lag motion graph (shipped clips, lag 0.5 s), and
 the path driving the OLNG (shipped-clip knowledge base without the walk 16_32, fed that walk's virtual
 accelerometers at the 4 seed-003 sites, 100 Hz, 25 Hz frames), and the accelerometer-only HMM on that walk's
-right-foot sensor. Every engine runs live (100 ms batches, as the console's worker) and offline (one pass, as
-`courtside synthesize`) in the same process: the live / offline ratio shows what the live path adds. Times are
-per frame; "x real time" is the frame period over the cost per frame (below 1 the engine falls behind a live
-stream even on an idle core: the console then says FALLING BEHIND; issue 21 asks >= 2). CPU time (this process, all threads) is printed beside wall time because on a shared, loaded
+right-foot sensor, and the OLNG again with every sensor also streaming its orientation (through a realistic
+6-axis filter's errors) and angular rate (issue 18); plus the path alone with orientation + rate on every sensor,
+against the accelerations-only path in the same run. Every engine runs live (100 ms batches, as the console's
+worker) and offline (one pass, as `courtside synthesize`) in the same process: the live / offline ratio shows
+what the live path adds. Times are per frame; "x real time" is the frame period over the cost per frame (below 1
+the engine falls behind a live stream even on an idle core: the console then says FALLING BEHIND; issue 21 asks
+>= 2). CPU time (this process, all threads) is printed beside wall time because on a shared, loaded
 machine wall time measures the queue for the CPU more than the code.
 
     nice -n 10 .venv/bin/python bench/bench_stream.py [--seconds 60]
@@ -43,63 +46,57 @@ def streams(seconds: float, n_sensors: int = 6, seed: int = 0) -> RecordedStream
     return RecordedStreams(samples, camera, None)
 
 
+def with_orientation(rec: RecordedStreams) -> RecordedStreams:
+    """The same streams, each sensor also turning (a unit quaternion per sample) with its angular rate."""
+    samples = {}
+    for k, (t, acc) in rec.samples.items():
+        half = 0.5 * (1.0 + 0.1 * k) * (t - t[0])
+        quat = np.c_[np.cos(half), np.sin(half), np.zeros((len(t), 2))]
+        samples[k] = (t, acc, quat, np.tile([1.0 + 0.1 * k, 0.0, 0.0], (len(t), 1)))
+    return RecordedStreams(samples, rec.camera, rec.started_t_host_s)
+
+
 HELD_OUT = "16_32"  # a walk, left out of the OLNG knowledge base
 
 
-def worn_streams(clip: str, sensor_names, seconds: float) -> RecordedStreams:
+def worn_streams(clip: str, sensor_names, seconds: float, orientations: bool = False) -> RecordedStreams:
     """Real motion for the engines that search on it: the clip's virtual accelerometers at ``sensor_names``,
-    sampled at 100 Hz with jitter (looped to ``seconds``), no camera."""
-    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers
+    sampled at 100 Hz with jitter (looped to ``seconds``), no camera; with ``orientations`` each sensor also
+    streams its quaternion (sensor -> device earth, a realistic 6-axis filter's errors) and angular rate."""
+    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers, virtual_gyroscopes
+    from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
 
     motion = load_clip(sample_clips()[clip], fps=100.0)
-    acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, list(sensor_names)))
+    placements = standard_placements(motion.skeleton, list(sensor_names))
+    acc = virtual_accelerometers(motion, placements)
     rng = np.random.default_rng(1)
     n = int(seconds * 100)
     t = 1000.0 + np.arange(n) / 100.0 + rng.uniform(0, 0.002, n)
-    return RecordedStreams({k: (t, acc[np.arange(n) % len(acc), k]) for k in range(len(sensor_names))}, [], None)
+    rows = np.arange(n) % len(acc)
+    if not orientations:
+        return RecordedStreams({k: (t, acc[rows, k]) for k in range(len(sensor_names))}, [], None)
+    quats = OrientationErrorModel.realistic().apply(virtual_orientations(motion, placements), 100.0, rng)
+    gyro = virtual_gyroscopes(motion, placements)
+    return RecordedStreams({k: (t, acc[rows, k], quats[rows, k], gyro[rows, k]) for k in range(len(sensor_names))},
+                           [], None)
 
 
 def run_live(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, int]:
     """(wall s, CPU s of this process, frames pushed) for the stream fed in 100 ms batches."""
     session = StreamSynthesis(make, list(rec.samples), rate_hz)
-    t_end_all = max(t[-1] for t, _ in rec.samples.values())
+    t_end_all = max(s[0][-1] for s in rec.samples.values())
     cam = iter(rec.camera)
     pending = next(cam, None)
     t0, c0 = time.perf_counter(), time.process_time()
     for t_end in np.arange(1000.1, t_end_all + 0.1, 0.1):
-        for key, (t, a) in rec.samples.items():
+        for key, (t, *values) in rec.samples.items():
             sl = slice(np.searchsorted(t, t_end - 0.1, "right"), np.searchsorted(t, t_end, "right"))
-            session.add_samples(key, t[sl], a[sl])
+            session.add_samples(key, t[sl], *(v[sl] for v in values))
         while pending is not None and pending[0] <= t_end:
             session.add_camera(*pending)
             pending = next(cam, None)
         session.step()
     return time.perf_counter() - t0, time.process_time() - c0, session.stats.frames_in
-
-
-def worn_channels(clip: str, sensor_names, rate_hz: float, seconds: float):
-    """The clip's virtual (acc_g, quat_wxyz sensor -> device earth with a realistic filter's errors, gyro_rps) at
-    the engine's rate, looped to ``seconds``: the channels a real IMU streams (issue 18)."""
-    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers, virtual_gyroscopes
-    from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
-
-    motion = load_clip(sample_clips()[clip], fps=rate_hz)
-    placements = standard_placements(motion.skeleton, list(sensor_names))
-    quats = OrientationErrorModel.realistic().apply(virtual_orientations(motion, placements), rate_hz,
-                                                    np.random.default_rng(2))
-    rows = np.arange(int(seconds * rate_hz)) % motion.n_frames
-    return (virtual_accelerometers(motion, placements)[rows], quats[rows],
-            virtual_gyroscopes(motion, placements)[rows])
-
-
-def run_engine(engine, channels) -> tuple[float, float, int]:
-    """(wall s, CPU s, frames) of pushing every frame of ``channels`` straight into ``engine`` (no stream path:
-    the stream does not carry orientations yet)."""
-    acc, quats, gyro = channels
-    t0, c0 = time.perf_counter(), time.process_time()
-    for a, q, g in zip(acc, quats, gyro):
-        engine.push(a, quat_wxyz=q, gyro_rps=g)
-    return time.perf_counter() - t0, time.process_time() - c0, len(acc)
 
 
 def run_offline(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, int]:
@@ -117,6 +114,7 @@ def main() -> None:
     rec = streams(args.seconds)
     path_live = run_live(NullEngine, rec, 30.0)
     path_offline = run_offline(NullEngine, rec, 30.0)
+    oriented = run_live(NullEngine, with_orientation(rec), 30.0)
 
     from engine.stream.registry import adapter  # the console's default databases
 
@@ -127,22 +125,21 @@ def main() -> None:
     hmm_rec = worn_streams(HELD_OUT, hmm.sensor_names, args.seconds)
     engines = [("motion graph (lag 0.5 s)", lambda: graph.make(0.5), rec, graph.rate_hz),
                ("OLNG (4 sensors)", lambda: olng.make(0.5), olng_rec, olng.rate_hz),
+               ("OLNG acc+orientation+gyro", lambda: olng.make(0.5),
+                worn_streams(HELD_OUT, olng.sensor_names, min(args.seconds, args.olng_seconds), orientations=True),
+                olng.rate_hz),
                ("HMM acc-only (1 sensor)", lambda: hmm.make(0.5), hmm_rec, hmm.rate_hz)]
     runs = [(name, run_live(make, r, hz), run_offline(make, r, hz), hz) for name, make, r, hz in engines]
-    worn = worn_channels(HELD_OUT, olng.sensor_names, olng.rate_hz, min(args.seconds, args.olng_seconds))
-    # no stream path for orientations yet: both columns push the frames straight into a full-effort engine, twice
-    # (their ratio is the run-to-run spread)
-    runs.append(("OLNG acc+ori+gyro (engine)", run_engine(olng.make(0.5), worn), run_engine(olng.make(0.5), worn),
-                 olng.rate_hz))
     load = os.getloadavg()[0]
     print(f"stream bench: 6 sensors x 100 Hz + 12 fps camera, {args.seconds:g} s -> {path_live[2]} frames at 30 Hz, "
           f"load avg {load:.1f} on {os.cpu_count()} cores")
     base = 1e6 * path_live[1] / path_live[2]
-    print(f"{'':38s}{'wall us/frame':>14s}{'CPU us/frame':>14s}{'vs path (CPU)':>15s}{'x real time (CPU)':>19s}")
+    print(f"{'':40s}{'wall us/frame':>14s}{'CPU us/frame':>14s}{'vs path (CPU)':>15s}{'x real time (CPU)':>19s}")
     for name, (wall, cpu, n), hz in (("path alone, live 100 ms batches", path_live, 30.0),
-                                     ("path alone, offline one pass", path_offline, 30.0)):
+                                     ("path alone, offline one pass", path_offline, 30.0),
+                                     ("path alone, live, + orientation + rate", oriented, 30.0)):
         us = 1e6 * cpu / n
-        print(f"{name:38s}{1e6 * wall / n:14.1f}{us:14.1f}{us / base:15.2f}{1e6 / hz / us:19.2f}")
+        print(f"{name:40s}{1e6 * wall / n:14.1f}{us:14.1f}{us / base:15.2f}{1e6 / hz / us:19.2f}")
     # "x real time" = frame period / CPU cost per frame: below 1 the engine cannot keep up with the stream even
     # with a core to itself (wall time on a loaded machine is worse); the issue-21 goal is >= 2 live
     print(f"\n{'engine (path included)':28s}{'live ms':>9s}{'offline ms':>11s}{'live/offline':>13s}"

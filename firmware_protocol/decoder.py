@@ -16,13 +16,14 @@ from typing import NamedTuple
 from cobs.cobs import DecodeError as CobsDecodeError
 from cobs.cobs import decode as cobs_decode
 
-from .codec import MAX_PAYLOAD_BYTES, UNPACKERS, PayloadError
+from .codec import MAX_PAYLOAD_BYTES, UNPACKERS, UNPACKERS_V2, PayloadError
 from .framing import CRC, HEADER, MAX_ENCODED_FRAME_BYTES, MIN_BODY_BYTES, SEQ_MODULUS
-from .messages import PROTOCOL_VERSION, Message, MessageType
+from .messages import Message, MessageType
 
 _HALF_SEQ = SEQ_MODULUS // 2
 _SEQ_MASK = SEQ_MODULUS - 1
-_UNPACKERS = {int(k): v for k, v in UNPACKERS.items()}
+# header version -> the layouts it defines (a version-1 frame of type MOTION_BATCH is an unknown type)
+_UNPACKERS = {1: {int(k): v for k, v in UNPACKERS.items()}, 2: {int(k): v for k, v in UNPACKERS_V2.items()}}
 _HELLO = int(MessageType.HELLO)
 HEADER_BYTES = HEADER.size
 
@@ -43,7 +44,7 @@ class DecoderStats:
     cobs_errors: int = 0
     length_errors: int = 0             # too short, header length != actual or > 4096, or longer than any legal frame
     crc_errors: int = 0
-    unsupported_version: int = 0       # CRC fine, version byte unknown: not returned, not seq-tracked
+    unsupported_version: int = 0       # CRC fine, version byte not 1 or 2: not returned, not seq-tracked
     unknown_types: int = 0             # CRC fine, message type unknown: skipped (seq still tracked)
     malformed_payloads: int = 0        # CRC fine, payload does not fit its layout (a sender bug)
     seq_gaps: int = 0                  # frames missing according to the link sequence numbers, all stations
@@ -86,7 +87,7 @@ class StreamDecoder:
             self._skipping = True
         out: list[DecodedFrame] = []
         # Hot loop: names bound to locals, one early exit per failure kind.
-        unpack_header, crc_unpack, unpackers = HEADER.unpack_from, CRC.unpack_from, _UNPACKERS
+        unpack_header, crc_unpack, by_version = HEADER.unpack_from, CRC.unpack_from, _UNPACKERS
         expected, track = self._expected_seq, self._track_seq
         for part in parts:
             if not part:
@@ -115,7 +116,8 @@ class StreamDecoder:
                 stats.length_errors += 1
                 stats.bytes_discarded += len(part)
                 continue
-            if version != PROTOCOL_VERSION:
+            unpackers = by_version.get(version)
+            if unpackers is None:
                 stats.unsupported_version += 1
                 stats.bytes_discarded += len(part)
                 continue

@@ -13,8 +13,8 @@ import zlib
 
 from cobs.cobs import encode as cobs_encode
 
-from .codec import MAX_PAYLOAD_BYTES, PACKERS
-from .messages import PROTOCOL_VERSION, Message
+from .codec import MAX_PAYLOAD_BYTES, message_type_and_payload
+from .messages import BASE_VERSION, PROTOCOL_VERSION, Message, MessageType
 
 DELIMITER = b"\x00"
 HEADER = struct.Struct("<BBHIH")        # version, message type, station id, link seq, payload length
@@ -33,10 +33,17 @@ def crc32(data: bytes) -> int:
     return zlib.crc32(data)
 
 
-def frame_payload(msg_type: int, payload: bytes, station_id: int, seq: int, version: int = PROTOCOL_VERSION) -> bytes:
+def frame_version(msg_type: int) -> int:
+    """Header version of a frame: the lowest that defines its layout (PROTOCOL.md §1), so a version-1 host still
+    reads every frame of a version-2 station except the MOTION_BATCHes it cannot understand."""
+    return PROTOCOL_VERSION if msg_type == MessageType.MOTION_BATCH else BASE_VERSION
+
+
+def frame_payload(msg_type: int, payload: bytes, station_id: int, seq: int, version: int | None = None) -> bytes:
     """Wrap an already packed payload into one complete frame, trailing delimiter included."""
     if len(payload) > MAX_PAYLOAD_BYTES:
         raise ValueError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}")
+    version = frame_version(msg_type) if version is None else version
     body = HEADER.pack(version, msg_type, station_id, seq % SEQ_MODULUS, len(payload)) + payload
     return cobs_encode(body + CRC.pack(crc32(body))) + DELIMITER
 
@@ -45,8 +52,5 @@ def encode(message: Message, station_id: int, seq: int) -> bytes:
     """One complete frame (COBS-encoded, 0x00-terminated) carrying `message` from/to station `station_id`.
 
     `seq` is the sender's per-link frame counter (u32, wraps); the receiver counts gaps in it."""
-    try:
-        msg_type, pack = PACKERS[type(message)]
-    except KeyError:
-        raise TypeError(f"not a protocol message: {type(message).__name__}") from None
-    return frame_payload(msg_type, pack(message), station_id, seq)
+    msg_type, payload = message_type_and_payload(message)
+    return frame_payload(msg_type, payload, station_id, seq)

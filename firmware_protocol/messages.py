@@ -11,7 +11,14 @@ from enum import IntEnum, IntFlag
 
 import numpy as np
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
+"""Newest protocol version this code reads and writes (PROTOCOL.md). Version 2 adds MOTION_BATCH."""
+BASE_VERSION = 1
+"""Header version of every frame whose layout version 1 already defines: a station that speaks version 2 still
+sends those with version 1, so a version-1 host keeps reading everything it understands."""
+SUPPORTED_VERSIONS = (1, 2)
+QUAT_Q14_ONE = 16384
+"""MOTION_BATCH quaternion components are i16 in Q2.14: 1.0 = 16384 (resolution 6e-5, 0.007 degrees)."""
 BROADCAST_SENSOR = 0xFF
 """`Command.target` value meaning "every sensor"."""
 PERIODIC_BEACON = 0
@@ -28,10 +35,20 @@ class MessageType(IntEnum):
     ACK = 0x06
     NACK = 0x07
     ERROR = 0x08
+    MOTION_BATCH = 0x09     # version 2: a SAMPLE_BATCH plus orientation and/or angular rate
 
 
-class SensorKind(IntEnum):
-    ACCELEROMETER = 1
+class SensorKind(IntFlag):
+    """HELLO sensor kind, a capability bit set (version 1 only ever sends 1)."""
+    ACCELEROMETER = 0x01
+    ORIENTATION = 0x02      # on-board fusion filter: sensor -> device earth quaternion (Z up, yaw per sensor)
+    ANGULAR_RATE = 0x04     # 3-axis gyroscope, rad/s in the sensor frame
+
+
+class MotionChannels(IntFlag):
+    """MOTION_BATCH channel bits: which blocks follow the accelerations."""
+    ORIENTATION = 0x01
+    ANGULAR_RATE = 0x02
 
 
 class Opcode(IntEnum):
@@ -112,6 +129,10 @@ class SampleBatch:
     period_ticks_q8: int                 # sample period in 1/256 device ticks (exact for 32768 Hz / 100 Hz too)
     scale_g_per_lsb: float               # float32 on the wire
     samples: np.ndarray                  # (N, 3) int16 counts, x y z (decoded: a read-only view of the frame)
+    # version 2 (MOTION_BATCH) only; None = the channel is not in this batch
+    quat_q14: np.ndarray | None = None   # (N, 4) int16 w x y z in Q2.14, sensor -> device earth; all 0 = no value
+    gyro_counts: np.ndarray | None = None  # (N, 3) int16 angular rate counts, sensor frame
+    gyro_scale_rps_per_lsb: float = 0.0  # float32 on the wire; > 0 when gyro_counts is given
 
     @property
     def n_samples(self) -> int:
@@ -124,6 +145,22 @@ class SampleBatch:
     def acc_g(self) -> np.ndarray:
         """(N, 3) float64 acceleration in g."""
         return self.samples.astype(np.float64) * self.scale_g_per_lsb
+
+    def quat_wxyz(self) -> np.ndarray | None:
+        """(N, 4) float64 unit quaternions (sensor -> device earth, Z up), NaN rows where the station had no
+        value (an all-zero quaternion: filter not converged); None when the batch carries no orientation."""
+        if self.quat_q14 is None:
+            return None
+        q = self.quat_q14.astype(np.float64)
+        norm = np.linalg.norm(q, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(norm > 0, q / norm, np.nan)
+
+    def gyro_rps(self) -> np.ndarray | None:
+        """(N, 3) float64 angular rate in rad/s (sensor frame); None when the batch carries none."""
+        if self.gyro_counts is None:
+            return None
+        return self.gyro_counts.astype(np.float64) * self.gyro_scale_rps_per_lsb
 
     def sample_ticks(self) -> np.ndarray:
         """(N,) float64 latch ticks of every sample, NOT wrapped (first + i * period): unwrap `first` yourself."""
@@ -139,7 +176,16 @@ class SampleBatch:
                 other.period_ticks_q8, other.scale_g_per_lsb)
             and self.samples.shape == other.samples.shape
             and bool(np.array_equal(self.samples, other.samples))
+            and _same_optional(self.quat_q14, other.quat_q14)
+            and _same_optional(self.gyro_counts, other.gyro_counts)
+            and (self.gyro_counts is None or self.gyro_scale_rps_per_lsb == other.gyro_scale_rps_per_lsb)
         )
+
+
+def _same_optional(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return a.shape == b.shape and bool(np.array_equal(a, b))
 
 
 @dataclass(frozen=True, slots=True)

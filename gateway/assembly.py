@@ -126,7 +126,8 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
 
         try:
             started, _ = start_court_stations(config.stations.emulate, config.stations.emulate_motion,
-                                              config.stations.emulate_clips)
+                                              config.stations.emulate_clips,
+                                              orientation=config.stations.emulate_orientation)
         except Exception:
             if camera is not None:
                 camera.source.close()

@@ -40,6 +40,7 @@ class StationsConfig:
     emulate: int = 0  # number of emulated stations on ptys
     emulate_motion: str = "mocap"  # what emulated sensors feel: "mocap" (clips below) or "none" (still + noise)
     emulate_clips: tuple[str, ...] = ()  # shipped clip names or .bvh/.amc paths; () = every shipped clip
+    emulate_orientation: bool = False  # emulated sensors also stream orientation + angular rate (protocol v2)
 
 
 @dataclass(frozen=True)
@@ -230,7 +231,8 @@ _TOP: dict[str, Check] = {
 _SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
     "stations": (StationsConfig, {
         "ports": _strings, "urls": _strings, "discover": _bool, "emulate": _int(0, MAX_EMULATED_STATIONS),
-        "emulate_motion": _choice(EMULATE_MOTIONS), "emulate_clips": _CLIPS}),
+        "emulate_motion": _choice(EMULATE_MOTIONS), "emulate_clips": _CLIPS,
+        "emulate_orientation": _bool}),
     "camera": (CameraConfig, {
         "source": _CAMERA_SOURCE, "court": _PATH, "player_side": _choice(PLAYER_SIDES),
         "fps": _number(0.0, 1000.0, lo_open=True), "latency_s": _number(0.0, 5.0), "loop": _bool,

@@ -401,6 +401,7 @@ EXIT_START_FAILED = 1  # could not start at run time (listen address in use, dev
 FLAG_KEYS = {
     "port": "stations.ports", "url": "stations.urls", "discover": "stations.discover", "emulate": "stations.emulate",
     "emulate_motion": "stations.emulate_motion", "emulate_clip": "stations.emulate_clips",
+    "emulate_orientation": "stations.emulate_orientation",
     "camera": "camera.source", "court": "camera.court", "player_side": "camera.player_side",
     "camera_fps": "camera.fps", "camera_loop": "camera.loop", "placements": "calibration.placements",
     "pose": "calibration.pose", "calibration_dir": "calibration.records_dir", "record_dir": "record_dir",
@@ -431,6 +432,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="emulated sensors replay mocap clips (default) or stay still")
     g.add_argument("--emulate-clip", action="append", default=None, metavar="CLIP",
                    help="shipped clip name or .bvh/.amc file to replay (repeatable; default every shipped clip)")
+    g.add_argument("--emulate-orientation", action=argparse.BooleanOptionalAction, default=None,
+                   help="emulated sensors also stream orientation quaternions (realistic filter error: per-sensor "
+                        "yaw, drift, tilt noise, misalignment) and angular rate (protocol v2)")
     g = p.add_argument_group("camera")
     g.add_argument("--camera", default=None, metavar="SRC", help="V4L2 index, device path or video file")
     g.add_argument("--court", type=Path, default=None, metavar="JSON",

@@ -45,6 +45,9 @@ def batch_problem(batch: fp.SampleBatch, tick_rate_hz: int) -> str | None:
     scale = batch.scale_g_per_lsb
     if not (math.isfinite(scale) and scale > 0):
         return f"SAMPLE_BATCH sensor {batch.sensor_id} scale_g_per_lsb {scale!r} is not a positive number"
+    gyro_scale = batch.gyro_scale_rps_per_lsb
+    if batch.gyro_counts is not None and not (math.isfinite(gyro_scale) and gyro_scale > 0):
+        return f"MOTION_BATCH sensor {batch.sensor_id} gyro_scale_rps_per_lsb {gyro_scale!r} is not a positive number"
     return None
 
 

@@ -2,7 +2,10 @@
 
 Stream layout (the same as `courtside gateway export --xdf`, gateway.xdf): name ``"<gateway> <station>"``,
 type ``Accelerometer``, irregular rate (each sample carries its own time stamp), float32 channels
-``sensor, acc_x_g, acc_y_g, acc_z_g``. One station's sensors arrive in separate per-sensor batches with their own
+``sensor, acc_x_g, acc_y_g, acc_z_g``; a station with sensors that stream orientation or angular rate also gets
+a second outlet ``"<gateway> <station> orientation"``, type ``Orientation``, channels `ORIENTATION_CHANNELS`
+(``sensor, quat_w .. quat_z`` sensor -> device earth Z up, ``gyro_x_rps .. gyro_z_rps``; NaN where the sensor
+has no such channel), created on the first such sample. One station's sensors arrive in separate per-sensor batches with their own
 latch times, so a row per sample with the sensor index as first channel keeps every sample at its true time;
 split by the ``sensor`` channel on the receiving side.
 
@@ -39,6 +42,27 @@ MachineAddresses = {127.0.0.1}
 KnownPeers = {127.0.0.1}
 """
 CHANNELS = ("sensor", "acc_x_g", "acc_y_g", "acc_z_g")
+ORIENTATION_CHANNELS = ("sensor", "quat_w", "quat_x", "quat_y", "quat_z", "gyro_x_rps", "gyro_y_rps", "gyro_z_rps")
+# stream kind -> (name suffix, LSL type, channels); units and channel types per label in `channel_meta`
+LAYOUTS = {"acc": ("", "Accelerometer", CHANNELS), "orientation": (" orientation", "Orientation", ORIENTATION_CHANNELS)}
+
+
+def channel_meta(label: str) -> tuple[str, str]:
+    """(unit, LSL channel type) of a channel label."""
+    if label == "sensor":
+        return "index", "Index"
+    if label.startswith("quat_"):
+        return "normalized", "Orientation"
+    if label.startswith("gyro_"):
+        return "rad/s", "AngularVelocity"
+    return "g", "Acceleration"
+
+
+def orientation_rows(sensor: int, n: int, quat_wxyz: np.ndarray | None, gyro_rps: np.ndarray | None) -> np.ndarray:
+    """(n, 8) float rows of the orientation stream: sensor index, quaternion, angular rate (NaN when absent)."""
+    quat = np.full((n, 4), np.nan) if quat_wxyz is None else np.asarray(quat_wxyz, float).reshape(n, 4)
+    gyro = np.full((n, 3), np.nan) if gyro_rps is None else np.asarray(gyro_rps, float).reshape(n, 3)
+    return np.column_stack([np.full(n, float(sensor)), quat, gyro])
 SCOPES = ("machine", "network")
 
 
@@ -104,33 +128,41 @@ class LslPublisher:
         self.gateway_name = gateway_name
         self.scope = scope
         self.clock = ClockMap(self.pylsl.local_clock)
-        self._outlets: dict[str, Any] = {}
+        self._outlets: dict[tuple[str, str], Any] = {}
         self._lock = threading.Lock()
         self.samples_pushed = 0
 
-    def stream_info(self, station: str) -> Any:
+    def stream_info(self, station: str, kind: str = "acc") -> Any:
         pylsl = self.pylsl
-        info = pylsl.StreamInfo(f"{self.gateway_name} {station}", "Accelerometer", len(CHANNELS),
-                                pylsl.IRREGULAR_RATE, pylsl.cf_float32, f"courtside/{self.gateway_name}/{station}")
+        suffix, lsl_type, labels = LAYOUTS[kind]
+        info = pylsl.StreamInfo(f"{self.gateway_name} {station}{suffix}", lsl_type, len(labels),
+                                pylsl.IRREGULAR_RATE, pylsl.cf_float32,
+                                f"courtside/{self.gateway_name}/{station}{suffix.replace(' ', '/')}")
         channels = info.desc().append_child("channels")
-        for label in CHANNELS:
+        for label in labels:
+            unit, channel_type = channel_meta(label)
             ch = channels.append_child("channel")
             ch.append_child_value("label", label)
-            ch.append_child_value("unit", "index" if label == "sensor" else "g")
-            ch.append_child_value("type", "Index" if label == "sensor" else "Acceleration")
+            ch.append_child_value("unit", unit)
+            ch.append_child_value("type", channel_type)
         info.desc().append_child_value("clock", "gateway clock (host monotonic) mapped to lsl local_clock")
         return info
 
-    def outlet(self, station: str) -> Any:
+    def outlet(self, station: str, kind: str = "acc") -> Any:
         with self._lock:
-            if station not in self._outlets:
-                self._outlets[station] = self.pylsl.StreamOutlet(self.stream_info(station))
-            return self._outlets[station]
+            if (station, kind) not in self._outlets:
+                self._outlets[(station, kind)] = self.pylsl.StreamOutlet(self.stream_info(station, kind))
+            return self._outlets[(station, kind)]
 
     def on_block(self, block: Any) -> None:
-        rows = np.column_stack([np.full(len(block.acc_g), float(block.sensor)), np.asarray(block.acc_g, float)])
-        self.outlet(block.station).push_chunk(rows.astype(np.float32), self.clock(block.t_host_s).tolist())
-        self.samples_pushed += len(rows)
+        n = len(block.acc_g)
+        stamps = self.clock(block.t_host_s).tolist()
+        rows = np.column_stack([np.full(n, float(block.sensor)), np.asarray(block.acc_g, float)])
+        self.outlet(block.station).push_chunk(rows.astype(np.float32), stamps)
+        if block.quat_wxyz is not None or block.gyro_rps is not None:
+            rows = orientation_rows(block.sensor, n, block.quat_wxyz, block.gyro_rps)
+            self.outlet(block.station, "orientation").push_chunk(rows.astype(np.float32), stamps)
+        self.samples_pushed += n
 
     def close(self) -> None:
         with self._lock:

@@ -153,6 +153,17 @@ class ChunkFile:
         return ok
 
 
+def _same_array_runs(batches: list[dict[str, np.ndarray]]) -> list[list[dict[str, np.ndarray]]]:
+    """Consecutive batches carrying the same arrays, in order (each run becomes one chunk)."""
+    runs: list[list[dict[str, np.ndarray]]] = []
+    for batch in batches:
+        if runs and list(runs[-1][0]) == list(batch):
+            runs[-1].append(batch)
+        else:
+            runs.append([batch])
+    return runs
+
+
 def describe_os_error(exc: BaseException) -> str:
     """``"disk full (ENOSPC)"``-style text for an OSError, the exception text otherwise."""
     if isinstance(exc, OSError) and exc.errno is not None:
@@ -317,10 +328,11 @@ class Recorder:
         try:
             bodies = [(body, 0) for body in pending.others]
             for (kind, station, sensor), batches in pending.rows.items():
-                arrays = {name: np.concatenate([b[name] for b in batches]) for name in batches[0]}
                 header = {**pending.headers.get((kind, station, sensor), {}), "station": station, "sensor": sensor}
-                n = len(next(iter(arrays.values()))) if kind == "samples" else 0
-                bodies.append((codec.encode(kind, header, arrays), n))
+                for run in _same_array_runs(batches):  # a sensor that starts/stops streaming orientation
+                    arrays = {name: np.concatenate([b[name] for b in run]) for name in run[0]}
+                    n = len(next(iter(arrays.values()))) if kind == "samples" else 0
+                    bodies.append((codec.encode(kind, header, arrays), n))
             for body, n in bodies:
                 chunk_file.append(body)
                 written_samples += n
@@ -565,12 +577,25 @@ def _stream_key(path: Path, msg: codec.Message, required: tuple[str, ...]) -> tu
     return station, sensor
 
 
+OPTIONAL_CHANNELS = {"quat_wxyz": 4, "gyro_rps": 3}
+"""Per-sample arrays a sensor may stream in some chunks only (e.g. an IMU whose filter was switched on): rows of
+chunks without them read NaN."""
+
+
 def _concatenate(path: Path, what: str, msgs: list[codec.Message]) -> dict[str, np.ndarray]:
     names = list(msgs[0].arrays)
-    if any(list(m.arrays) != names for m in msgs):
+    for m in msgs:
+        names += [name for name in m.arrays if name not in names]
+    if any([n for n in names if n in m.arrays or n not in OPTIONAL_CHANNELS] != list(m.arrays) for m in msgs):
         raise RecordingError(path, f"{what}: chunks carry different arrays")
+
+    def rows(m: codec.Message, name: str) -> np.ndarray:
+        if name in m.arrays:
+            return m.arrays[name]
+        return np.full((len(next(iter(m.arrays.values()))), OPTIONAL_CHANNELS[name]), np.nan, np.float32)
+
     try:
-        return {name: np.concatenate([m.arrays[name] for m in msgs]) for name in names}
+        return {name: np.concatenate([rows(m, name) for m in msgs]) for name in names}
     except ValueError as exc:
         raise RecordingError(path, f"{what}: chunks do not concatenate ({exc})") from exc
 
@@ -682,7 +707,7 @@ def export_csv(path: Path | str, out_dir: Path | str) -> list[Path]:
             if value.shape[1] == 1:
                 names.append(name)
             else:
-                suffixes = "xyz" if value.shape[1] == 3 else [str(i) for i in range(value.shape[1])]
+                suffixes = {3: "xyz", 4: "wxyz"}.get(value.shape[1], [str(i) for i in range(value.shape[1])])
                 names.extend(f"{name}_{suffix}" for suffix in suffixes)
             columns.append(value.astype(np.float64))  # exact for u32 counters and ticks < 2**53
         file = out_dir / f"{station}_{sensor}.csv"

@@ -49,6 +49,9 @@ class SampleBlock:
     arrival_s: np.ndarray  # (N,) float64 host monotonic time the batch was read (same for the whole batch)
     t_host_s: np.ndarray  # (N,) float64 sample latch time on the gateway clock (online estimate)
     acc_g: np.ndarray  # (N, 3) float32
+    # a sensor that streams them (protocol v2 MOTION_BATCH, x-IMU3 quaternions, Shimmer3 gyroscope); else None
+    quat_wxyz: np.ndarray | None = None  # (N, 4) float32 unit quaternion sensor -> device earth (Z up), NaN = none
+    gyro_rps: np.ndarray | None = None  # (N, 3) float32 angular rate, rad/s, sensor frame
 
     def header(self) -> dict[str, Any]:
         """The ``samples`` message header. With `arrays` this is the one definition of a samples message:
@@ -57,10 +60,16 @@ class SampleBlock:
                 "clock_locked": self.clock_locked}
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Every per-sample array (raw ticks + arrival times allow offline re-alignment)."""
-        return {"counter": self.counter, "epoch": np.full(len(self.counter), self.epoch, np.uint32),
-                "raw_ticks": self.raw_ticks, "ticks": self.ticks,
-                "arrival_s": self.arrival_s, "t_host_s": self.t_host_s, "acc_g": self.acc_g}
+        """Every per-sample array (raw ticks + arrival times allow offline re-alignment); ``quat_wxyz`` and
+        ``gyro_rps`` only when the sensor streams them (a sensor's batches all carry the same channels)."""
+        arrays = {"counter": self.counter, "epoch": np.full(len(self.counter), self.epoch, np.uint32),
+                  "raw_ticks": self.raw_ticks, "ticks": self.ticks,
+                  "arrival_s": self.arrival_s, "t_host_s": self.t_host_s, "acc_g": self.acc_g}
+        if self.quat_wxyz is not None:
+            arrays["quat_wxyz"] = self.quat_wxyz
+        if self.gyro_rps is not None:
+            arrays["gyro_rps"] = self.gyro_rps
+        return arrays
 
 
 class StationSink(Protocol):
@@ -400,6 +409,7 @@ class StationReader:
             raw_ticks=(batch.first_sample_ticks + np.round(offsets).astype(np.int64)).astype(np.uint32),
             ticks=ticks, arrival_s=np.full(n, arrival_s), t_host_s=t_host,
             acc_g=batch.samples.astype(np.float32) * np.float32(batch.scale_g_per_lsb),
+            quat_wxyz=_float32_or_none(batch.quat_wxyz()), gyro_rps=_float32_or_none(batch.gyro_rps()),
         ))
 
     # -- commands ---------------------------------------------------------------------------------------------
@@ -437,12 +447,13 @@ class StationReader:
             counts = dict(self.decoder_totals)
             for key, value in self._decoder_counts(self._decoder).items():
                 counts[key] = counts.get(key, 0) + value
+            hello = self.hello
+            kinds = {s.sensor_id: s.kind for s in hello.sensors} if hello else {}
             sensors = []
             for sensor_id in sorted(self.sensors):
                 stats = self.sensors[sensor_id]
                 stats.update_rate(now_s, rate_window_s)
-                sensors.append(stats.as_dict())
-            hello = self.hello
+                sensors.append({**stats.as_dict(), "channels": sensor_channels(kinds.get(sensor_id))})
             clock = self.clock.state.as_dict()
             if self.unwrapper is not None:
                 clock["wraps"] = self.unwrapper.wraps
@@ -457,3 +468,16 @@ class StationReader:
                 "buffered_samples": self.station_buffered_samples, **counts,
                 "clock": clock, "sensors": sensors,
             }
+
+
+def sensor_channels(kind: int | None) -> list[str]:
+    """The channels a HELLO sensor kind announces (`firmware_protocol.SensorKind` bits), in `EngineSpec.inputs`
+    names: ``["acc"]``, ``["acc", "orientation", "gyro"]`` ...; a sensor not in the HELLO streams accelerations."""
+    kind = fp.SensorKind.ACCELEROMETER if kind is None else kind
+    bits = ((fp.SensorKind.ACCELEROMETER, "acc"), (fp.SensorKind.ORIENTATION, "orientation"),
+            (fp.SensorKind.ANGULAR_RATE, "gyro"))
+    return [name for bit, name in bits if kind & bit]
+
+
+def _float32_or_none(values: np.ndarray | None) -> np.ndarray | None:
+    return None if values is None else values.astype(np.float32)

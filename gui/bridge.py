@@ -17,7 +17,8 @@ import numpy as np
 
 from gui.ringbuffer import TraceStore
 from gui.synthesis import SensorKey
-SampleSink = Callable[[SensorKey, np.ndarray, np.ndarray], None]
+SampleSink = Callable[[SensorKey, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None], None]
+"""(sensor, t_host_s, acc_g, quat_wxyz or None, gyro_rps or None): the channels the sensor streams."""
 CameraSink = Callable[[float, Any, "float | None"], None]  # (t_host_s, position_m [x, y] or None, heading_rad)
 
 
@@ -127,11 +128,12 @@ class GatewayBridge:
     def on_samples(self, msg: Any) -> None:
         key = (str(msg["station"]), int(msg["sensor"]))
         t, acc = msg["t_host_s"], msg["acc_g"]
+        quat, gyro = msg.arrays.get("quat_wxyz"), msg.arrays.get("gyro_rps")
         self.sensors_seen[key] = float(msg.header.get("nominal_hz", 0.0))
         self.samples_received += len(t)
-        self.traces.put(key, t, acc)
+        self.traces.put(key, t, acc, quat, gyro)
         for sink in self.sample_sinks:
-            sink(key, t, acc)
+            sink(key, t, acc, quat, gyro)
 
     def _on_latest(self, msg: Any) -> None:
         self.set_latest(msg.kind, msg.header)

@@ -331,6 +331,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             conf = "" if pose is None or pose.confidence is None else f", confidence {pose.confidence:.2f}"
             lag = f"lag {s.lag_s:.2f} s, " if self.synthesis.engine.lag_applies else ""
             parts.append(f"{self.synthesis.engine.label}: {lag}{s.frames_per_s:.0f} frames/s, "
+                         f"{streamed_summary(s)}, "
                          f"{s.push_ms:.1f} ms/frame{conf}"
                          + (f", {s.engine_status}" if s.engine_status else "")
                          + (f", {s.frames_invalid} frames without a sensor" if s.frames_invalid else "")
@@ -458,6 +459,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                 "use_camera_heading": self.synthesis.use_camera_heading,
                 "frames_in": self.worker.stats.frames_in, "frames_invalid": self.worker.stats.frames_invalid,
                 "frames_with_camera": self.worker.stats.frames_with_camera,
+                "engine_inputs": list(spec.inputs),
+                "frames_with_orientation": self.worker.stats.frames_with_orientation,
+                "frames_with_gyro": self.worker.stats.frames_with_gyro,
                 # live = offline needs the console to have seen every recorded sample: count what it missed
                 "display_frames_dropped": self.bridge.dropped_total, "reconnects": self.reconnects,
                 "late_samples": self.worker.stats.late_samples, "late_fixes": self.worker.stats.late_fixes,
@@ -480,3 +484,12 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.requests.shutdown()
         if self._owns_client and self.client is not None:
             self.client.close()
+
+
+def streamed_summary(stats: Any) -> str:
+    """The channels the frames pushed so far carried, e.g. ``streamed acc+orientation+gyro``; beside the engine
+    label, which ends with the channels the engine uses (`EngineSpec.label`), an operator sees at once that
+    orientations arrive and whether this engine listens to them."""
+    streamed = ["acc"] + [name for name, frames in (("orientation", stats.frames_with_orientation),
+                                                     ("gyro", stats.frames_with_gyro)) if frames]
+    return f"streamed {'+'.join(streamed)}"

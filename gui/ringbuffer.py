@@ -78,14 +78,22 @@ class TraceStore:
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self.history_s = history_s
         self.rings: dict[Hashable, SampleRing] = {}
+        # (sensor, "quat_wxyz" | "gyro_rps") -> ring, for sensors that stream orientation / angular rate
+        self.channel_rings: dict[tuple[Hashable, str], SampleRing] = {}
+        self._channel_queue: queue.SimpleQueue = queue.SimpleQueue()
         # (sequence number, t_s, label): numbered so a view can tell which markers it already drew; events older
         # than the history are dropped like samples, so markers never pile up over a long session
         self.events: list[tuple[int, float, str]] = []
         self._event_seq = 0
 
-    def put(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
-        """Enqueue a batch of samples for one sensor (any thread; never blocks)."""
+    def put(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray, quat_wxyz: np.ndarray | None = None,
+            gyro_rps: np.ndarray | None = None) -> None:
+        """Enqueue a batch of samples for one sensor, with its orientation / angular rate when it streams them
+        (any thread; never blocks)."""
         self._queue.put((sensor, t_s, acc_g))
+        for name, values in (("quat_wxyz", quat_wxyz), ("gyro_rps", gyro_rps)):
+            if values is not None:
+                self._channel_queue.put(((sensor, name), t_s, values))
 
     def put_event(self, t_s: float, label: str) -> None:
         self._queue.put((None, t_s, label))
@@ -93,20 +101,21 @@ class TraceStore:
     def drain(self, max_batches: int = 5000) -> int:
         """Move queued batches into the rings (GUI thread). Bounded so one tick cannot stall the UI."""
         n = 0
-        while n < max_batches:
-            try:
-                sensor, t_s, payload = self._queue.get_nowait()
-            except queue.Empty:
-                break
-            n += 1
-            if sensor is None:
-                self._event_seq += 1
-                self.events.append((self._event_seq, float(t_s), str(payload)))
-                continue
-            ring = self.rings.get(sensor)
-            if ring is None:
-                ring = self.rings[sensor] = SampleRing(self.capacity, 3)
-            ring.append(t_s, payload)
+        for source, rings in ((self._queue, self.rings), (self._channel_queue, self.channel_rings)):
+            while n < max_batches:
+                try:
+                    key, t_s, payload = source.get_nowait()
+                except queue.Empty:
+                    break
+                n += 1
+                if key is None:
+                    self._event_seq += 1
+                    self.events.append((self._event_seq, float(t_s), str(payload)))
+                    continue
+                ring = rings.get(key)
+                if ring is None:
+                    ring = rings[key] = SampleRing(self.capacity, np.shape(payload)[-1])
+                ring.append(t_s, payload)
         latest = self.latest_time()
         if latest is not None and self.events and self.events[0][1] < latest - self.history_s:
             self.events = [e for e in self.events if e[1] >= latest - self.history_s]

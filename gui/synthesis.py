@@ -52,6 +52,8 @@ class SynthesisStats:
     push_ms: float = 0.0           # mean engine cost per frame (recent)
     frames_invalid: int = 0        # frames stepped without accelerations (a sensor dropped out)
     frames_with_camera: int = 0
+    frames_with_orientation: int = 0  # frames pushed with some sensor's orientation / angular rate
+    frames_with_gyro: int = 0
     late_samples: int = 0           # data that arrived after its frames were pushed (see engine.stream.StreamStats)
     late_fixes: int = 0
     start_frame: int | None = None  # first frame of the current session (engine restart)
@@ -90,9 +92,11 @@ class SynthesisWorker(threading.Thread):
         self._behind_logged = False
 
     # -- inputs (any thread) -----------------------------------------------------------------------------------
-    def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
+    def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray, quat_wxyz: np.ndarray | None = None,
+                    gyro_rps: np.ndarray | None = None) -> None:
         """Signature matches `gui.bridge.SampleSink`, so the bridge can feed the worker directly."""
-        self._inbox.put(("samples", sensor, np.asarray(t_s, float), np.asarray(acc_g, float)))
+        self._inbox.put(("samples", sensor, np.asarray(t_s, float), np.asarray(acc_g, float), _floats(quat_wxyz),
+                         _floats(gyro_rps)))
 
     def add_camera(self, t_s: float, position_m: Any, heading_rad: float | None) -> None:
         """One camera observation (gateway time of the camera frame; position None while the player is lost)."""
@@ -205,6 +209,8 @@ class SynthesisWorker(threading.Thread):
             s = session.stats
             self.stats.frames_in, self.stats.frames_invalid = s.frames_in, s.frames_invalid
             self.stats.frames_with_camera, self.stats.poses_out = s.frames_with_camera, s.poses_out
+            self.stats.frames_with_orientation, self.stats.frames_with_gyro = s.frames_with_orientation, \
+                s.frames_with_gyro
             self.stats.late_samples, self.stats.late_fixes = s.late_samples, s.late_fixes
             self.stats.start_frame = session.first_frame
             self._note_engine_status(getattr(session.engine, "status", ""))
@@ -235,3 +241,7 @@ class SynthesisWorker(threading.Thread):
         elif not warning and self._behind_logged:
             log.info("synthesis (%s) caught up with the stream", self.setup.engine.label)
         self._behind_logged = bool(warning)
+
+
+def _floats(values: np.ndarray | None) -> np.ndarray | None:
+    return None if values is None else np.asarray(values, float)

@@ -46,6 +46,6 @@ def calibrated_take(take, skeleton, sensor_names: list[str], record: str | Path)
     samples = dict(take.streams.samples)
     for column, c in _column_corrections(skeleton, sensor_names, indices, record).items():
         key = take.stream_keys[column]
-        t, acc = samples[key]
-        samples[key] = (t, acc @ c.T)
+        t, acc, *channels = samples[key]  # orientation / angular rate, when recorded, pass through
+        samples[key] = (t, acc @ c.T, *channels)
     return replace(take, obs=obs, streams=replace(take.streams, samples=samples))

@@ -91,6 +91,37 @@ def check_synthesis_file(path: Path, data, graph_sensors: list[str]) -> None:
         head = array(path, data, "heading_rad", 1)
         if head.shape != (n,):
             raise MalformedFileError(path, None, f"heading_rad must have shape ({n},), got {head.shape}")
+    check_channels(path, data, "", acc.shape[:2])
+
+
+QUAT_NORM_TOLERANCE = 0.01
+"""A stored orientation must be a unit quaternion to 1 % (float32 exports and 4-decimal CSVs are far inside;
+a quaternion that is not one is a wrong column or a wrong unit)."""
+
+
+def check_channels(path: Path, data, prefix: str, leading: tuple[int, ...]) -> None:
+    """Optional ``<prefix>quat_wxyz`` (*leading, 4) unit quaternions and ``<prefix>gyro_rps`` (*leading, 3) rad/s:
+    shaped like the accelerations, each row all finite or all NaN (a sensor with no value there)."""
+    for name, width in (("quat_wxyz", 4), ("gyro_rps", 3)):
+        key = prefix + name
+        if key not in data.files:
+            continue
+        values = array(path, data, key, len(leading) + 1)
+        if values.shape != (*leading, width):
+            raise MalformedFileError(path, None, f"{key} must have shape {(*leading, width)} like the "
+                                                 f"accelerations, got {values.shape}")
+        finite = np.isfinite(values)
+        partial = finite.any(axis=-1) & ~finite.all(axis=-1)
+        if partial.any() or np.isinf(values).any():
+            where = tuple(int(i) for i in np.argwhere(partial | np.isinf(values).any(axis=-1))[0])
+            raise MalformedFileError(path, None, f"{key} row {where} is neither finite nor all NaN")
+        if name == "quat_wxyz":
+            norm = np.linalg.norm(np.where(finite, values, 0.0), axis=-1)
+            bad = finite.all(axis=-1) & (np.abs(norm - 1.0) > QUAT_NORM_TOLERANCE)
+            if bad.any():
+                where = tuple(int(i) for i in np.argwhere(bad)[0])
+                raise MalformedFileError(path, None, f"{key} holds {int(bad.sum())} quaternion(s) that are not unit "
+                                                     f"length (first at {where}: norm {norm[where]:.4g})")
 
 
 def check_gateway_export(path: Path, data, keys: list[str]) -> None:
@@ -108,6 +139,7 @@ def check_gateway_export(path: Path, data, keys: list[str]) -> None:
         if len(t) < 2 or not np.all(np.isfinite(t)) or not t[-1] > t[0] or np.mean(np.diff(t) > 0) < 0.5:
             raise MalformedFileError(path, None, f"'{key}/t_host_s' must hold at least 2 finite, increasing times")
         _check_finite(path, f"{key}/acc_g", acc[:, None], 1.0 / float(np.median(np.diff(t))))
+        check_channels(path, data, f"{key}/", (len(acc),))
     if "messages" in data.files:
         try:
             messages = json.loads(str(array(path, data, "messages", 0, kind="str")))

@@ -6,9 +6,12 @@ Two file layouts are accepted (both .npz):
 * the synthesis input format (documented in docs/engine-graph.md):
   `acc_g` (T, S, 3) g; `fps` scalar Hz (all streams share it); optional `sensor_names` (S,) graph sensor names of
   the acc columns (default: the graph's first S sensors); optional `position_m` (T, 2) ground (x, z) m and
-  `heading_rad` (T,) rad, NaN where missing. Sample i is at time i / fps.
+  `heading_rad` (T,) rad, NaN where missing; optional `quat_wxyz` (T, S, 4) sensor -> the device's earth frame
+  (Z up, yaw arbitrary per sensor) and `gyro_rps` (T, S, 3) rad/s, NaN rows where a sensor has no value.
+  Sample i is at time i / fps.
 * the gateway's export (`courtside gateway export --npz`): per sensor `<station>/<sensor>/acc_g` (N, 3) and
-  `<station>/<sensor>/t_host_s` (N,) (or `t_realigned_s`, the offline clock re-fit); they map to graph sensors
+  `<station>/<sensor>/t_host_s` (N,) (or `t_realigned_s`, the offline clock re-fit), and from sensors that stream
+  them `<station>/<sensor>/quat_wxyz` (N, 4) and `/gyro_rps` (N, 3); they map to graph sensors
   in sorted (station, sensor) order unless a mapping is given. Recorded camera messages (in the `messages` JSON:
   `t_host_s`, `position_m` court [x, y] or null, `heading_rad`) are the camera track; the recording's `meta`
   (`started_t_host_s`) fixes the take's first frame (`engine.stream.take_start_s`), exactly as the console
@@ -75,6 +78,7 @@ def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: 
     acc = np.asarray(data["acc_g"], float)
     fps = float(data["fps"])
     names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else graph_sensors[:acc.shape[1]]
+    used = None
     if len(names) == acc.shape[1] and any(n in graph_sensors for n in names):  # drop sensors the graph lacks
         used = [k for k, n in enumerate(names) if n in graph_sensors]
         acc, names = acc[:, used], [names[k] for k in used]
@@ -82,7 +86,9 @@ def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: 
     if unknown or len(names) != acc.shape[1]:
         raise MalformedFileError(path, None, f"sensor names {names} do not match the acc_g columns / graph "
                                              f"sensors {graph_sensors}")
-    frames = resample_uniform(acc, fps, fps_graph)
+    channels = {name: np.asarray(data[name], float)[:, used] if used is not None else np.asarray(data[name], float)
+                for name in ("quat_wxyz", "gyro_rps") if name in data.files}
+    frames = resample_uniform(acc, fps, fps_graph, **channels)
     if not len(frames):
         raise MalformedFileError(path, None, f"{len(acc)} samples at {fps:g} Hz are less than one frame")
     t_in = np.arange(len(acc)) / fps
@@ -94,7 +100,8 @@ def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: 
         _, head = _track_at(t_in, np.zeros((len(acc), 2)), np.asarray(data["heading_rad"], float), frames.t_s, gap)
     elif pos is not None:
         head = heading_heuristic(pos, fps_graph)
-    obs = Observations(frames.acc_g, pos, head, tuple(graph_sensors.index(n) for n in names))
+    obs = Observations(frames.acc_g, pos, head, tuple(graph_sensors.index(n) for n in names), frames.quat_wxyz,
+                       frames.gyro_rps)
     return TakeFrames(obs, frames.index, frames.t_s)
 
 
@@ -120,6 +127,9 @@ def recorded_streams(path: Path, data, graph_sensors: list[str], sensor_map: dic
         if f"{k}/{times}" not in data.files:
             raise MalformedFileError(path, None, f"sensor {k} has no '{times}' array")
         samples[k] = (np.asarray(data[f"{k}/{times}"], float), np.asarray(data[f"{k}/acc_g"], float))
+        if any(f"{k}/{c}" in data.files for c in ("quat_wxyz", "gyro_rps")):  # (t, acc, quat, gyro), None = absent
+            samples[k] += tuple(np.asarray(data[f"{k}/{c}"], float) if f"{k}/{c}" in data.files else None
+                                for c in ("quat_wxyz", "gyro_rps"))
     meta = _json(path, data, "meta", {})
     if not isinstance(meta, dict):
         raise MalformedFileError(path, None, "'meta' must be a JSON object (the recording's header)")
@@ -158,7 +168,8 @@ def _from_gateway_export(path: Path, data, graph_sensors: list[str], fps_graph: 
         track.add(t, pos, head)
     pos, head = track.at(frames.t_s)
     obs = Observations(frames.acc_g, pos if streams.camera else None,
-                       head if streams.camera and use_camera_heading else None, indices)
+                       head if streams.camera and use_camera_heading else None, indices, frames.quat_wxyz,
+                       frames.gyro_rps)
     return TakeFrames(obs, frames.index, frames.t_s, streams, keys)
 
 

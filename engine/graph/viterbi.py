@@ -131,6 +131,8 @@ class Observations:
     position_m: np.ndarray | None = None  # (T, 2) ground (x, z)
     heading_rad: np.ndarray | None = None  # (T,)
     sensor_indices: tuple[int, ...] | None = None
+    quat_wxyz: np.ndarray | None = None  # (T, S', 4) sensor -> device earth (Z up, yaw per sensor), NaN = missing
+    gyro_rps: np.ndarray | None = None  # (T, S', 3) rad/s in the sensor frame, NaN = missing
 
     @property
     def n_samples(self) -> int:

@@ -29,10 +29,14 @@ def acc_in_sensor_order(path: str | Path, obs: Any, n_sensors: int, need: str) -
 def drive_take(engine: OnlineEngine, acc_g: np.ndarray | None, obs: Any, first_frame: int, rate_hz: float
                ) -> list[FramePose]:
     """Every frame of a take on the frame clock pushed (acc (T, S, 3) g in the engine's column order, the
-    observations' camera fixes), flushed, each pose at its frame ``first_frame + t``."""
+    observations' camera fixes and, when the take has them, orientations and angular rates in the same column
+    order), flushed, each pose at its frame ``first_frame + t``."""
+    order = np.argsort(obs.sensor_indices) if obs.sensor_indices is not None else slice(None)
+    channels = {name: None if getattr(obs, name, None) is None else getattr(obs, name)[:, order]
+                for name in ("quat_wxyz", "gyro_rps")}
     return [FramePose(first_frame + q.t, (first_frame + q.t) / rate_hz, q.joint_positions_m,
                       getattr(q, "confidence", None), q)
-            for q in drive_frames(engine, acc_g, obs.position_m, obs.heading_rad)]
+            for q in drive_frames(engine, acc_g, obs.position_m, obs.heading_rad, **channels)]
 
 
 def synthesize_take(spec: EngineSpec, path: str | Path, lag_s: float, *, sensor_map: dict[str, str] | None = None,

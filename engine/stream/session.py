@@ -45,6 +45,8 @@ class StreamStats:
     frames_in: int = 0          # frames pushed to the engine since the (re)start
     frames_invalid: int = 0     # ... of which without accelerations (a sensor dropout)
     frames_with_camera: int = 0  # ... of which with a camera position
+    frames_with_orientation: int = 0  # ... of which with some sensor's orientation (a non-NaN quaternion)
+    frames_with_gyro: int = 0  # ... of which with some sensor's angular rate
     poses_out: int = 0
     # data that arrived after the frames it belongs to were pushed (later than the waits): while both are 0 (and
     # the gateway dropped nothing for this client), these poses are exactly what offline synthesis of the take gives
@@ -86,8 +88,9 @@ class StreamSynthesis:
         self.restart(start_s)
 
     # -- input ----------------------------------------------------------------------------------------------------
-    def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray) -> None:
-        self.resampler.add(sensor, t_s, acc_g)
+    def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray, quat_wxyz: np.ndarray | None = None,
+                    gyro_rps: np.ndarray | None = None) -> None:
+        self.resampler.add(sensor, t_s, acc_g, quat_wxyz, gyro_rps)
         self.stats.late_samples = self.resampler.late_samples
 
     def add_camera(self, t_s: float, position_m: Any, heading_rad: float | None = None) -> None:
@@ -139,13 +142,13 @@ class StreamSynthesis:
                 self.first_frame = int(batch.index[k])
             p = None if np.isnan(pos[k]).any() else pos[k]
             h = None if not self.use_camera_heading or np.isnan(head[k]) else float(head[k])
-            poses += self._poses(self.engine.push(
-                batch.acc_g[k] if batch.valid[k] else None, p, h,
-                quat_wxyz=None if batch.quat_wxyz is None else batch.quat_wxyz[k],
-                gyro_rps=None if batch.gyro_rps is None else batch.gyro_rps[k]))
+            channels = _channels(batch, k)
+            poses += self._poses(self.engine.push(batch.acc_g[k] if batch.valid[k] else None, p, h, **channels))
             self.stats.frames_in += 1
             self.stats.frames_invalid += int(not batch.valid[k])
             self.stats.frames_with_camera += int(p is not None)
+            self.stats.frames_with_orientation += int(channels["quat_wxyz"] is not None)
+            self.stats.frames_with_gyro += int(channels["gyro_rps"] is not None)
         self._t_pushed = float(batch.t_s[-1])
         self.camera.trim_before(self._t_pushed)
         return poses
@@ -161,12 +164,25 @@ class StreamSynthesis:
         return out
 
 
+def _channels(batch: FrameBatch, k: int) -> dict[str, np.ndarray | None]:
+    """Frame k's ``quat_wxyz`` / ``gyro_rps`` keywords for `OnlineEngine.push`: None when the take does not
+    stream the channel, on an invalid frame (a dropout, as for the accelerations) and when no sensor has a value
+    (the rule `engine.stream.drive_frames` applies offline); else the (S, ...) row, NaN for sensors without."""
+    out = {}
+    for name in ("quat_wxyz", "gyro_rps"):
+        values = getattr(batch, name)
+        usable = values is not None and batch.valid[k] and not np.isnan(values[k]).all()
+        out[name] = values[k] if usable else None
+    return out
+
+
 @dataclass
 class RecordedStreams:
-    """A take's raw inputs as the gateway recorded them: per live sensor (t_host_s (N,), acc_g (N, 3)), camera
-    fixes (t_host_s, position_m or None, heading_rad or None) in time order, and the recorder's start time."""
+    """A take's raw inputs as the gateway recorded them: per live sensor (t_host_s (N,), acc_g (N, 3)[,
+    quat_wxyz (N, 4) or None, gyro_rps (N, 3) or None]), camera fixes (t_host_s, position_m or None, heading_rad
+    or None) in time order, and the recorder's start time."""
 
-    samples: dict[Hashable, tuple[np.ndarray, np.ndarray]]
+    samples: dict[Hashable, tuple[np.ndarray, ...]]
     camera: list[tuple[float, Any, float | None]] = field(default_factory=list)
     started_t_host_s: float | None = None
 
@@ -181,8 +197,7 @@ def synthesize_streams(make_engine: Callable[[], OnlineEngine], streams: Recorde
     session = StreamSynthesis(make_engine, sensors, rate_hz, start_s=start_s, max_gap_s=max_gap_s,
                               camera_max_gap_s=camera_max_gap_s, use_camera_heading=use_camera_heading)
     for key in sensors:
-        t, acc = streams.samples[key]
-        session.add_samples(key, t, acc)
+        session.add_samples(key, *streams.samples[key])
     for t, pos, heading in streams.camera:
         session.add_camera(t, pos, heading)
     return session.finish(), session

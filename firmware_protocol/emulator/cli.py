@@ -15,7 +15,7 @@ from pathlib import Path
 
 from .link import EmulatorLink
 from .motion import MocapSource, MotionSource, TraceSource
-from .options import STATION_OPTIONS, apply_options
+from .options import STATION_OPTIONS, apply_options, parse_flag
 from .pty_transport import PtyTransport
 from .station import BaseStation, StationConfig
 
@@ -24,9 +24,9 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="courtside emulate", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--stations", type=int, default=1, help="number of stations (ids 1..N, seed + id - 1)")
-    for name, (field, _, help_text) in STATION_OPTIONS.items():
-        if name == "autostart":
-            p.add_argument("--autostart", action="store_true", help=help_text)
+    for name, (field, parse, help_text) in STATION_OPTIONS.items():
+        if parse is parse_flag:
+            p.add_argument(f"--{name}", action="store_true", help=help_text)
         else:
             default = getattr(StationConfig(), field)
             p.add_argument(f"--{name}", default=None, metavar="X", help=f"{help_text} (default {default})")
@@ -46,6 +46,9 @@ def _parser() -> argparse.ArgumentParser:
 
 def _motion(args: argparse.Namespace) -> MotionSource | None:
     if args.trace is not None:
+        if args.orientation:
+            raise ValueError(f"{args.trace}: an acceleration trace has no orientation; use --mocap or no motion "
+                             "source with --orientation")
         return TraceSource.from_npy(args.trace, args.trace_fps)
     if args.mocap is not None:
         clip: str | Path = args.mocap
@@ -56,15 +59,15 @@ def _motion(args: argparse.Namespace) -> MotionSource | None:
             if clip not in clips:
                 raise ValueError(f"{clip}: no such file, and not a shipped clip ({', '.join(sorted(clips))})")
             clip = clips[clip]
-        return MocapSource.from_clip(clip)
+        return MocapSource.from_clip(clip, orientation_seed=int(args.seed or 0) if args.orientation else None)
     return None
 
 
 def _build(args: argparse.Namespace) -> list[tuple[int, EmulatorLink, PtyTransport]]:
-    options = {name: getattr(args, name.replace("-", "_")) for name in STATION_OPTIONS if name != "autostart"}
+    flags = [name for name, (_, parse, _) in STATION_OPTIONS.items() if parse is parse_flag]
+    options = {name: getattr(args, name.replace("-", "_")) for name in STATION_OPTIONS if name not in flags}
     base = apply_options(StationConfig(), {k: v for k, v in options.items() if v is not None})
-    if args.autostart:
-        base = replace(base, autostart=True)
+    base = replace(base, **{STATION_OPTIONS[name][0]: True for name in flags if getattr(args, name)})
     motion = _motion(args)
     if args.link_dir is not None:
         args.link_dir.mkdir(parents=True, exist_ok=True)

@@ -29,6 +29,10 @@ class BatchRecord:
     acc_true_g: np.ndarray     # (k, 3) before noise and quantisation
     counts: np.ndarray         # (k, 3) int16 what the sensor quantised
     flags: int                 # BatchFlags at sampling time (calibration mode)
+    quat_true_wxyz: np.ndarray | None = None  # (k, 4) orientation before quantisation (device earth), if streamed
+    gyro_true_rps: np.ndarray | None = None   # (k, 3) angular rate before quantisation
+    quat_q14: np.ndarray | None = None        # (k, 4) int16 what went on the wire
+    gyro_counts: np.ndarray | None = None     # (k, 3) int16
     fate: Fate = Fate.IN_FLIGHT
     frame: int = -1            # index into the frame table once sent
 
@@ -57,6 +61,8 @@ class SampleTruth:
     counts: np.ndarray         # (M, 3) int16 quantised values the sensor produced
     fate: np.ndarray           # (M,) int8 Fate
     frame: np.ndarray          # (M,) int64 frame index or -1
+    quat_true_wxyz: np.ndarray | None = None  # (M, 4) device-earth orientation before quantisation (orientation on)
+    gyro_true_rps: np.ndarray | None = None   # (M, 3) rad/s before quantisation
 
     @property
     def delivered(self) -> np.ndarray:
@@ -107,6 +113,8 @@ class GroundTruthLog:
             counts=np.concatenate([r.counts for r in b]),
             fate=np.repeat(np.array([int(r.fate) for r in b], np.int8), k),
             frame=np.repeat([r.frame for r in b], k).astype(np.int64),
+            quat_true_wxyz=_stacked([r.quat_true_wxyz for r in b]),
+            gyro_true_rps=_stacked([r.gyro_true_rps for r in b]),
         )
 
     def frames(self) -> FrameTruth:
@@ -124,3 +132,9 @@ class GroundTruthLog:
     def beacons(self) -> BeaconTruth:
         a = np.array(self.beacon_log, dtype=np.float64).reshape(-1, 4)
         return BeaconTruth(a[:, 0], a[:, 1].astype(np.int64), a[:, 2].astype(np.int64), a[:, 3].astype(np.int64))
+
+
+def _stacked(parts: list[np.ndarray | None]) -> np.ndarray | None:
+    """The batches' optional channel concatenated, or None when no batch carries it (a station streams a channel
+    for all its sensors from boot, or for none)."""
+    return None if any(p is None for p in parts) else np.concatenate(parts)

@@ -7,7 +7,7 @@ from urllib.parse import parse_qs
 from .station import StationConfig
 
 
-def _flag(text: str) -> bool:
+def parse_flag(text: str) -> bool:
     if text.lower() in {"1", "true", "yes", "on"}:
         return True
     if text.lower() in {"0", "false", "no", "off"}:
@@ -35,7 +35,8 @@ STATION_OPTIONS: dict[str, tuple[str, type | object, str]] = {
     "corruption": ("byte_corruption", float, "per-byte corruption probability on the USB wire"),
     "beacon": ("beacon_interval_s", float, "CLOCK_SYNC period, s"),
     "status": ("status_interval_s", float, "STATUS period, s"),
-    "autostart": ("autostart", _flag, "stream from boot without a START command"),
+    "autostart": ("autostart", parse_flag, "stream from boot without a START command"),
+    "orientation": ("orientation", parse_flag, "also stream orientation quaternions + angular rate (protocol v2)"),
     "seed": ("seed", int, "random seed"),
 }
 

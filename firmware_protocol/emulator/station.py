@@ -27,13 +27,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..codec import PACKERS
+from ..codec import MAX_MOTION_BATCH_SAMPLES, message_type_and_payload
 from ..decoder import StreamDecoder
-from ..framing import encode
+from ..framing import frame_payload
 from ..messages import (
     BROADCAST_SENSOR,
     INT16_FULL_SCALE,
     PERIODIC_BEACON,
+    QUAT_Q14_ONE,
     Ack,
     BatchFlags,
     ClockSync,
@@ -55,7 +56,7 @@ from ..messages import (
 )
 from .clock import CrystalClock
 from .ground_truth import BatchRecord, Fate, FrameRecord, GroundTruthLog
-from .motion import MotionSource, StillSource
+from .motion import MotionSource, OrientationSource, StillSource
 
 SEQ_MODULUS = 1 << 32
 
@@ -88,6 +89,8 @@ class StationConfig:
     beacon_interval_s: float = 1.0       # CLOCK_SYNC period, station-clock seconds
     status_interval_s: float = 1.0       # STATUS period, station-clock seconds
     autostart: bool = False              # stream from boot without START_STREAMING (demo convenience)
+    orientation: bool = False            # sensors also stream orientation + angular rate (MOTION_BATCH, v2)
+    gyro_range_dps: int = 2000           # full-scale angular rate, +-deg/s (i16 counts)
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -100,6 +103,10 @@ class StationConfig:
             problems.append(f"range {self.range_g} g not in {self.supported_ranges_g}")
         if not 1 <= self.batch_samples <= 600:
             problems.append(f"batch_samples {self.batch_samples} not in 1..600")
+        if self.orientation and self.batch_samples > MAX_MOTION_BATCH_SAMPLES:
+            problems.append(f"batch_samples {self.batch_samples} > {MAX_MOTION_BATCH_SAMPLES} (with orientation)")
+        if self.gyro_range_dps <= 0:
+            problems.append("gyro_range_dps must be > 0")
         for name in ("radio_loss", "burst_probability", "byte_corruption"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 problems.append(f"{name} {getattr(self, name)} not a probability")
@@ -137,6 +144,9 @@ class BaseStation:
         self.motion = motion if motion is not None else StillSource(config.n_sensors)
         if self.motion.n_sensors < config.n_sensors:
             raise ValueError(f"motion source has {self.motion.n_sensors} sensors, station needs {config.n_sensors}")
+        if config.orientation and not (isinstance(self.motion, OrientationSource)
+                                       and getattr(self.motion, "streams_orientation", True)):
+            raise ValueError(f"{type(self.motion).__name__} gives no orientation; the station streams orientation")
         self.now_s = 0.0
         self.plugged = True
         self.truth = GroundTruthLog()
@@ -386,9 +396,17 @@ class BaseStation:
         counts = np.clip(np.rint(measured / scale), -INT16_FULL_SCALE, INT16_FULL_SCALE).astype(np.int16)
         latched = self.clock.counter(ticks_since_boot)
         flags = int(BatchFlags.CALIBRATING) if self._calibrating else 0
+        quat = gyro = quat_q14 = gyro_counts = None
+        if self.config.orientation:  # the motion source's readings already carry the filter's error model
+            quat = self.motion.orientation_wxyz(t_true)[:, s.index, :]
+            gyro = self.motion.angular_rate_rps(t_true)[:, s.index, :]
+            quat_q14 = np.clip(np.rint(quat * QUAT_Q14_ONE), -INT16_FULL_SCALE, INT16_FULL_SCALE).astype(np.int16)
+            gyro_counts = np.clip(np.rint(gyro / self.gyro_scale_rps_per_lsb), -INT16_FULL_SCALE,
+                                  INT16_FULL_SCALE).astype(np.int16)
         records = [
             BatchRecord(s.sensor_id, self._boot_index, s.next_counter + i, latched[i:i + per_batch],
-                        t_true[i:i + per_batch], acc[i:i + per_batch], counts[i:i + per_batch], flags)
+                        t_true[i:i + per_batch], acc[i:i + per_batch], counts[i:i + per_batch], flags,
+                        *(None if a is None else a[i:i + per_batch] for a in (quat, gyro, quat_q14, gyro_counts)))
             for i in range(0, n, per_batch)
         ]
         self.truth.batches.extend(records)
@@ -418,7 +436,8 @@ class BaseStation:
         s = self._sensors[rec.sensor_id]
         period_q8 = round(self.config.tick_rate_hz * 256 / s.rate_hz)
         msg = SampleBatch(rec.sensor_id, rec.flags, rec.first_counter % SEQ_MODULUS, int(rec.ticks[0]),
-                          period_q8, scale_for_range(s.range_g), rec.counts)
+                          period_q8, scale_for_range(s.range_g), rec.counts, rec.quat_q14, rec.gyro_counts,
+                          self.gyro_scale_rps_per_lsb if rec.gyro_counts is not None else 0.0)
         self._send(msg, rec)
 
     def _send_beacon(self, echo_command_id: int) -> None:
@@ -432,8 +451,19 @@ class BaseStation:
         cfg = self.config
         return Hello(cfg.firmware_version, cfg.serial, self.boot_id, cfg.tick_rate_hz, cfg.supported_rates_hz,
                      cfg.supported_ranges_g,
-                     tuple(SensorInfo(s.sensor_id, SensorKind.ACCELEROMETER, s.rate_hz, s.range_g)
+                     tuple(SensorInfo(s.sensor_id, int(self._sensor_kind), s.rate_hz, s.range_g)
                            for s in self._sensors))
+
+    @property
+    def _sensor_kind(self) -> SensorKind:
+        if self.config.orientation:
+            return SensorKind.ACCELEROMETER | SensorKind.ORIENTATION | SensorKind.ANGULAR_RATE
+        return SensorKind.ACCELEROMETER
+
+    @property
+    def gyro_scale_rps_per_lsb(self) -> float:
+        """rad/s per count of the angular-rate channel, rounded to float32 as on the wire."""
+        return float(np.float32(math.radians(self.config.gyro_range_dps) / INT16_FULL_SCALE))
 
     def _status(self) -> Status:
         t = self._event_time_s
@@ -456,8 +486,9 @@ class BaseStation:
                       self._host_frames_rejected, links)
 
     def _send(self, message: Message, batch: BatchRecord | None = None) -> None:
-        frame = encode(message, self.config.station_id, self._seq)
-        record = FrameRecord(self._seq, self._boot_index, _message_type(message), self._event_time_s,
+        msg_type, payload = message_type_and_payload(message)
+        frame = frame_payload(msg_type, payload, self.config.station_id, self._seq)
+        record = FrameRecord(self._seq, self._boot_index, int(msg_type), self._event_time_s,
                              self.bytes_out + len(self._out), len(frame), batch=batch)
         if batch is not None:
             batch.frame = len(self.truth.frame_log)
@@ -507,7 +538,3 @@ class BaseStation:
     def seconds_since_boot(self) -> float:
         return self.now_s - self.boot_time_s
 
-
-
-def _message_type(message: Message) -> int:
-    return int(PACKERS[type(message)][0])

@@ -92,12 +92,17 @@ def worn_sensor_sites(index: int) -> tuple[str, ...]:
     return tuple(SEED000_SENSORS) if index % 2 == 0 else others
 
 
-def mocap_traces(clips: tuple[str | Path, ...], worn: list[tuple[str, ...]], fps: float = 60.0) -> list[TraceSource]:
+def mocap_traces(clips: tuple[str | Path, ...], worn: list[tuple[str, ...]], fps: float = 60.0,
+                 orientation_seed: int | None = None) -> list[TraceSource]:
     """Virtual accelerometer traces of ``clips`` played back to back (each clip on its own skeleton), one trace
     per station with its ``worn`` sites; ``clips`` are shipped clip names or .bvh/.amc paths, () = every
-    shipped clip. Raises CourtsideError naming a clip that is neither."""
+    shipped clip. Raises CourtsideError naming a clip that is neither. With ``orientation_seed`` the traces also
+    carry what each sensor's fusion filter and gyroscope report: `OrientationErrorModel.realistic()` (seeded) on
+    the virtual orientations of the whole concatenated trace (one yaw offset and drift per sensor across clips)
+    and `virtual_gyroscopes`."""
     from engine.errors import CourtsideError
-    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers
+    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers, virtual_gyroscopes
+    from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
 
     shipped = sample_clips()
     paths = []
@@ -110,30 +115,43 @@ def mocap_traces(clips: tuple[str | Path, ...], worn: list[tuple[str, ...]], fps
             raise CourtsideError(f"emulated motion: {clip}: no such file, and not a shipped clip "
                                  f"({', '.join(sorted(shipped))})")
     sites = sorted({s for w in worn for s in w})
-    parts = []
+    acc_parts, quat_parts, gyro_parts = [], [], []
     for path in paths:
         motion = load_clip(path, fps=fps)
-        parts.append(virtual_accelerometers(motion, standard_placements(motion.skeleton, sites)))
-    acc = np.concatenate(parts)  # (F, sites, 3)
-    return [TraceSource(acc[:, [sites.index(s) for s in w]], fps) for w in worn]
+        placements = standard_placements(motion.skeleton, sites)
+        acc_parts.append(virtual_accelerometers(motion, placements))
+        if orientation_seed is not None:
+            quat_parts.append(virtual_orientations(motion, placements))
+            gyro_parts.append(virtual_gyroscopes(motion, placements))
+    acc = np.concatenate(acc_parts)  # (F, sites, 3)
+    quat = gyro = None
+    if orientation_seed is not None:
+        quat = OrientationErrorModel.realistic().apply(np.concatenate(quat_parts), fps,
+                                                       np.random.default_rng(orientation_seed))
+        gyro = np.concatenate(gyro_parts)
+    columns = [[sites.index(s) for s in w] for w in worn]
+    return [TraceSource(acc[:, c], fps, None if quat is None else quat[:, c], None if gyro is None else gyro[:, c])
+            for c in columns]
 
 
-def start_court_stations(n: int, motion: str = "mocap", clips: tuple[str | Path, ...] = (), seed: int = 0
-                         ) -> tuple[list[EmulatedStation], list[str]]:
+def start_court_stations(n: int, motion: str = "mocap", clips: tuple[str | Path, ...] = (), seed: int = 0,
+                         orientation: bool = False) -> tuple[list[EmulatedStation], list[str]]:
     """``n`` emulated stations for `courtside gateway --emulate N`: with ``motion="mocap"`` they replay mocap
     clips as worn accelerometers (`worn_sensor_sites`, `mocap_traces`), so a console shows a moving skeleton;
-    ``"none"`` gives the emulator's still sensors."""
+    ``"none"`` gives the emulator's still sensors. ``orientation``: the stations speak protocol v2 and also
+    stream each sensor's orientation (realistic filter error) and angular rate."""
     if motion == "mocap":
         worn = [worn_sensor_sites(i) for i in range(n)]
-        traces = mocap_traces(clips, worn)
+        traces = mocap_traces(clips, worn, orientation_seed=seed if orientation else None)
         rng = np.random.default_rng(seed)
         stations: list[EmulatedStation] = []
         try:
             for i, trace in enumerate(traces):
-                stations.append(start_emulated_station(demo_config(i, rng, n_sensors=trace.n_sensors), motion=trace))
+                stations.append(start_emulated_station(
+                    demo_config(i, rng, n_sensors=trace.n_sensors, orientation=orientation), motion=trace))
         except Exception:
             for st in stations:
                 st.stop()
             raise
         return stations, [s.path for s in stations]
-    return start_emulated_stations(n, seed=seed)
+    return start_emulated_stations(n, seed=seed, orientation=orientation)

@@ -110,11 +110,15 @@ class CallbackStationReader:
             self.link_state = "streaming" if fresh else "stale"
 
     # -- samples ----------------------------------------------------------------------------------------------
-    def _on_sample(self, ticks: int, acc_g: np.ndarray) -> None:
-        """One sample from the library's thread: device ticks (already unwrapped) and acceleration (g)."""
+    def _on_sample(self, ticks: int, acc_g: np.ndarray, gyro_rps: np.ndarray | None = None,
+                   quat_wxyz: np.ndarray | None = None) -> None:
+        """One sample from the library's thread: device ticks (already unwrapped), acceleration (g) and, from a
+        device that reports them, angular rate (rad/s) and orientation (sensor -> device earth, Z up)."""
         now = time.monotonic()
         self._last_arrival = now
-        self._queue.append((int(ticks), now, np.asarray(acc_g, np.float32)))
+        self._queue.append((int(ticks), now, np.asarray(acc_g, np.float32),
+                            None if gyro_rps is None else np.asarray(gyro_rps, np.float32),
+                            None if quat_wxyz is None else np.asarray(quat_wxyz, np.float32)))
 
     def _flush(self) -> None:
         if self.period_ticks is None and len(self._queue) < RATE_LEARN_SAMPLES:
@@ -125,6 +129,7 @@ class CallbackStationReader:
         ticks = np.array([i[0] for i in items], np.int64)
         arrival = np.array([i[1] for i in items])
         acc = np.stack([i[2] for i in items]).astype(np.float32)
+        gyro, quat = (_optional_column([i[k] for i in items], width) for k, width in ((3, 3), (4, 4)))
         if self._last is not None and ticks[0] < self._last:
             self.epoch += 1
             self.clock.restart()
@@ -153,7 +158,8 @@ class CallbackStationReader:
         self.sink.on_samples(SampleBlock(
             station=self.name, sensor=0, nominal_hz=self.stats.nominal_hz, clock_locked=self.clock.state.locked,
             epoch=self.epoch, counter=counter.astype(np.uint32), raw_ticks=(ticks % (1 << 32)).astype(np.uint32),
-            ticks=rel.astype(np.float64), arrival_s=arrival, t_host_s=t_host, acc_g=acc))
+            ticks=rel.astype(np.float64), arrival_s=arrival, t_host_s=t_host, acc_g=acc, quat_wxyz=quat,
+            gyro_rps=gyro))
 
     # -- gateway surface --------------------------------------------------------------------------------------
     def command(self, *args: Any, **kwargs: Any) -> dict:
@@ -170,6 +176,13 @@ class CallbackStationReader:
                 "tick_hz": self.tick_hz, "link_error": self.link_error, "reconnects": self.reconnects,
                 "internal_errors": self.internal_errors, "clock": clock,
                 "sensors": [self.stats.as_dict()], **self._extra_status()}
+
+
+def _optional_column(values: list[np.ndarray | None], width: int) -> np.ndarray | None:
+    """(N, width) float32 of a channel some samples carry (NaN rows for the others), None when none does."""
+    if all(v is None for v in values):
+        return None
+    return np.stack([np.full(width, np.nan, np.float32) if v is None else v for v in values]).astype(np.float32)
 
 
 def _runs(counter: np.ndarray) -> list[tuple[int, int]]:

@@ -5,7 +5,9 @@ On connect: a firmware-version probe of our own (pyshimmer has no timeouts), the
 device's own calibration of the wide-range accelerometer (offset, sensitivity in LSB per m/s², alignment), the
 sampling rate in ticks of its 32768 Hz clock (so the nominal period is exact), then streaming. Each data packet
 carries the 24-bit device time stamp, unwrapped here (it wraps every 512 s), and the raw accelerometer, calibrated
-as Shimmer documents: ``a = R⁻¹ (raw − offset) / sensitivity``."""
+as Shimmer documents: ``a = R⁻¹ (raw − offset) / sensitivity``; when the gyroscope is enabled too, its angular
+rate, calibrated alike with the sensitivity stored x100 (LSB per deg/s), is forwarded in rad/s. (Shimmer3 streams
+no orientation: its quaternion is computed on the PC by Shimmer's own software.)"""
 from __future__ import annotations
 
 import contextlib
@@ -21,6 +23,7 @@ WRAP_TICKS = 1 << 24
 PROBE_TIMEOUT_S = 1.0
 ACK, GET_FW_VERSION, FW_VERSION_RESPONSE, FW_VERSION_BYTES = 0xFF, 0x2E, 0x2F, 6
 WIDE_RANGE_ACCEL = 3  # index of the wide-range accelerometer in Shimmer's all-calibration record
+GYRO = 1  # index of the gyroscope in that record
 GRAVITY_MPS2 = 9.80665
 
 
@@ -37,6 +40,8 @@ class ShimmerReader(CallbackStationReader):
         self._wraps = 0
         self._channels: tuple = ()
         self._offset = self._gain = None
+        self._gyro_channels: tuple = ()
+        self._gyro_offset = self._gyro_gain = None
 
     def _connect(self) -> None:
         import serial
@@ -67,6 +72,13 @@ class ShimmerReader(CallbackStationReader):
         sensitivity = np.array(calibration.get_sensitivity(WIDE_RANGE_ACCEL), float)
         alignment = np.array(calibration.get_ali_mat(WIDE_RANGE_ACCEL), float).reshape(3, 3) / 100.0
         self._gain = np.linalg.inv(alignment) / sensitivity[None, :] / GRAVITY_MPS2  # raw - offset -> g
+        gyro = (EChannelType.GYRO_MPU9150_X, EChannelType.GYRO_MPU9150_Y, EChannelType.GYRO_MPU9150_Z)
+        self._gyro_channels = gyro if all(c in channels for c in gyro) else ()
+        if self._gyro_channels:
+            self._gyro_offset = np.array(calibration.get_offset_bias(GYRO), float)
+            gyro_sensitivity = np.array(calibration.get_sensitivity(GYRO), float) / 100.0  # LSB per deg/s
+            gyro_alignment = np.array(calibration.get_ali_mat(GYRO), float).reshape(3, 3) / 100.0
+            self._gyro_gain = np.linalg.inv(gyro_alignment) / gyro_sensitivity[None, :] * (np.pi / 180.0)
         self._last24, self._wraps = None, 0
         shimmer.add_stream_callback(self._on_packet)
         shimmer.start_streaming()
@@ -92,7 +104,10 @@ class ShimmerReader(CallbackStationReader):
             self._wraps += 1
         self._last24 = stamp
         raw = np.array([packet[c] for c in self._channels], float)
-        self._on_sample(stamp + self._wraps * WRAP_TICKS, self._gain @ (raw - self._offset))
+        gyro = None
+        if self._gyro_channels:
+            gyro = self._gyro_gain @ (np.array([packet[c] for c in self._gyro_channels], float) - self._gyro_offset)
+        self._on_sample(stamp + self._wraps * WRAP_TICKS, self._gain @ (raw - self._offset), gyro)
 
     def _shutdown(self, shimmer: Any) -> None:
         with contextlib.redirect_stdout(io.StringIO()):  # pyshimmer prints when its read loop ends

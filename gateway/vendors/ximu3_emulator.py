@@ -37,6 +37,8 @@ class Ximu3Truth:
     device_us: list[int] = field(default_factory=list)
     host_s: list[float] = field(default_factory=list)
     acc_g: list[np.ndarray] = field(default_factory=list)  # as sent (float32 in binary mode)
+    gyro_dps: list[np.ndarray] = field(default_factory=list)  # as sent
+    quat_wxyz: list[np.ndarray] = field(default_factory=list)  # as sent (sensor -> earth, Z up)
     dropped: int = 0
     dropped_us: list[int] = field(default_factory=list)  # device time stamps of the dropped samples
     escaped_bytes: int = 0  # binary mode: payload bytes that needed byte stuffing (0x0A, 0xDB)
@@ -61,12 +63,14 @@ def ascii_message(ascii_id: str, timestamp_us: int, values) -> bytes:
 
 
 class Ximu3Emulator(PtyDeviceEmulator):
-    """``acc_g`` (N, 3) g played at ``rate_hz`` in a loop (default: still, 1 g up + 0.005 g noise); ``mode``
-    ``"binary"`` (the device's default) or ``"ascii"``."""
+    """``acc_g`` (N, 3) g played at ``rate_hz`` in a loop (default: still, 1 g up + 0.005 g noise), with optional
+    ``gyro_dps`` (N, 3) deg/s and ``quat_wxyz`` (N, 4) sensor -> earth (Z up) rows of the same samples (default: no
+    rotation, and the tilt ``acc_g`` shows); ``mode`` ``"binary"`` (the device's default) or ``"ascii"``."""
 
     def __init__(self, name: str = "x-IMU3", serial: str = "65577B49", rate_hz: float = 100.0,
                  acc_g: np.ndarray | None = None, drift_ppm: float = 40.0, offset_us: int = 123_456_789,
-                 loss: float = 0.0, burst: int = 4, seed: int = 0, mode: str = "binary") -> None:
+                 loss: float = 0.0, burst: int = 4, seed: int = 0, mode: str = "binary",
+                 gyro_dps: np.ndarray | None = None, quat_wxyz: np.ndarray | None = None) -> None:
         if mode not in MODES:
             raise ValueError(f"x-IMU3 emulator mode {mode!r}: expected one of {MODES}")
         self.name, self.serial, self.rate_hz, self.mode = name, serial, rate_hz, mode
@@ -74,6 +78,12 @@ class Ximu3Emulator(PtyDeviceEmulator):
         self._rng = rng
         self.acc_g = np.asarray(acc_g, float) if acc_g is not None else \
             np.array([0.0, 0.0, 1.0]) + rng.normal(0.0, 0.005, (1000, 3))
+        self.gyro_dps = np.zeros_like(self.acc_g) if gyro_dps is None else np.asarray(gyro_dps, float)
+        self.quat_wxyz = np.array([_tilt_quaternion(a) for a in self.acc_g]) if quat_wxyz is None else \
+            np.asarray(quat_wxyz, float)
+        if self.gyro_dps.shape != self.acc_g.shape or self.quat_wxyz.shape != (len(self.acc_g), 4):
+            raise ValueError(f"x-IMU3 emulator: gyro_dps {self.gyro_dps.shape} / quat_wxyz {self.quat_wxyz.shape} "
+                             f"do not match acc_g {self.acc_g.shape}")
         self.drift_ppm, self.offset_us, self.loss, self.burst = drift_ppm, offset_us, loss, burst
         self.truth = Ximu3Truth()
         self.commands: list[dict] = []
@@ -87,9 +97,10 @@ class Ximu3Emulator(PtyDeviceEmulator):
             for _ in range(self.burst):
                 host = t0 + k / self.rate_hz
                 device_us = int(self.offset_us + (host - t0) * 1e6 * (1.0 + self.drift_ppm * 1e-6))
-                acc = self.acc_g[self._replay_row(k, host, self.rate_hz, len(self.acc_g))]
+                row = self._replay_row(k, host, self.rate_hz, len(self.acc_g))
+                acc, gyro, quat = self.acc_g[row], self.gyro_dps[row], self.quat_wxyz[row]
                 if self.mode == "binary":
-                    acc = acc.astype(np.float32).astype(float)
+                    acc, gyro, quat = (v.astype(np.float32).astype(float) for v in (acc, gyro, quat))
                 k += 1
                 if self._rng.random() < self.loss:
                     self.truth.dropped += 1
@@ -98,20 +109,19 @@ class Ximu3Emulator(PtyDeviceEmulator):
                 self.truth.device_us.append(device_us)
                 self.truth.host_s.append(host)
                 self.truth.acc_g.append(acc)
-                lines += self._messages(k, device_us, acc)
+                self.truth.gyro_dps.append(gyro)
+                self.truth.quat_wxyz.append(quat)
+                lines += self._messages(k, device_us, acc, gyro, quat)
             delay = t0 + (k - 1) / self.rate_hz - time.monotonic()  # the burst leaves as its last sample latches
             if delay > 0:
                 self._stop.wait(delay)
             self._write(b"".join(lines))
 
-    def _messages(self, k: int, device_us: int, acc: np.ndarray) -> list[bytes]:
-        """Sample ``k``'s messages as the device sends them by default: inertial, AHRS quaternion (the tilt that
-        ``acc`` shows, about a horizontal axis), now and then a temperature. The station must pick the inertial
-        messages out of this mix."""
-        up = acc / (np.linalg.norm(acc) or 1.0)
-        half = np.array([1.0 + up[2], up[1], -up[0], 0.0])  # rotation taking the sensor's up to z, unnormalised
-        quaternion = half / (np.linalg.norm(half) or 1.0)
-        messages = [("I", (0.0, 0.0, 0.0, *acc)), ("Q", tuple(quaternion))]
+    def _messages(self, k: int, device_us: int, acc: np.ndarray, gyro_dps: np.ndarray, quat: np.ndarray
+                  ) -> list[bytes]:
+        """Sample ``k``'s messages as the device sends them by default: inertial, AHRS quaternion, now and then a
+        temperature. The station must pick the inertial and quaternion messages out of this mix."""
+        messages = [("I", (*gyro_dps, *acc)), ("Q", tuple(quat))]
         if k % 5 == 0:
             messages.append(("T", (24.5,)))
         if self.mode == "ascii":
@@ -143,3 +153,10 @@ class Ximu3Emulator(PtyDeviceEmulator):
                 if key == "ping":
                     value = {"interface": "USB", "name": self.name, "sn": self.serial}
                 self._write((json.dumps({key: value}) + "\r\n").encode())
+
+
+def _tilt_quaternion(acc_g: np.ndarray) -> np.ndarray:
+    """The rotation sensor -> earth (Z up) that a still sensor reading ``acc_g`` has, with no turn about Z."""
+    up = acc_g / (np.linalg.norm(acc_g) or 1.0)
+    half = np.array([1.0 + up[2], up[1], -up[0], 0.0])  # rotation taking the sensor's up to z, unnormalised
+    return half / (np.linalg.norm(half) or 1.0)

@@ -1,4 +1,7 @@
-"""Live accelerometer traces (pyqtgraph): per-sensor x/y/z and |a| on the gateway clock.
+"""Live sensor traces (pyqtgraph) on the gateway clock, per sensor: accelerations x/y/z and |a| (g), or, from
+sensors that stream them, orientation as roll/pitch/yaw (degrees, Z-up ZYX angles of the sensor -> device earth
+quaternion: roll and pitch are the tilt the engine can trust, yaw is the device's own heading with no shared
+north) or angular rate x/y/z and |w| (rad/s).
 
 Data never touches Qt from the network thread: ``TraceStore.put`` is called from any thread and only
 enqueues; the GUI thread's refresh tick calls ``drain`` (bounded work) then ``TracePanel.refresh`` which
@@ -16,6 +19,27 @@ from gui.ringbuffer import TraceStore, minmax_decimate
 
 RANGE_PRESETS_G = (2.0, 6.0, 12.0)
 CHANNEL_PENS = (("x", (230, 80, 80)), ("y", (90, 200, 90)), ("z", (90, 140, 250)), ("|a|", (235, 235, 235)))
+# what the panel shows: label -> (ring channel, y range or None = the range box's g)
+VIEWS = {"acceleration (g)": ("acc_g", None), "orientation (deg)": ("quat_wxyz", 180.0),
+         "angular rate (rad/s)": ("gyro_rps", 12.0)}
+
+
+def orientation_angles_deg(quat_wxyz: np.ndarray) -> np.ndarray:
+    """(N, 4) sensor -> earth (Z up) quaternions -> (N, 3) roll, pitch, yaw in degrees (ZYX: yaw about earth Z,
+    then pitch, then roll), NaN rows stay NaN."""
+    w, x, y, z = np.asarray(quat_wxyz, float).T
+    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return np.degrees(np.c_[roll, pitch, yaw])
+
+
+def _view_values(channel: str, values: np.ndarray) -> np.ndarray:
+    """Ring values -> the four drawn curves (x, y, z, magnitude; orientation: roll, pitch, yaw, nothing)."""
+    if channel == "quat_wxyz":
+        angles = orientation_angles_deg(values)
+        return np.c_[angles, np.full(len(angles), np.nan)]
+    return np.c_[values, np.linalg.norm(values, axis=1)]
 
 
 def sensor_label(sensor: Hashable) -> str:
@@ -48,8 +72,11 @@ class TracePanel(QtWidgets.QWidget):
         for w in (2.0, 5.0, 10.0, 30.0):
             self.window_box.addItem(f"{w:g} s", w)
         self.window_box.setCurrentIndex(2)
+        self.view_box = QtWidgets.QComboBox()
+        self.view_box.addItems(list(VIEWS))
         bar = QtWidgets.QHBoxLayout()
-        for label, w in (("Sensors", self.group_box), ("Range", self.range_box), ("Window", self.window_box)):
+        for label, w in (("Sensors", self.group_box), ("Show", self.view_box), ("Range", self.range_box),
+                         ("Window", self.window_box)):
             bar.addWidget(QtWidgets.QLabel(label))
             bar.addWidget(w)
         bar.addWidget(self.pause_button)
@@ -62,6 +89,7 @@ class TracePanel(QtWidgets.QWidget):
 
         self.group_box.currentTextChanged.connect(self._show_group)
         self.range_box.currentIndexChanged.connect(lambda _: self._apply_range())
+        self.view_box.currentTextChanged.connect(lambda _: self._apply_range())
         self.pause_button.toggled.connect(self.set_paused)
         self.window_box.currentIndexChanged.connect(lambda _: setattr(self, "window_s", self.window_box.currentData()))
 
@@ -111,9 +139,15 @@ class TracePanel(QtWidgets.QWidget):
         self._apply_range()
 
     def _apply_range(self) -> None:
-        g = self.range_box.currentData()
+        fixed = VIEWS[self.view_box.currentText()][1]
+        limit = self.range_box.currentData() if fixed is None else fixed
+        self.range_box.setEnabled(fixed is None)
         for plot in self._plots.values():
-            plot.setYRange(-g, g, padding=0.02)
+            plot.setYRange(-limit, limit, padding=0.02)
+
+    def set_view(self, label: str) -> None:
+        """Show accelerations, orientation or angular rate (a `VIEWS` label)."""
+        self.view_box.setCurrentText(label)
 
     def set_range_g(self, g: float) -> None:
         self.range_box.setCurrentIndex(RANGE_PRESETS_G.index(g))
@@ -140,17 +174,21 @@ class TracePanel(QtWidgets.QWidget):
             return
         t0 = t_end - self.window_s
         width_px = max(200, self.graphics.width())
+        channel = VIEWS[self.view_box.currentText()][0]
         for sensor, curves in self._curves.items():
-            ring = self.store.rings.get(sensor)
-            if ring is None or not ring.count:
+            ring = self.store.rings.get(sensor) if channel == "acc_g" else \
+                self.store.channel_rings.get((sensor, channel))
+            if ring is None or not ring.count:  # (a sensor that does not stream this channel: nothing drawn)
+                for curve in curves:
+                    curve.setData(np.zeros(0), np.zeros(0))
                 continue
-            t, acc = ring.data()
+            t, values = ring.data()
             i0 = int(np.searchsorted(t, t0))
-            t, acc = t[i0:], acc[i0:]
-            vals = np.c_[acc, np.linalg.norm(acc, axis=1)]
-            td, vd = minmax_decimate(t, vals, 2 * width_px)
+            vals = _view_values(channel, values[i0:])
+            td, vd = minmax_decimate(t[i0:], vals, 2 * width_px)
             for k, curve in enumerate(curves):
-                curve.setData(td, vd[:, k])
+                finite = np.isfinite(vd[:, k])  # skipFiniteCheck: NaN must not reach the curve
+                curve.setData(td[finite], vd[finite, k])
         if self._plots:
             next(iter(self._plots.values())).setXRange(t0, t_end, padding=0)
 
@@ -173,6 +211,7 @@ class TracePanel(QtWidgets.QWidget):
             self._event_lines[seq] = lines
 
     def curve_data(self, sensor: Hashable, channel: int) -> tuple[np.ndarray, np.ndarray]:
-        """What is currently drawn for ``sensor`` channel (0..3 = x, y, z, |a|): for tests and screenshots."""
+        """What is currently drawn for ``sensor`` curve 0..3 (x, y, z, |a| / roll, pitch, yaw / x, y, z, |w|):
+        for tests and screenshots."""
         curve = self._curves[sensor][channel]
         return curve.xData if curve.xData is not None else np.zeros(0), curve.yData if curve.yData is not None else np.zeros(0)

@@ -18,11 +18,15 @@ i32 = st.integers(-(2**31), 2**31 - 1)
 
 @st.composite
 def sample_batches(draw, max_samples: int = 40) -> SampleBatch:
+    """Version-1 batches (accelerations only) and version-2 ones with orientation and/or angular rate."""
     n = draw(st.integers(1, max_samples))
-    seed = draw(u32)
-    samples = np.random.default_rng(seed).integers(-32768, 32768, size=(n, 3), dtype=np.int16)
+    rng = np.random.default_rng(draw(u32))
+    samples = rng.integers(-32768, 32768, size=(n, 3), dtype=np.int16)
+    quat = rng.integers(-32768, 32768, size=(n, 4), dtype=np.int16) if draw(st.booleans()) else None
+    gyro = rng.integers(-32768, 32768, size=(n, 3), dtype=np.int16) if draw(st.booleans()) else None
+    gyro_scale = float(np.float32(draw(st.floats(1e-6, 1.0)))) if gyro is not None else 0.0
     return SampleBatch(draw(u8), draw(u8), draw(u32), draw(u32), draw(u32),
-                       scale_for_range(draw(st.integers(1, 64))), samples)
+                       scale_for_range(draw(st.integers(1, 64))), samples, quat, gyro, gyro_scale)
 
 
 hellos = st.builds(

@@ -78,3 +78,21 @@ def test_emulate_runs_for_a_duration_with_mocap(capsys):
     assert main(["--mocap", "16_01", "--duration", "0.3", "--autostart"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("station 1 /dev/pts/")
+
+
+def test_emulate_orientation_with_mocap_and_its_refusal_for_a_trace(tmp_path, capsys):
+    """`courtside emulate --orientation --mocap`: a station sending protocol-v2 MOTION_BATCHes; an
+    acceleration trace has no orientation to send, which is one clear line."""
+    proc, _ = _start("--orientation", "--mocap", "16_01", "--autostart", "--link-dir", str(tmp_path / "dev"))
+    try:
+        with serial.Serial(str(tmp_path / "dev" / "station-1"), timeout=0.2) as port:
+            frames = _read_until(port, StreamDecoder(),
+                                 lambda fs: sum(isinstance(f.message, SampleBatch) for f in fs) >= 20, 20.0)
+        batches = [f.message for f in frames if isinstance(f.message, SampleBatch)]
+        assert all(b.quat_q14 is not None and b.gyro_counts is not None for b in batches)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+    np.save(tmp_path / "t.npy", np.zeros((10, 6, 3)))
+    assert main(["--orientation", "--trace", str(tmp_path / "t.npy")]) == 2
+    assert "t.npy: an acceleration trace has no orientation" in capsys.readouterr().err

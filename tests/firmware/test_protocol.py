@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import binascii
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -190,6 +191,70 @@ def test_unknown_type_and_version_are_counted_not_returned():
     assert decoder.stats.seq_gaps == 1
 
 
+DATA = Path(__file__).parent / "data"
+
+
+def test_version_1_station_stream_still_decodes():
+    """Bytes a version-1 station sent (recorded before version 2 existed) decode exactly as then: every frame,
+    no errors, accelerations only, the same counts the station's ground truth holds."""
+    data = (DATA / "station_v1_1s2.bin").read_bytes()
+    truth = np.load(DATA / "station_v1_1s2_truth.npz")
+    decoder = StreamDecoder()
+    frames = decoder.feed(data)
+    assert decoder.stats.corrupt_frames == decoder.stats.unsupported_version == decoder.stats.unknown_types == 0
+    assert decoder.stats.malformed_payloads == decoder.stats.seq_gaps == 0
+    batches = [f.message for f in frames if isinstance(f.message, SampleBatch)]
+    assert batches and all(b.quat_q14 is None and b.gyro_counts is None for b in batches)
+    assert all(b.quat_wxyz() is None and b.gyro_rps() is None for b in batches)
+    sensor = np.repeat([b.sensor_id for b in batches], [b.n_samples for b in batches])
+    counter = np.concatenate([b.first_sample_counter + np.arange(b.n_samples) for b in batches])
+    got, want = np.lexsort((counter, sensor)), np.lexsort((truth["counter"], truth["sensor_id"]))
+    np.testing.assert_array_equal(np.concatenate([b.samples for b in batches])[got], truth["counts"][want])
+    np.testing.assert_array_equal(sensor[got], truth["sensor_id"][want])
+
+
+def test_frame_versions_and_motion_batch_only_in_version_2():
+    """Old-layout frames keep header version 1 (a version-1 host reads them); a MOTION_BATCH is version 2, and a
+    frame claiming type MOTION_BATCH under version 1 is an unknown type there."""
+    samples = np.zeros((2, 3), np.int16)
+    plain = SampleBatch(1, 0, 0, 0, 2560000, 1.0, samples)
+    motion = SampleBatch(1, 0, 0, 0, 2560000, 1.0, samples, np.full((2, 4), 8192, np.int16))
+    assert _body(encode(plain, 1, 0))[0] == 1 and _body(encode(ClockSync(1, 1, 0), 1, 0))[0] == 1
+    assert _body(encode(motion, 1, 0))[:2] == bytes([2, MessageType.MOTION_BATCH])
+    payload = _body(encode(motion, 1, 0))[10:-4]
+    decoder = StreamDecoder()
+    assert decoder.feed(frame_payload(MessageType.MOTION_BATCH, payload, 1, 0, version=1)) == []
+    assert decoder.stats.unknown_types == 1
+    assert decoder.feed(frame_payload(MessageType.MOTION_BATCH, payload, 1, 1))[0].message == motion
+
+
+def test_motion_batch_values():
+    """Q2.14 quaternions come out as unit quaternions (an all-zero one = no value = NaN), gyro counts x scale."""
+    q = np.array([[16384, 0, 0, 0], [0, 0, 0, 0], [11585, 0, 0, 11585]], np.int16)
+    gyro = np.array([[1, -2, 3], [0, 0, 0], [32767, 0, -32767]], np.int16)
+    scale = float(np.float32(np.radians(2000) / 32767))
+    batch = StreamDecoder().feed(encode(SampleBatch(2, 0, 5, 9, 2560000, 1.0, np.zeros((3, 3), np.int16), q, gyro,
+                                                    scale), 3, 0))[0].message
+    want_q = np.array([[1, 0, 0, 0], [np.nan] * 4, [np.sqrt(0.5), 0, 0, np.sqrt(0.5)]])
+    np.testing.assert_allclose(batch.quat_wxyz(), want_q, atol=1e-12)
+    np.testing.assert_allclose(batch.gyro_rps(), gyro * scale)
+    assert batch.gyro_rps()[2, 0] == pytest.approx(np.radians(2000), rel=1e-6)
+
+
+def test_malformed_motion_batch_is_counted():
+    good = SampleBatch(0, 0, 0, 0, 2560000, 1.0, np.zeros((4, 3), np.int16), None, np.zeros((4, 3), np.int16), 0.01)
+    payload = _body(encode(good, 1, 0))[10:-4]
+    unknown_bit = payload[:20] + bytes([payload[20] | 0x80]) + payload[21:]
+    decoder = StreamDecoder()
+    for bad in (payload[:-6], unknown_bit, payload + b"\x00" * 8):
+        assert decoder.feed(frame_payload(MessageType.MOTION_BATCH, bad, 1, 0)) == []
+    assert decoder.stats.malformed_payloads == 3
+    with pytest.raises(ValueError, match="gyro_scale_rps_per_lsb"):
+        encode(SampleBatch(0, 0, 0, 0, 1, 1.0, np.zeros((1, 3), np.int16), None, np.zeros((1, 3), np.int16)), 1, 0)
+    with pytest.raises(ValueError, match=r"quat_q14 must be \(1, 4\)"):
+        encode(SampleBatch(0, 0, 0, 0, 1, 1.0, np.zeros((1, 3), np.int16), np.zeros((2, 4), np.int16)), 1, 0)
+
+
 def test_malformed_payload_with_valid_crc_is_counted():
     payload = pack_sample_batch(SampleBatch(0, 0, 0, 0, 2560000, 1.0, np.zeros((4, 3), np.int16)))
     frame = frame_payload(MessageType.SAMPLE_BATCH, payload[:-6], station_id=1, seq=1)
@@ -271,3 +336,14 @@ def test_payload_offsets_match_protocol_md():
     assert _body(encode(Command(513, 3, 0xFF, -7), 1, 0))[10:-4] == s.pack("<HBBi", 513, 3, 255, -7)
     assert _body(encode(Nack(513, 3, 4), 1, 0))[10:-4] == bytes([1, 2, 3, 4])
     assert _body(encode(Error(1, "bad ∆"), 1, 0))[10:-4] == bytes([1, 0]) + "bad ∆".encode()
+
+    quat = np.array([[16384, 0, -1, 2], [3, 4, 5, 6]], np.int16)
+    gyro = np.array([[7, -8, 9], [-32767, 0, 1]], np.int16)
+    motion = SampleBatch(4, 0, 70000, 5, 2560000, scale_for_range(8), samples, quat, gyro, 0.5)
+    want = (bytes([4, 0]) + s.pack("<H", 2) + s.pack("<III", 70000, 5, 2560000) + s.pack("<f", 8 / 32767)
+            + bytes([3, 0]) + s.pack("<f", 0.5) + s.pack("<6h", 1, -2, 3, -32768, 32767, 0)
+            + s.pack("<8h", 16384, 0, -1, 2, 3, 4, 5, 6) + s.pack("<6h", 7, -8, 9, -32767, 0, 1))
+    body = _body(encode(motion, 1, 0))
+    assert body[:2] == bytes([2, 9]) and body[10:-4] == want
+    gyro_only = SampleBatch(4, 0, 70000, 5, 2560000, scale_for_range(8), samples, None, gyro, 0.5)
+    assert _body(encode(gyro_only, 1, 0))[10:-4] == want[:20] + bytes([2, 0]) + want[22:38] + want[-12:]

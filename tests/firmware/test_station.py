@@ -189,3 +189,43 @@ def test_mocap_source_drives_the_station():
         np.arange(len(truth.t_true_s)), truth.sensor_id])
     assert truth.acc_true_g.std() > 0.1                                 # real motion, not a still pose
     assert any(isinstance(f.message, SampleBatch) for f in frames)
+
+
+def test_still_orientation_station_reports_its_pose_in_the_device_earth_frame():
+    """A still sensor tipped +90 degrees about world X: its filter (Z up) reports that rotation turned into the
+    Z-up frame, its gyro reads 0, and its gravity direction in the quaternion agrees with its accelerometer."""
+    half = np.sqrt(0.5)
+    q_world = np.array([[1, 0, 0, 0], [half, half, 0, 0]], float)
+    station = BaseStation(StationConfig(n_sensors=2, autostart=True, orientation=True), StillSource(2, q_world))
+    hello = station._hello()
+    assert all(s.kind == 7 for s in hello.sensors)                      # accelerometer | orientation | angular rate
+    frames = [f.message for f in _run(station, 0.5) if isinstance(f.message, SampleBatch)]
+    assert frames and all(b.quat_q14 is not None and b.gyro_counts is not None for b in frames)
+    for b in frames:
+        q = b.quat_wxyz()
+        # rotate(q, acc) points up in the device earth frame: gravity reaction = +Z there
+        w, x, y, z = q.T
+        up_in_sensor = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1)
+        np.testing.assert_allclose(up_in_sensor, b.acc_g(), atol=2e-3)
+        assert not b.gyro_rps().any()
+
+
+def test_mocap_orientation_station_sends_the_error_model_readings_and_records_them():
+    mocap = pytest.importorskip("engine.mocap")
+    source = MocapSource.from_clip(mocap.sample_clips()["16_01"], orientation_seed=4)
+    station = BaseStation(StationConfig(n_sensors=6, rate_hz=100, autostart=True, orientation=True), source)
+    batches = [f.message for f in _run(station, 2.0) if isinstance(f.message, SampleBatch)]
+    truth = station.truth.samples()
+    rows = np.arange(len(truth.t_true_s))
+    np.testing.assert_allclose(truth.quat_true_wxyz, source.orientation_wxyz(truth.t_true_s)[rows, truth.sensor_id])
+    np.testing.assert_allclose(truth.gyro_true_rps, source.angular_rate_rps(truth.t_true_s)[rows, truth.sensor_id])
+    assert np.abs(truth.gyro_true_rps).max() > 1.0                     # a moving body
+    sent = {(b.sensor_id, b.first_sample_counter + i): (b.quat_wxyz()[i], b.gyro_rps()[i])
+            for b in batches for i in range(b.n_samples)}
+    for k in range(0, len(rows), 97):
+        q, g = sent[(int(truth.sensor_id[k]), int(truth.counter[k]))]
+        true_q = truth.quat_true_wxyz[k]
+        assert abs(abs(float(q @ true_q)) - 1.0) < 1e-7                  # Q2.14: within 0.01 degrees
+        np.testing.assert_allclose(g, truth.gyro_true_rps[k], atol=station.gyro_scale_rps_per_lsb)
+    with pytest.raises(ValueError, match="gives no orientation"):
+        BaseStation(StationConfig(orientation=True), TraceSource(np.zeros((3, 6, 3)), 10))

@@ -29,14 +29,15 @@ def courtside(*args: str, cwd) -> subprocess.CompletedProcess:
     return result
 
 
-def start_gateway(cwd, *args: str) -> tuple[subprocess.Popen, int]:
+def start_gateway(cwd, *args: str, mode: str = "authentication required") -> tuple[subprocess.Popen, int]:
+    """`courtside gateway ARGS` as a process; returns it and its port once it says it listens in ``mode``."""
     proc = subprocess.Popen([sys.executable, "-m", "gateway.cli", "gateway", *args], cwd=cwd,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         line = proc.stdout.readline()
         assert line, f"gateway exited early ({proc.poll()}): {proc.stderr.read()}"
-        if match := re.match(r"gateway listening on ([0-9.]+):(\d+) \(authentication required", line):
+        if match := re.match(rf"gateway listening on ([0-9.]+):(\d+) \({re.escape(mode)}", line):
             return proc, int(match[2])
     proc.kill()
     raise AssertionError("gateway did not start")

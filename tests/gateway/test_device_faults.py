@@ -204,3 +204,23 @@ def test_command_values_that_do_not_fit_the_wire_get_a_clear_error(tmp_path, arg
         assert "struct" not in str(info.value)
     finally:
         gw.server.close()
+
+
+def test_a_motion_batch_with_an_impossible_gyro_scale_is_refused():
+    """A MOTION_BATCH whose angular-rate scale is NaN (a sender bug the decoder cannot see: the layout is fine)
+    is refused and counted like any impossible field; the accelerations-only batches around it go through."""
+    import struct
+
+    from firmware_protocol.framing import frame_payload
+
+    good = fp.SampleBatch(0, 0, 10, 101_000, 2_560_000, fp.scale_for_range(8), np.zeros((5, 3), np.int16), None,
+                          np.zeros((5, 3), np.int16), 0.001)
+    payload = bytearray(fp.codec.pack_motion_batch(good))
+    payload[22:26] = struct.pack("<f", float("nan"))  # the gyro scale (PROTOCOL.md 2.8, offset 22)
+    sink = Sink()
+    reader = _reader(sink)
+    frames = _Frames()
+    data = frames(HELLO, batch(0, 0, 1000, 10)) + frame_payload(fp.MessageType.MOTION_BATCH, bytes(payload), 3, 2)
+    frames.seq = 3
+    reader.feed(data + frames(batch(0, 15, 151_000, 10)), 10.0)
+    assert _samples(sink) == 20 and reader.invalid_fields == 1 and "gyro_scale_rps_per_lsb nan" in reader.last_invalid

@@ -60,10 +60,11 @@ def test_lsl_outlet_round_trip_stays_on_loopback(tmp_path):
     # the stream as published
     assert out["type"] == "Accelerometer" and out["channels"] == 4 and out["name"] == f"lsltest {out['station']}"
     # every received sample is a delivered one, at its gateway time mapped to local_clock
-    delivered = {}
-    for _, sensor, times, acc in out["delivered"]:
-        for t, a in zip(times, acc):
+    delivered, delivered_ori = {}, {}
+    for _, sensor, times, acc, ori in out["delivered"]:
+        for t, a, o in zip(times, acc, ori):
             delivered[(sensor, round(t + out["offset_s"], 6))] = a
+            delivered_ori[(sensor, round(t + out["offset_s"], 6))] = o
     rows, stamps = np.array(out["rows"]), np.array(out["stamps"])
     assert len(rows) > 300  # 3 sensors x 100 Hz x ~2 s
     for row, stamp in zip(rows, stamps):
@@ -77,6 +78,11 @@ def test_lsl_outlet_round_trip_stays_on_loopback(tmp_path):
         got = [t for s, t in received if s == sensor]
         span = {k for k in delivered if k[0] == sensor and min(got) <= k[1] <= max(got)}
         assert span <= received and len(span) > 50
+    # the station's orientation outlet: quaternion + angular rate of the same samples at the same stamps
+    assert out["ori_type"] == "Orientation" and out["ori_channels"] == 8
+    assert out["ori_name"] == f"lsltest {out['station']} orientation" and len(out["ori_rows"]) > 300
+    for row, stamp in zip(out["ori_rows"], out["ori_stamps"]):
+        np.testing.assert_allclose(row[1:], delivered_ori[(int(row[0]), round(stamp, 6))], atol=1e-6)
 
 
 @needs_strace

@@ -145,3 +145,24 @@ def test_sigkill_mid_recording_keeps_everything_fsynced(tmp_path):
     assert len(counters) >= acknowledged  # everything reported written survived
     np.testing.assert_array_equal(counters, np.arange(len(counters)))  # no holes, no duplicates
     np.testing.assert_array_equal(take.samples[("st", 1)]["acc_g"][:, 2], counters.astype(np.float32))
+
+
+def test_a_sensor_whose_channels_change_mid_take_reads_nan_where_it_had_none(tmp_path):
+    """An IMU whose orientation filter is switched on mid-take: batches without and with `quat_wxyz` in one
+    flush and across flushes are written as separate chunks (never mixed into one), and the take reads them as
+    one stream with NaN quaternions before the switch."""
+    def with_quat(start: int, n: int) -> dict[str, np.ndarray]:
+        return {**_batch(start, n), "quat_wxyz": np.tile(np.float32([1, 0, 0, 0]), (n, 1))}
+
+    rec = Recorder(tmp_path, flush_interval_s=3600)  # one flush at stop: both kinds of batch in it
+    rec.start("t1")
+    rec.put_samples("a", 0, _batch(0, 10))
+    rec.put_samples("a", 0, with_quat(10, 5))
+    rec.put_samples("a", 0, _batch(15, 5))
+    path = Path(rec.stop()["files"][0])
+    cols = load_take(path).samples[("a", 0)]
+    np.testing.assert_array_equal(cols["counter"], np.arange(20))
+    assert cols["quat_wxyz"].shape == (20, 4)
+    assert np.isnan(cols["quat_wxyz"][:10]).all() and np.isnan(cols["quat_wxyz"][15:]).all()
+    np.testing.assert_array_equal(cols["quat_wxyz"][10:15], np.tile([1, 0, 0, 0], (5, 1)))
+    assert len([m for m in read_recording(path).messages if m.kind == "samples"]) == 3

@@ -29,7 +29,11 @@ def _ximu3(mode: str):
     pytest.importorskip("ximu3")
     from gateway.vendors.ximu3_emulator import Ximu3Emulator
 
-    emu = Ximu3Emulator(serial="65577B49", rate_hz=100.0, drift_ppm=80.0, loss=0.02, seed=1, mode=mode)
+    rng = np.random.default_rng(5)  # a turning device: its gyroscope and AHRS quaternion are forwarded too
+    quat = rng.normal(size=(1000, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    emu = Ximu3Emulator(serial="65577B49", rate_hz=100.0, drift_ppm=80.0, loss=0.02, seed=1, mode=mode,
+                        gyro_dps=rng.uniform(-500, 500, (1000, 3)), quat_wxyz=quat)
     return emu, f"ximu3:{emu.path}", "ximu3-65577B49", 100.0, lambda: np.array(emu.truth.device_us)
 
 
@@ -47,7 +51,8 @@ def _shimmer():
     pytest.importorskip("pyshimmer")
     from gateway.vendors.shimmer_emulator import ShimmerEmulator
 
-    emu = ShimmerEmulator(name="A1B2", rate_hz=102.4, drift_ppm=-30.0, start_ticks=16_700_000, seed=2)
+    gyro = np.random.default_rng(6).uniform(-400, 400, (1000, 3))  # its gyroscope is enabled and forwarded too
+    emu = ShimmerEmulator(name="A1B2", rate_hz=102.4, drift_ppm=-30.0, start_ticks=16_700_000, seed=2, gyro_dps=gyro)
     return emu, f"shimmer:{emu.path}", "shimmer3-A1B2", 102.4, lambda: np.array(emu.truth.ticks)
 
 
@@ -87,6 +92,11 @@ def test_vendor_station_streams_records_and_aligns(tmp_path, make):
     assert int((np.diff(cols["counter"].astype(np.int64)) - 1).sum()) == \
         int(((dropped > span[0]) & (dropped < span[1])).sum())
     np.testing.assert_allclose(cols["acc_g"], np.array(emu.truth.acc_g)[rows], atol=1e-6)
+    if station.startswith("ximu3"):  # each inertial sample with the quaternion of its time stamp, gyro in rad/s
+        np.testing.assert_allclose(cols["quat_wxyz"], np.array(emu.truth.quat_wxyz)[rows], atol=2e-6)
+    if hasattr(emu.truth, "gyro_dps"):  # rad/s: x-IMU3 from deg/s floats, Shimmer3 from calibrated counts
+        np.testing.assert_allclose(cols["gyro_rps"], np.radians(np.array(emu.truth.gyro_dps)[rows]), rtol=1e-6,
+                                   atol=1e-7)
     host = np.array(emu.truth.host_s)[rows]
     settled = host > host[0] + 2.0
     online = np.abs(cols["t_host_s"] - host)[settled]

@@ -131,3 +131,43 @@ def test_a_sensor_silent_for_longer_than_the_window_clears_its_curve_and_the_oth
     t, x = panel.curve_data(sensors[1], 0)
     np.testing.assert_allclose(t, t_new)
     np.testing.assert_allclose(x, known_signal(t_new, 1)[:, 0])
+
+
+def test_orientation_and_angular_rate_views(qtbot):
+    """A sensor turning about the earth's vertical at 0.5 rad/s with a fixed 30 degree roll: the orientation view
+    draws roll 30, pitch 0 and the yaw ramp; the rate view the rate; a sensor without them draws nothing."""
+    store = TraceStore(history_s=30.0)
+    panel = TracePanel(store, window_s=5.0)
+    qtbot.addWidget(panel)
+    panel.resize(800, 600)
+    panel.show()
+    panel.set_groups({"station 1": ["imu", "acc-only"]})
+    t = np.arange(0, 400) / RATE_HZ
+    yaw, roll = 0.5 * t, np.radians(30.0)
+    q_yaw = np.c_[np.cos(yaw / 2), np.zeros((len(t), 2)), np.sin(yaw / 2)]
+    q_roll = np.array([np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0])
+    w1, x1, y1, z1 = q_yaw.T  # q = q_yaw * q_roll (roll in the sensor, then the heading)
+    w2, x2, y2, z2 = q_roll
+    quat = np.c_[w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                 w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2]
+    gyro = np.tile([0.0, 0.0, 0.5], (len(t), 1))
+    for start in range(0, len(t), 10):
+        sl = slice(start, start + 10)
+        store.put("imu", t[sl], known_signal(t[sl], 0), quat[sl], gyro[sl])
+        store.put("acc-only", t[sl], known_signal(t[sl], 1))
+    store.drain()
+    panel.set_view("orientation (deg)")
+    panel.refresh()
+    tt, r = panel.curve_data("imu", 0)
+    np.testing.assert_allclose(r, 30.0, atol=1e-9)
+    np.testing.assert_allclose(panel.curve_data("imu", 1)[1], 0.0, atol=1e-9)
+    np.testing.assert_allclose(panel.curve_data("imu", 2)[1], np.degrees(0.5 * tt), atol=1e-9)  # < 180 deg here
+    assert len(panel.curve_data("imu", 3)[1]) == 0 and len(panel.curve_data("acc-only", 0)[1]) == 0
+    assert not panel.range_box.isEnabled()
+    panel.set_view("angular rate (rad/s)")
+    panel.refresh()
+    np.testing.assert_allclose(panel.curve_data("imu", 2)[1], 0.5, atol=1e-12)
+    np.testing.assert_allclose(panel.curve_data("imu", 3)[1], 0.5, atol=1e-12)
+    panel.set_view("acceleration (g)")
+    panel.refresh()
+    assert len(panel.curve_data("acc-only", 0)[1]) > 100 and panel.range_box.isEnabled()

@@ -407,6 +407,11 @@ def take_cases(take: dict[str, np.ndarray]) -> list[Case]:
     acc_inf[3, 2, 0] = np.inf
     t = np.arange(len(acc)) / float(fps)
     export = {f"st1/{k}/acc_g": acc[:, k] for k in range(acc.shape[1])} | {f"st1/{k}/t_host_s": t for k in range(acc.shape[1])}
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], acc.shape[:2] + (1,))
+    quat_scaled = quat.copy()
+    quat_scaled[5, 1] *= 1.5  # not a unit quaternion
+    quat_half_nan = quat.copy()
+    quat_half_nan[7, 2, 1:] = np.nan
     mutations = {
         "empty": b"",
         "text": b"take\n" * 10,
@@ -442,6 +447,12 @@ def take_cases(take: dict[str, np.ndarray]) -> list[Case]:
         "position-strings": _npz(acc_g=acc, fps=fps, position_m=pos.astype(str)),
         "heading-2d": _npz(acc_g=acc, fps=fps, heading_rad=np.zeros((len(acc), 2))),
         "heading-wrong-length": _npz(acc_g=acc, fps=fps, heading_rad=np.zeros(7)),
+        "quat-wrong-shape": _npz(acc_g=acc, fps=fps, quat_wxyz=quat[..., :3]),
+        "quat-not-unit": _npz(acc_g=acc, fps=fps, quat_wxyz=quat_scaled),
+        "quat-row-half-nan": _npz(acc_g=acc, fps=fps, quat_wxyz=quat_half_nan),
+        "gyro-wrong-length": _npz(acc_g=acc, fps=fps, gyro_rps=np.zeros((len(acc) - 1, acc.shape[1], 3))),
+        "export-quat-not-unit": _npz(**export, **{"st1/1/quat_wxyz": quat_scaled[:, 1] * 2.0}),
+        "export-gyro-2-axes": _npz(**export, **{"st1/0/gyro_rps": np.zeros((len(acc), 2))}),
         "export-missing-t": _npz(**{k: v for k, v in export.items() if not k.endswith("/t_host_s")}),
         "export-t-wrong-length": _npz(**{**export, "st1/0/t_host_s": t[:10]}),
         "export-t-backwards": _npz(**{**export, "st1/0/t_host_s": t[::-1].copy()}),

@@ -37,6 +37,30 @@ def recorded(seconds: float = 6.0) -> RecordedStreams:
     return RecordedStreams(samples, camera, 50.4)
 
 
+def stream_live(live: StreamSynthesis, rec: RecordedStreams, until_s: float) -> None:
+    """Feed a recorded take to a live session in 0.1 s slices of every stream (every channel it has), stepping
+    after each, as the console's worker does."""
+    for t_end in np.arange(50.1, until_s, 0.1):
+        for k, (t, *values) in rec.samples.items():
+            sl = (t > t_end - 0.1) & (t <= t_end)
+            live.add_samples(k, t[sl], *(v[sl] for v in values))
+        for fix in [c for c in rec.camera if t_end - 0.1 < c[0] <= t_end]:
+            live.add_camera(*fix)
+        live.step()
+
+
+def live_and_offline(engine: type, live_rec: RecordedStreams, offline_rec: RecordedStreams, until_s: float):
+    """A live session fed ``live_rec`` in slices from the take's defined first frame, and the offline synthesis
+    of ``offline_rec``: (live session, offline session, live engine, offline engine)."""
+    engines = []
+    make = lambda: engines.append(engine()) or engines[-1]  # noqa: E731
+    live = StreamSynthesis(make, [0, 1, 2], 30.0, start_s=take_start_s(live_rec.started_t_host_s))
+    stream_live(live, live_rec, until_s)
+    live_engine = engines[-1]
+    _, offline = synthesize_streams(make, offline_rec, [0, 1, 2], 30.0)
+    return live, offline, live_engine, engines[-1]
+
+
 @pytest.mark.parametrize("sensor_lag_s, camera_lag_s", [(0.9, 0.0), (0.0, 1.5)])
 def test_live_pushes_equal_offline_despite_late_camera_late_sensor_and_late_notice(sensor_lag_s, camera_lag_s):
     """Sensor 2 late by less than wait_s (1 s), or the camera by less than camera_wait_s (2 s): waited for."""
@@ -94,19 +118,8 @@ def test_a_take_whose_camera_track_ends_before_its_samples_ends_there_as_live_di
     stop = 55.0
     take = RecordedStreams({k: (t[t <= stop], a[t <= stop]) for k, (t, a) in full.samples.items()},
                            [c for c in full.camera if c[0] <= stop - 0.4], full.started_t_host_s)
-    logs = []
-    make = lambda: logs.append(InputLog()) or logs[-1]  # noqa: E731
-    live = StreamSynthesis(make, [0, 1, 2], 30.0, start_s=take_start_s(full.started_t_host_s))
-    for t_end in np.arange(50.1, 56.1, 0.1):
-        for k, (t, a) in full.samples.items():
-            sl = (t > t_end - 0.1) & (t <= t_end)
-            live.add_samples(k, t[sl], a[sl])
-        for fix in [c for c in full.camera if t_end - 0.1 < c[0] <= t_end]:
-            live.add_camera(*fix)
-        live.step()
-    live_log = logs[-1].pushed
-    _, offline = synthesize_streams(make, take, [0, 1, 2], 30.0)
-    offline_log = logs[-1].pushed
+    _, offline, live_engine, offline_engine = live_and_offline(InputLog, full, take, 56.1)
+    live_log, offline_log = live_engine.pushed, offline_engine.pushed
     assert offline.camera.newest_s <= stop - 0.4 and len(offline_log) < len(live_log)
     assert (len(offline_log) + offline.first_frame) / 30.0 <= stop - 0.4 + 1 / 30
     for (a1, p1, _), (a2, p2, _) in zip(live_log, offline_log):
@@ -139,3 +152,42 @@ def test_frames_pushed_in_slices_are_the_offline_frames_and_the_backlog_is_measu
     for (a1, p1, _), (a2, p2, _) in zip(sliced, logs[-1].pushed):
         assert (a1 is None) == (a2 is None) and (a1 is None or np.array_equal(a1, a2))
         assert (p1 is None) == (p2 is None) and (p1 is None or np.array_equal(p1, p2))
+
+
+class ChannelLog(InputLog):
+    """An engine that takes orientation and angular rate (the issue-18 protocol) and keeps them."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.channels: list[tuple] = []
+
+    def push(self, acc_g, pos_m=None, heading_rad=None, *, quat_wxyz=None, gyro_rps=None):
+        self.channels.append((None if quat_wxyz is None else quat_wxyz.copy(),
+                              None if gyro_rps is None else gyro_rps.copy()))
+        return super().push(acc_g, pos_m, heading_rad)
+
+
+def with_orientation(rec: RecordedStreams) -> RecordedStreams:
+    """The same take with every sensor also streaming a turning orientation (sign flips as devices send them)
+    and its angular rate."""
+    samples = {}
+    for k, (t, acc) in rec.samples.items():
+        half = 0.5 * (1.0 + k) * t
+        quat = np.c_[np.cos(half), np.sin(half), np.zeros((len(t), 2))] * np.where(np.arange(len(t)) % 3, 1, -1)[:, None]
+        samples[k] = (t, acc, quat, np.tile([1.0 + k, 0.0, 0.0], (len(t), 1)))
+    return RecordedStreams(samples, rec.camera, rec.started_t_host_s)
+
+
+def test_live_orientations_equal_offline_bit_for_bit():
+    rec = with_orientation(recorded())
+    live, offline, live_engine, offline_engine = live_and_offline(ChannelLog, rec, rec, 57.6)
+    live_log, offline_log = live_engine.channels, offline_engine.channels
+    assert live.stats.reproducible and len(live_log) > 100
+    assert offline.stats.frames_with_orientation == offline.stats.frames_with_gyro > 100
+    n = min(len(live_log), len(offline_log))
+    for (q1, g1), (q2, g2) in zip(live_log[:n], offline_log[:n]):
+        assert (q1 is None) == (q2 is None)   # None: the dropout frames, as for the accelerations
+        assert q1 is None or (np.array_equal(q1, q2) and np.array_equal(g1, g2))
+    assert sum(q is None for q, _ in live_log) > 10
+    valid = [q for q, _ in live_log if q is not None]
+    np.testing.assert_allclose(np.linalg.norm(valid, axis=-1), 1.0, atol=1e-12)
