@@ -11,13 +11,16 @@ What runs (all on this machine; sockets on 127.0.0.1 only):
   a NaN scale, device ticks stepping back by 1 s, payloads over 4096 bytes, garbage bytes;
 * hostile clients in bounded loops: random bytes, oversized and never-finished length prefixes, JSON nested
   200 000 deep, an array of shape [2**32, 2**32], connections that never finish the handshake, churn, more
-  connections than allowed, a flood of invalid requests, a subscriber that never reads;
+  connections than allowed, a flood of invalid requests, a subscriber that never reads, and `--silent-askers`
+  clients that send ``status`` requests as fast as they can without ever reading a reply (issue 22's probe: four
+  of them grew the gateway by 139 MB in 13 s when queues were bounded in frames; now in bytes, with a budget);
 * the recorder writes through `gateway.faultfs.SimulatedDisk`: the disk fills twice; each time the operator (this
   script) waits for the alarm, frees space 30 emulated seconds later and starts the next take.
 
 Reported: samples delivered by the readers = samples recorded (per take, except the samples the full disk
-cost, which the recorder counts), RSS over the run, threads that died (threading.excepthook), refused device
-messages and clock epochs. Exit 1 if a check fails.
+cost, which the recorder counts), RSS over the run, the peak of the bytes queued for clients against the
+server's budget, threads that died (threading.excepthook), refused device messages and clock epochs. Exit 1 if a
+check fails.
 """
 from __future__ import annotations
 
@@ -211,6 +214,31 @@ def never_reading_subscriber(address: tuple[str, int], stop: threading.Event) ->
         stop.wait()
 
 
+def silent_asker(address: tuple[str, int], stop: threading.Event, tally: dict[str, int], lock: threading.Lock) -> None:
+    """Asks for ``status`` as fast as the socket takes it and never reads; reconnects when cut off."""
+    request = _frame(codec.encode("request", {"id": 1, "action": "status", "args": {}}))
+    while not stop.is_set():
+        try:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # before connecting: a small window
+            sock.settimeout(2.0)
+            sock.connect(address)
+        except OSError:
+            stop.wait(0.5)
+            continue
+        with sock:
+            try:
+                while not stop.is_set():
+                    try:
+                        sock.sendall(request)
+                    except socket.timeout:  # the gateway is slow to read our requests: keep the connection
+                        continue
+            except OSError:  # cut off by the gateway (not reading): start again
+                with lock:
+                    tally["silent asker cut off"] = tally.get("silent asker cut off", 0) + 1
+        stop.wait(0.2)
+
+
 # ------------------------------------------------------------------------------------------- the run
 class Books:
     """Every sample block the readers delivered: (time, stream, epoch, first counter, n), compactly."""
@@ -250,7 +278,7 @@ def recorded(path: Path) -> set[tuple[str, int, int, int]]:
     return out
 
 
-def run(minutes: float, speed: float) -> bool:
+def run(minutes: float, speed: float, silent_askers: int = 8) -> bool:
     span_s = minutes * 60.0
     tmp = Path(tempfile.mkdtemp(prefix="courtside-soak-"))
     died: list[str] = []
@@ -288,10 +316,13 @@ def run(minutes: float, speed: float) -> bool:
     def emulated_now() -> float:
         return (time.monotonic() - t_origin) * speed
 
+    queued_peak = [0]
+
     def sleep_until(t_emulated_s: float) -> None:
         while (left := (t_emulated_s - emulated_now()) / speed) > 0:
             stop.wait(min(left, 0.5))
             rss.append((emulated_now(), rss_mb()))
+            queued_peak[0] = max(queued_peak[0], gw.server.queued_bytes)
 
     wall0 = time.monotonic()
     gw.start()
@@ -307,6 +338,9 @@ def run(minutes: float, speed: float) -> bool:
     monitor = connect_monitor()
     threads = [threading.Thread(target=hostile_clients, args=(gw.address, stop, tally), name="soak-hostile"),
                threading.Thread(target=never_reading_subscriber, args=(gw.address, stop), name="soak-silent")]
+    tally_lock = threading.Lock()
+    threads += [threading.Thread(target=silent_asker, args=(gw.address, stop, tally, tally_lock),
+                                 name=f"soak-asker-{i}") for i in range(silent_askers)]
     for t in threads:
         t.start()
     threads_before = {t.name for t in threading.enumerate()}
@@ -379,6 +413,10 @@ def run(minutes: float, speed: float) -> bool:
           f"{steady[-1]:.0f} MB at the end (growth after warm-up {growth:.0f} MB); the emulator child: "
           f"{emulator_rss_mb:.0f} MB")
     ok &= growth < 50
+    budget = gw.server.queue_budget_bytes
+    print(f"{silent_askers} clients asking for status without reading: cut off {tally.get('silent asker cut off', 0)} "
+          f"times; bytes queued for all clients peaked at {queued_peak[0] / 1e6:.1f} MB (budget {budget / 1e6:.1f} MB)")
+    ok &= queued_peak[0] <= budget
     dead_gateway_threads = sorted(n for n in threads_before - threads_alive if n.startswith("gw-station")
                                   or n.startswith("gw-status") or n == "gw-accept")
     print(f"threads that died with an exception: {len(died)}" + "".join(f"\n  {d}" for d in died[:10]))
@@ -417,8 +455,10 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--minutes", type=float, default=10.0, help="emulated minutes")
     parser.add_argument("--speed", type=float, default=4.0, help="emulated seconds per wall second")
+    parser.add_argument("--silent-askers", type=int, default=8,
+                        help="clients that request status without ever reading (issue 22)")
     args = parser.parse_args()
-    return 0 if run(args.minutes, args.speed) else 1
+    return 0 if run(args.minutes, args.speed, args.silent_askers) else 1
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import progress
 from engine.errors import MalformedFileError, cli_command
 from engine.stream.offline import acc_in_sensor_order
 
@@ -77,7 +78,8 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
     rec = OLNGReconstructor(kb, _olng_config(args))
     t0 = time.perf_counter()
     cam_pos, cam_head = _camera(obs, len(acc))
-    poses = [rec.push(a, cam_pos[t], cam_head[t]) for t, a in enumerate(acc)]
+    poses = [rec.push(a, cam_pos[t], cam_head[t])
+             for t, a in enumerate(progress.bar(acc, desc="olng", unit="frame"))]
     elapsed = time.perf_counter() - t0
     motion = Motion(skeleton_from_rig(kb.rig), kb.fps, np.stack([p.root_pos_m for p in poses]),
                     np.stack([p.local_quats for p in poses]), Path(args.input).stem)
@@ -241,6 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--window", type=int, default=32, help="olng: OLNG window M (frames)")
     p.add_argument("--imus", nargs="+", default=["right_foot"], help="hmm: worn IMUs (standard sensor names)")
     p.add_argument("--no-ik", action="store_true", help="hmm: skip the foot-skate IK clean-up")
+    progress.add_quiet_argument(p)
     p.add_argument("--graph", help="motion-graph: graph .npz from `courtside build-graph`")
     return p
 

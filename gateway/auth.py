@@ -138,14 +138,19 @@ class Secrets:
 
     @classmethod
     def from_files(cls, operator_file: Path | None, viewer_file: Path | None) -> "Secrets":
-        return cls(read_secret_file(operator_file) if operator_file else None,
-                   read_secret_file(viewer_file) if viewer_file else None)
+        """Read both files; two files holding one secret are refused naming both (issue 22)."""
+        operator = read_secret_file(operator_file) if operator_file else None
+        viewer = read_secret_file(viewer_file) if viewer_file else None
+        if viewer is not None and operator is not None and hmac.compare_digest(viewer, operator):
+            raise MalformedFileError(viewer_file, None, f"viewer_secret_file holds the same secret as "
+                                     f"operator_secret_file {operator_file}: a viewer would be an operator")
+        return cls(operator, viewer)
 
     def verify(self, client_proof: object, server_nonce: bytes, client_nonce: bytes) -> tuple[str, bytes] | None:
         """(role, secret) whose client proof matches, else None. Both are always computed (no early exit that
         would tell a timing observer which secret was tried)."""
-        if not isinstance(client_proof, str):
-            return None
+        if not isinstance(client_proof, str) or not client_proof.isascii():
+            return None  # compare_digest raises TypeError on non-ASCII text (issue 22)
         found = None
         for role, secret in ((OPERATOR, self.operator), (VIEWER, self.viewer)):
             if secret is not None and hmac.compare_digest(proof(secret, "client", server_nonce, client_nonce),

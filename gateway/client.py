@@ -109,7 +109,9 @@ class GatewayClient:
             self.role = self.server_hello.get("role", auth.OPERATOR)
             return self
         try:
-            self._authenticate(str(challenge.get("challenge", "")), timeout_s)
+            if not isinstance(challenge, dict) or not isinstance(challenge.get("challenge"), str):
+                raise auth.AuthenticationError(f"gateway {self.host}:{self.port} sent a malformed challenge")
+            self._authenticate(challenge["challenge"], timeout_s)
         except BaseException:
             self.close()
             raise
@@ -133,8 +135,12 @@ class GatewayClient:
         except GatewayRequestError as exc:
             raise auth.AuthenticationError(f"{where}: {exc}") from None
         expected = auth.proof(self._secret, "server", server_nonce, client_nonce)
-        if not isinstance(result, dict) or not hmac.compare_digest(str(result.get("proof")), expected):
+        proof = result.get("proof") if isinstance(result, dict) else None
+        # compare_digest raises TypeError on non-ASCII text: an impostor's odd proof must still be one clean error
+        if not isinstance(proof, str) or not proof.isascii() or not hmac.compare_digest(proof, expected):
             raise auth.AuthenticationError(f"{where} could not prove it holds the secret (an impostor?)")
+        if result.get("role") not in auth.ROLES:
+            raise auth.AuthenticationError(f"{where} granted an unknown role {str(result.get('role'))[:40]!r}")
         self.role = str(result["role"])
         self.server_hello = {k: v for k, v in result.items() if k != "proof"}
 

@@ -14,12 +14,12 @@ from __future__ import annotations
 import ipaddress
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
 from engine.errors import CourtsideError, MalformedFileError
+from engine.safe_load import parse_toml, read_bytes
 from gateway.names import BadNameError, check_name
 
 LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
@@ -28,6 +28,8 @@ PLAYER_SIDES = ("near", "far")
 POSES = ("npose", "tpose")
 LSL_SCOPES = ("machine", "network")
 MAX_EMULATED_STATIONS = 16
+MIN_HANDSHAKE_TIMEOUT_S = 0.1  # a TLS + HMAC handshake on loopback takes ~10 ms; below this no client can finish
+MIN_STATUS_INTERVAL_S = 0.05  # status is a full snapshot to every client: faster than 20 Hz only costs CPU
 
 
 @dataclass(frozen=True)
@@ -123,6 +125,8 @@ def _describe(value: Any) -> str:
 def _string(value: Any) -> str:
     if not isinstance(value, str) or not value.strip():
         raise _Bad(f"expected a non-empty string, got {_describe(value)}")
+    if "\x00" in value:  # TOML allows "\u0000"; the OS would refuse it later, naming neither file nor key
+        raise _Bad("contains a NUL byte (\\u0000)")
     return value
 
 
@@ -174,6 +178,8 @@ def _strings(value: Any) -> tuple[str, ...]:
     for i, item in enumerate(value):
         if not isinstance(item, str) or not item.strip():
             raise _Bad(f"item {i} is {_describe(item)}, expected a non-empty string")
+        if "\x00" in item:
+            raise _Bad(f"item {i} contains a NUL byte (\\u0000)")
     return tuple(value)
 
 
@@ -218,15 +224,18 @@ def _take(value: Any) -> str:
 
 
 _PATH = object()  # marker: a path, resolved against the config file's directory
+_DIR = object()  # marker: a directory path, resolved like _PATH; if it exists it must be a directory
 _CAMERA_SOURCE = object()  # marker: an index/device, or a video file path resolved like _PATH
 _CLIPS = object()  # marker: clip names, or .bvh/.amc paths resolved like _PATH
 Check = Callable[[Any], Any] | object
 CLIP_SUFFIXES = (".bvh", ".amc")
 
 _TOP: dict[str, Check] = {
-    "listen": _listen, "record_dir": _PATH, "record": _take, "log_level": _upper_choice(LOG_LEVELS),
-    "name": _string, "max_clients": _int(1, 1024), "handshake_timeout_s": _number(0.0, 600.0, lo_open=True),
-    "status_interval_s": _number(0.0, 60.0, lo_open=True), "clock_lock_after_s": _number(0.0, 3600.0),
+    "listen": _listen, "record_dir": _DIR, "record": _take, "log_level": _upper_choice(LOG_LEVELS),
+    "name": _string, "max_clients": _int(1, 1024),
+    # durations and rates have physical bounds (issue 22: handshake_timeout_s = 1e-300 disconnected every client)
+    "handshake_timeout_s": _number(MIN_HANDSHAKE_TIMEOUT_S, 600.0),
+    "status_interval_s": _number(MIN_STATUS_INTERVAL_S, 60.0), "clock_lock_after_s": _number(0.0, 3600.0),
 }
 _SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
     "stations": (StationsConfig, {
@@ -235,9 +244,9 @@ _SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
         "emulate_orientation": _bool}),
     "camera": (CameraConfig, {
         "source": _CAMERA_SOURCE, "court": _PATH, "player_side": _choice(PLAYER_SIDES),
-        "fps": _number(0.0, 1000.0, lo_open=True), "latency_s": _number(0.0, 5.0), "loop": _bool,
+        "fps": _number(1.0, 1000.0), "latency_s": _number(0.0, 5.0), "loop": _bool,
         "thumbnail_every": _int(0, 10_000)}),
-    "calibration": (CalibrationConfig, {"placements": _placements, "pose": _choice(POSES), "records_dir": _PATH}),
+    "calibration": (CalibrationConfig, {"placements": _placements, "pose": _choice(POSES), "records_dir": _DIR}),
     "auth": (AuthConfig, {"operator_secret_file": _PATH, "viewer_secret_file": _PATH, "tls_cert": _PATH,
                           "tls_key": _PATH}),
     "lsl": (LslConfig, {"enabled": _bool, "scope": _choice(LSL_SCOPES)}),
@@ -251,8 +260,11 @@ def _resolve(path: Path, base_dir: Path | None) -> Path:
 
 
 def _convert(check: Check, value: Any, base_dir: Path | None) -> Any:
-    if check is _PATH:
-        return _resolve(Path(_string(value) if not isinstance(value, Path) else value), base_dir)
+    if check is _PATH or check is _DIR:
+        path = _resolve(Path(_string(value if not isinstance(value, Path) else str(value))), base_dir)
+        if check is _DIR and path.exists() and not path.is_dir():
+            raise _Bad(f"{path} exists and is not a directory")
+        return path
     if check is _CAMERA_SOURCE:  # a relative string is a video file next to the config (devices are absolute)
         source = _camera_source(value)
         return str(_resolve(Path(source), base_dir)) if isinstance(source, str) else source
@@ -281,16 +293,10 @@ def load_court_config(path: str | Path, check: bool = True) -> CourtConfig:
     ``check=False`` leaves the rules across keys to `with_overrides` (command-line flags may complete them)."""
     path = Path(path)
     try:
-        text = path.read_bytes().decode("utf-8")
-        data = tomllib.loads(text)
-    except OSError as exc:
-        raise MalformedFileError(path, None, f"cannot read: {exc.strerror or exc}") from None
+        text = read_bytes(path).decode("utf-8")
     except UnicodeDecodeError:
         raise MalformedFileError(path, None, "not a text (UTF-8 TOML) file") from None
-    except tomllib.TOMLDecodeError as exc:
-        where = re.search(r"\(at line (\d+), column \d+\)", str(exc))  # Python 3.11 has no exc.lineno
-        problem = (str(exc).replace(where[0], f"(column {where[0].split()[-1]}") if where else str(exc)).strip()
-        raise MalformedFileError(path, int(where[1]) if where else None, f"not valid TOML: {problem}") from None
+    data = parse_toml(text, path)  # depth-safe (issue 22)
     base_dir = path.resolve().parent
 
     def fail(section: str | None, key: str, problem: str) -> MalformedFileError:
@@ -365,6 +371,16 @@ def is_loopback(host: str) -> bool:
         return False
 
 
+def _same_file(a: Path, b: Path | None) -> bool:
+    """True when ``a`` and ``b`` name one file (equal paths, or links to one inode)."""
+    if b is None:
+        return False
+    try:
+        return a.resolve() == b.resolve() or a.samefile(b)
+    except OSError:  # a missing file is reported when the secrets are read, naming it
+        return False
+
+
 def check_consistent(config: CourtConfig) -> None:
     """Rules across keys (checked after flags are applied, so a flag can fix what the file lacks)."""
     auth = config.auth
@@ -374,6 +390,10 @@ def check_consistent(config: CourtConfig) -> None:
             "[auth] operator_secret_file (or --secret-file); see docs/gateway.md \"Two machines\"")
     if auth.viewer_secret_file is not None and auth.operator_secret_file is None:
         raise CourtsideError("auth.viewer_secret_file needs auth.operator_secret_file too")
+    if auth.viewer_secret_file is not None and _same_file(auth.viewer_secret_file, auth.operator_secret_file):
+        raise CourtsideError(f"auth.viewer_secret_file and auth.operator_secret_file are the same file "
+                             f"({auth.viewer_secret_file}): a viewer would be an operator; give each role its own "
+                             "secret (`courtside gateway new-secret FILE`)")
     if (auth.tls_cert is None) != (auth.tls_key is None):
         raise CourtsideError("TLS needs both auth.tls_cert and auth.tls_key")
     if config.camera.source is not None and config.camera.court is None:

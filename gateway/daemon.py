@@ -26,10 +26,11 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 import firmware_protocol as fp
+from engine.progress import add_quiet_argument
 from gateway import auth, wire
 from gateway.device_checks import I32_MAX, I32_MIN, command_int
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
-from gateway.recorder import Recorder, export_csv, export_npz
+from gateway.recorder import Recorder, export_take
 from gateway.names import BadNameError, check_name
 from gateway.server import RequestError, StreamServer
 from gateway.station import SampleBlock, StationReader
@@ -85,6 +86,7 @@ class Gateway:
         handshake_timeout_s: float = 5.0,
         tls: "ssl.SSLContext | None" = None,
         sample_sinks: tuple[Callable[[SampleBlock], None], ...] = (),
+        server_options: dict[str, Any] | None = None,  # more StreamServer limits (e.g. queue_budget_bytes)
     ):
         self.name = name
         self.sample_sinks = tuple(sample_sinks)  # e.g. gateway.lsl.LslPublisher.on_block: every block, reader thread
@@ -98,10 +100,11 @@ class Gateway:
                                 "reconnect_interval_s": reconnect_interval_s}
         self.readers: list[StationReader] = []
         self._readers_lock = threading.Lock()
+        self._station_names: dict[StationReader, str] = {}  # names claimed at each link's first frame
         self.server = StreamServer(self.handle_request, host=listen[0], port=listen[1], hello=self._hello,
                                    display_queue_frames=display_queue_frames, secrets=secrets,
                                    max_clients=max_clients, handshake_timeout_s=handshake_timeout_s, name=name,
-                                   tls=tls)
+                                   tls=tls, **(server_options or {}))
         # discovery functions polled for hot-plugged stations (True = USB serial + HID by VID:PID)
         self.discoverers = [discover_serial, discover_hid] if discover is True else list(discover or [])
         self.samples_in = 0
@@ -161,6 +164,23 @@ class Gateway:
         if self._status_thread.is_alive():
             reader.start()
         return reader
+
+    def claim_station_name(self, reader: StationReader, wanted: str) -> str:
+        """The name ``reader`` records and streams under: ``wanted`` (``st<id>``) unless another link already has
+        it; then ``<wanted>-dup<n>`` and an alarm, so both stations are recorded separately (issue 22)."""
+        with self._readers_lock:
+            taken = {name for other, name in self._station_names.items() if other is not reader}
+            name, n = wanted, 2
+            while name in taken:
+                name, n = f"{wanted}-dup{n}", n + 1
+            self._station_names[reader] = name
+            holder = next((other.source for other, other_name in self._station_names.items()
+                           if other_name == wanted and other is not reader), None)
+        if name != wanted:
+            self.publish_event("alarm", name, f"two base stations announce station id {wanted!r}: {holder} keeps "
+                               f"{wanted!r}, {reader.source} is recorded as {name!r}; give each station its own "
+                               "id", {"station_id": wanted, "renamed_to": name, "link": reader.source})
+        return name
 
     def reader(self, station: str) -> StationReader:
         with self._readers_lock:
@@ -475,6 +495,7 @@ def _export_parser() -> argparse.ArgumentParser:
     p.add_argument("--npz", type=Path, help="output .npz file")
     p.add_argument("--csv-dir", type=Path, help="output directory for CSV files")
     p.add_argument("--xdf", type=Path, help="output .xdf file (Lab Streaming Layer format, one stream per station)")
+    add_quiet_argument(p)
     return p
 
 
@@ -506,10 +527,8 @@ def _export_main(argv: list[str]) -> int:
     if not args.npz and not args.csv_dir and not args.xdf:
         print("courtside gateway export: give --npz, --csv-dir and/or --xdf", file=sys.stderr)
         return 2
-    if args.npz:  # a bad recording raises RecordingError: the courtside dispatcher reports it in one line
-        print(f"wrote {export_npz(args.recording, args.npz)}")
-    if args.csv_dir:
-        for path in export_csv(args.recording, args.csv_dir):
+    if args.npz or args.csv_dir:  # a bad recording raises RecordingError: the dispatcher reports it in one line
+        for path in export_take(args.recording, args.npz, args.csv_dir):
             print(f"wrote {path}")
     if args.xdf:
         from gateway.xdf import export_xdf

@@ -46,6 +46,7 @@ from typing import Any, BinaryIO, Callable
 
 import numpy as np
 
+from engine import progress
 from engine.errors import CourtsideError
 from gateway import codec
 from gateway.clock import realign_offline
@@ -153,6 +154,17 @@ class ChunkFile:
         return ok
 
 
+def _remove_leftovers(take_dir: Path, made_dir: bool) -> None:
+    """After a refused start: the take file (checked absent before, so ours, at most a partial header) and the
+    take directory if this start made it; a refused take leaves nothing behind (issue 22)."""
+    try:
+        (take_dir / RECORDING_FILE).unlink(missing_ok=True)
+        if made_dir:
+            take_dir.rmdir()
+    except OSError as exc:
+        log.warning("%s: cannot remove what a refused start left: %s", take_dir, exc.strerror or exc)
+
+
 def _same_array_runs(batches: list[dict[str, np.ndarray]]) -> list[list[dict[str, np.ndarray]]]:
     """Consecutive batches carrying the same arrays, in order (each run becomes one chunk)."""
     runs: list[list[dict[str, np.ndarray]]] = []
@@ -235,10 +247,12 @@ class Recorder:
             started_s = time.monotonic()
             full_meta = {"take": take, "started_t_host_s": started_s,
                          "started_unix_s": time.time(), "format": "courtside-csrec-1", **(meta or {})}
+            made_dir = not take_dir.exists()
             try:
                 take_dir.mkdir(parents=True, exist_ok=True)
                 self._file = ChunkFile(take_dir / RECORDING_FILE, full_meta, self.opener)
             except OSError as exc:
+                _remove_leftovers(take_dir, made_dir)
                 raise RecorderRefused(f"cannot start take {take!r} in {self.record_dir}: "
                                       f"{describe_os_error(exc)}") from exc
             self._started_s = started_s
@@ -357,7 +371,9 @@ class Recorder:
             lost = self._samples_queued - self._samples_written
             self._fault = fault
             state = self.state_locked()
-            state.update(active=False, files=[str(chunk_file.path)], samples_lost=lost)
+            # the backlog was freed (its samples are counted as lost): the figures say so (issue 22)
+            state.update(active=False, files=[str(chunk_file.path)], samples_lost=lost, samples_backlog=0,
+                         backlog_bytes=0)
             self._last = state
             self._file = None
             self._pending = _Pending()
@@ -506,7 +522,9 @@ def read_recording(path: Path | str) -> RecordingContents:
     tail: str | None = None
     end: dict[str, Any] | None = None
     intact = pos
+    meter = progress.bar(total=len(data), desc=f"reading {path.parent.name}", unit="B")
     while pos < len(data):
+        meter.update(pos - meter.n)
         where = _chunk_at(data, pos)
         if isinstance(where, str):
             nxt = _resync(data, pos + 1)
@@ -529,6 +547,7 @@ def read_recording(path: Path | str) -> RecordingContents:
         else:
             messages.append(msg)
         pos = intact = stop
+    meter.close()
     if meta is None:
         raise RecordingError(path, f"{header_problem} and no intact copy of it in the first chunk")
     problems = [f"{header_problem}; meta recovered from its copy"] if header_problem else []
@@ -660,12 +679,22 @@ def _exportable(path: Path | str) -> Take:
     return take
 
 
-def export_npz(path: Path | str, out: Path | str) -> Path:
+def export_take(path: Path | str, npz: Path | str | None = None, csv_dir: Path | str | None = None) -> list[Path]:
+    """`export_npz` and/or `export_csv` from one reading of the take, so its warnings (never closed, ended by a
+    disk fault) are printed once (issue 22: twice with --npz and --csv-dir). Returns the files written."""
+    if npz is not None:
+        _check_output_dir(Path(npz).parent)  # before any work or warning
+    take = _exportable(path)
+    written = [export_npz(path, npz, take=take)] if npz is not None else []
+    return written + (export_csv(path, csv_dir, take=take) if csv_dir is not None else [])
+
+
+def export_npz(path: Path | str, out: Path | str, *, take: Take | None = None) -> Path:
     """One npz: ``<station>/<sensor>/<array>`` keys for samples (plus ``t_realigned_s``, the offline clock re-fit),
-    ``meta`` and ``messages`` as JSON strings."""
+    ``meta`` and ``messages`` as JSON strings. ``take``: the take at ``path`` when already loaded."""
     out = Path(out)
     _check_output_dir(out.parent)  # before any work or warning
-    take = _exportable(path)
+    take = take or _exportable(path)
     realigned = realign_take(take)
     arrays: dict[str, Any] = {}
     for (station, sensor), cols in take.samples.items():
@@ -689,10 +718,10 @@ def _check_output_dir(directory: Path) -> None:
         raise CourtsideError(f"{directory}: output directory does not exist")
 
 
-def export_csv(path: Path | str, out_dir: Path | str) -> list[Path]:
+def export_csv(path: Path | str, out_dir: Path | str, *, take: Take | None = None) -> list[Path]:
     """One CSV per sensor (``<station>_<sensor>.csv``: one row per sample, vector arrays split into columns, plus
     ``t_realigned_s``) and ``messages.csv`` (t_host_s, kind, JSON header) for everything else."""
-    take = _exportable(path)
+    take = take or _exportable(path)
     realigned = realign_take(take)
     out_dir = Path(out_dir)
     try:

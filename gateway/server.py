@@ -5,6 +5,15 @@ data (``samples``, ``camera``) is dropped oldest-first when a client falls behin
 reported to that client in ``status``. Control traffic (replies, status, events, recording, calibration) is small
 and never dropped; a client whose reliable backlog still grows past a hard limit is disconnected. Recording does
 not go through here at all (see `gateway.recorder`), so nothing a client does can lose a recorded sample.
+
+Memory is bounded in bytes, not frames (issue 22: viewers sending ``status`` without reading grew the gateway by
+139 MB in 13 s under a 10 000-frame bound): each client's display and reliable queues have a byte limit, and all
+clients together share `StreamServer.queue_budget_bytes`. Over its display limit or the budget a client loses its
+oldest display frames; a reliable frame that does not fit disconnects that client (it is not reading).
+
+Viewers never lock the operator out (issue 22): when the gateway is full, an operator authenticating evicts the
+viewer that connected first, and a full gateway still accepts connections (to authenticate) while a viewer holds
+a slot. Every field of every client message is type-checked before use (`gateway.request_schema`).
 """
 from __future__ import annotations
 
@@ -21,13 +30,16 @@ from typing import Any, Callable
 import numpy as np
 
 from engine.errors import CourtsideError
-from gateway import auth, codec, wire
+from gateway import auth, codec, request_schema, wire
 from gateway.tls import TlsChannel
 
 log = logging.getLogger(__name__)
 
 DROPPABLE_KINDS = frozenset({"samples", "camera"})
 MAX_BAD_FRAMES = 10  # undecodable frames answered on one connection before it is dropped (no log flood)
+DISPLAY_QUEUE_BYTES = 4 << 20  # per client: ~4 s of six 100 Hz sensors plus thumbnails; older frames are dropped
+RELIABLE_QUEUE_BYTES = 2 << 20  # per client: replies/status/events; ~100 status snapshots, then the client goes
+QUEUE_BUDGET_BYTES = 48 << 20  # every client's queues together: the most a small board spends on clients
 # handler(action, args, role) -> result; the server has already checked that ``role`` may run ``action``
 RequestHandler = Callable[[str, dict[str, Any], str], Any]
 
@@ -45,6 +57,7 @@ class ClientStats:
     sent: int = 0
     dropped: int = 0
     queued: int = 0
+    queued_bytes: int = 0
     requests: int = 0
 
 
@@ -63,10 +76,13 @@ class _ClientSession:
         self.topics: set[str] = set(wire.TOPICS) if self.role else set()
         self._display: collections.deque[bytes] = collections.deque()
         self._reliable: collections.deque[bytes] = collections.deque()
+        self._display_bytes = 0
+        self._reliable_bytes = 0
         self._cond = threading.Condition()
         self._closed = False
         self._closing = False  # close once the reliable queue is sent
         self.bad_frames = 0
+        self.evicted = False  # a viewer leaving to make room for an operator no longer holds a slot
         self._writer = threading.Thread(target=self._write_loop, name=f"gw-client-w-{address}", daemon=True)
         self._reader = threading.Thread(target=self._read_loop, name=f"gw-client-r-{address}", daemon=True)
 
@@ -76,25 +92,55 @@ class _ClientSession:
         self._reader.start()
 
     def push(self, data: bytes, droppable: bool) -> None:
-        """Queue one framed message; never blocks. Drops the oldest display frame when the display queue is full."""
+        """Queue one framed message; never blocks. A display frame makes room by dropping this client's oldest
+        display frames (or is dropped itself); a reliable frame that does not fit this client's limit
+        disconnects it, and when the process budget is full the client with the largest backlog goes first."""
+        server, size = self.server, len(data)
+        if not droppable and not server.fits(size):
+            server.evict_largest_backlog()  # outside our lock: it closes another session
         with self._cond:
             if self._closed:
                 return
             if droppable:
-                if len(self._display) >= self.server.display_queue_frames:
-                    self._display.popleft()
+                while self._display and (len(self._display) >= server.display_queue_frames
+                                         or self._display_bytes + size > server.display_queue_bytes
+                                         or not server.fits(size, display=True)):
+                    old = len(self._display.popleft())
+                    self._display_bytes -= old
+                    server.release_bytes(old)
                     self.stats.dropped += 1
+                if size > server.display_queue_bytes or not server.reserve_bytes(size, display=True):
+                    self.stats.dropped += 1  # nothing of ours left to drop: the new frame goes
+                    self._update_queued()
+                    return
                 self._display.append(data)
+                self._display_bytes += size
             else:
-                if len(self._reliable) >= self.server.reliable_queue_limit:
-                    log.warning("client %s is not reading; disconnecting", self.stats.address)
+                if (len(self._reliable) >= server.reliable_queue_limit
+                        or self._reliable_bytes + size > server.reliable_queue_bytes or not server.reserve_bytes(size)):
+                    log.warning("client %s is not reading (%d bytes queued); disconnecting", self.stats.address,
+                                self._display_bytes + self._reliable_bytes + size)
                     self._closed = True
+                    self._release_queues()
                     self._cond.notify_all()
                     self._shutdown_socket()
                     return
                 self._reliable.append(data)
-            self.stats.queued = len(self._display) + len(self._reliable)
+                self._reliable_bytes += size
+            self._update_queued()
             self._cond.notify()
+
+    def _update_queued(self) -> None:
+        self.stats.queued = len(self._display) + len(self._reliable)
+        self.stats.queued_bytes = self._display_bytes + self._reliable_bytes
+
+    def _release_queues(self) -> None:
+        """Give this client's queued bytes back to the server's budget (called with ``_cond`` held, once closed)."""
+        self.server.release_bytes(self._display_bytes + self._reliable_bytes)
+        self._display.clear()
+        self._reliable.clear()
+        self._display_bytes = self._reliable_bytes = 0
+        self._update_queued()
 
     def _shutdown_socket(self) -> None:
         try:
@@ -110,8 +156,14 @@ class _ClientSession:
                         self._cond.wait()
                     if self._closed or (self._closing and not self._reliable):
                         return
-                    data = self._reliable.popleft() if self._reliable else self._display.popleft()
-                    self.stats.queued = len(self._display) + len(self._reliable)
+                    if self._reliable:
+                        data = self._reliable.popleft()
+                        self._reliable_bytes -= len(data)
+                    else:
+                        data = self._display.popleft()
+                        self._display_bytes -= len(data)
+                    self.server.release_bytes(len(data))
+                    self._update_queued()
                 self.sock.sendall(data)
                 self.stats.sent += 1
         except OSError:
@@ -156,19 +208,16 @@ class _ClientSession:
 
     def _authenticate(self, msg: codec.Message) -> None:
         request_id = msg.header.get("id")
-        try:
-            client_nonce = bytes.fromhex(str(msg.header.get("nonce")))
-        except ValueError:
-            client_nonce = b""
-        verified = (self.server.secrets.verify(msg.header.get("proof"), self.nonce, client_nonce)
-                    if len(client_nonce) == auth.NONCE_BYTES else None)
+        problem = request_schema.auth_problem(msg.header)
+        verified = None if problem else self.server.secrets.verify(
+            msg.header["proof"], self.nonce, bytes.fromhex(msg.header["nonce"]))
         if verified is None:
             log.warning("client %s: authentication failed; disconnecting", self.stats.address)
-            self._reply(request_id, ok=False, error="authentication failed (wrong secret?)")
+            self._reply(request_id, ok=False, error=problem or "authentication failed (wrong secret?)")
             self.close_after_flush()
             return
         role, secret = verified
-        if self.server.authenticated_clients() >= self.server.max_clients:
+        if not self.server.make_room_for(role):
             self._reply(request_id, ok=False, error=f"gateway busy: {self.server.max_clients} clients connected (limit)")
             self.close_after_flush()
             return
@@ -177,51 +226,56 @@ class _ClientSession:
             self.topics = set(wire.TOPICS)
         log.info("client %s authenticated as %s", self.stats.address, role)
         self._reply(request_id, ok=True, result={
-            "role": role, "proof": auth.proof(secret, "server", self.nonce, client_nonce), **self.server.hello()})
+            "role": role, "proof": auth.proof(secret, "server", self.nonce, bytes.fromhex(msg.header["nonce"])),
+            **self.server.hello()})
 
     def _handle(self, msg: codec.Message) -> None:
+        problem = request_schema.id_problem(msg.header)
+        request_id = None if problem else msg.header.get("id")
         if self.role is None:
-            if msg.kind == wire.AUTH:
+            if msg.kind == wire.AUTH and not problem:
                 self._authenticate(msg)
             else:
-                self._reply(msg.header.get("id"), ok=False, error="authenticate first: this gateway requires a secret")
+                self._reply(request_id, ok=False, error=problem or "authenticate first: this gateway requires a secret")
                 self.close_after_flush()
             return
-        if msg.kind == wire.SUBSCRIBE:
-            topics = msg.header.get("topics")
-            unknown = set(topics) - set(wire.TOPICS) if isinstance(topics, list) else set()
-            if not isinstance(topics, list) or unknown or not all(isinstance(t, str) for t in topics):
-                self._reply(msg.header.get("id"), ok=False,
-                            error=f"unknown topics {sorted(map(str, unknown))}; valid: {list(wire.TOPICS)}")
+        if problem:
+            self._reply(None, ok=False, error=problem)
+        elif msg.kind == wire.SUBSCRIBE:
+            problem = request_schema.topics_problem(msg.header)
+            if problem:
+                self._reply(request_id, ok=False, error=problem)
                 return
             with self._cond:
-                self.topics = set(topics)
-            self._reply(msg.header.get("id"), ok=True, result={"topics": sorted(self.topics)})
+                self.topics = set(msg.header["topics"])
+            self._reply(request_id, ok=True, result={"topics": sorted(self.topics)})
         elif msg.kind == wire.REQUEST:
             self.stats.requests += 1
-            request_id = msg.header.get("id")
-            action = msg.header.get("action")
-            args = msg.header.get("args") or {}
-            if not isinstance(action, str) or not isinstance(args, dict):
-                self._reply(request_id, ok=False, error="request needs a string 'action' and an object 'args'")
+            problem = request_schema.request_problem(msg.header)
+            if problem:
+                self._reply(request_id, ok=False, error=problem)
                 return
-            needed = auth.required_role(action, args)
-            if not auth.permits(self.role, needed):
-                log.info("client %s (%s) refused %r", self.stats.address, self.role, action)
-                self._reply(request_id, ok=False, error=f"{action!r} needs the {needed} role; this connection is "
-                            f"a {self.role}")
-                return
-            try:
-                result = self.server.handler(action, args, self.role)
-            except RequestError as exc:
-                self._reply(request_id, ok=False, error=str(exc))
-            except Exception as exc:  # a handler bug must not kill the session; report it to the caller
-                log.exception("request %s failed", action)
-                self._reply(request_id, ok=False, error=f"{type(exc).__name__}: {exc}")
-            else:
-                self._reply(request_id, ok=True, result=result)
+            self._serve(request_id, msg.header["action"], msg.header.get("args") or {})
         else:
-            self._reply(msg.header.get("id"), ok=False, error=f"unknown message kind {msg.kind!r}"[:200])
+            self._reply(request_id, ok=False, error=f"unknown message kind {msg.kind!r}"[:200])
+
+    def _serve(self, request_id: Any, action: str, args: dict[str, Any]) -> None:
+        """Run one well-formed request after checking this connection's role may make it."""
+        needed = auth.required_role(action, args)
+        if not auth.permits(self.role or auth.VIEWER, needed):
+            log.info("client %s (%s) refused %r", self.stats.address, self.role, action[:40])
+            self._reply(request_id, ok=False, error=f"{action[:40]!r} needs the {needed} role; this connection is "
+                        f"a {self.role}")
+            return
+        try:
+            result = self.server.handler(action, args, self.role or auth.VIEWER)
+        except RequestError as exc:
+            self._reply(request_id, ok=False, error=str(exc))
+        except Exception as exc:  # a handler bug must not kill the session; report it to the caller
+            log.exception("request %s failed", action[:40])
+            self._reply(request_id, ok=False, error=f"{type(exc).__name__}: {exc}")
+        else:
+            self._reply(request_id, ok=True, result=result)
 
     def _reply(self, request_id: Any, ok: bool, result: Any = None, error: str | None = None) -> None:
         header: dict[str, Any] = {"id": request_id, "ok": ok}
@@ -242,6 +296,7 @@ class _ClientSession:
             if self._closed and self.sock.fileno() == -1:
                 return
             self._closed = True
+            self._release_queues()
             self._cond.notify_all()
         self._shutdown_socket()
         try:
@@ -274,6 +329,9 @@ class StreamServer:
         display_queue_frames: int = 512,
         reliable_queue_limit: int = 10_000,
         *,
+        display_queue_bytes: int = DISPLAY_QUEUE_BYTES,
+        reliable_queue_bytes: int = RELIABLE_QUEUE_BYTES,
+        queue_budget_bytes: int = QUEUE_BUDGET_BYTES,
         secrets: auth.Secrets = auth.Secrets(),
         max_clients: int = 32,
         max_pending: int = 8,
@@ -286,6 +344,11 @@ class StreamServer:
         self.tls = tls
         self.display_queue_frames = display_queue_frames
         self.reliable_queue_limit = reliable_queue_limit
+        self.display_queue_bytes = display_queue_bytes
+        self.reliable_queue_bytes = reliable_queue_bytes
+        self.queue_budget_bytes = queue_budget_bytes
+        self._queued_bytes = 0  # all clients' queues together, <= queue_budget_bytes
+        self._budget_lock = threading.Lock()
         self.secrets = secrets
         self.max_clients = max_clients  # authenticated (or, without a secret, all) connections
         self.max_pending = max_pending  # connections still owing the challenge's answer
@@ -327,7 +390,10 @@ class StreamServer:
                 return
             address = f"{addr[0]}:{addr[1]}"
             with self._lock:
-                full = sum(s.role is not None for s in self._sessions) >= self.max_clients
+                authenticated = [s for s in self._sessions if s.role is not None and not s.evicted]
+                # while a viewer holds a slot, a newcomer may be an operator who evicts it (make_room_for)
+                full = (len(authenticated) >= self.max_clients
+                        and not any(s.role == auth.VIEWER for s in authenticated))
                 pending = [s for s in self._sessions if s.role is None]
             if len(pending) >= self.max_pending:
                 # handshakes are bounded too: the oldest unfinished one makes room (a real client answers the
@@ -364,9 +430,64 @@ class StreamServer:
             self._last_refusal_log_s = time.monotonic()
             log.warning("%s", message)
 
+    def _budget(self, display: bool) -> int:
+        # display frames may use half the budget, so replies and events for clients that read always find room
+        return self.queue_budget_bytes // 2 if display else self.queue_budget_bytes
+
+    def fits(self, size: int, display: bool = False) -> bool:
+        """Whether ``size`` more queued bytes would stay within the budget (a hint; `reserve_bytes` decides)."""
+        return self._queued_bytes + size <= self._budget(display)
+
+    def reserve_bytes(self, size: int, display: bool = False) -> bool:
+        """Count ``size`` queued bytes against the process budget; False (nothing counted) if over it."""
+        with self._budget_lock:
+            if self._queued_bytes + size > self._budget(display):
+                return False
+            self._queued_bytes += size
+            return True
+
+    def evict_largest_backlog(self) -> None:
+        """The budget is full: disconnect the client with the most bytes queued (one that is not reading)."""
+        with self._lock:
+            sessions = [s for s in self._sessions if not s.closed]
+        if sessions:
+            victim = max(sessions, key=lambda s: s.stats.queued_bytes)
+            self._log_limited(f"client queues reached the {self.queue_budget_bytes}-byte budget; disconnecting "
+                              f"{victim.stats.address} ({victim.stats.queued_bytes} bytes queued)")
+            victim.close()
+
+    def release_bytes(self, size: int) -> None:
+        with self._budget_lock:
+            self._queued_bytes -= size
+
+    @property
+    def queued_bytes(self) -> int:
+        """Bytes queued for all clients now (never above ``queue_budget_bytes``)."""
+        return self._queued_bytes
+
+    def make_room_for(self, role: str) -> bool:
+        """Whether a client just authenticated as ``role`` may stay. At the limit an operator evicts the viewer
+        that connected first (told why in an event): viewers can never lock the operator out (issue 22)."""
+        with self._lock:
+            authenticated = [s for s in self._sessions if s.role is not None and not s.closed and not s.evicted]
+            viewers = [s for s in authenticated if s.role == auth.VIEWER]
+        if len(authenticated) < self.max_clients:
+            return True
+        if role != auth.OPERATOR or not viewers:
+            return False
+        victim = min(viewers, key=lambda s: s.connected_s)
+        log.warning("gateway full (%d clients): viewer %s disconnected to make room for an operator",
+                    self.max_clients, victim.stats.address)
+        victim.evicted = True
+        victim.push(wire.pack("event", {"t_host_s": time.monotonic(), "level": "warning", "source": "gateway",
+                                        "message": "disconnected: the gateway is full and an operator needs this "
+                                                   "viewer's slot"}), False)
+        victim.close_after_flush()
+        return True
+
     def authenticated_clients(self) -> int:
         with self._lock:
-            return sum(s.role is not None for s in self._sessions)
+            return sum(s.role is not None and not s.evicted for s in self._sessions)
 
     @staticmethod
     def _refuse(sock: socket.socket, reason: str) -> None:

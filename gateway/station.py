@@ -23,6 +23,7 @@ import numpy as np
 import firmware_protocol as fp
 from gateway.clock import ClockEstimator, TickUnwrapper
 from gateway.device_checks import batch_problem, hello_problem
+from gateway.device_text import EventThrottle, escape as escape_device_text
 from gateway.links import Link, LinkError, SerialLink
 from gateway.stats import SensorStats
 
@@ -32,6 +33,8 @@ PRE_HELLO_FRAMES = 5000
 HELLO_RETRY_S = 1.0
 CLOCK_PROBE_INTERVAL_S = 0.1
 REFUSAL_EVENT_INTERVAL_S = 10.0  # at most one event per kind of refused message in this time (counts are exact)
+ERROR_EVENT_BURST = 3  # station ERROR messages: this many events at once, then one per interval (all counted)
+ERROR_EVENT_INTERVAL_S = 10.0
 
 
 @dataclass
@@ -75,7 +78,8 @@ class SampleBlock:
 class StationSink(Protocol):
     """Where a reader delivers its output (the `Gateway`). Called on the reader thread: must not block.
     Optional: ``on_clock_point(station, epoch, raw_ticks, ticks, arrival_s, tick_hz)`` for every CLOCK_SYNC,
-    so the recorder can keep the raw clock evidence for an offline re-fit."""
+    so the recorder can keep the raw clock evidence for an offline re-fit; ``claim_station_name(reader, wanted)
+    -> name`` once, at a link's first frame, so two links announcing one station id get different names."""
 
     def on_samples(self, block: SampleBlock) -> None: ...
 
@@ -121,12 +125,16 @@ class StationReader:
         self.link_state = "connecting"
         self.transport = "hid" if source.startswith("hid:") else "serial"
         self.station_id: int | None = None
+        self._claimed_name: str | None = None
         self.hello: fp.Hello | None = None
         self.reconnects = 0
         self.internal_errors = 0
         self.invalid_fields = 0  # HELLO / SAMPLE_BATCH messages refused for impossible field values
         self.last_invalid: str | None = None
         self._refusal_event_s: dict[str, float] = {}
+        self.device_errors = 0  # ERROR messages from the station (events for them are throttled)
+        self.last_device_error: str | None = None  # escaped
+        self._error_throttle = EventThrottle(ERROR_EVENT_BURST, ERROR_EVENT_INTERVAL_S)
         self.link_error: str | None = None  # why the link cannot be opened (None once it is open)
         self._last_ticks: dict[object, float] = {}  # per sensor (last sample) and "sync": newest unwrapped ticks
         self.connected_at_s: float | None = None
@@ -145,8 +153,9 @@ class StationReader:
     # -- naming -----------------------------------------------------------------------------------------------
     @property
     def name(self) -> str:
-        """Station id used everywhere downstream (``st<frame station id>``); the source until a frame arrives."""
-        return f"st{self.station_id}" if self.station_id is not None else self.source
+        """Station id used everywhere downstream (``st<frame station id>``, or ``st<id>-dup<n>`` when another
+        link already uses that id: `StationSink.claim_station_name`); the source until a frame arrives."""
+        return self._claimed_name or self.source
 
     # -- thread -----------------------------------------------------------------------------------------------
     def start(self) -> "StationReader":
@@ -280,6 +289,11 @@ class StationReader:
 
     def _handle(self, frame: fp.DecodedFrame, arrival_s: float) -> None:
         if self.station_id is None:
+            # the sink may re-key a station whose id another link already uses (issue 22: two stations with one
+            # id were merged into one stream that could not be separated afterwards)
+            claim = getattr(self.sink, "claim_station_name", None)
+            wanted = f"st{frame.station_id}"
+            self._claimed_name = claim(self, wanted) if claim is not None else wanted
             self.station_id = frame.station_id
         elif frame.station_id != self.station_id:
             log.warning("%s: frame from station id %d on a link of station %d; ignored",
@@ -320,7 +334,17 @@ class StationReader:
                 pending.reply = msg
                 pending.event.set()
         elif isinstance(msg, fp.Error):
-            self.sink.on_station_event(self.name, "warning", f"station error {msg.code}: {msg.text}")
+            self._on_device_error(msg)
+
+    def _on_device_error(self, msg: fp.Error) -> None:
+        """A station's ERROR: its text escaped (no forged log lines, no bidi tricks) and events throttled; every
+        one is counted in status (``device_errors``, ``last_device_error``)."""
+        self.device_errors += 1
+        self.last_device_error = f"{msg.code}: {escape_device_text(str(msg.text))}"
+        if self._error_throttle.allow(time.monotonic()):
+            held = self._error_throttle.take_suppressed()
+            self.sink.on_station_event(self.name, "warning", f"station error {self.last_device_error}"
+                                       + (f" ({held} more station errors not shown)" if held else ""))
 
     def _sensor(self, sensor_id: int) -> SensorStats:
         stats = self.sensors.get(sensor_id)
@@ -400,8 +424,8 @@ class StationReader:
         self.clock.add(float(device_s[-1]), arrival_s)  # newest sample: least delivery latency
         stats = self._sensor(batch.sensor_id)
         stats.on_batch(batch.first_sample_counter, n, arrival_s)
-        t_host = self.clock.to_host(device_s)
-        stats.last_t_host_s = float(t_host[-1])
+        t_host = stats.monotonic_host_times(self.clock.to_host(device_s),  # never steps back (issue 22)
+                                            batch.sample_period_ticks / self.hello.tick_rate_hz)
         self.sink.on_samples(SampleBlock(
             station=self.name, sensor=batch.sensor_id, nominal_hz=stats.nominal_hz,
             clock_locked=self.clock.state.locked, epoch=self.unwrapper.epoch,
@@ -465,6 +489,8 @@ class StationReader:
                 "boot_id": hello.boot_id if hello else None, "tick_hz": hello.tick_rate_hz if hello else None,
                 "reconnects": self.reconnects, "internal_errors": self.internal_errors, "battery_pct": self.station_battery_pct,
                 "invalid_fields": self.invalid_fields, "last_invalid": self.last_invalid, "link_error": self.link_error,
+                "device_errors": self.device_errors, "last_device_error": self.last_device_error,
+                "device_error_events_suppressed": self._error_throttle.suppressed_total,
                 "buffered_samples": self.station_buffered_samples, **counts,
                 "clock": clock, "sensors": sensors,
             }

@@ -8,8 +8,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 COUNTER_MODULUS = 1 << 32
 _HALF = COUNTER_MODULUS // 2
+MIN_STEP_OF_PERIOD = 0.1  # a held sample follows its predecessor by at least a tenth of the sample period
 
 
 @dataclass
@@ -25,6 +28,7 @@ class SensorStats:
     battery_pct: int | None = None
     rssi_dbm: int | None = None
     last_t_host_s: float | None = None
+    host_time_held: int = 0  # samples whose host time was held after the previous one (clock re-fit stepped back)
     rate_hz: float = 0.0
     _expected: int | None = None
     _rate_mark: tuple[float, int] | None = field(default=None, repr=False)
@@ -43,6 +47,27 @@ class SensorStats:
         self.received += n
         if self._rate_mark is None:
             self._rate_mark = (arrival_s, self.received - n)
+
+    def monotonic_host_times(self, t_host_s: np.ndarray, period_s: float) -> np.ndarray:
+        """``t_host_s`` made strictly increasing after every earlier sample of this sensor, and remembered.
+
+        Why (issue 22): the host time of a sample comes from the station's clock estimate, which is re-fitted as
+        it warms up and restarted at a new clock epoch; either stepped a stream's time back by 2-16 ms. Consumers
+        (engine.stream, exports) need each stream's time to increase, so a sample the estimate puts less than
+        a tenth of a sample period (``period_s``) after its predecessor is held there, and the next ones follow
+        at that spacing until the estimate passes them (a slew, as NTP does, never a step back; each held sample
+        is counted in ``host_time_held``). A tenth, not more: an emulated station at 4x real time delivers its
+        samples a quarter period apart on the host clock, and the hold must still catch up. The recording keeps each sample's raw ticks, arrival and epoch, so the
+        offline re-fit (``t_realigned_s``) is unaffected."""
+        t = np.asarray(t_host_s, dtype=float)
+        min_step_s = MIN_STEP_OF_PERIOD * period_s if period_s > 0 else 1e-6
+        floor = -np.inf if self.last_t_host_s is None else self.last_t_host_s + min_step_s
+        steps = min_step_s * np.arange(len(t))
+        held = np.maximum.accumulate(np.maximum(t - steps, floor)) + steps
+        self.host_time_held += int(np.count_nonzero(held > t))
+        if len(held):
+            self.last_t_host_s = float(held[-1])
+        return held
 
     def restart_counter(self) -> None:
         """The station rebooted: its counters restart, so do not count the jump as loss."""
@@ -71,4 +96,5 @@ class SensorStats:
             "received": self.received, "lost": self.lost, "duplicates": self.duplicates,
             "counter_resets": self.counter_resets, "loss_pct": round(self.loss_pct, 4),
             "battery_pct": self.battery_pct, "rssi_dbm": self.rssi_dbm, "last_t_host_s": self.last_t_host_s,
+            "host_time_held": self.host_time_held,
         }

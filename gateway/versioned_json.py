@@ -6,9 +6,11 @@ document type passes its own error class so callers can still catch the specific
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, Callable
+
+from engine.errors import MalformedFileError
+from engine.safe_load import read_json
 
 FileErrorFactory = Callable[[Path, str], Exception]
 
@@ -20,13 +22,10 @@ def read_versioned_json(path: str | Path, schema: str, version: int, what: str, 
     exception raised for any problem."""
     path = Path(path)
     try:
-        doc = json.loads(path.read_text())
-    except OSError as exc:
-        raise error(path, f"cannot read: {exc.strerror}") from exc
-    except json.JSONDecodeError as exc:
-        raise error(path, f"not JSON (line {exc.lineno}: {exc.msg})") from exc
-    except UnicodeDecodeError:
-        raise error(path, "not a text file (not UTF-8)") from None
+        doc = read_json(path)  # depth-safe: every failure is one MalformedFileError
+    except MalformedFileError as exc:
+        where = f"line {exc.line}: " if exc.line is not None else ""
+        raise error(path, f"{where}{exc.problem}") from None
     if not isinstance(doc, dict) or doc.get("schema") != schema:
         raise error(path, f"not {what} (schema must be {schema!r})")
     if doc.get("schema_version") != version:

@@ -14,7 +14,9 @@ import time
 
 import numpy as np
 
-from engine.errors import CourtsideError
+from engine.errors import CourtsideError, check_output_dir
+from engine.progress import add_quiet_argument
+from engine.safe_load import read_json
 from engine.graph.cli import (_add_database_args, add_search_args, database_paths, evaluate_main as leave_one_out_main,
                               load_clips, weights_from_args)
 from engine.graph.config import GraphConfig
@@ -23,7 +25,7 @@ from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 
-from . import protocols, table
+from . import plot, protocols, table
 from .labels import clip_label
 from .confidence_quality import ConfidenceQuality, confidence_quality
 from .simulate import CameraModel
@@ -70,9 +72,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="accelerometer error model: the 0.15 g^2 gap measured on a real recording "
                         "(SensorErrorModel.measured_real, default), seed 000's 1.6 g^2 gap, or none")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
+    p.add_argument("--plot", metavar="OUT.png", help="draw the first take's per-second error of every row and the "
+                                                     "table as bars (needs the plot extra: courtside[plot])")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--compare", nargs=2, metavar=("BEFORE.json", "AFTER.json"),
                    help="print two --json reports side by side (before -> after) and exit")
+    add_quiet_argument(p)
     return p
 
 
@@ -122,8 +127,8 @@ def _confidence(scores: protocols.RowScores, fps: float) -> ConfidenceQuality:
     return confidence_quality(scores.confidence, [e.global_cm for e in scores.errors], fps)
 
 
-def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.RowScores]], fps: float,
-                 extra: dict) -> None:
+def _report(per_group: dict[str, dict[protocols.Row, protocols.RowScores]], fps: float, extra: dict) -> dict:
+    """The --json report (also what --plot draws)."""
     from .metrics import summary
 
     out = {**extra, "groups": {}}
@@ -133,8 +138,7 @@ def _report_json(path: str, per_group: dict[str, dict[protocols.Row, protocols.R
                                  "seconds": s.seconds, "per_second": protocols.traces(s, fps),
                                  **({"confidence": vars(_confidence(s, fps))} if s.confidence else {})}
                                 for r, s in results.items()]
-    with open(path, "w") as fh:
-        json.dump(out, fh, indent=1)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -142,21 +146,22 @@ def main(argv: list[str] | None = None) -> int:
     first = argparse.ArgumentParser(add_help=False)
     first.add_argument("--protocol", choices=PROTOCOLS, default="loo")
     known, rest = first.parse_known_args(argv)
+    if known.protocol == "loo" and "--plot" in argv:
+        raise CourtsideError("--plot draws the chained, loco and loso protocols (give --protocol)")
     if known.protocol == "loo" and not {"-h", "--help", "--compare"} & set(argv):
         return leave_one_out_main(rest)  # seed 000 Tables 2/3, with its own options (--variants ...)
     args = build_parser().parse_args(argv)
     if args.compare:
         reports = []
         for path in args.compare:
-            try:
-                with open(path) as fh:
-                    reports.append(json.load(fh))
-            except (OSError, ValueError) as exc:
-                raise CourtsideError(f"{path}: not a readable --json report ({exc})") from exc
+            reports.append(read_json(path))  # depth-safe; a bad file is one line naming it
         print(table.format_comparison(*reports))
         return 0
     if not (args.clips or args.sample or args.mocap_dir):
         args.sample = True
+    if args.plot:
+        check_output_dir(args.plot)
+        plot.require_matplotlib()
     cfg = _config(args)
     t0 = time.perf_counter()
     db = _database(args)
@@ -208,6 +213,11 @@ def main(argv: list[str] | None = None) -> int:
                 print("\n".join(table.group_verdict(f"{key} {g}", results)))
         extra = {}
     print(f"total {time.perf_counter() - t0:.0f} s")
+    report = _report(per_group, fps, {"protocol": args.protocol, "argv": argv, **extra})
     if args.json:
-        _report_json(args.json, per_group, fps, {"protocol": args.protocol, "argv": argv, **extra})
+        with open(args.json, "w") as fh:
+            json.dump(report, fh, indent=1)
+    if args.plot:
+        drawn = plot.save(report, args.plot)
+        print(f"wrote {args.plot}: {len(drawn.labels)} rows of {drawn.group}, take {drawn.take + 1}")
     return 0

@@ -7,12 +7,12 @@ own content). Neither Bandai set names its performers, so there is no per-perfor
 """
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
 from engine.errors import MalformedFileError
+from engine.safe_load import read_json
 
 _BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+$")
 
@@ -35,7 +35,7 @@ def clip_label(path: str | Path) -> ClipLabel:
     cfg = path.parent.parent / "cfg"
     if sidecar.is_file() and (cfg / "content_label.txt").is_file() and (cfg / "style_label.txt").is_file():
         try:
-            raw = json.loads(sidecar.read_text())
+            raw = read_json(sidecar)
             content = _label_table(cfg / "content_label.txt")[int(raw["content"])]
             style = _label_table(cfg / "style_label.txt")[int(raw["style"])]
         except (ValueError, KeyError, IndexError, TypeError) as exc:

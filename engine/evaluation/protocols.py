@@ -19,6 +19,7 @@ from functools import cached_property
 import numpy as np
 
 from engine.errors import CourtsideError
+from engine import progress
 from engine.graph.clips import ClipData
 from engine.graph.graph import MotionGraph
 from engine.graph.viterbi import SearchWeights
@@ -251,7 +252,7 @@ def chained_takes(db: Database, takes: list[list[int]], cfg: EvalConfig, max_cli
     simulated and scored whole."""
     results: dict[Row, RowScores] = {}
     built = []
-    for k, ids in enumerate(takes):
+    for k, ids in enumerate(progress.bar(takes, desc="takes", unit="take")):
         take = chain_clips(db.motions, ids, [lab.content for lab in db.labels], max_clip_s=max_clip_s)
         evaluate_take(take, db.held_out(ids), cfg, [cfg.seed, k], results)
         built.append(take)
@@ -272,7 +273,7 @@ def group_out(db: Database, key: str, groups: list[str], test_clips: int, cfg: E
                                                  sorted(set(np.linspace(0, len(members) - 1, test_clips).astype(int)))]
         held = db.held_out(members)
         results: dict[Row, RowScores] = {}
-        for ci in tests:
+        for ci in progress.bar(tests, desc=f"{key} {g}", unit="clip"):
             evaluate_take(chain_clips(db.motions, [ci], [lab.content for lab in db.labels]), held, cfg,
                           [cfg.seed, ci], results)
         out[g] = results

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine.progress import add_quiet_argument
 from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load_sensor_calibration,
                           placements_from_calibration, sample_clips, standard_placements, write_bvh)
@@ -90,6 +91,7 @@ def build_graph_main(argv: list[str]) -> int:
     p.add_argument("--calibration", metavar="RECORD",
                    help="sensor-calibration record (.calibration.json from the gateway's calibration workflow): "
                         "virtual sensors use its measured sensor-to-segment rotations")
+    add_quiet_argument(p)
     args = p.parse_args(argv)
     check_non_negative("--threshold", [args.threshold], positive=True)
     config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold,
@@ -230,6 +232,7 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--stream-wait", type=float, default=5.0, help="--stream-bvh: wait this long for a client (s)")
     p.add_argument("--stream-vmc", metavar="[HOST:]PORT", help="also send the poses as VMC (OSC over UDP, e.g. 39539; "
                    "127.0.0.1 unless a host is given) to Unity/Blender/VSeeFace VMC receivers")
+    add_quiet_argument(p)
     args = p.parse_args(argv)
     if args.engine != "motion-graph":
         return _synthesize_online(args)
@@ -386,6 +389,7 @@ def evaluate_main(argv: list[str]) -> int:
     p.add_argument("--variants", default="plain,msv", help="comma list of plain, msv, interp, msv+interp")
     p.add_argument("--test-clips", type=int, default=0, help="evaluate on N clips spread over the set (0 = all)")
     p.add_argument("--seed", type=int, default=0)
+    add_quiet_argument(p)
     args = p.parse_args(argv)
     if not (args.clips or args.sample or args.mocap_dir):
         args.sample = True

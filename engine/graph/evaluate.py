@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine import progress
 from engine.mocap import SensorErrorModel, error_joint_indices
 
 from .clips import ClipData
@@ -87,7 +88,7 @@ def leave_one_out(graph: MotionGraph, clips: list[ClipData], skeleton, settings:
     joints = error_joint_indices(skeleton)
     out: dict[str, list[ClipScore]] = {s.name: [] for s in settings}
     all_sensors = tuple(range(graph.n_sensors))
-    for ci in test_clips:
+    for ci in progress.bar(test_clips, desc="leave-one-out", unit="clip"):
         sub = graph.without_clips([ci])
         rng = np.random.default_rng([seed, ci])
         full = simulate_inputs(clips[ci], all_sensors, error_model, noise, rng, graph.config.fps)

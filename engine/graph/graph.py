@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.safe_load import parse_json
 from engine.mocap.skeleton import Skeleton
 
 from .clips import ClipData
@@ -188,7 +189,7 @@ class MotionGraph:
             try:  # any parse failure of a damaged or foreign file becomes one error naming the file
                 if "header_json" not in data:
                     raise MalformedFileError(path, None, "missing 'header_json': not a motion graph file")
-                header = json.loads(str(data["header_json"]))
+                header = parse_json(str(data["header_json"]), f"{path}: 'header_json'")
                 if not isinstance(header, dict):
                     raise MalformedFileError(path, None, "'header_json' is not a JSON object")
                 if header.get("format_version") != FORMAT_VERSION:

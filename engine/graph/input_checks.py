@@ -18,6 +18,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from engine.errors import CourtsideError, MalformedFileError
+from engine.safe_load import parse_json
 
 log = logging.getLogger(__name__)
 
@@ -141,10 +142,7 @@ def check_gateway_export(path: Path, data, keys: list[str]) -> None:
         _check_finite(path, f"{key}/acc_g", acc[:, None], 1.0 / float(np.median(np.diff(t))))
         check_channels(path, data, f"{key}/", (len(acc),))
     if "messages" in data.files:
-        try:
-            messages = json.loads(str(array(path, data, "messages", 0, kind="str")))
-        except json.JSONDecodeError as exc:
-            raise MalformedFileError(path, None, f"'messages' is not JSON ({exc})") from None
+        messages = parse_json(str(array(path, data, "messages", 0, kind="str")), f"{path}: 'messages'")
         if not isinstance(messages, list) or not all(isinstance(m, dict) for m in messages):
             raise MalformedFileError(path, None, "'messages' must be a JSON list of objects")
         for i, m in enumerate(messages):

@@ -23,13 +23,13 @@ the direction of motion when the speed exceeds 2 m/s, otherwise facing the net (
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.safe_load import parse_json
 from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
 from engine.stream import CameraTrack, FrameBatch, FrameResampler, RecordedStreams, resample_uniform, take_start_s
 
@@ -143,10 +143,7 @@ def recorded_streams(path: Path, data, graph_sensors: list[str], sensor_map: dic
 def _json(path: Path, data, name: str, default):
     if name not in data.files:
         return default
-    try:
-        return json.loads(str(data[name]))
-    except json.JSONDecodeError as exc:
-        raise MalformedFileError(path, None, f"'{name}' is not JSON ({exc})") from exc
+    return parse_json(str(data[name]), f"{path}: '{name}'")
 
 
 def _from_gateway_export(path: Path, data, graph_sensors: list[str], fps_graph: float,

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine import progress
 from .clips import ClipData
 from .pointcloud import WindowFeatures, distance_matrix, window_features
 
@@ -92,7 +93,8 @@ def find_transitions(clips: list[ClipData], window_frames: int, joint_weights: n
     n = len(glob_idx)
     nb_same = clip_id[1:] == clip_id[:-1]  # candidate k and k+1 belong to the same clip
     rows_out, cols_out, dist_out = [], [], []
-    for r0 in range(0, n, block_rows):  # row blocks (+1 halo row each side) bound the memory to O(block * n)
+    # row blocks (+1 halo row each side) bound the memory to O(block * n)
+    for r0 in progress.bar(range(0, n, block_rows), desc="transitions", unit="block"):
         r1 = min(n, r0 + block_rows)
         lo, hi = max(0, r0 - 1), min(n, r1 + 1)
         rows = np.arange(lo, hi)

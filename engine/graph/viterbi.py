@@ -28,6 +28,7 @@ try:  # numba is in the `engine` extra: the headless gateway install does not ca
     from . import kernels
 except ImportError:  # pragma: no cover - exercised only on an install without the extra
     kernels = None
+from engine import progress
 from .edge_runs import EdgeRuns
 from .geometry import wrap_angle
 from .graph import MotionGraph
@@ -690,7 +691,7 @@ def step_arguments(lattice: ViterbiLattice, obs: Observations, constraints: list
     penalties = constraint_penalties(constraints or [], lattice.graph.n_nodes, obs.n_samples)
     batch = lattice.kernel == "numba" and obs.acc_g is not None and lattice.n_sensors and lattice.weights.acc != 0
     rows = None
-    for t in range(obs.n_samples):
+    for t in progress.bar(range(obs.n_samples), desc="search", unit="sample"):
         if batch and t % ACC_BATCH == 0:
             rows = lattice.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
         acc, pos, head = observation(obs, t)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from engine import progress
 from engine.graph.evaluate import root_local
 from engine.graph.warp import RootWarp, follow_camera
 from engine.hmm.config import HMMConfig
@@ -139,7 +140,7 @@ def leave_one_out(motions: list[Motion], test_indices: list[int], imu_names: tup
     removed, as in the paper."""
     out = []
     pool = list(range(len(motions))) if train_indices is None else train_indices
-    for ti in test_indices:
+    for ti in progress.bar(test_indices, desc="hmm leave-one-out", unit="clip"):
         train = [i for i in pool if i != ti]
         model = train_model([motions[i] for i in train], imu_names, [labels[i] for i in train] if labels else None, config)
         test = resample(motions[ti], config.fps)

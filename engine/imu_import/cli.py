@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from engine.progress import add_quiet_argument
 from engine.errors import CourtsideError
 from engine.imu_import.csv_generic import GYRO_UNITS_RPS, TIME_UNITS_S, read_generic_csv
 from engine.imu_import.detect import QUAT_ORDERS, UNITS_TO_G
@@ -51,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="acceleration unit (default: detected from |a| at rest; a contradicted value is refused)")
     p.add_argument("--quat-order", default="auto", choices=["auto", *QUAT_ORDERS],
                    help="csv quaternion column order (default: detected from gravity consistency)")
+    add_quiet_argument(p)
     return p
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import progress
 from engine.errors import CourtsideError, MalformedFileError
 from engine.imu_import.table import read_table
 from engine.imu_import.take import SensorStream
@@ -64,7 +65,7 @@ def read_ximu3(path: str | Path, sensor_map: dict[str, str] | None = None) -> tu
     """Streams of the mapped devices (``sensor_map``: folder name, device name or serial -> placement name;
     default: devices named after a placement) and the labels of the devices left out."""
     streams, ignored = [], []
-    for folder in device_folders(path):
+    for folder in progress.bar(device_folders(path), desc="reading devices", unit="device"):
         name = next((sensor_map[k] for k in _labels(folder) if sensor_map and k in sensor_map), None)
         name = name or default_name(folder)
         if name is None:

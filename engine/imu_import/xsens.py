@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import progress
 from engine.errors import CourtsideError, MalformedFileError
 from engine.imu_import.table import Table, read_table
 from engine.imu_import.take import SensorStream
@@ -139,7 +140,7 @@ def read_mt_text(paths: list[Path], sensor_map: dict[str, str] | None,
                  rate_hz: float | None = None) -> tuple[list[SensorStream], list[str]]:
     """Streams of MT Manager / Xsens DOT text exports (one file per device), mapped by device id (or file stem)."""
     streams, ignored = [], []
-    for path in paths:
+    for path in progress.bar(paths, desc="reading devices", unit="file"):
         table = read_table(path)
         label = device_id(table)
         name = (sensor_map or {}).get(label) or (sensor_map or {}).get(path.stem)

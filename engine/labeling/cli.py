@@ -15,6 +15,8 @@ import time
 
 import numpy as np
 
+from engine import progress
+from engine.progress import add_quiet_argument
 from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import MarkerData, read_c3d
 
@@ -48,7 +50,7 @@ def run(
     out = np.full_like(data.positions_m, np.nan)
     out[:t0] = training
     results = []
-    for t in range(t0, len(stream.clouds)):
+    for t in progress.bar(range(t0, len(stream.clouds)), desc="labelling", unit="frame"):
         result = labeler.step(stream.clouds[t])
         out[t] = np.where((result.status == LOST)[:, None], np.nan, result.positions_m)
         results.append(result)
@@ -70,6 +72,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--degrade", type=int, metavar="SEED", help="scramble the input, then score the labels")
     parser.add_argument("--bootstrap", action="store_true",
                         help="trust only the first frame's labels; label the other training frames by closest point")
+    add_quiet_argument(parser)
     args = parser.parse_args(argv)
     check_output_dir(args.output)
     try:

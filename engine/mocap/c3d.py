@@ -12,6 +12,7 @@ import numpy as np
 
 from engine.errors import MalformedFileError
 from engine.mocap.c3d_check import check_c3d
+from engine.mocap.plausible import check_values
 
 _UNIT_M = {"mm": 0.001, "cm": 0.01, "dm": 0.1, "m": 1.0, "in": 0.0254, "inch": 0.0254}
 
@@ -56,9 +57,21 @@ def read_c3d(path: str | Path) -> MarkerData:
         raise MalformedFileError(path, None, f"POINT:RATE must be positive, got {rate}")
     points = np.asarray(c3d["data"]["points"], float)  # (4, M, F)
     residuals = np.asarray(c3d["data"]["meta_points"]["residuals"], float)  # (1, M, F)
-    xyz = np.transpose(points[:3], (2, 1, 0)) * _UNIT_M[units]
+    xyz = np.transpose(points[:3], (2, 1, 0))  # file units
     if len(labels) < xyz.shape[1]:
         raise MalformedFileError(path, None, f"{xyz.shape[1]} markers but only {len(labels)} labels")
     missing = np.transpose(residuals[0] < 0)  # (F, M)
     xyz[missing] = np.nan
-    return MarkerData(labels[: xyz.shape[1]], xyz, rate, path.stem)
+    _check_plausible(path, xyz, units)
+    return MarkerData(labels[: xyz.shape[1]], xyz * _UNIT_M[units], rate, path.stem)
+
+
+def _check_plausible(path: Path, xyz: np.ndarray, units: str) -> None:
+    """Refuse a file with no marker sample at all, and coordinates no lab can hold (|x| > 1e6 in the file's
+    units, as BVH/ASF/AMC: `engine.mocap.plausible`), before anything computes on them (issue 22: an all-NaN
+    C3D was 'labelled' with exit 0 and a RuntimeWarning; 1e30 was accepted)."""
+    present = ~np.isnan(xyz)
+    if not present.any():
+        raise MalformedFileError(path, None, f"no marker sample in any of the {xyz.shape[0]} frames (every point "
+                                             "missing or NaN)")
+    check_values(path, xyz[present], f"POINT data ({units})")

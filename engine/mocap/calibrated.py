@@ -26,6 +26,7 @@ import numpy as np
 
 from engine.errors import MalformedFileError
 from engine.mocap.sensors import SensorPlacement
+from engine.safe_load import read_json
 
 SCHEMA = "courtside.sensor_calibration"
 SCHEMA_VERSION = 1
@@ -85,14 +86,7 @@ def load_sensor_calibration(path: str | Path) -> SensorCalibrationData:
     """Read a ``courtside.sensor_calibration`` JSON record (gateway's ``CalibrationRecord.save``) without the
     gateway. Bad files raise MalformedFileError naming the file and the problem."""
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text())
-    except OSError as exc:
-        raise MalformedFileError(path, None, f"cannot read: {exc.strerror}") from exc
-    except json.JSONDecodeError as exc:
-        raise MalformedFileError(path, exc.lineno, f"not JSON ({exc.msg})") from exc
-    except UnicodeDecodeError:
-        raise MalformedFileError(path, None, "not a text file (not UTF-8)") from None
+    doc = read_json(path)  # depth-safe (issue 22): nested 100 000 deep is one line, not a RecursionError
     if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
         raise MalformedFileError(path, None, f"not a sensor calibration record (schema must be {SCHEMA!r})")
     if doc.get("schema_version") != SCHEMA_VERSION:

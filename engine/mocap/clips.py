@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import progress
 from engine.errors import MalformedFileError
 from engine.mocap.asf_amc import AsfSkeleton, read_amc, read_asf
 from engine.mocap.bvh import read_bvh
@@ -95,7 +96,7 @@ def load_database(paths: list[str | Path], fps: float = 30.0, cache_dir: str | P
     dominates the load time of a large database (numbers in docs/engine-mocap.md)."""
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     out = []
-    for p in map(Path, paths):
+    for p in progress.bar(list(map(Path, paths)), desc="loading clips", unit="clip"):
         file = cache / f"{_cache_key(p, fps)}.npz" if use_cache else None
         if file is not None and file.is_file():
             try:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine import progress
 from engine.mocap import (SEED003_SENSORS, Motion, SensorErrorModel, forward_kinematics, resample,
                           standard_placements, virtual_accelerometers, virtual_gyroscopes)
 from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
@@ -81,7 +82,7 @@ def leave_one_out(motions: list[Motion], test_indices: list[int], variants: list
     """Scores per variant over the test clips, each reconstructed from a database without itself; variants
     searching on orientations get them through ``orientation_error`` (default: a realistic 6-axis filter)."""
     out: dict[str, list[ClipErrors]] = {v.name: [] for v in variants}
-    for ti in test_indices:
+    for ti in progress.bar(test_indices, desc="olng leave-one-out", unit="clip"):
         kb = build_knowledge_base([m for i, m in enumerate(motions) if i != ti], kb_config)
         test = resample(motions[ti], kb.fps)
         acc = simulate_readings(test, kb, error_model, np.random.default_rng([seed, ti]))

@@ -10,6 +10,7 @@ import argparse
 
 import numpy as np
 
+from engine.progress import add_quiet_argument
 from engine.errors import MalformedFileError, check_output_dir, cli_command
 from engine.mocap import read_c3d, write_bvh
 
@@ -40,6 +41,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--max-samples", type=int, default=None, help="frames per joint fit (default: all)")
     parser.add_argument("--refine-iterations", type=int, default=JointFitConfig.refine_iterations,
                         help="geometric refinement steps after the closed form (0 = GDKE only)")
+    add_quiet_argument(parser)
     args = parser.parse_args(argv)
     check_output_dir(args.output)
     try:

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from engine import progress
 from .frames import frame_from_axis, frame_from_three, to_local, to_world
 from .gdke import DegenerateFitError, JointFit, JointFitConfig, JointType, fit_joint
 from .markerset import MarkerSet, SegmentSpec
@@ -117,7 +118,7 @@ def fit_skeleton(
         raise ValueError(f"marker set {marker_set.name}: markers missing from the data: {missing}")
     joints: dict[str, FittedJoint] = {}
     frames: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for seg in marker_set.segments:
+    for seg in progress.bar(marker_set.segments, desc="fitting joints", unit="joint"):
         if seg.parent is None:
             frames[seg.name] = _segment_frame(seg, markers, None, None)
             joint = FittedJoint(seg.name, None, np.zeros(3), None, None, {})

@@ -22,6 +22,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from engine import progress
 from engine.errors import CourtsideError
 
 ACC, ORIENTATION, GYRO = "acc", "orientation", "gyro"  # the channel names of `EngineSpec.inputs`
@@ -108,7 +109,7 @@ def drive_frames(engine: OnlineEngine, acc_g: np.ndarray | None, pos_m: np.ndarr
         raise ValueError("drive_frames: no accelerations, positions or headings to push")
     n = len(given[0])
     out: list[Any] = []
-    for t in range(n):
+    for t in progress.bar(range(n), desc="synthesis", unit="frame"):
         acc = None if acc_g is None or np.isnan(acc_g[t]).any() else acc_g[t]
         pos = None if pos_m is None or np.isnan(pos_m[t]).any() else pos_m[t]
         head = None if heading_rad is None or np.isnan(heading_rad[t]) else float(heading_rad[t])

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.safe_load import parse_json
 
 from .session import FramePose
 
@@ -50,6 +51,6 @@ def load_poses(path: str | Path) -> PosesFile:
             if missing:
                 raise MalformedFileError(path, None, f"not a poses file: missing {', '.join(missing)}")
             return PosesFile(data["frame"], data["t_s"], data["joint_positions_m"], data["confidence"],
-                             data["parents"], json.loads(str(data["meta_json"])))
+                             data["parents"], parse_json(str(data["meta_json"]), f"{path}: 'meta_json'"))
     except (OSError, ValueError) as exc:
         raise MalformedFileError(path, None, f"not a readable poses .npz ({exc})") from exc

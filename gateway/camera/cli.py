@@ -19,7 +19,8 @@ import numpy as np
 
 from gateway.camera.court import COURT_KEYPOINTS_M, keypoints_array
 from gateway.camera.court_calibration import CourtCalibration
-from engine.errors import report_errors
+from engine.errors import MalformedFileError, report_errors
+from engine.safe_load import read_json
 from gateway.camera.errors import CameraError, CourtCalibrationFileError
 from gateway.camera.paths import scripted_rally_path
 from gateway.camera.sources import VideoFileSource
@@ -66,11 +67,9 @@ def synth(args: argparse.Namespace) -> int:
 def read_clicks(path: Path) -> tuple[list[str], np.ndarray]:
     """Clicked keypoints ``{"court keypoint name": [u, v], ...}`` -> (names, (N, 2) pixels); errors name the file."""
     try:
-        clicks = json.loads(Path(path).read_text())
-    except OSError as exc:
-        raise CourtCalibrationFileError(path, f"cannot read: {exc.strerror}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CourtCalibrationFileError(path, f"not JSON ({exc})") from None
+        clicks = read_json(path)  # depth-safe (issue 22)
+    except MalformedFileError as exc:
+        raise CourtCalibrationFileError(path, exc.problem) from None
     if not isinstance(clicks, dict):
         raise CourtCalibrationFileError(path, 'expected a JSON object {"keypoint name": [u, v], ...}')
     for name, uv in clicks.items():

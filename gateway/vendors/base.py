@@ -153,8 +153,8 @@ class CallbackStationReader:
         counter = np.round(rel / self.period_ticks).astype(np.int64)
         for start, run in _runs(counter):
             self.stats.on_batch(int(counter[start]) % (1 << 32), run, float(arrival[start + run - 1]))
-        t_host = self.clock.to_host(device_s)
-        self.stats.last_t_host_s = float(t_host[-1])
+        t_host = self.stats.monotonic_host_times(self.clock.to_host(device_s),  # never steps back (issue 22)
+                                                 self.period_ticks / self.tick_hz)
         self.sink.on_samples(SampleBlock(
             station=self.name, sensor=0, nominal_hz=self.stats.nominal_hz, clock_locked=self.clock.state.locked,
             epoch=self.epoch, counter=counter.astype(np.uint32), raw_ticks=(ticks % (1 << 32)).astype(np.uint32),

@@ -116,9 +116,13 @@ class SkeletonView(QtWidgets.QWidget):
             self.mode_box.setCurrentIndex(list(CameraMode).index(CameraMode(mode)))
 
     # -- rendering ---------------------------------------------------------------------------------------------
+    def pending(self) -> bool:
+        """A render is waiting (something changed and the view is on screen): the refresh tick schedules it."""
+        return self._dirty and self.isVisible()
+
     def refresh(self) -> bool:
         """Render if anything changed (GUI thread, from the refresh tick). Returns True if a frame was drawn."""
-        if not self._dirty or not self.isVisible():
+        if not self.pending():
             return False
         w, h = self.width() * self.devicePixelRatioF(), self.height() * self.devicePixelRatioF()
         scale = min(1.0, (MAX_RENDER_PIXELS / max(1.0, w * h)) ** 0.5)

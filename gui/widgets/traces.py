@@ -191,6 +191,9 @@ class TracePanel(QtWidgets.QWidget):
                 curve.setData(td[finite], vd[finite, k])
         if self._plots:
             next(iter(self._plots.values())).setXRange(t0, t_end, padding=0)
+            # apply the new view transforms now: pyqtgraph defers them to the start of the paint, where changing
+            # them schedules a second full repaint of every plot (measured: ~2 paints per redraw without this)
+            self.graphics.scene().prepareForPaint()
 
     def _draw_events(self) -> None:
         """Vertical marker lines for events (taps, calibration steps, gateway events) on every visible plot;

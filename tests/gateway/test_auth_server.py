@@ -134,20 +134,10 @@ def test_handshake_that_never_completes_times_out(secured):
 
 def test_client_detects_an_impostor_gateway(tmp_path):
     """A server that does not hold the secret cannot produce the server proof."""
-    listener = socket.create_server((HOST, 0))
+    from .test_request_fuzz import impostor_gateway
+
+    listener, thread = impostor_gateway("00" * 32)
     secret = auth.read_secret_file(secret_file(tmp_path, "s"))
-
-    def impostor():
-        conn, _ = listener.accept()
-        with conn:
-            conn.sendall(wire.pack("hello", {"protocol": 2, "auth": {"challenge": os.urandom(32).hex()}}))
-            request = wire.recv_message(conn)
-            conn.sendall(wire.pack("reply", {"id": request["id"], "ok": True,
-                                             "result": {"role": "operator", "proof": "00" * 32}}))
-            time.sleep(0.5)
-
-    thread = threading.Thread(target=impostor, daemon=True)
-    thread.start()
     with pytest.raises(auth.AuthenticationError, match="could not prove"):
         GatewayClient(*listener.getsockname()[:2], secret=secret).connect()
     thread.join(5)

@@ -114,6 +114,14 @@ def test_an_empty_file_gives_the_defaults(tmp_path):
     ('record = ".."\n', 1, "starts with a dot"),
     ('max_clients = 0\n', 1, "max_clients: 0 is out of range 1..1024"),
     ('handshake_timeout_s = 0\n', 1, "handshake_timeout_s: 0 is out of range"),
+    # issue 22: every duration and rate has a physical bound; NUL bytes are refused naming the key
+    ('handshake_timeout_s = 1e-300\n', 1, "handshake_timeout_s: 1e-300 is out of range (>= 0.1"),
+    ('status_interval_s = 1e-9\n', 1, "status_interval_s: 1e-09 is out of range (>= 0.05"),
+    ('[camera]\nfps = 1e-300\n', 2, "camera.fps: 1e-300 is out of range (>= 1"),
+    ('record_dir = "rec\\u0000ordings"\n', 1, "record_dir: contains a NUL byte"),
+    ('[auth]\noperator_secret_file = "a\\u0000b"\n', 2, "auth.operator_secret_file: contains a NUL byte"),
+    ('[stations]\nports = ["/dev/tty\\u0000S0"]\n', 2, "stations.ports: item 0"),
+    ('name = "court\\u0000"\n', 1, "name: contains a NUL byte"),
     ('status_interval_s = nan\n', 1, "status_interval_s: nan is out of range"),
     ('[camera]\nsource = -2\ncourt = "c.json"\n', 2, "camera.source: -2 is out of range 0..63"),
     ('[camera]\nsource = "x.mp4"\ncourt = "c.json"\nplayer_side = "left"\n', 4, "camera.player_side: expected one of"),
@@ -139,6 +147,8 @@ def test_refusals_name_the_file_line_and_key(tmp_path, text, line, fragment):
     ('[camera]\nsource = "clip.mp4"\n', "camera.court is not"),
     ('[auth]\nviewer_secret_file = "v"\n', "needs auth.operator_secret_file"),
     ('[auth]\noperator_secret_file = "o"\ntls_cert = "c.pem"\n', "TLS needs both"),
+    ('[auth]\noperator_secret_file = "s"\nviewer_secret_file = "./s"\n',
+     "auth.viewer_secret_file and auth.operator_secret_file are the same file"),
 ])
 def test_rules_across_keys(tmp_path, text, fragment):
     with pytest.raises(MalformedFileError, match=fragment):
@@ -169,9 +179,18 @@ def test_flags_override_the_file_and_are_checked_the_same_way(tmp_path):
     assert with_overrides(file_only, {"auth.operator_secret_file": "s"}).authenticated
 
 
-def _gateway_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+def _gateway_cli(*args: str, cwd: Path, preexec_fn=None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "gateway.cli", "gateway", *args], cwd=cwd, capture_output=True,
-                          text=True, timeout=60)
+                          text=True, timeout=60, preexec_fn=preexec_fn)
+
+
+def _no_file_writes() -> None:
+    """In the child: every write to a file fails with EFBIG, as on a full disk (a full quota)."""
+    import resource
+    import signal
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (0, 0))
 
 
 def test_cli_refuses_a_bad_config_with_one_line_and_exit_2(tmp_path):
@@ -235,9 +254,18 @@ def test_cli_exit_1_when_it_cannot_start_now(tmp_path):
     assert "WARN" not in result.stderr, result.stderr  # OpenCV's own "can't open camera by index" lines
     result = _gateway_cli("--camera", "/dev/video63", "--court", "absent.json", cwd=tmp_path)
     assert result.returncode == 2 and "absent.json" in result.stderr
-    (tmp_path / "not-a-dir").write_text("")  # the first take cannot be started (as on a full disk)
-    result = _gateway_cli("--record-dir", "not-a-dir", "--record", "x", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    # the first take cannot be started now (a full disk): exit 1, a restart may help
+    result = _gateway_cli("--record-dir", "rec", "--record", "x", "--listen", "127.0.0.4:0", cwd=tmp_path,
+                          preexec_fn=_no_file_writes)
     assert result.returncode == 1 and "cannot start recording" in result.stderr and "Traceback" not in result.stderr
+    # a record_dir that is a file is a bad config, not a passing fault (issue 22: it exited 1): exit 2, one line
+    (tmp_path / "not-a-dir").write_text("")
+    result = _gateway_cli("--record-dir", "not-a-dir", "--record", "x", "--listen", "127.0.0.4:0", cwd=tmp_path)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert "--record-dir: " in result.stderr and "not-a-dir exists and is not a directory" in result.stderr
+    config = write(tmp_path, 'record_dir = "not-a-dir"\n')
+    result = _gateway_cli("--config", str(config), "--duration", "0", cwd=tmp_path)
+    assert result.returncode == 2 and f"{config}, line 1: record_dir: " in result.stderr, result.stderr
 
 
 def test_a_config_built_in_code_is_checked_too(tmp_path):
@@ -246,3 +274,24 @@ def test_a_config_built_in_code_is_checked_too(tmp_path):
 
     with pytest.raises(CourtsideError, match="beyond loopback"):
         build_court(CourtConfig(listen=("0.0.0.0", 0), record_dir=tmp_path))
+
+
+def test_record_dir_that_is_a_file_is_a_bad_config(tmp_path):
+    (tmp_path / "file").write_text("")
+    path = write(tmp_path, 'record_dir = "file"\n\n[calibration]\nrecords_dir = "."\n')
+    with pytest.raises(MalformedFileError, match=r"line 1: record_dir: .*file exists and is not a directory"):
+        load_court_config(path)
+    with pytest.raises(CourtsideError, match="--record-dir: .* is not a directory"):
+        with_overrides(CourtConfig(), {"record_dir": str(tmp_path / "file")}, {"record_dir": "--record-dir"})
+
+
+def test_one_secret_in_two_files_is_refused_naming_both(tmp_path):
+    from gateway import auth
+
+    auth.write_secret_file(tmp_path / "op")
+    (tmp_path / "viewer").write_bytes((tmp_path / "op").read_bytes())
+    (tmp_path / "viewer").chmod(0o600)
+    with pytest.raises(MalformedFileError) as info:
+        auth.Secrets.from_files(tmp_path / "op", tmp_path / "viewer")
+    assert info.value.path == str(tmp_path / "viewer") and str(tmp_path / "op") in str(info.value)
+    assert "viewer_secret_file holds the same secret as operator_secret_file" in str(info.value)

@@ -206,6 +206,86 @@ def test_command_values_that_do_not_fit_the_wire_get_a_clear_error(tmp_path, arg
         gw.server.close()
 
 
+FORGED = "buffer overflow\n2026-12-02 12:00:00 CRITICAL gateway: operator secret rotated\r\x1b[2J\u202egnp.exe\u200b"
+
+
+def test_station_error_text_is_escaped_and_its_events_throttled(caplog):
+    """Issue 22: a station's ERROR text went into events and logs unchanged (a newline forged a log line, U+202E
+    reversed the text) and 500 ERROR frames made 500 events. Through a real Gateway's event path (which logs)."""
+    from gateway.device_text import escape
+
+    gw = Gateway([], listen=("127.0.0.8", 0), record_dir="/nonexistent-never-written")
+    sink = Sink()
+    reader = StationReader("replay", sink)
+    reader.sink = _Tee(sink, gw)
+    frames = _Frames()
+    try:
+        with caplog.at_level("INFO", logger="gateway"):
+            reader.feed(frames(HELLO, *[fp.Error(1, FORGED)] * 500), 1.0)
+    finally:
+        gw.server.close()
+    errors = [e for e in sink.events if "station error" in e[2]]
+    assert len(errors) == 3  # the burst; the rest counted
+    status = reader.status()
+    assert status["device_errors"] == 500 and status["device_error_events_suppressed"] == 497
+    for text in [e[2] for e in errors] + [status["last_device_error"]] + [r.getMessage() for r in caplog.records]:
+        assert text.isprintable() and "\u202e" not in text and "\x1b" not in text, repr(text)
+    assert "\\n2026-12-02 12:00:00 CRITICAL" in errors[0][2] and "\\u202e" in errors[0][2] and "\\x1b[2J" in errors[0][2]
+    assert escape("a\\nb") == "a\\\\nb"  # a backslash in the text cannot forge an escape
+    assert escape("x" * 500).endswith("... (300 more characters)") and len(escape("x" * 500)) < 230
+
+
+class _Tee:
+    """Station events to the test's sink and to a real gateway's publish/log path."""
+
+    def __init__(self, sink, gateway):
+        self.sink, self.gateway = sink, gateway
+
+    def on_samples(self, block):
+        self.sink.on_samples(block)
+
+    def on_station_event(self, station, level, message, details=None):
+        self.sink.on_station_event(station, level, message, details)
+        self.gateway.on_station_event(station, level, message, details)
+
+
+def test_event_throttle_lets_a_burst_through_then_one_per_interval_and_counts_the_rest():
+    from gateway.device_text import EventThrottle
+
+    throttle = EventThrottle(burst=3, interval_s=10.0)
+    assert [throttle.allow(0.0) for _ in range(5)] == [True, True, True, False, False]
+    assert not throttle.allow(9.0) and throttle.suppressed == 3
+    assert throttle.allow(11.0) and throttle.take_suppressed() == 3 and throttle.suppressed_total == 3
+    assert not throttle.allow(11.5)
+
+
+def test_host_time_never_steps_back_across_an_epoch_restart_or_a_warm_up_refit():
+    """Issue 22, item 10: the host time of a sample comes from the clock estimate, which restarts at a new epoch
+    and re-fits while warming up; either stepped a stream's recorded time back (2-16 ms, up to 9 ms in
+    warm-up). Each stream's t_host_s must increase; the raw ticks, arrivals and epoch stay as they were."""
+    sink = Sink()
+    reader = _reader(sink)
+    frames = _Frames()
+    t = 100.0
+    reader.feed(frames(HELLO), t)
+    # warm-up: single-sample batches 10 ms apart arriving 30 ms late, then one with no delivery latency: the
+    # lower-envelope fit moves 30 ms earlier at once, which put that sample 20 ms before its predecessor
+    for i in range(20):
+        reader.feed(frames(batch(0, i, 1_000_000 + i * 10_000, 1)), t + 0.01 * i + 0.030)
+    reader.feed(frames(batch(0, 20, 1_000_000 + 20 * 10_000, 1)), t + 0.20)
+    # a new epoch: the device clock steps back; its first batch (10 samples, 90 ms) arrives 50 ms after the last
+    last_arrival = t + 0.20
+    reader.feed(frames(batch(0, 21, 1_000_000 + 21 * 10_000 - 900_000, 10)), last_arrival + 0.05)
+    assert reader.unwrapper.epoch == 1
+    t_host = np.concatenate([b.t_host_s for b in sink.blocks])
+    assert np.all(np.diff(t_host) > 0), np.diff(t_host)
+    held = reader.status()["sensors"][0]["host_time_held"]
+    assert held >= 2  # the warm-up step and the new epoch's earliest samples
+    # what was held is not rewritten: the evidence for the offline re-fit is intact
+    assert np.array_equal(np.concatenate([b.arrival_s for b in sink.blocks])[-10:], np.full(10, last_arrival + 0.05))
+    assert [b.epoch for b in sink.blocks][-2:] == [0, 1]
+
+
 def test_a_motion_batch_with_an_impossible_gyro_scale_is_refused():
     """A MOTION_BATCH whose angular-rate scale is NaN (a sender bug the decoder cannot see: the layout is fine)
     is refused and counted like any impossible field; the accelerations-only batches around it go through."""

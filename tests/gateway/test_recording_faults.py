@@ -160,7 +160,7 @@ def test_disk_full_closes_the_take_cleanly_and_recording_restarts_when_space_is_
         disk.set_free(0)
         with pytest.raises(ValueError, match="cannot start take 'again'.*ENOSPC"):
             rec.start("again")
-        assert not (tmp_path / "again" / RECORDING_FILE).exists()
+        assert not (tmp_path / "again").exists()  # not even an empty take directory (issue 22)
         # space freed: recording starts again and keeps everything
         disk.set_free(10 << 20)
         rec.start("again")
@@ -174,15 +174,23 @@ def test_disk_full_closes_the_take_cleanly_and_recording_restarts_when_space_is_
     assert again.end["reason"] == "stopped"
 
 
-def test_disk_full_end_record_names_the_fault(tmp_path):
+def _take_ended_by_a_full_disk(record_dir) -> Recorder:
+    """Take "t" in ``record_dir``, recorded (flushed by hand) until a 40 kB disk is full."""
     disk = SimulatedDisk(free_bytes=40_000)
-    rec = Recorder(tmp_path, flush_interval_s=3600, opener=disk.open)
+    rec = Recorder(record_dir, flush_interval_s=3600, opener=disk.open)
     rec.start("t")
     i = 0
     while rec.active:
         rec.put_samples("st1", 0, _batch(i * 100, 100))
         rec._flush()
         i += 1
+    return rec
+
+
+def test_disk_full_end_record_names_the_fault(tmp_path):
+    rec = _take_ended_by_a_full_disk(tmp_path)
+    state = rec.state()  # the backlog was freed with the take: its figures say 0, not their last value
+    assert state["fault"] and state["samples_lost"] > 0 and state["backlog_bytes"] == state["samples_backlog"] == 0
     contents = read_recording(tmp_path / "t")
     # the failed chunk was cut back, which freed enough room for the small end record
     assert contents.end["reason"] == "fault" and "ENOSPC" in contents.end["fault"]
@@ -360,3 +368,17 @@ def test_export_says_when_a_take_was_never_closed(tmp_path, caplog):
         export_npz(crashed, tmp_path / "crashed.npz")
     assert "never closed" in caplog.text and "crashed.csrec" in caplog.text
     assert np.load(tmp_path / "crashed.npz")["st1/0/counter"].tolist() == list(range(750))
+
+
+def test_export_of_a_faulted_take_warns_once(tmp_path, caplog):
+    """`courtside gateway export --npz --csv-dir` of a take ended by a full disk: one warning (it was two)."""
+    from gateway.daemon import main
+
+    _take_ended_by_a_full_disk(tmp_path)
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        assert main(["export", str(tmp_path / "t"), "--npz", str(tmp_path / "o.npz"), "--csv-dir",
+                     str(tmp_path / "csv")]) == 0
+    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warnings) == 1 and "ended by a disk fault" in warnings[0] and "ENOSPC" in warnings[0], warnings
+    assert (tmp_path / "o.npz").is_file() and (tmp_path / "csv" / "st1_0.csv").is_file()

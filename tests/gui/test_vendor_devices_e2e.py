@@ -158,7 +158,11 @@ viewer_secret_file = "viewer.secret"
     pyxdf = pytest.importorskip("pyxdf")  # the same recording as XDF, one stream per device
     courtside("gateway", "export", "takes/live", "--xdf", "live.xdf", cwd=tmp_path)
     streams, _ = pyxdf.load_xdf(str(tmp_path / "live.xdf"), synchronize_clocks=False, dejitter_timestamps=False)
-    assert {s["info"]["name"][0].split()[-1]: len(s["time_stamps"]) for s in streams} == counts
+    by_type = {kind: {s["info"]["name"][0].split()[1]: len(s["time_stamps"]) for s in streams
+                      if s["info"]["type"][0] == kind} for kind in ("Accelerometer", "Orientation")}
+    assert by_type["Accelerometer"] == counts
+    # the x-IMU3s also recorded their gyroscope and AHRS quaternion (the Shimmer3s here have no gyro enabled)
+    assert by_type["Orientation"] == {k: n for k, n in counts.items() if k.startswith("ximu3")}
     poses = load_poses(tmp_path / "live.npz")
     assert {s["stream"] for s in poses.meta["sensors"]} == set(station.values())  # read across six stations
     assert len(poses.frame) > 0.8 * poses.meta["rate_hz"] * length_s

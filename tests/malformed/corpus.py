@@ -73,7 +73,8 @@ def valid_amc_text(frames: int = 8) -> str:
     return "\n".join(out) + "\n"
 
 
-def valid_c3d_bytes(frames: int = 120) -> bytes:
+def valid_c3d_bytes(frames: int = 120, change: Callable[[np.ndarray], np.ndarray] | None = None) -> bytes:
+    """Six markers moving smoothly; ``change(positions_m)`` makes an implausible variant of the same file."""
     import tempfile
 
     from engine.labeling.c3d_io import write_c3d
@@ -83,6 +84,7 @@ def valid_c3d_bytes(frames: int = 120) -> bytes:
     base = rng.normal(0, 0.3, (6, 3)) + [0, 0, 1.0]
     t = np.arange(frames)[:, None, None] / 100.0
     pos = base[None] + 0.2 * np.sin(2 * np.pi * 0.5 * t + np.arange(6)[None, :, None])
+    pos = change(pos) if change is not None else pos
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "x.c3d"
         write_c3d(path, MarkerData(labels, pos, 100.0, "x"))
@@ -331,6 +333,11 @@ def c3d_cases() -> list[Case]:
         "zero-parameters": good[:params_start] + bytes(n - params_start),
         "random-bytes": np.random.default_rng(1).integers(0, 256, n, dtype=np.uint8).tobytes(),
         "garbage-in-parameters": good[:params_start + 10] + bytes([0xFF]) * 300 + good[params_start + 310:],
+        # implausible content (issue 22): nothing to label, coordinates no lab holds
+        "all-nan": valid_c3d_bytes(change=lambda p: np.full_like(p, np.nan)),
+        "coordinates-1e30": valid_c3d_bytes(change=lambda p: p * 1e30),
+        "one-coordinate-2e6-m": valid_c3d_bytes(change=lambda p: np.where(np.arange(p.size).reshape(p.shape) == 7,
+                                                                           2e6, p)),
     }
     cases = []
     for name, data in mutations.items():
@@ -506,6 +513,9 @@ def _npy(array: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+NESTED_JSON = b"[" * 100_000 + b"]" * 100_000
+
+
 def calibration_cases() -> list[Case]:
     good = valid_calibration_record()
     sensor = next(iter(good["sensors"]))
@@ -539,6 +549,11 @@ def calibration_cases() -> list[Case]:
         "gravity-nan": entry(gravity_sensor_g=[0, float("nan"), 1]),
         "segment-duplicate": json.dumps({**good, "sensors": {**good["sensors"], "st9/9": good["sensors"][sensor]}}).encode(),
         "other-skeleton-frames": entry(rotation=[[1, 0, 0], [0, -1, 0], [0, 0, -1]], correction_deg=0.0),
+        # issue 22: nested 100 000 deep (a RecursionError traceback), integers json cannot convert
+        "nested-100000-deep": NESTED_JSON,
+        "nested-in-a-field": top(sensors={}).replace(b'"sensors": {}', b'"sensors": ' + NESTED_JSON),
+        "integer-5000-digits": top(schema_version=1).replace(b'"schema_version": 1', b'"schema_version": ' + b"7" * 5000),
+        "segment-with-nul": entry(segment="che\x00st"),
     }
     return [Case("calibration", name, {"cal.json": data},
                  ["build-graph", "--sample", "--max-clips", "2", "--calibration", "{d}/cal.json", "-o", "{d}/g.npz"],
@@ -611,6 +626,10 @@ def camera_cases() -> list[Case]:
         "homography-singular": json.dumps({**schema, "homography": [[0] * 3] * 3}).encode(),
         "homography-nan": json.dumps({**schema, "homography": [[float("nan")] * 3] * 3}).encode(),
         "homography-shape": json.dumps({**schema, "homography": [[1, 0], [0, 1]]}).encode(),
+        "nested-100000-deep": NESTED_JSON,
+        "nested-in-homography": json.dumps({**schema, "homography": 0}).encode().replace(b": 0}", b": " + NESTED_JSON + b"}"),
+        "homography-strings": json.dumps({**schema, "homography": [["1", "0", "0"]] * 3}).encode(),
+        "schema-version-object": json.dumps({**schema, "schema_version": {"v": 1}}).encode(),
     }
     cases = [Case("court-calibration", name, {"court.json": data},
                   ["camera", "track", "--video", "{d}/v.mp4", "--calibration", "{d}/court.json"], "court.json")
@@ -623,6 +642,8 @@ def camera_cases() -> list[Case]:
         "values-text": json.dumps({"near_baseline_left_doubles": ["a", "b"]}).encode(),
         "unknown-point": json.dumps({f"p{i}": [i, i * 2] for i in range(6)}).encode(),
         "too-few-points": json.dumps({"near_baseline_left_doubles": [1, 2]}).encode(),
+        "nested-100000-deep": b"{\"net_left\": " + NESTED_JSON + b"}",
+        "values-booleans": json.dumps({"near_baseline_left_doubles": [True, False]}).encode(),
     }
     cases += [Case("court-clicks", name, {"clicks.json": data},
                    ["camera", "calibrate", "--clicks", "{d}/clicks.json", "--image-size", "800", "450", "--out",
@@ -658,6 +679,21 @@ def config_cases() -> list[Case]:
         "camera-side-bad": b'[camera]\nplayer_side = "middle"\n',
         "placements-unknown": b'[calibration]\nplacements = ["tail"]\n',
         "log-level-bad": b'log_level = "LOUD"\n',
+        # issue 22: nesting, physical bounds, NUL bytes, non-string fields, one secret for two roles
+        "nested-100000-deep": b"listen = " + b"[" * 100_000 + b"]" * 100_000 + b"\n",
+        "integer-5000-digits": b"max_clients = " + b"7" * 5000 + b"\n",
+        "handshake-timeout-1e-300": b"handshake_timeout_s = 1e-300\n",
+        "status-interval-1e-9": b"status_interval_s = 1e-9\n",
+        "camera-fps-tiny": b'[camera]\nfps = 1e-300\n',
+        "record-dir-nul": b'record_dir = "rec\\u0000x"\n',
+        "court-nul": b'[camera]\nsource = "v.mp4"\ncourt = "c\\u0000.json"\n',
+        "ports-nul": b'[stations]\nports = ["/dev/tty\\u0000S0"]\n',
+        "name-number": b"name = 5\n",
+        "record-number": b"record = 7\n",
+        "court-list": b'[camera]\ncourt = ["c.json"]\n',
+        "secret-file-table": b'[auth.operator_secret_file]\npath = "s"\n',
+        "placements-numbers": b'[calibration]\nplacements = [1, 2]\n',
+        "same-secret-file": b'[auth]\noperator_secret_file = "s"\nviewer_secret_file = "s"\n',
         "missing-file": None,
     }
     cases = []
@@ -665,4 +701,6 @@ def config_cases() -> list[Case]:
         files = {} if data is None else {"gateway.toml": data}
         cases.append(Case("config", name, files, ["gateway", "--config", "{d}/gateway.toml", "--duration", "0",
                                                   "--quiet"], "gateway.toml"))
+    cases.append(Case("config", "record-dir-is-a-file", {"gateway.toml": b'record_dir = "data"\n', "data": b"x"},
+                      ["gateway", "--config", "{d}/gateway.toml", "--duration", "0", "--quiet"], "gateway.toml"))
     return cases
