@@ -7,6 +7,7 @@ calibration, clips) is opened *before* anything starts, so a bad config stops wi
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,6 +15,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from engine.errors import CourtsideError
 from gateway import auth
+from gateway.athletes import DEFAULT_ATHLETE, AthleteConfig, AthleteMap
 from gateway.court_config import CameraConfig, CourtConfig, check_consistent
 from gateway.daemon import Gateway
 from gateway.names import free_name
@@ -63,13 +65,14 @@ def is_video_file(source: int | str) -> bool:
     return isinstance(source, str) and Path(source).is_file()
 
 
-def build_camera(config: CameraConfig) -> Any:
-    """Open the configured camera and its court calibration; `CourtsideError` names what failed."""
+def build_camera(config: CameraConfig, athletes: tuple[AthleteConfig, ...] = ()) -> Any:
+    """Open the configured camera and its court calibration, with one track per athlete (default: the single
+    athlete, acquired on ``config.player_side``); `CourtsideError` names what failed."""
     from gateway.camera.court_calibration import CourtCalibration
     from gateway.camera.errors import CameraError
     from gateway.camera.service import CameraService
     from gateway.camera.sources import OpenCVCamera, VideoFileSource
-    from gateway.camera.tracker import PlayerTracker, TrackerConfig
+    from gateway.camera.tracker import MultiPlayerTracker, TrackerConfig
 
     assert config.source is not None and config.court is not None
     try:
@@ -90,19 +93,25 @@ def build_camera(config: CameraConfig) -> Any:
         raise CourtsideError(f"camera: {label} gives {source.image_size[0]}x{source.image_size[1]} px frames but "
                              f"the court calibration {config.court} was made for "
                              f"{calibration.image_size[0]}x{calibration.image_size[1]} px")
-    tracker = PlayerTracker(calibration, TrackerConfig(player_side=config.player_side))
+    sides = {a.name: a.side for a in athletes} or {DEFAULT_ATHLETE: config.player_side}
+    tracker = MultiPlayerTracker(calibration, sides, TrackerConfig())
     return CameraService(source, tracker, realtime=realtime, thumbnail_every=config.thumbnail_every,
                          loop=config.loop, label=label)
 
 
 def build_calibration(config: CourtConfig) -> Any:
-    """The calibration wizard over the configured sensor sites, or None when the config names none."""
+    """One calibration wizard per athlete over its sensor sites (`gateway.calibration.athletes`), or None when
+    no athlete names any. Every athlete's records go to ``calibration.records_dir`` with the same pose."""
     cal = config.calibration
-    if not cal.placements:
+    athletes = [a for a in config.effective_athletes() if a.placements]
+    if not athletes:
         return None
+    from gateway.calibration.athletes import AthleteCalibrations
     from gateway.calibration.service import CalibrationService
 
-    return CalibrationService.standard(cal.placements, pose=cal.pose, records_dir=cal.records_dir)
+    return AthleteCalibrations({a.name: CalibrationService.standard(a.placements, pose=cal.pose,
+                                                                    records_dir=cal.records_dir)
+                                for a in athletes})
 
 
 def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | None = None, camera: Any = None,
@@ -117,7 +126,7 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
     secrets = auth.Secrets.from_files(config.auth.operator_secret_file, config.auth.viewer_secret_file)
     tls = auth.server_tls_context(config.auth.tls_cert, config.auth.tls_key) if config.auth.tls_cert else None
     if camera is None and config.camera.source is not None:
-        camera = build_camera(config.camera)
+        camera = build_camera(config.camera, config.athletes)
     if calibration is None:
         calibration = build_calibration(config)
     started: list[EmulatedStation] = []
@@ -125,9 +134,12 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
         from gateway.emulation.stations import start_court_stations  # the emulator only when asked for
 
         try:
-            started, _ = start_court_stations(config.stations.emulate, config.stations.emulate_motion,
-                                              config.stations.emulate_clips,
-                                              orientation=config.stations.emulate_orientation)
+            if config.athletes and config.stations.emulate_motion == "mocap":
+                started = start_athlete_stations(config)
+            else:
+                started, _ = start_court_stations(config.stations.emulate, config.stations.emulate_motion,
+                                                  config.stations.emulate_clips,
+                                                  orientation=config.stations.emulate_orientation)
         except Exception:
             if camera is not None:
                 camera.source.close()
@@ -140,7 +152,8 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
     options = dict(listen=config.listen, record_dir=config.record_dir, camera=camera, calibration=calibration,
                    status_interval_s=config.status_interval_s, lock_after_s=config.clock_lock_after_s,
                    status_line=status_line, discover=config.stations.discover, name=config.name, secrets=secrets,
-                   max_clients=config.max_clients, handshake_timeout_s=config.handshake_timeout_s, tls=tls)
+                   max_clients=config.max_clients, handshake_timeout_s=config.handshake_timeout_s, tls=tls,
+                   athletes=AthleteMap(config.effective_athletes()))
     if config.lsl.enabled:
         from gateway.lsl import LslPublisher
 
@@ -165,6 +178,45 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
             court.stop()
             raise
     return court
+
+
+def athlete_station_motion(config: CourtConfig, station_id: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(worn sites by sensor index, clips) that emulated station ``station_id`` replays: the sites and clips of
+    the athlete wearing its sensors (``"st<id>:<i>"``; sites from the athlete's placements, else the engine's six
+    seed-000 sensors), else the default station's."""
+    from gateway.emulation.stations import worn_sensor_sites
+
+    for athlete in config.athletes:
+        refs = sorted((ref.index, k) for k, ref in enumerate(athlete.sensors)
+                      if ref.key == "st" and ref.station == station_id)
+        if refs:
+            sites = worn_sensor_sites(0)
+            worn = tuple(athlete.placements[k] if athlete.placements else sites[i % len(sites)] for i, k in refs)
+            return worn, athlete.clips or config.stations.emulate_clips
+    return worn_sensor_sites(station_id - 1), config.stations.emulate_clips
+
+
+def start_athlete_stations(config: CourtConfig, seed: int = 0) -> list[EmulatedStation]:
+    """``stations.emulate`` emulated stations (ids 1..n) each replaying its athlete's clips on its athlete's
+    worn sites (`athlete_station_motion`): two athletes moving differently, each on their own sensors. With
+    ``stations.emulate_orientation`` they also stream orientation and angular rate (protocol v2)."""
+    import numpy as np
+
+    from gateway.emulation.stations import demo_config, mocap_traces, start_emulated_station
+
+    orientation = config.stations.emulate_orientation
+    rng = np.random.default_rng(seed)
+    stations: list[EmulatedStation] = []
+    with contextlib.ExitStack() as undo:  # a failure part-way stops the stations already started
+        for i in range(config.stations.emulate):
+            worn, clips = athlete_station_motion(config, i + 1)
+            (trace,) = mocap_traces(clips, [worn], orientation_seed=seed + i if orientation else None)
+            station = start_emulated_station(demo_config(i, rng, n_sensors=trace.n_sensors, orientation=orientation),
+                                             motion=trace)
+            undo.callback(station.stop)
+            stations.append(station)
+        undo.pop_all()
+    return stations
 
 
 def start_recording_fresh(gateway: Gateway, take: str) -> str:

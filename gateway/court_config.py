@@ -20,6 +20,7 @@ from typing import Any, Callable
 
 from engine.errors import CourtsideError, MalformedFileError
 from engine.safe_load import parse_toml, read_bytes
+from gateway.athletes import DEFAULT_ATHLETE, AthleteConfig, SensorRef
 from gateway.names import BadNameError, check_name
 
 LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
@@ -104,10 +105,19 @@ class CourtConfig:
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
     auth: AuthConfig = field(default_factory=AuthConfig)
     lsl: LslConfig = field(default_factory=LslConfig)
+    athletes: tuple[AthleteConfig, ...] = ()  # [[athletes]]; () = one athlete "player" wearing every sensor
 
     @property
     def authenticated(self) -> bool:
         return self.auth.operator_secret_file is not None
+
+    def effective_athletes(self) -> tuple[AthleteConfig, ...]:
+        """The athletes this court runs: the ``[[athletes]]`` entries, or the single default athlete ("player",
+        every sensor, ``camera.player_side``, ``calibration.placements``, ``stations.emulate_clips``)."""
+        if self.athletes:
+            return self.athletes
+        return (AthleteConfig(DEFAULT_ATHLETE, self.camera.player_side, (), self.calibration.placements,
+                              self.stations.emulate_clips),)
 
 
 # -- value checks: each returns the converted value or raises _Bad(problem) -------------------------------------
@@ -216,6 +226,25 @@ def _placements(value: Any) -> tuple[str, ...]:
     return names
 
 
+def _sensor_refs(value: Any) -> tuple[SensorRef, ...]:
+    refs = []
+    for text in _strings(value):
+        try:
+            refs.append(SensorRef.parse(text))
+        except ValueError as exc:
+            raise _Bad(str(exc)) from None
+    if len(set(refs)) != len(refs):
+        raise _Bad("a sensor is listed twice")
+    return tuple(refs)
+
+
+def _athlete_name(value: Any) -> str:
+    try:
+        return check_name(value, "athlete name")
+    except BadNameError as exc:
+        raise _Bad(str(exc)) from None
+
+
 def _take(value: Any) -> str:
     try:
         return check_name(value, "take name")
@@ -251,6 +280,9 @@ _SECTIONS: dict[str, tuple[type, dict[str, Check]]] = {
                           "tls_key": _PATH}),
     "lsl": (LslConfig, {"enabled": _bool, "scope": _choice(LSL_SCOPES)}),
 }
+_ATHLETE_KEYS: dict[str, Check] = {
+    "name": _athlete_name, "side": _choice(PLAYER_SIDES), "sensors": _sensor_refs, "placements": _placements,
+    "clips": _CLIPS}
 _MOVED = {"ports": "stations", "urls": "stations", "discover": "stations", "emulate": "stations"}
 
 
@@ -279,7 +311,7 @@ def _line_of(text: str, section: str | None, key: str) -> int | None:
     current = None
     for number, line in enumerate(text.splitlines(), 1):
         stripped = line.strip()
-        if header := re.fullmatch(r"\[\s*([A-Za-z0-9_.-]+)\s*\]\s*(#.*)?", stripped):
+        if header := re.fullmatch(r"\[\[?\s*([A-Za-z0-9_.-]+)\s*\]\]?\s*(#.*)?", stripped):
             current = header[1]
             if section is None and current == key:  # a table where a value belongs: point at its header
                 return number
@@ -319,6 +351,8 @@ def load_court_config(path: str | Path, check: bool = True) -> CourtConfig:
                 except _Bad as exc:
                     raise fail(key, sub, str(exc)) from None
             sections[key] = cls(**values)
+        elif key == "athletes":
+            top[key] = _athletes(value, base_dir, fail)
         elif key in _TOP:
             try:
                 top[key] = _convert(_TOP[key], value, base_dir)
@@ -326,7 +360,7 @@ def load_court_config(path: str | Path, check: bool = True) -> CourtConfig:
                 raise fail(None, key, str(exc)) from None
         else:
             hint = f" (it belongs in the [{_MOVED[key]}] table)" if key in _MOVED else ""
-            valid = ", ".join([*_TOP, *(f"[{s}]" for s in _SECTIONS)])
+            valid = ", ".join([*_TOP, *(f"[{s}]" for s in _SECTIONS), "[[athletes]]"])
             raise fail(None, key, f"unknown key{hint}; valid: {valid}")
     config = CourtConfig(**top, **sections)
     try:
@@ -335,6 +369,28 @@ def load_court_config(path: str | Path, check: bool = True) -> CourtConfig:
     except CourtsideError as exc:
         raise MalformedFileError(path, None, str(exc)) from None
     return config
+
+
+def _athletes(value: Any, base_dir: Path, fail: Callable[[str | None, str, str], MalformedFileError]
+              ) -> tuple[AthleteConfig, ...]:
+    """``[[athletes]]`` entries -> `AthleteConfig`s (each key checked; rules across athletes in `check_consistent`)."""
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise fail(None, "athletes", "expected [[athletes]] tables (one per athlete), got " + _describe(value))
+    out = []
+    for i, entry in enumerate(value):
+        values: dict[str, Any] = {}
+        for sub, sub_value in entry.items():
+            if sub not in _ATHLETE_KEYS:
+                raise fail("athletes", sub, f"unknown key in athlete {i + 1}; [[athletes]] takes "
+                           f"{', '.join(_ATHLETE_KEYS)}")
+            try:
+                values[sub] = _convert(_ATHLETE_KEYS[sub], sub_value, base_dir)
+            except _Bad as exc:
+                raise fail("athletes", sub, f"athlete {i + 1}: {exc}") from None
+        if "name" not in values:
+            raise fail(None, "athletes", f"athlete {i + 1} has no name")
+        out.append(AthleteConfig(**values))
+    return tuple(out)
 
 
 def with_overrides(config: CourtConfig, overrides: dict[str, Any], flags: dict[str, str] | None = None) -> CourtConfig:
@@ -396,6 +452,35 @@ def check_consistent(config: CourtConfig) -> None:
                              "secret (`courtside gateway new-secret FILE`)")
     if (auth.tls_cert is None) != (auth.tls_key is None):
         raise CourtsideError("TLS needs both auth.tls_cert and auth.tls_key")
+    _check_athletes(config)
     if config.camera.source is not None and config.camera.court is None:
         raise CourtsideError("camera.source is set but camera.court is not: give the court calibration file "
                              "(`courtside camera calibrate ... --out court.json`)")
+
+
+def _check_athletes(config: CourtConfig) -> None:
+    """Two athletes must be told apart: distinct names, disjoint sensors, a side each (one near, one far, where
+    the camera first finds them), one placement per sensor; one athlete may leave ``sensors`` out (= all)."""
+    athletes = config.athletes
+    names = [a.name for a in athletes]
+    for name in names:
+        if names.count(name) > 1:
+            raise CourtsideError(f"athletes: the name {name!r} is used twice")
+    seen: dict[SensorRef, str] = {}
+    for a in athletes:
+        if a.placements and a.sensors and len(a.placements) != len(a.sensors):
+            raise CourtsideError(f"athletes: {a.name!r} lists {len(a.sensors)} sensors but {len(a.placements)} "
+                                 "placements (one site per sensor, in the same order)")
+        for ref in a.sensors:
+            if ref in seen:
+                raise CourtsideError(f"athletes: sensor {ref} is worn by both {seen[ref]!r} and {a.name!r}")
+            seen[ref] = a.name
+    if len(athletes) > 1:
+        for a in athletes:
+            if not a.sensors:
+                raise CourtsideError(f"athletes: {a.name!r} lists no sensors (with several athletes each names "
+                                     "its own, e.g. sensors = [\"st1:0\", \"st1:1\"])")
+        sides = [a.side for a in athletes]
+        if None in sides or len(set(sides)) != len(sides):
+            raise CourtsideError("athletes: each athlete needs its own side (\"near\" / \"far\"): the camera "
+                                 f"tells them apart by where it first finds them; got {sides}")

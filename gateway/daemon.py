@@ -10,7 +10,11 @@ Hook points for gateway/camera and gateway/calibration (duck-typed, see docs/gat
   with at least ``t_host_s``, ``position_m`` ``[x, y]`` (court frame) and ``heading_rad``.
   Code that runs its own loop can instead call `Gateway.publish_camera` directly.
 * ``calibration``: an object with ``handle(action, args) -> result`` and ``state() -> dict``; optionally
-  ``on_samples(station, sensor, t_host_s, acc_g)`` to see every sample. Its state is published when it changes.
+  ``on_samples(station, sensor, t_host_s, acc_g)`` to see every sample, or (one wizard per athlete,
+  `gateway.calibration.athletes`) ``on_athlete_samples(athlete, station, sensor, t_host_s, acc_g)``. Its state is
+  published when it changes.
+* ``athletes``: a `gateway.athletes.AthleteMap`; every samples message then carries ``athlete`` (who wears the
+  sensor; absent for a sensor nobody wears). Without one every sample is the default athlete's ("player").
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ import numpy as np
 import firmware_protocol as fp
 from engine.progress import add_quiet_argument
 from gateway import auth, wire
+from gateway.athletes import AthleteConfig, AthleteMap
 from gateway.device_checks import I32_MAX, I32_MIN, command_int
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
 from gateway.recorder import Recorder, export_take
@@ -86,9 +91,12 @@ class Gateway:
         handshake_timeout_s: float = 5.0,
         tls: "ssl.SSLContext | None" = None,
         sample_sinks: tuple[Callable[[SampleBlock], None], ...] = (),
+        athletes: AthleteMap | None = None,
         server_options: dict[str, Any] | None = None,  # more StreamServer limits (e.g. queue_budget_bytes)
     ):
         self.name = name
+        self.athletes = athletes or AthleteMap([AthleteConfig()])
+        self._station_serials: dict[str, int] = {}  # reader name -> serial from its HELLO (serial-addressed sensors)
         self.sample_sinks = tuple(sample_sinks)  # e.g. gateway.lsl.LslPublisher.on_block: every block, reader thread
         self.recorder = Recorder(record_dir, on_event=self._on_recorder_event)
         self.camera = camera
@@ -193,11 +201,17 @@ class Gateway:
     def on_samples(self, block: SampleBlock) -> None:
         self.samples_in += len(block.counter)
         header, arrays = block.header(), block.arrays()  # one samples message for the recording and clients
+        athlete = self.athletes.athlete_of(block.station, block.sensor, self._station_serials.get(block.station))
+        if athlete is not None:
+            header["athlete"] = athlete
         if self.recorder.active:
             self.recorder.put_samples(block.station, block.sensor, arrays, header=header)
         self.server.publish("samples", header, arrays)
+        per_athlete = getattr(self.calibration, "on_athlete_samples", None)
         on_samples = getattr(self.calibration, "on_samples", None)
-        if on_samples is not None:
+        if per_athlete is not None:
+            per_athlete(athlete, block.station, block.sensor, block.t_host_s, block.acc_g)
+        elif on_samples is not None:
             on_samples(block.station, block.sensor, block.t_host_s, block.acc_g)
         for sink in self.sample_sinks:
             sink(block)
@@ -212,6 +226,9 @@ class Gateway:
                                    header={"tick_hz": tick_hz})
 
     def on_station_event(self, station: str, level: str, message: str, details: dict | None = None) -> None:
+        serial = (details or {}).get("station_serial")
+        if serial is not None:
+            self._station_serials[station] = int(serial)
         self.publish_event(level, station, message, details)
 
     def _on_recorder_event(self, level: str, message: str) -> None:
@@ -266,7 +283,14 @@ class Gateway:
         return status
 
     def _hello(self) -> dict[str, Any]:
-        return {"gateway": self.name, "t_host_s": time.monotonic(), "stations": self.list_stations()}
+        return {"gateway": self.name, "t_host_s": time.monotonic(), "stations": self.list_stations(),
+                "athletes": self.athletes_info()}
+
+    def athletes_info(self) -> list[dict[str, Any]]:
+        """Who wears what (consoles set up one synthesis per athlete from it): name, side, sensors
+        (``"st1:0"`` / ``"sn<serial>:0"``; [] = every sensor), placements."""
+        return [{"name": a.name, "side": a.side, "sensors": [str(r) for r in a.sensors],
+                 "placements": list(a.placements)} for a in self.athletes.athletes]
 
     def discover_stations(self) -> list[str]:
         """Hot-plug: add every base station found by USB VID:PID (serial and HID) that is not read yet.

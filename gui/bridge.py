@@ -88,6 +88,13 @@ class GatewayBridge:
         self.events: queue.SimpleQueue[dict[str, Any]] = queue.SimpleQueue()
         self.sample_sinks: list[SampleSink] = []
         self.camera_sinks: list[CameraSink] = []  # every camera observation, in stream order (synthesis)
+        # two athletes: each athlete's observations go only to its own sinks (its synthesis), never to another's;
+        # ``camera_sinks`` then see the first athlete's (``camera_athlete``) only
+        self.athlete_camera_sinks: dict[str, list[CameraSink]] = {}
+        self.camera_athlete: str | None = None  # set by the first observation that names an athlete
+        self.athlete_cameras: dict[str, dict[str, Any]] = {}  # athlete -> newest observation
+        self._athlete_trails: dict[str, collections.deque] = {}
+        self.sensor_athletes: dict[SensorKey, str] = {}  # who wears each sensor (samples' ``athlete``)
         self.recording_sinks: list[Callable[[float], None]] = []  # started_t_host_s of each new take
         self._take_started_s: float | None = None
         self._local_address: str | None = None
@@ -130,6 +137,9 @@ class GatewayBridge:
         t, acc = msg["t_host_s"], msg["acc_g"]
         quat, gyro = msg.arrays.get("quat_wxyz"), msg.arrays.get("gyro_rps")
         self.sensors_seen[key] = float(msg.header.get("nominal_hz", 0.0))
+        athlete = msg.header.get("athlete")
+        if athlete is not None and key not in self.sensor_athletes:
+            self.sensor_athletes[key] = str(athlete)
         self.samples_received += len(t)
         self.traces.put(key, t, acc, quat, gyro)
         for sink in self.sample_sinks:
@@ -168,17 +178,31 @@ class GatewayBridge:
 
     def on_camera(self, msg: Any) -> None:
         header = dict(msg.header)
+        athlete = header.get("athlete")
         with self._lock:
-            self.camera_rate.add(header.get("t_host_s"), header.get("frame_index"))
-            self._latest["camera"] = header
+            if athlete is not None and self.camera_athlete is None:
+                self.camera_athlete = str(athlete)
+            first = athlete is None or athlete == self.camera_athlete
+            pos = header.get("position_m")
+            if athlete is not None:
+                self.athlete_cameras[str(athlete)] = header
+                trail = self._athlete_trails.setdefault(str(athlete), collections.deque(maxlen=self.TRAIL_LEN))
+                if pos is not None:
+                    trail.append((float(header.get("t_host_s", 0.0)), float(pos[0]), float(pos[1])))
             if "jpeg" in msg.arrays:
                 self._jpeg = bytes(np.asarray(msg.arrays["jpeg"]).tobytes())
-            pos = header.get("position_m")
-            if pos is not None:
-                self._trail.append((float(header.get("t_host_s", 0.0)), float(pos[0]), float(pos[1])))
+            if first:  # one observation per frame for the frame rate, the overlay's header and the trail
+                self.camera_rate.add(header.get("t_host_s"), header.get("frame_index"))
+                self._latest["camera"] = header
+                if pos is not None:
+                    self._trail.append((float(header.get("t_host_s", 0.0)), float(pos[0]), float(pos[1])))
         if header.get("t_host_s") is not None:
-            for sink in self.camera_sinks:
-                sink(float(header["t_host_s"]), header.get("position_m"), header.get("heading_rad"))
+            fix = (float(header["t_host_s"]), header.get("position_m"), header.get("heading_rad"))
+            for sink in self.athlete_camera_sinks.get(str(athlete), []) if athlete is not None else []:
+                sink(*fix)
+            if first:
+                for sink in self.camera_sinks:
+                    sink(*fix)
 
     def on_event(self, msg: Any) -> None:
         header = dict(msg.header)
@@ -191,6 +215,8 @@ class GatewayBridge:
         self.traces.events.clear()
         with self._lock:
             self._trail.clear()
+            self._athlete_trails.clear()
+            self.athlete_cameras.clear()
             self.camera_rate = CameraRate()
             self._latest.pop("camera", None)  # a fix from the old time line must not anchor the new one
 
@@ -206,6 +232,12 @@ class GatewayBridge:
             trail = np.array(self._trail, float).reshape(-1, 3)
             return self._latest.get("camera"), self._jpeg, trail
 
+    def athlete_tracks(self) -> dict[str, tuple[dict[str, Any], np.ndarray]]:
+        """Athlete -> (newest camera observation, trail (N, 3) [t_s, x_m, y_m]), for the minimap and overlay."""
+        with self._lock:
+            return {name: (header, np.array(self._athlete_trails.get(name, ()), float).reshape(-1, 3))
+                    for name, header in self.athlete_cameras.items()}
+
     def drain_events(self) -> list[dict[str, Any]]:
         out = []
         while True:
@@ -215,8 +247,14 @@ class GatewayBridge:
                 return out
 
     def sensor_groups(self) -> dict[str, list[SensorKey]]:
-        """Sensors seen so far grouped by station, sorted (for the trace panel's selector)."""
+        """Sensors seen so far grouped by station, sorted (for the trace panel's selector); with athletes named in
+        the samples, grouped per athlete first ("alice · station st1"), athletes in the order first seen."""
         groups: dict[str, list[SensorKey]] = collections.defaultdict(list)
-        for key in sorted(self.sensors_seen):
-            groups[f"station {key[0]}"].append(key)
+        athletes = list(dict.fromkeys(self.sensor_athletes.values()))
+        many = len(athletes) > 1
+        order = lambda key: (athletes.index(self.sensor_athletes[key]) if key in self.sensor_athletes  # noqa: E731
+                             else len(athletes), key)
+        for key in sorted(self.sensors_seen, key=order):
+            who = self.sensor_athletes.get(key) if many else None
+            groups[f"{who} · station {key[0]}" if who else f"station {key[0]}"].append(key)
         return dict(groups)

@@ -63,13 +63,15 @@ def _console_parser() -> argparse.ArgumentParser:
                    help="scripted: record this take on the gateway (after --calibrate) until --duration ends")
     p.add_argument("--save-poses", type=Path, default=None, metavar="OUT.npz",
                    help="save every synthesized pose since the last engine (re)start — with --record, the take's "
-                        "poses — when the console closes (format: docs/console.md)")
+                        "poses — when the console closes (format: docs/console.md); two athletes: the first's to "
+                        "OUT.npz, the second's to OUT.<athlete>.npz")
     p.add_argument("--stream-bvh", default=None, metavar="[HOST:]PORT",
                    help="serve the synthesised poses as BVH over TCP (Axis Neuron convention) to animation tools "
-                        "(motion-graph engine)")
+                        "(motion-graph engine); two athletes: the second on PORT+1")
     p.add_argument("--stream-vmc", default=None, metavar="[HOST:]PORT",
                    help="send the synthesised poses as VMC over OSC/UDP (port 39539 by convention: Unity EVMC4U, "
-                        "Blender VMC4B, VSeeFace) to HOST (default 127.0.0.1) (motion-graph engine)")
+                        "Blender VMC4B, VSeeFace) to HOST (default 127.0.0.1) (motion-graph engine); two athletes: "
+                        "the second performer on PORT+1")
     return p
 
 
@@ -164,12 +166,23 @@ def _console(args: argparse.Namespace) -> int:
                   "give the operator secret file", file=sys.stderr)
             return 2
         stations = _stations_with_sensors(client)
+    athletes = _athlete_stations(client, stations) if client is not None and not args.synth_station else {}
     try:
-        synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out,
-                                                   client.list_stations if client is not None else None)
+        refresh = client.list_stations if client is not None else None
+        more: dict = {}
+        athlete = None
+        if len(athletes) > 1:  # one synthesis per athlete, each from its own station's sensors
+            runs = {name: _synthesis(_athlete_args(args, station, k), stations, calibration, held_out, refresh)
+                    for k, (name, station) in enumerate(athletes.items())}
+            athlete, (synth, worn, skeleton_parents) = next(iter(runs.items()))
+            more = {name: run[0] for name, run in list(runs.items())[1:] if run[0] is not None}
+            worn = {key: place for run in runs.values() for key, place in run[1].items()}
+        else:
+            synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out, refresh)
         window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton_parents, sensor_segments=worn,
                                sensor_joints=sensor_joints_or_none(worn), truth_for_take=truth_for_take,
-                               keep_poses=args.save_poses is not None, make_client=make_client)
+                               keep_poses=args.save_poses is not None, make_client=make_client,
+                               athlete=athlete, more_athletes=more)
     except BaseException:
         if client is not None:
             client.close()
@@ -195,6 +208,35 @@ def _console(args: argparse.Namespace) -> int:
         print(f"courtside console: {script.failure}", file=sys.stderr)
         return 1
     return code
+
+
+def _athlete_stations(client, stations: list[dict]) -> dict[str, str]:
+    """Athlete -> the station carrying its first sensor, from the gateway's hello (`Gateway.athletes_info`):
+    ``"st<id>:<i>"`` names the station directly, ``"sn<serial>:<i>"`` through the stations' HELLO serials.
+    Athletes without sensors (the single default athlete) are left out."""
+    out = {}
+    serials = {s.get("station_serial"): str(s["station"]) for s in stations if s.get("station_serial") is not None}
+    for athlete in (getattr(client, "server_hello", {}) or {}).get("athletes") or []:
+        if not athlete.get("sensors"):
+            continue
+        ref = str(athlete["sensors"][0]).split(":")[0]
+        station = ref if ref.startswith("st") else serials.get(int(ref[2:], 0))
+        if station is not None:
+            out[str(athlete["name"])] = station
+    return out
+
+
+def _athlete_args(args: argparse.Namespace, station: str, k: int) -> argparse.Namespace:
+    """The console's options for athlete ``k``'s synthesis: its station, and its own BVH / VMC port (the
+    given port + k: two BVH servers, two VMC performers)."""
+    def shifted(target: str | None) -> str | None:
+        if target is None or k == 0:
+            return target
+        host, sep, port = target.rpartition(":")
+        return f"{host}{sep}{int(port) + k}"
+
+    return argparse.Namespace(**{**vars(args), "synth_station": station, "stream_bvh": shifted(args.stream_bvh),
+                                 "stream_vmc": shifted(args.stream_vmc)})
 
 
 def _client_factory(args: argparse.Namespace):

@@ -90,7 +90,10 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                  sensor_segments: dict[SensorKey, str] | None = None,
                  sensor_joints: dict[SensorKey, int] | None = None, truth_for_take: TruthForTake | None = None,
                  keep_poses: bool = False, make_client: Callable[[str, int], Any] | None = None,
-                 title: str = "Courtside console") -> None:
+                 title: str = "Courtside console", athlete: str | None = None,
+                 more_athletes: dict[str, SynthesisSetup] | None = None) -> None:
+        """``synthesis`` is the (first) athlete's, named ``athlete``; ``more_athletes`` the others' (issue 20):
+        one synthesis worker each, fed by their own sensors and their own camera track."""
         super().__init__()
         self.setWindowTitle(title)
         self.client = client
@@ -120,6 +123,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.traces = TracePanel(self.store)
         self.devices = DevicePanel()
         self.devices.set_mapping(sensor_segments or {})
+        self.devices.sensor_athletes = self.bridge.sensor_athletes
         self.devices.identify_requested.connect(self._identify)
         self.recording = RecordingPanel()
         self.recording.required = sorted(sensor_segments or {})
@@ -177,7 +181,10 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.skeleton.set_skeleton(synthesis.parents)
             self.worker = SynthesisWorker(synthesis, keep_poses=keep_poses)
             self.bridge.sample_sinks.append(self.worker.add_samples)
-            self.bridge.camera_sinks.append(self.worker.add_camera)
+            if more_athletes and athlete is not None:  # only its own track: the other athlete's would drag it
+                self.bridge.athlete_camera_sinks.setdefault(athlete, []).append(self.worker.add_camera)
+            else:
+                self.bridge.camera_sinks.append(self.worker.add_camera)
             self.bridge.recording_sinks.append(self.worker.recording_started)
             self.lag_spin.setValue(synthesis.lag_s)
             self.lag_spin.valueChanged.connect(self.worker.set_lag)
@@ -185,6 +192,18 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.worker.start()
         else:
             self.lag_spin.setEnabled(False)
+        self.athlete = athlete
+        self.skeleton.athlete = athlete
+        self.more_athletes = dict(more_athletes or {}) if synthesis is not None else {}
+        self.other_workers: dict[str, SynthesisWorker] = {}
+        for name, setup in self.more_athletes.items():
+            other = SynthesisWorker(setup, keep_poses=keep_poses)
+            self.bridge.sample_sinks.append(other.add_samples)
+            self.bridge.athlete_camera_sinks.setdefault(name, []).append(other.add_camera)
+            self.bridge.recording_sinks.append(other.recording_started)
+            self.lag_spin.valueChanged.connect(other.set_lag)
+            other.start()
+            self.other_workers[name] = other
         if truth_parents is not None and synthesis is None:
             self.skeleton.set_skeleton(truth_parents)
 
@@ -246,12 +265,17 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                 # synthesis starts afresh on the new connection's data (queued before it, in-band): the frames
                 # of the outage would otherwise all be pushed through the engine blind (12 s of them after a
                 # gateway restart, as many as the outage was long)
-                self.worker.reset()
+                self._reset_workers()
             self.bridge.attach(client)
             return client, gateway_clock_offset_s(client)
         except Exception:
             client.close()
             raise
+
+    def _reset_workers(self) -> None:
+        """Every athlete's synthesis starts afresh (a reconnect, a playback seek, back to live)."""
+        for worker in ([self.worker] if self.worker is not None else []) + list(self.other_workers.values()):
+            worker.reset()
 
     # -- clock ----------------------------------------------------------------------------------------------
     def gateway_now_s(self) -> float:
@@ -275,6 +299,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self._update_status()
         header, jpeg, trail = self.bridge.camera_frame()
         self.camera.update_camera(header, jpeg, trail, self.bridge.camera_rate)
+        if self.bridge.athlete_cameras:
+            self.camera.update_athletes(self.bridge.athlete_tracks(), self.bridge.camera_athlete)
         self.recording.show_state(self.bridge.latest("recording"), self.gateway_now_s())
         calibration = self.bridge.latest("calibration")
         self._mark_tap(calibration)
@@ -337,6 +363,10 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         truth = self.truth(t_pose) if (self.truth is not None and t_pose is not None) else None
         if estimate is not None or truth is not None:
             self.skeleton.set_poses(estimate, truth)
+        if self.other_workers:
+            latest = {name: w.latest_pose() for name, w in self.other_workers.items()}
+            self.skeleton.set_other_athletes({name: (None, None) if p is None else (p.joint_positions_m, p.confidence)
+                                              for name, p in latest.items()})
 
     def _update_statusbar(self) -> None:
         latest = self.store.latest_time()
@@ -346,12 +376,15 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                     if self.bridge.dropped_total else ""),
                  f"newest sample age {age:.0f} ms",
                  f"GUI {self.stats.fps:.0f} fps, tick {self.stats.tick_ms:.1f} ms (max {self.stats.max_tick_ms:.0f})"]
-        if self.worker is not None:
-            s = self.worker.stats
-            pose = self.worker.latest_pose()
+        workers = ({self.athlete or "": self.worker} if self.worker is not None else {}) | self.other_workers
+        for name, worker in workers.items():
+            s = worker.stats
+            pose = worker.latest_pose()
+            engine = worker.setup.engine
+            who = f"{name} " if self.other_workers else ""
             conf = "" if pose is None or pose.confidence is None else f", confidence {pose.confidence:.2f}"
-            lag = f"lag {s.lag_s:.2f} s, " if self.synthesis.engine.lag_applies else ""
-            parts.append(f"{self.synthesis.engine.label}: {lag}{s.frames_per_s:.0f} frames/s, "
+            lag = f"lag {s.lag_s:.2f} s, " if engine.lag_applies else ""
+            parts.append(f"{who}{engine.label}: {lag}{s.frames_per_s:.0f} frames/s, "
                          f"{streamed_summary(s)}, "
                          f"{s.push_ms:.1f} ms/frame{conf}"
                          + (f", {s.engine_status}" if s.engine_status else "")
@@ -359,9 +392,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                          + (f", {s.late_samples} samples / {s.late_fixes} camera fixes came after their frames"
                             if s.late_samples or s.late_fixes else "")
                          + (f" ERROR {s.error}" if s.error else ""))
-            behind = s.falling_behind(self.synthesis.engine.rate_hz)
+            behind = s.falling_behind(engine.rate_hz)
             if behind:
-                parts.insert(0, behind)  # first: the status line is cut at the window's width
+                parts.insert(0, who + behind)  # first: the status line is cut at the window's width
         if self.playback is not None:
             parts.insert(0, f"PLAYBACK {self.playback.path.name}")
         self.status_label.setText("  |  ".join(parts))
@@ -449,7 +482,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         if self.playback is None:
             return
         if self.worker is not None:
-            self.worker.reset()  # the stream jumps in time: start a fresh window
+            self._reset_workers()  # the stream jumps in time: start a fresh window
         self.playback.seek(self.playback.t_start_s + t_rel_s, self.bridge)
         self._play_wall0, self._play_t0 = time.monotonic(), self.playback.cursor_s
         self.playbar.show_position(self.playback.cursor_s - self.playback.t_start_s)
@@ -459,35 +492,47 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.playbar.play_button.setChecked(False)
         self.bridge.reset_history()
         if self.worker is not None:
-            self.worker.reset()
+            self._reset_workers()
         if self.client is not None and self.client.connected:
             self.bridge.attach(self.client)
 
     # -- saved poses -------------------------------------------------------------------------------------------
     def save_poses(self, path: str | Path) -> Path:
         """Write every pose kept since the engine's last (re)start (``keep_poses``), in the format
-        `courtside synthesize --save-poses` writes (`engine.stream.poses_file`)."""
+        `courtside synthesize --save-poses` writes (`engine.stream.poses_file`). With several athletes the first
+        athlete's poses go to ``path`` and each other athlete's to ``<stem>.<athlete>.npz`` beside it; every file
+        names its athlete in its metadata."""
         from engine.errors import CourtsideError
-        from engine.stream.poses_file import save_poses
 
         if self.worker is None or self.synthesis is None:
             raise CourtsideError(f"{path}: no synthesis ran in this console: no poses to save")
-        start, poses = self.worker.poses()
-        spec = self.synthesis.engine
+        path = Path(path)
+        for name, worker in self.other_workers.items():
+            self._save_worker_poses(path.with_name(f"{path.stem}.{name}{path.suffix or '.npz'}"), worker, name)
+        return self._save_worker_poses(path, self.worker, self.athlete)
+
+    def _save_worker_poses(self, path: Path, worker: SynthesisWorker, athlete: str | None) -> Path:
+        from engine.stream.poses_file import save_poses
+
+        start, poses = worker.poses()
+        setup = worker.setup
+        spec = setup.engine
         recording = self.bridge.latest("recording") or {}
-        meta = {"engine": spec.name, "database": spec.database, "lag_s": self.worker.stats.lag_s,
+        meta = {"engine": spec.name, "database": spec.database, "lag_s": worker.stats.lag_s,
                 "rate_hz": spec.rate_hz, "start_frame": start, "take": recording.get("take"),
-                "use_camera_heading": self.synthesis.use_camera_heading,
-                "frames_in": self.worker.stats.frames_in, "frames_invalid": self.worker.stats.frames_invalid,
-                "frames_with_camera": self.worker.stats.frames_with_camera,
+                "use_camera_heading": setup.use_camera_heading,
+                "frames_in": worker.stats.frames_in, "frames_invalid": worker.stats.frames_invalid,
+                "frames_with_camera": worker.stats.frames_with_camera,
                 "engine_inputs": list(spec.inputs),
-                "frames_with_orientation": self.worker.stats.frames_with_orientation,
-                "frames_with_gyro": self.worker.stats.frames_with_gyro,
+                "frames_with_orientation": worker.stats.frames_with_orientation,
+                "frames_with_gyro": worker.stats.frames_with_gyro,
                 # live = offline needs the console to have seen every recorded sample: count what it missed
                 "display_frames_dropped": self.bridge.dropped_total, "reconnects": self.reconnects,
-                "late_samples": self.worker.stats.late_samples, "late_fixes": self.worker.stats.late_fixes,
+                "late_samples": worker.stats.late_samples, "late_fixes": worker.stats.late_fixes,
                 "sensors": [{"stream": f"{st}/{i}", "placement": name}
-                            for (st, i), name in zip(self.synthesis.sensors, spec.sensor_names)]}
+                            for (st, i), name in zip(setup.sensors, spec.sensor_names)]}
+        if athlete is not None:
+            meta["athlete"] = athlete
         return save_poses(path, poses, spec.parents, meta)
 
     # -- shutdown -----------------------------------------------------------------------------------------------
@@ -498,9 +543,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
     def shutdown(self) -> None:
         self.timer.stop()
         self.link_timer.stop()
-        if self.worker is not None:
-            self.worker.stop()
-            self.worker.join(timeout=2)
+        for worker in ([self.worker] if self.worker is not None else []) + list(self.other_workers.values()):
+            worker.stop()
+            worker.join(timeout=2)
         self.bridge.detach()
         self.requests.shutdown()
         if self._owns_client and self.client is not None:

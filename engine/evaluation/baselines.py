@@ -94,3 +94,26 @@ class NearestNeighbour:
         if ground_m is None:
             ground_m, heading_rad = dead_reckoned(self.graph, nodes, start_ground_m, start_heading_rad)
         return place_local_poses(node_local_poses(self.graph, nodes), ground_m, heading_rad), nodes
+
+
+def database_oracle(graph: MotionGraph, true_joints_m: np.ndarray, skeleton, ground_m: np.ndarray,
+                    heading_rad: np.ndarray, chunk: int = 256) -> tuple[np.ndarray, np.ndarray]:
+    """(world joints (T, J, 3), nodes (T,)): per frame the database pose nearest the truth (squared distance over
+    the scored joints, both in their root frames as metrics.frame_errors compares them), placed at the camera.
+    Not an engine (it reads the truth): the floor of the root-relative error any database-playing method can
+    reach, so a table can say which fraction of the possible gain an engine gets (issue 18)."""
+    from engine.mocap import error_joint_indices
+
+    from .metrics import hips_heading
+
+    joints = error_joint_indices(skeleton)
+    orig = _original(graph)
+    db_pos = graph.node_positions_m[orig].astype(float)
+    db = root_local(db_pos[:, joints], db_pos[:, 0, [0, 2]], hips_heading(db_pos, skeleton))
+    db = db.reshape(len(orig), -1).astype(np.float32)
+    db_sq = np.einsum("ij,ij->i", db, db)
+    truth = root_local(true_joints_m[:, joints], true_joints_m[:, 0, [0, 2]], hips_heading(true_joints_m, skeleton))
+    truth = truth.reshape(len(truth), -1).astype(np.float32)
+    nodes = np.concatenate([orig[np.argmin(db_sq[None] - 2.0 * truth[i:i + chunk] @ db.T, axis=1)]
+                            for i in range(0, len(truth), chunk)])
+    return place_local_poses(node_local_poses(graph, nodes), ground_m, heading_rad), nodes

@@ -24,6 +24,7 @@ from engine.graph.graph import MotionGraph, build_from_clips
 from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
+from engine.mocap.orientation import OrientationErrorModel
 
 from . import plot, protocols, table
 from .labels import clip_label
@@ -71,6 +72,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sensor-noise", choices=["seed000", "measured_real", "clean"], default="measured_real",
                    help="accelerometer error model: the 0.15 g^2 gap measured on a real recording "
                         "(SensorErrorModel.measured_real, default), seed 000's 1.6 g^2 gap, or none")
+    p.add_argument("--inputs", default="acc",
+                   help="motion graph rows: comma list of acc (accelerations only) and acc+ori (accelerations + "
+                        "orientation quaternions under OrientationErrorModel.realistic(): per-sensor yaw, drift, "
+                        "tilt noise, misalignment)")
+    p.add_argument("--orientation-noise", choices=["realistic", "clean"], default="realistic",
+                   help="acc+ori rows: the orientation filter's error model (clean = a shared north, no error)")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
     p.add_argument("--plot", metavar="OUT.png", help="draw the first take's per-second error of every row and the "
                                                      "table as bars (needs the plot extra: courtside[plot])")
@@ -95,7 +102,12 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
     if bad:
         raise CourtsideError(f"--sensor-sets: {bad} not among {sorted(protocols.SENSOR_SETS)}")
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
+    inputs = tuple(i for i in args.inputs.split(",") if i)
+    if not inputs or set(inputs) - set(protocols.INPUTS):
+        raise CourtsideError(f"--inputs: expected a comma list of {', '.join(protocols.INPUTS)}, got {args.inputs!r}")
     return protocols.EvalConfig(
+        inputs=inputs, orientation_weight=1.0 if args.orientation_weight is None else args.orientation_weight,
+        orientation_model=getattr(OrientationErrorModel, args.orientation_noise)(),
         sensor_sets=sets, engines=engines,
         camera=CameraModel(args.camera_noise_m, float(np.radians(args.camera_noise_deg)), args.camera_hz),
         error_model=None if args.sensor_noise == "clean" else getattr(SensorErrorModel, args.sensor_noise)(),
@@ -184,6 +196,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"take {k + 1}: {take.duration_s:.1f} s from {len(take.segments)} held-out clips: "
                   + " > ".join(s.label for s in take.segments))
         print(table.format_table(results, fps))
+        print("\n".join(table.oracle_fractions(results)))
         print("\n".join(table.chained_verdict(results, args.camera_noise_m)))
         key = protocols.Row("motion graph", str(max(cfg.sensor_sets)), protocols.CAMERA_ON)
         if key in results:
@@ -208,6 +221,10 @@ def main(argv: list[str] | None = None) -> int:
         for g, results in per_group.items():
             print(f"[{key} {g}]")
             print("\n".join(table.format_rows(results, fps)))
+        pooled = protocols.pooled(per_group)
+        print("[all groups]")
+        print("\n".join(table.format_rows(pooled, fps)))
+        print("\n".join(table.oracle_fractions(pooled)))
         if key == "content":  # the issue's threshold is for leaving out a content (turning walks)
             for g, results in per_group.items():
                 print("\n".join(table.group_verdict(f"{key} {g}", results)))

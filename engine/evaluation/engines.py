@@ -54,10 +54,12 @@ def start_state(take: Take, camera_position_m: np.ndarray, camera_heading_rad: n
 def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: tuple[int, ...],
                  camera_position_m: np.ndarray, camera_heading_rad: np.ndarray, weights: SearchWeights,
                  use_camera: bool, warp: RootWarp = RootWarp.off(), lag_s: float | None = None,
-                 fusion: RootFusion = RootFusion.off(), error_model: SensorErrorModel | None = None) -> Prediction:
+                 fusion: RootFusion = RootFusion.off(), error_model: SensorErrorModel | None = None,
+                 quat_wxyz: np.ndarray | None = None) -> Prediction:
     """Batch Viterbi search, or with `lag_s` the online fixed-lag decoder (what a live user sees, with its
     confidence against the database's own clips observed through `error_model`, default seed 000's); without the
-    camera only its first fix is kept (where the paths start) and the root is neither warped nor fused."""
+    camera only its first fix is kept (where the paths start) and the root is neither warped nor fused.
+    `quat_wxyz` (T, S, 4): the graph sensors' device-earth orientations (used if `weights.orientation` > 0)."""
     pos, head = camera_position_m.copy(), camera_heading_rad.copy()
     if not use_camera:
         pos[1:], head[1:] = np.nan, np.nan
@@ -65,8 +67,9 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
     fusion = fusion if use_camera else RootFusion.off()
     acc = acc_g[:, list(sensor_indices)] if weights.acc and acc_g is not None else None
     sensors = tuple(sensor_indices) if acc is not None else None
+    quats = quat_wxyz[:, list(sensor_indices)] if acc is not None and quat_wxyz is not None else None
     if lag_s is None:
-        res = ViterbiSearch(graph, weights, warp=warp).run(Observations(acc, pos, head, sensors))
+        res = ViterbiSearch(graph, weights, warp=warp).run(Observations(acc, pos, head, sensors, quats))
         ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
         joints = world_joint_positions(graph, res.nodes, ground, heading) if res.blend_nodes is None \
             else blended_joint_positions(graph, res.blend_nodes, ground, heading)
@@ -76,7 +79,7 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
                                           camera_noise_rad=fusion.heading_noise_rad)
     syn = FixedLagSynthesizer(graph, lag_s, weights, sensors, warp=warp, fusion=fusion,
                               confidence_reference=reference)
-    poses = drive_frames(syn, acc, pos, head)
+    poses = drive_frames(syn, acc, pos, head, quat_wxyz=quats)
     return Prediction(np.stack([p.joint_positions_m for p in poses]),
                       graph.node_clip[np.array([p.node for p in poses])].astype(int),
                       np.array([p.confidence for p in poses]))

@@ -26,6 +26,7 @@ from engine.graph.viterbi import SearchWeights
 from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SEED003_SENSORS, Motion, SensorErrorModel
+from engine.mocap.orientation import OrientationErrorModel
 from engine.stream import EngineSpec, engine_names
 from engine.stream.registry import adapter
 
@@ -44,6 +45,8 @@ SENSOR_SETS: dict[int, tuple[str, ...]] = {
 HMM_IMUS: dict[int, tuple[str, ...]] = {1: ("right_foot",), 2: ("right_foot", "right_wrist")}
 BASELINES = "baselines"  # the mean pose and the nearest neighbour: rows beside the engines, not an engine
 OWN_ROWS = ("motion-graph", "olng", "hmm", BASELINES)  # run by their own row code below; other engines generically
+INPUTS = ("acc", "acc+ori")  # the motion graph's rows: accelerations only / + orientations (issue 18)
+ORACLE = "database oracle"
 
 CAMERA_ON, CAMERA_OFF = "yes", "no"
 
@@ -82,6 +85,9 @@ class EvalConfig:
     nn_window: int = 15
     lag_s: float | None = None  # motion graph: None = batch search, else the online fixed-lag decoder
     seed: int = 0
+    inputs: tuple[str, ...] = ("acc",)  # motion graph rows per sensor set (INPUTS)
+    orientation_model: OrientationErrorModel = field(default_factory=OrientationErrorModel.realistic)
+    orientation_weight: float = 1.0  # SearchWeights.orientation of the acc+ori rows
 
 
 @dataclass
@@ -163,7 +169,7 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                   results: dict[Row, RowScores]) -> None:
     """Simulate the inputs of one take once and score every configured row on them (appends to `results`)."""
     graph = held.graph
-    streams = np.random.SeedSequence(rng_seed).spawn(4)
+    streams = np.random.SeedSequence(rng_seed).spawn(5)
     cam = simulate.camera_track(take, cfg.camera, np.random.default_rng(streams[0]))
     cam_pos, cam_head = cam.filled()
     acc, _ = simulate.accelerometers(take, graph.config.sensor_names, cfg.error_model,
@@ -192,14 +198,21 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
         record(Row("mean pose", "-", CAMERA_OFF),
                lambda: engines.Prediction(baselines.mean_pose(graph, np.repeat(off[0], take.n_frames, 0),
                                                               np.repeat(off[1], take.n_frames))))
+        record(Row(ORACLE, "-", CAMERA_ON),
+               lambda: engines.Prediction(*_oracle(graph, take, cam_pos, cam_head)))
     if "motion-graph" in cfg.engines:
-        w_on, w_off = cfg.weights, replace(cfg.weights, position=0.0, heading=0.0)
-        for k, idx in sets:
-            for camera, w in ((CAMERA_ON, w_on), (CAMERA_OFF, w_off)):
-                record(Row("motion graph", str(k), camera),
-                       lambda: engines.motion_graph(graph, acc, idx, cam.position_m, cam.heading_rad, w,
-                                                    camera == CAMERA_ON, cfg.warp, cfg.lag_s, cfg.fusion,
-                                                    cfg.error_model))
+        quats = simulate.orientations(take, graph.config.sensor_names, cfg.orientation_model,
+                                      np.random.default_rng(streams[4])) if "acc+ori" in cfg.inputs else None
+        for inputs in cfg.inputs:
+            name, ori = ("motion graph", 0.0) if inputs == "acc" else ("motion graph +ori", cfg.orientation_weight)
+            w_on = replace(cfg.weights, orientation=ori)
+            w_off = replace(w_on, position=0.0, heading=0.0)
+            for k, idx in sets:
+                for camera, w in ((CAMERA_ON, w_on), (CAMERA_OFF, w_off)):
+                    record(Row(name, str(k), camera),
+                           lambda: engines.motion_graph(graph, acc, idx, cam.position_m, cam.heading_rad, w,
+                                                        camera == CAMERA_ON, cfg.warp, cfg.lag_s, cfg.fusion,
+                                                        cfg.error_model, quats if ori else None))
         record(Row("camera only (W_A=0)", "0", CAMERA_ON),
                lambda: engines.motion_graph(graph, None, (), cam.position_m, cam.heading_rad,
                                             replace(cfg.weights, acc=0.0), True,
@@ -246,6 +259,12 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                        cam, cfg.fusion, cfg.lag_s))
 
 
+def _oracle(graph: MotionGraph, take: Take, cam_pos: np.ndarray, cam_head: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+    joints, nodes = baselines.database_oracle(graph, take.joints_m, take.skeleton, cam_pos, cam_head)
+    return joints, graph.node_clip[nodes].astype(int)
+
+
 def chained_takes(db: Database, takes: list[list[int]], cfg: EvalConfig, max_clip_s: float | None = None
                   ) -> tuple[dict[Row, RowScores], list[Take]]:
     """Each take's clips held out of every database (whole, even when only their start is played), the take
@@ -284,3 +303,17 @@ def traces(scores: RowScores, fps: float) -> list[dict[str, list[float]]]:
     """Per take: per-second global / root-relative / position / heading error."""
     return [{f: [round(float(v), 2) for v in per_second(getattr(e, f), fps)]
              for f in ("global_cm", "root_relative_cm", "position_cm", "heading_deg")} for e in scores.errors]
+
+
+def pooled(per_group: dict[str, dict[Row, RowScores]]) -> dict[Row, RowScores]:
+    """Every group's takes of each row together (a leave-one-content-out run's overall line)."""
+    out: dict[Row, RowScores] = {}
+    for results in per_group.values():
+        for row, scores in results.items():
+            acc = out.setdefault(row, RowScores())
+            acc.errors += scores.errors
+            acc.clips_used += scores.clips_used
+            acc.longest_run_s += scores.longest_run_s
+            acc.seconds += scores.seconds
+            acc.confidence += scores.confidence
+    return out

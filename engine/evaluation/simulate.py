@@ -17,6 +17,7 @@ import numpy as np
 from engine.errors import CourtsideError
 from engine.mocap import (Motion, SensorErrorModel, resample, standard_placements, virtual_accelerometers,
                           virtual_gyroscopes)
+from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
 
 from .takes import Take
 
@@ -84,3 +85,13 @@ def gyroscopes(take: Take, sensor_names: tuple[str, ...] | list[str], fps: float
     """(T', S, 3) rad/s, clean (the HMM's IMU feature; no gyro error model exists in engine.mocap yet)."""
     return per_segment(take, take.fps if fps is None else fps,
                        lambda m: virtual_gyroscopes(m, standard_placements(m.skeleton, sensor_names)))[0]
+
+
+def orientations(take: Take, sensor_names: tuple[str, ...] | list[str], error_model: OrientationErrorModel,
+                 rng: np.random.Generator, fps: float | None = None) -> np.ndarray:
+    """(T', S, 4) device-earth quaternions (Z up, yaw per sensor) of the named standard sensors at `fps` (default:
+    the take rate): the true orientations segment by segment, then ONE draw of `error_model` over the take (the
+    per-sensor yaw offsets and drifts of one set of hardware)."""
+    fps = take.fps if fps is None else fps
+    q, _ = per_segment(take, fps, lambda m: virtual_orientations(m, standard_placements(m.skeleton, sensor_names)))
+    return error_model.apply(q, fps, rng)

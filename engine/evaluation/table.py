@@ -41,6 +41,27 @@ def format_table(results: dict[Row, RowScores], fps: float) -> str:
     return "\n".join([HEADER, "-" * len(HEADER), *format_rows(results, fps)])
 
 
+def oracle_fractions(results: dict[Row, RowScores]) -> list[str]:
+    """Per row with the camera: which fraction of the database oracle's gain over the mean pose (root-relative)
+    it gets, and how far it is from the oracle (issue 18's "within 1.5 cm of the oracle")."""
+    from .protocols import ORACLE
+
+    ref = skill_reference(results)
+    oracle = _find(results, ORACLE, "-", CAMERA_ON)
+    if oracle is None or not np.isfinite(ref):
+        return []
+    gain = ref - oracle["root_relative_cm"]
+    lines = [f"database oracle root-relative {oracle['root_relative_cm']:.1f} cm (mean pose {ref:.1f} cm): "
+             "fraction of its gain per row, and the distance to it"]
+    for row, scores in results.items():
+        if row.camera != CAMERA_ON or row.engine in (ORACLE, "mean pose"):
+            continue
+        rr = summary(scores.errors)["root_relative_cm"]
+        lines.append(f"  {row.engine}, {row.sensors} sensors: {(ref - rr) / gain:.2f} of the oracle's gain, "
+                     f"{rr - oracle['root_relative_cm']:+.1f} cm from it")
+    return lines
+
+
 def format_trace(name: str, values: np.ndarray) -> str:
     """One take's per-second values as a compact line (integers)."""
     return f"{name}: " + " ".join(f"{v:.0f}" for v in values)

@@ -12,7 +12,10 @@ import time
 import numpy as np
 
 from .graph import MotionGraph
+from engine.mocap.orientation import to_device_earth
+
 from .online import FixedLagSynthesizer
+from .orientation_term import node_sensor_orientations
 from .root_fusion import RootFusion
 from .viterbi import SearchWeights
 from .warp import RootWarp
@@ -21,21 +24,24 @@ LIVE_RATE_HZ = 30.0
 
 
 def online_rate(graph: MotionGraph, n_samples: int = 90, lag_s: float = 2.0,
-                weights: SearchWeights | None = None) -> tuple[float, float]:
+                weights: SearchWeights | None = None, orientations: bool = False) -> tuple[float, float]:
     """Samples per second of `FixedLagSynthesizer` on this graph over `n_samples` pushes (after one warm-up push
     that loads the compiled kernels): (per CPU second -- what the graph costs one core --, per wall second --
     what this machine gave it just now; lower when other processes share the cores). `weights`: the live
-    preset (SearchWeights.camera_following) unless given."""
-    rows = graph.node_arrival[np.arange(n_samples + 1) % graph.n_nodes]
+    preset (SearchWeights.camera_following) unless given; `orientations`: the database's own sensor orientations
+    pushed too (device frames, no yaw offset), so the orientation term runs."""
+    nodes = np.arange(n_samples + 1) % graph.n_nodes
+    quats = to_device_earth(node_sensor_orientations(graph)[nodes]) if orientations else [None] * len(nodes)
+    rows = graph.node_arrival[nodes]
     acc = graph.meta_acc_g[rows].astype(float)
     ground = graph.node_ground_m[np.arange(n_samples + 1) % graph.n_nodes]
     heading = graph.node_heading_rad[np.arange(n_samples + 1) % graph.n_nodes]
     syn = FixedLagSynthesizer(graph, lag_s, weights or SearchWeights.camera_following(), warp=RootWarp(),
                               confidence_reference=1.0, fusion=RootFusion())  # as live: root fusion on
-    syn.push(acc[0], ground[0], heading[0])
+    syn.push(acc[0], ground[0], heading[0], quat_wxyz=quats[0])
     t0, c0 = time.perf_counter(), time.process_time()
     for t in range(1, n_samples + 1):
-        syn.push(acc[t], ground[t], heading[t])
+        syn.push(acc[t], ground[t], heading[t], quat_wxyz=quats[t])
     return n_samples / max(time.process_time() - c0, 1e-9), n_samples / (time.perf_counter() - t0)
 
 

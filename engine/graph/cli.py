@@ -152,6 +152,12 @@ def add_search_args(p: argparse.ArgumentParser) -> None:
                    help="per-sample fading of every path's accumulated cost, in (0, 1]; 1 = seed 000's Viterbi, "
                         "one path, unblended (default: 0.9 with root warping, deciding each sample 0.2 s later and "
                         "blending the 8 best paths; 1 without; engine/graph/viterbi.SearchWeights)")
+    p.add_argument("--orientation-weight", type=float, default=None, metavar="W",
+                   help="weight of the orientation term (takes with quat_wxyz; engine/graph/orientation_term.py) "
+                        "relative to the accelerations' (default 1 with root warping, 0 = orientations ignored)")
+    p.add_argument("--orientation-heading", type=float, default=None, metavar="SHARE",
+                   help="share of the orientation term's heading part (limb heading relative to the pelvis sensor, "
+                        "per-sensor yaw offsets learnt online) against its tilt part (default 0: tilt alone)")
 
 
 def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights:
@@ -167,6 +173,12 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
         # the blend of the best paths needs per-sample decisions: forgetting 1 is seed 000's search, unblended
         weights = replace(weights, forgetting=args.forgetting,
                           blend_paths=weights.blend_paths if args.forgetting < 1 else 1)
+    if args.orientation_weight is not None:
+        check_non_negative("--orientation-weight", [args.orientation_weight])
+        weights = replace(weights, orientation=args.orientation_weight)
+    if args.orientation_heading is not None:
+        check_non_negative("--orientation-heading", [args.orientation_heading])
+        weights = replace(weights, orientation_heading=args.orientation_heading)
     return weights
 
 

@@ -87,10 +87,11 @@ class FixedLagSynthesizer:
              quat_wxyz: np.ndarray | None = None, gyro_rps: np.ndarray | None = None) -> list[EmittedPose]:
         """Consume sample t (acc (S, 3) g, optional ground position (2,) m and heading rad; `penalty` = optional
         per-node broken-constraint count for this sample; `rows` = this sample's `acc_rows_batch` row if the
-        caller batched them); returns the pose of sample t - L once t >= L. The accelerometer graph has no use
-        for ``quat_wxyz``/``gyro_rps`` (the `engine.stream.OnlineEngine` protocol's other channels): ignored."""
+        caller batched them; `quat_wxyz` (S, 4) the sensors' device-earth orientations, used when the weights
+        turn the orientation term on; `gyro_rps` is accepted and not used); returns the pose of sample t - L once
+        t >= L."""
         lat = self.lattice
-        lat.step(acc_g, pos_m, heading_rad, penalty, rows)
+        lat.step(acc_g, pos_m, heading_rad, penalty, rows, quat_wxyz)
         self._fuser.push(pos_m, heading_rad)
         t = lat.t
         per_sample = self._window.push(lat.cost_offset)
@@ -160,6 +161,7 @@ class FixedLagSynthesizer:
         if self._last is not None and edges[0] >= 0 and self.graph.edge_src[edges[0]] != self._last[2]:
             edges[0] = -1  # the decoder changed its mind since the last decided sample
         self.next_decide = last + 1
+        lat.learn_orientation(first, nodes)
         self._last = (complex(*ground[-1]), float(heading[-1]), int(nodes[-1]))
         lat.drop_before(self.next_decide)
         self._decided += [(int(nodes[i]), int(edges[i]), ground[i], float(heading[i]), blend[i]) for i in range(k)]
@@ -196,7 +198,7 @@ def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Obse
     lat = syn.lattice
     poses: list[EmittedPose] = []
     for step in step_arguments(lat, obs, constraints):
-        poses += syn.push(*step)
+        poses += syn.push(*step[:5], quat_wxyz=step[5])
     best = lat.best_node()
     cost, broken = lat.cost_of(best), lat.broken_of(best)
     poses += syn.flush()

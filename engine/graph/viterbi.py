@@ -32,6 +32,7 @@ from engine import progress
 from .edge_runs import EdgeRuns
 from .geometry import wrap_angle
 from .graph import MotionGraph
+from .orientation_term import OrientationTerm, places_sensors
 from .trig32 import cos_sin
 from .warp import RootWarp, follow_camera
 
@@ -86,6 +87,10 @@ class SearchWeights:
     forgetting: float = 1.0
     decision_frames: int = 0
     blend_paths: int = 1  # output pose = mean root-frame pose of the best this many paths at the decided sample
+    orientation: float = 0.0  # weight of the orientation term relative to C_A (orientation_term.py); 0 = off,
+    # and the term is skipped for samples without orientations (an acc-only take searches exactly as before)
+    orientation_heading: float = 0.0  # share of its heading-relative-to-the-pelvis part (learnt yaw offsets)
+    # against its tilt part; 0 = tilt alone (measured best: docs/engine-evaluation.md, "Orientations")
 
     def __post_init__(self) -> None:
         if self.blend_paths < 1 or (self.blend_paths > 1 and not self.forgets):
@@ -109,8 +114,10 @@ class SearchWeights:
         the mean pose); 1 / 0.3 keep a loose speed / turning constraint. Forgetting 0.9 makes a path's cost a
         match over the last ~10 samples (0.85 was best under the small real-sensor gap, 0.93 under seed 000's
         large one); the blend of 8 paths averages nearly equally good matches (k-NN, as Tautges et al.'s OLNG).
-        Measured on chained held-out Bandai takes: docs/engine-evaluation.md."""
-        return cls(1.0, 1.0, 0.3, forgetting=0.9, decision_frames=6, blend_paths=8)
+        Measured on chained held-out Bandai takes: docs/engine-evaluation.md. Orientation term weight 1
+        (orientation_term.py: at 1 its database spread equals the accelerations'); a take without orientations
+        searches exactly as with 0."""
+        return cls(1.0, 1.0, 0.3, forgetting=0.9, decision_frames=6, blend_paths=8, orientation=1.0)
 
 
 @dataclass(frozen=True)
@@ -197,10 +204,18 @@ class ViterbiLattice:
         self.n_sensors = len(sel)
         m = len(graph.meta_acc_g)
         # (3S, M) float32: one contiguous row per sensor axis (a single copy: this runs once per search)
+        acc_t = np.asarray(graph.meta_acc_g, dtype=np.float32)[:, sel, :].transpose(1, 2, 0).reshape(-1, m)
+        # the orientation term's features are extra rows of the same squared distance (orientation_term.py);
+        # a sample without orientations uses the first 3S rows alone (a contiguous view)
+        self.orientation = OrientationTerm(graph, sel, weights.orientation, weights.orientation_heading) \
+            if weights.orientation > 0 and self.n_sensors and places_sensors(graph) else None
+        self._encoder = None if self.orientation is None else self.orientation.encoder()
         self._meta_acc_t = np.ascontiguousarray(
-            np.asarray(graph.meta_acc_g, dtype=np.float32)[:, sel, :].transpose(1, 2, 0)).reshape(-1, m)
-        self._meta_acc_sq = np.einsum("ij,ij->j", self._meta_acc_t, self._meta_acc_t,
-                                      dtype=np.float64).astype(np.float32)
+            acc_t if self.orientation is None else np.concatenate([acc_t, self.orientation.meta_rows_t]))
+        widths = {3 * self.n_sensors, 6 * self.n_sensors, len(self._meta_acc_t)} if self.orientation else \
+            {3 * self.n_sensors}  # acc; acc + tilt; acc + tilt + heading (orientation_term.py)
+        self._meta_sq = {k: np.einsum("ij,ij->j", self._meta_acc_t[:k], self._meta_acc_t[:k],
+                                      dtype=np.float64).astype(np.float32) for k in widths}  # by input width
         if kernel == "numpy":  # scratch of the reference's row-axpys (the compiled kernel batches its own)
             self._dots = np.empty(m, dtype=np.float32)
             self._axpy = np.empty(m, dtype=np.float32)
@@ -238,8 +253,7 @@ class ViterbiLattice:
         if acc_g is None or self.n_sensors == 0 or self.weights.acc == 0:
             return None
         m = np.asarray(acc_g, dtype=np.float64).reshape(-1)
-        if m.size != 3 * self.n_sensors:
-            raise ValueError(f"expected {self.n_sensors} sensors x 3 axes, got shape {np.shape(acc_g)}")
+        self._check_width(m.size, np.shape(acc_g))
         if self.kernel == "numba":
             return self.acc_rows_batch(m[None])[0]
         m32 = m.astype(np.float32)
@@ -249,7 +263,7 @@ class ViterbiLattice:
             np.multiply(self._meta_acc_t[i], m32[i], out=tmp)
             dots += tmp
         dots *= np.float32(-2.0)
-        dots += self._meta_acc_sq
+        dots += self._meta_sq[len(m32)]
         dots += np.float32(m @ m)
         dots *= np.float32(self.weights.acc / self.n_sensors)
         return dots
@@ -258,13 +272,31 @@ class ViterbiLattice:
         """`_acc_rows` of B samples (B, S', 3) at once -> (B, M) float32, bit-identical per row (compiled: the
         metadata is read once per batch instead of once per sample). Batch search feeds these to `step`."""
         m = np.asarray(acc_g, dtype=np.float64).reshape(len(acc_g), -1)
-        if m.shape[1] != 3 * self.n_sensors:
-            raise ValueError(f"expected {self.n_sensors} sensors x 3 axes, got shape {np.shape(acc_g)}")
+        self._check_width(m.shape[1], np.shape(acc_g))
         out = np.empty((len(m), self._meta_acc_t.shape[1]), dtype=np.float32)
+        width = m.shape[1]
         mm = np.array([np.float32(v @ v) for v in m], dtype=np.float32)
         scale = np.full(len(m), self.weights.acc / self.n_sensors, dtype=np.float32)
-        kernels.acc_rows(self._meta_acc_t, self._meta_acc_sq, m.astype(np.float32), mm, scale, out)
+        kernels.acc_rows(self._meta_acc_t[:width], self._meta_sq[width], m.astype(np.float32), mm, scale, out)
         return out
+
+    def _check_width(self, width: int, shape: tuple) -> None:
+        if width not in self._meta_sq:
+            raise ValueError(f"expected {self.n_sensors} sensors x 3 axes, got shape {shape}")
+
+    def encode(self, acc_g: np.ndarray | None, quat_wxyz: np.ndarray | None) -> np.ndarray | None:
+        """The C_A input of one sample: the accelerations, followed by the orientation features when the term is
+        on and the sample has orientations (the encoder counts samples: once per sample, in order)."""
+        feats = None if self._encoder is None else self._encoder.push(quat_wxyz)
+        if acc_g is None or feats is None:
+            return acc_g
+        return np.concatenate([np.asarray(acc_g, float).reshape(-1, 3), feats])
+
+    def learn_orientation(self, first: int, nodes: np.ndarray) -> None:
+        """Samples first.. were decided as `nodes`: the orientation term's yaw-offset estimate learns from them
+        (orientation_term.OrientationEncoder.learn; no-op without the term)."""
+        if self._encoder is not None:
+            self._encoder.learn(first, nodes)
 
     def _edge_rows(self, rows: np.ndarray) -> np.ndarray:
         """Each edge's W_A C_A (search order) from the per-metadata-row costs."""
@@ -286,10 +318,10 @@ class ViterbiLattice:
         return tuple(np.full(self.graph.n_nodes, v, dtype=np.float32) for v in values)
 
     def start(self, acc_g: np.ndarray | None, position_m: np.ndarray | None, heading_rad: float | None,
-              penalty: np.ndarray | None = None) -> None:
+              penalty: np.ndarray | None = None, quat_wxyz: np.ndarray | None = None) -> None:
         """First sample: every node may start a path; its cost is the arrival row's C_A, global state = input."""
         n = self.graph.n_nodes
-        rows = self._acc_rows(acc_g)
+        rows = self._acc_rows(self.encode(acc_g, quat_wxyz))
         self._G = np.zeros(n, dtype=np.float32) if rows is None else rows[self.graph.node_arrival]
         self._spare_G = np.empty(n, dtype=np.float32)
         self._win = np.empty(n, dtype=np.int32)
@@ -315,14 +347,17 @@ class ViterbiLattice:
         return first_pos, first_head
 
     def step(self, acc_g: np.ndarray | None, position_m: np.ndarray | None, heading_rad: float | None,
-             penalty: np.ndarray | None = None, rows: np.ndarray | None = None) -> None:
+             penalty: np.ndarray | None = None, rows: np.ndarray | None = None,
+             quat_wxyz: np.ndarray | None = None) -> None:
         """Advance every path by one edge for the next sample (O(E) array work). `rows`: this sample's
-        `acc_rows_batch` row, if the caller computed it in a batch (compiled kernel only)."""
+        `acc_rows_batch` row, if the caller computed it in a batch (compiled kernel only); `quat_wxyz` (S', 4):
+        the sensors' device-earth orientations (used with `SearchWeights.orientation` > 0)."""
         if rows is not None and self.kernel != "numba":
             raise ValueError("precomputed acc rows need the numba kernel")
         if self.t < 0:
-            self.start(acc_g, position_m, heading_rad, penalty)
+            self.start(acc_g, position_m, heading_rad, penalty, quat_wxyz)
             return
+        acc_g = self.encode(acc_g, quat_wxyz)
         first_pos, first_head = self._late_start(position_m, heading_rad) \
             if self.track_global or self.warp.active else (False, False)
         w = self.weights
@@ -679,23 +714,28 @@ class ViterbiSearch:
         lattice = ViterbiLattice(self.graph, self.weights, obs.sensor_indices, self.prune_every, self.kernel,
                                  self.warp)
         for step in step_arguments(lattice, obs, constraints):
-            lattice.step(*step)
+            lattice.step(*step[:5], quat_wxyz=step[5])
         return finish(lattice)
 
 
 def step_arguments(lattice: ViterbiLattice, obs: Observations, constraints: list[Constraint] | None = None):
-    """Per sample of `obs`, the arguments of `lattice.step` (acc, position, heading, constraint penalty, C_A row).
-    The compiled kernel's accelerometer rows are computed `ACC_BATCH` samples at a time in one pass over the
-    metadata (identical per row), so every whole-take caller -- the batch search and the forgetting search's
-    fixed-lag replay -- steps bit for bit alike. Lazy: each batch is computed just before its first sample."""
+    """Per sample of `obs`, the arguments of `lattice.step` (acc, position, heading, constraint penalty, C_A row,
+    orientations). The compiled kernel's accelerometer rows are computed `ACC_BATCH` samples at a time in one pass
+    over the metadata (identical per row), so every whole-take caller -- the batch search and the forgetting
+    search's fixed-lag replay -- steps bit for bit alike. Lazy: each batch is computed just before its first
+    sample. With orientations the rows are computed as each sample steps (the orientation features depend on the
+    samples decided so far: orientation_term.py), identical per row again."""
     penalties = constraint_penalties(constraints or [], lattice.graph.n_nodes, obs.n_samples)
-    batch = lattice.kernel == "numba" and obs.acc_g is not None and lattice.n_sensors and lattice.weights.acc != 0
+    quats = obs.quat_wxyz if lattice.orientation is not None else None
+    batch = lattice.kernel == "numba" and obs.acc_g is not None and lattice.n_sensors and lattice.weights.acc != 0 \
+        and quats is None
     rows = None
     for t in progress.bar(range(obs.n_samples), desc="search", unit="sample"):
         if batch and t % ACC_BATCH == 0:
             rows = lattice.acc_rows_batch(obs.acc_g[t:t + ACC_BATCH])
         acc, pos, head = observation(obs, t)
-        yield acc, pos, head, penalties.get(t), rows[t % ACC_BATCH] if batch and t and acc is not None else None
+        yield (acc, pos, head, penalties.get(t), rows[t % ACC_BATCH] if batch and t and acc is not None else None,
+               None if quats is None else quats[t])
 
 
 def finish(lattice: ViterbiLattice) -> SearchResult:

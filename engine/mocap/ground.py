@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.heading import SEED_HEADING_SPEED_MPS, seed_heading_rule  # noqa: F401  (re-exported by engine.mocap)
 from engine.mocap.roles import joint_roles
 from engine.mocap.skeleton import Motion, forward_kinematics
 
@@ -27,23 +28,6 @@ def root_heading(motion: Motion, positions_m: np.ndarray | None = None) -> np.nd
     if positions_m is None:
         positions_m, _ = forward_kinematics(motion)
     return heading_from_positions(positions_m, roles["left_hip"], roles["right_hip"])
-
-
-#: Seed 000's camera heading rule: above this ground speed a player faces where they run, below it the net.
-SEED_HEADING_SPEED_MPS = 2.0
-
-
-def seed_heading_rule(position_m: np.ndarray, velocity_mps: np.ndarray,
-                      speed_threshold_mps: float = SEED_HEADING_SPEED_MPS) -> np.ndarray:
-    """Heading (rad) by seed 000's rule from ground position and velocity (..., 2) = court (x, y) = world (x, z).
-
-    Direction of motion above the speed threshold, otherwise facing the net: heading 0 (+Z) from the near side
-    (y <= 0), pi from the far side. One definition serves the live tracker, its synthetic ground truth and the
-    engine's take loader, so all three agree on what "facing the net" means."""
-    position_m, velocity_mps = np.asarray(position_m, float), np.asarray(velocity_mps, float)
-    moving = np.hypot(velocity_mps[..., 0], velocity_mps[..., 1]) > speed_threshold_mps
-    facing_net = np.where(position_m[..., 1] <= 0.0, 0.0, np.pi)
-    return np.where(moving, np.arctan2(velocity_mps[..., 0], velocity_mps[..., 1]), facing_net)
 
 
 def ground_positions(motion: Motion) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Single-player tracking on the court: background subtraction -> blob -> ground point -> court metres -> Kalman.
+"""Player tracking on the court: background subtraction -> blobs -> ground points -> tracks (one per athlete).
 
 Design choices (why):
 - MOG2 background model, learnt during a warm-up on the empty court and then *frozen* for detection
@@ -20,31 +20,47 @@ Design choices (why):
     ``1 - h/H`` for a nominal centroid height ``h`` (camera height ``H``) - needs the camera pose. The default
     (``"auto"``) when the pose is known: on the synthetic court its error is ~2.5x smaller than the foot point's,
     whose extreme pixel sits on the toes/heel rather than under the pelvis (see docs/camera-calibration.md).
+- Several athletes (:class:`MultiPlayerTracker`, one track each, e.g. singles tennis): one detector
+  (:class:`gateway.camera.foreground.CourtForeground`) per frame, blobs assigned to the tracks' Kalman predictions
+  by a minimum-total-distance assignment inside the gate (never two tracks on one blob). When two players merge
+  into one blob (crossing at the net, one occluding the other) the blob lies within ``merge_radius_m`` of both
+  predictions: *both* tracks then coast on their constant-velocity prediction instead of one of them taking the
+  merged blob's midpoint, and the assignment sorts them out when the blobs separate - identity follows motion
+  continuity, not blob size. A track without a fix for ``max_coast_s`` is *lost* (reported as such, no position)
+  and re-acquired from blobs that no live track can claim, on the side of the court where it was last seen (its
+  configured side before its first fix).
 - Heading follows the seed's rule: direction of motion above 2 m/s, otherwise facing the net, unless an IMU
   heading is supplied (the IMU knows where the trunk faces; the camera does not).
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
+from itertools import product
 
 import cv2
 import numpy as np
 
-from engine.mocap import seed_heading_rule
-from gateway.camera.court import court_outline_m
+from engine.heading import seed_heading_rule
+from gateway.athletes import DEFAULT_ATHLETE
 from gateway.camera.court_calibration import CourtCalibration
+from gateway.camera.foreground import Blob, CourtForeground
 from gateway.camera.kalman import ConstantVelocityKalman
 from gateway.camera.paths import RUNNING_SPEED_MPS
 from gateway.camera.sources import Frame
 
+SIDES = ("near", "far")
+
 
 @dataclass(frozen=True)
 class TrackerConfig:
-    """Tuning of :class:`PlayerTracker` (defaults suit a 640-1280 px wide view of the whole court)."""
+    """Tuning of the trackers (defaults suit a 640-1280 px wide view of the whole court)."""
 
     warmup_frames: int = 25
     history: int = 300
     var_threshold: float = 25.0
+    mixtures: int = 3                   # MOG2 Gaussians per pixel (OpenCV's default 5): the model is frozen after
+                                        # warm-up, so 3 track identically here and save 40 % of its memory (board)
     min_area_px: int = 40
     court_margin_m: float = 3.5
     ground_point: str = "auto"          # "foot", "centroid" (needs intrinsics), or "auto" (centroid if possible)
@@ -53,6 +69,7 @@ class TrackerConfig:
     accel_std_mps2: float = 12.0
     measurement_std_m: float = 0.07
     gate_m: float = 3.0
+    merge_radius_m: float = 1.2         # a blob this close to two predictions may hold both players: coast both
     max_coast_s: float = 1.0
     background_update_every: int = 5    # frames; 0 = frozen after warm-up
     background_learning_rate: float = 0.02
@@ -67,7 +84,8 @@ class TrackRecord:
     ``confidence`` 0..1 (0 = coasting on prediction only). ``raw_*`` is the unsmoothed ground point of this frame
     (NaN when no blob), ``centroid_px`` and ``blob_area_px`` feed the IMU-camera lag check, ``bbox_px``
     ``(x0, y0, x1, y1)`` is the blob's box (NaN when no blob) for display; ``clutter_px`` counts foreground
-    pixels that are not the player (a health metric: it grows when the background model is out of date)."""
+    pixels that are not a tracked player (a health metric: it grows when the background model is out of date).
+    ``athlete`` names whose track this is."""
 
     t_host_s: float
     x_m: float
@@ -82,179 +100,198 @@ class TrackRecord:
     blob_area_px: float
     bbox_px: tuple[float, float, float, float]
     clutter_px: int
+    athlete: str = DEFAULT_ATHLETE
 
     def to_dict(self) -> dict:
         """JSON-ready dict (what the gateway streams on its camera channel)."""
         return asdict(self)
 
 
-@dataclass(frozen=True)
-class Blob:
-    centroid_px: np.ndarray
-    area_px: float
-    pixels_xy: np.ndarray  # (N, 2) x, y
+class _Track:
+    """One athlete's Kalman track and its life cycle: searching -> tracking <-> coasting -> lost -> tracking."""
+
+    def __init__(self, name: str, side: str | None, config: TrackerConfig) -> None:
+        if side not in (None, *SIDES):
+            raise ValueError(f"player_side must be 'near', 'far' or None, got {side!r}")
+        self.name = name
+        self.side = side  # where to (re-)acquire: the configured side, then the side of the last fix
+        self.kalman = ConstantVelocityKalman(config.accel_std_mps2, config.measurement_std_m)
+        self.max_coast_s = config.max_coast_s
+        self.last_fix_t_s: float | None = None
+        self.confidence = 0.0
+        self.losses = 0
+
+    def status(self, t_s: float) -> str:
+        """"searching" (never seen), "tracking" (fixed now), "coasting" (on prediction) or "lost"."""
+        if self.last_fix_t_s is None:
+            return "searching"
+        if t_s - self.last_fix_t_s > self.max_coast_s:
+            return "lost"
+        return "tracking" if self.last_fix_t_s == t_s else "coasting"
+
+    def live(self, t_s: float) -> bool:
+        """Has a position worth gating against (fixed within ``max_coast_s``)?"""
+        return self.last_fix_t_s is not None and t_s - self.last_fix_t_s <= self.max_coast_s
+
+    def may_acquire(self, point_m: np.ndarray) -> bool:
+        return self.side is None or (point_m[1] < 0.0) == (self.side == "near")
+
+    def fix(self, point_m: np.ndarray, t_s: float, gate_m: float) -> None:
+        """Fuse a measurement; a lost or new track restarts there (a stale prediction says nothing)."""
+        if not self.live(t_s):
+            if self.last_fix_t_s is not None:
+                self.losses += 1
+            innovation = 0.0
+            self.kalman.reset(point_m)
+        else:
+            innovation = self.kalman.innovation_distance_m(point_m)
+            self.kalman.update(point_m)
+        if self.side is not None:
+            self.side = "near" if point_m[1] < 0.0 else "far"
+        self.last_fix_t_s = t_s
+        self.confidence = float(np.clip(1.0 - innovation / gate_m, 0.1, 1.0))
 
 
-class PlayerTracker:
-    """Feed frames in time order with :meth:`update`; returns ``None`` during warm-up and until a player is seen."""
+def _min_distance_assignment(dist_m: np.ndarray, gate_m: float) -> dict[int, int]:
+    """Row -> column of the assignment with the most pairs inside the gate, then the least total distance.
 
-    def __init__(self, calibration: CourtCalibration, config: TrackerConfig = TrackerConfig()) -> None:
-        if config.ground_point not in ("foot", "centroid", "auto"):
-            raise ValueError(f"ground_point must be 'foot', 'centroid' or 'auto', got {config.ground_point!r}")
-        if config.player_side not in (None, "near", "far"):
-            raise ValueError(f"player_side must be 'near', 'far' or None, got {config.player_side!r}")
-        if config.ground_point == "centroid" and not calibration.has_pose:
-            raise ValueError("ground_point='centroid' needs a court calibration fitted with camera intrinsics")
+    Exhaustive over the blobs inside each track's gate: a court has a handful of athletes and each gate holds
+    one or two blobs, so this is a few dozen candidates (and spares the board scipy.optimize's ~30 MB)."""
+    candidates = [[int(b) for b in np.flatnonzero(row <= gate_m)] + [-1] for row in dist_m]
+    best: tuple[int, float, tuple[int, ...]] = (0, 0.0, tuple(-1 for _ in candidates))
+    for combo in product(*candidates):
+        taken = [b for b in combo if b >= 0]
+        if len(set(taken)) != len(taken):
+            continue
+        score = (len(taken), -sum(dist_m[r, b] for r, b in enumerate(combo) if b >= 0))
+        if score > best[:2]:
+            best = (*score, combo)
+    return {r: b for r, b in enumerate(best[2]) if b >= 0}
+
+
+class MultiPlayerTracker:
+    """Tracks several athletes with one detector: ``athletes`` maps each name to the side ("near"/"far", or None
+    for anywhere) where it is first acquired. Feed frames in time order with :meth:`update`."""
+
+    def __init__(self, calibration: CourtCalibration, athletes: Mapping[str, str | None],
+                 config: TrackerConfig = TrackerConfig()) -> None:
+        if not athletes:
+            raise ValueError("at least one athlete to track")
+        self.detector = CourtForeground(calibration, config)
         self.calibration = calibration
         self.config = config
-        #: The ground-point method in use ("auto" resolved): the parallax-corrected centroid when the pose is known.
-        self.ground_point = config.ground_point
-        if self.ground_point == "auto":
-            self.ground_point = "centroid" if calibration.has_pose else "foot"
-        self._mog = cv2.createBackgroundSubtractorMOG2(config.history, config.var_threshold, detectShadows=True)
-        self._kalman = ConstantVelocityKalman(config.accel_std_mps2, config.measurement_std_m)
-        width, height = calibration.image_size
-        self._roi = np.zeros((height, width), np.uint8)
-        outline = calibration.court_to_image(court_outline_m(config.court_margin_m))
-        cv2.fillConvexPoly(self._roi, np.round(outline).astype(np.int32), 255)
-        self._gain_samples = np.flatnonzero(self._roi.ravel())[::37]  # sparse court pixels for the gain estimate
-        self._background: np.ndarray | None = None
-        self._background_level = 0.0
-        self._open = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
-        self._close = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
-        self._frames_seen = 0
+        self.tracks = [_Track(name, side, config) for name, side in athletes.items()]
         self._last_t_s: float | None = None
-        self._last_fix_t_s: float | None = None
-        self._confidence = 0.0
-        self._updates_due = 0
 
     @property
-    def warmed_up(self) -> bool:
-        return self._frames_seen >= self.config.warmup_frames
+    def ground_point(self) -> str:
+        return self.detector.ground_point
 
-    def _compensate_gain(self, image: np.ndarray) -> np.ndarray:
-        """Scale the frame so its court brightness matches the background model's (median ratio over a sparse
-        grid of court pixels: the player covers too few of them to move the median). Global lighting changes
-        (a cloud, flicker) then never reach the background subtractor."""
-        if self._background is None:
-            return image
-        frame_level = float(np.median(image.reshape(-1, 3)[self._gain_samples].sum(axis=1)))
-        ratio = self._background_level / max(frame_level, 1.0)
-        return image if abs(ratio - 1.0) < 0.003 else cv2.convertScaleAbs(image, alpha=ratio)
+    @property
+    def names(self) -> list[str]:
+        return [tr.name for tr in self.tracks]
 
-    def _refresh_background(self) -> None:
-        self._background = self._mog.getBackgroundImage()
-        self._background_level = float(np.median(self._background.reshape(-1, 3)[self._gain_samples].sum(axis=1)))
+    def status(self) -> dict[str, str]:
+        """Each athlete's track state at the last frame (see :meth:`_Track.status`)."""
+        t = self._last_t_s if self._last_t_s is not None else 0.0
+        return {tr.name: tr.status(t) for tr in self.tracks}
 
-    def foreground(self, image: np.ndarray) -> np.ndarray:
-        """Cleaned foreground mask (uint8 0/255) of one frame; updates the background only during warm-up."""
-        if not self.warmed_up:
-            raw = self._mog.apply(image, learningRate=-1.0)
-        else:
-            if self._background is None:
-                self._refresh_background()
-            raw = self._mog.apply(self._compensate_gain(image), learningRate=0.0)
-        mask = np.where(raw == 255, 255, 0).astype(np.uint8) & self._roi
-        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._open)
-        return cv2.morphologyEx(mask, cv2.MORPH_CLOSE, self._close)
+    def _assign(self, t_s: float, points: list[np.ndarray]) -> tuple[dict[int, int], set[int]]:
+        """Blob index per live track (gated minimum-distance assignment) and the blobs held back as merged."""
+        cfg = self.config
+        live = [i for i, tr in enumerate(self.tracks) if tr.live(t_s)]
+        if not live or not points:
+            return {}, set()
+        dist = np.array([[self.tracks[i].kalman.innovation_distance_m(p) for p in points] for i in live])
+        chosen = {live[r]: b for r, b in _min_distance_assignment(dist, cfg.gate_m).items()}
+        merged = set()
+        for r, i in enumerate(live):
+            if i in chosen:
+                continue
+            for j, b in list(chosen.items()):  # an unmatched live track right at a matched blob: both inside it
+                if dist[r, b] <= cfg.merge_radius_m:
+                    merged.add(chosen.pop(j))
+        return chosen, merged
 
-    def blobs(self, mask: np.ndarray) -> list[Blob]:
-        """Connected components above ``min_area_px``, largest first."""
-        n, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        areas = stats[:, cv2.CC_STAT_AREA]
-        order = [i for i in np.argsort(-areas[1:]) + 1 if areas[i] >= self.config.min_area_px]
-        out = []
-        for i in order:
-            x, y, w, h = stats[i, :4]
-            ys, xs = np.nonzero(labels[y : y + h, x : x + w] == i)
-            pixels = np.column_stack([xs + x, ys + y]).astype(float)
-            out.append(Blob(centroids[i].astype(float), float(areas[i]), pixels))
+    def _acquire(self, t_s: float, points: list[np.ndarray], taken: set[int]) -> dict[int, int]:
+        """Blobs (largest first) for tracks that are not live: on their side, and not claimable by a live track."""
+        cfg = self.config
+        live = [tr for tr in self.tracks if tr.live(t_s)]
+        out: dict[int, int] = {}
+        for i, tr in enumerate(self.tracks):
+            if tr.live(t_s):
+                continue
+            for b, p in enumerate(points):
+                if b in taken or not tr.may_acquire(p):
+                    continue
+                if any(other.kalman.innovation_distance_m(p) <= cfg.gate_m for other in live):
+                    continue
+                out[i] = b
+                taken.add(b)
+                break
         return out
 
-    def ground_point_m(self, blob: Blob) -> np.ndarray:
-        """Court position (2,) m of the player's ground contact under this blob (see module docstring)."""
-        if self.ground_point == "centroid":
-            camera = self.calibration.camera_position_m()
-            hit = self.calibration.image_to_court(blob.centroid_px[None])[0]
-            return camera[:2] + (hit - camera[:2]) * (1.0 - self.config.centroid_height_m / camera[2])
-        down = self.calibration.image_down_directions(blob.centroid_px[None])[0]
-        along = (blob.pixels_xy - blob.centroid_px) @ down
-        foot_px = blob.centroid_px + down * np.percentile(along, self.config.foot_percentile)
-        return self.calibration.image_to_court(foot_px[None])[0]
-
-    def _on_player_side(self, point_m: np.ndarray) -> bool:
-        """Can a blob at this court position (m) be acquired as the instrumented player?"""
-        side = self.config.player_side
-        return side is None or (point_m[1] < 0.0) == (side == "near")
-
-    def _learn_around(self, image: np.ndarray, player: Blob) -> None:
-        """Background update that cannot learn the player: his (grown) box is replaced by the background."""
+    def update_all(self, frame: Frame, imu_headings_rad: Mapping[str, float] | None = None
+                   ) -> dict[str, TrackRecord | None]:
+        """Process one frame. Returns each athlete's record (None during warm-up, while searching and when lost).
+        ``imu_headings_rad``: trunk IMU yaw per athlete (CONTRACTS convention), overriding the heading rule."""
+        mask = self.detector.foreground(frame.image)
+        if not self.detector.warmed_up:
+            return {tr.name: None for tr in self.tracks}
         cfg = self.config
-        self._updates_due += 1
-        if not cfg.background_update_every or self._updates_due < cfg.background_update_every:
-            return
-        self._updates_due = 0
-        background = self._background
-        if background is None or background.shape != image.shape:
-            return
-        image = self._compensate_gain(image)
-        h, w = image.shape[:2]
-        m = cfg.background_update_margin_px
-        (x0, y0), (x1, y1) = player.pixels_xy.min(axis=0).astype(int), player.pixels_xy.max(axis=0).astype(int)
-        x0, y0, x1, y1 = max(x0 - m, 0), max(y0 - m, 0), min(x1 + m + 1, w), min(y1 + m + 1, h)
-        composite = image.copy()
-        composite[y0:y1, x0:x1] = background[y0:y1, x0:x1]
-        self._mog.apply(composite, learningRate=cfg.background_learning_rate)
-        self._refresh_background()
+        t = frame.t_host_s
+        dt = 0.0 if self._last_t_s is None else t - self._last_t_s
+        self._last_t_s = t
+        for tr in self.tracks:
+            tr.kalman.predict(dt)
+        blobs = self.detector.blobs(mask)
+        points = [self.detector.ground_point_m(b) for b in blobs]
+        chosen, merged = self._assign(t, points)
+        chosen.update(self._acquire(t, points, set(chosen.values()) | merged))
+        for i, b in chosen.items():
+            self.tracks[i].fix(points[b], t, cfg.gate_m)
+        in_use = [blobs[b] for b in set(chosen.values()) | merged]
+        if in_use and all(tr.live(t) for tr in self.tracks):  # never learn a player who is out of track
+            self.detector.learn_around(frame.image, in_use)
+        clutter = int(cv2.countNonZero(mask)) - int(sum(b.area_px for b in in_use))
+        headings = imu_headings_rad or {}
+        out: dict[str, TrackRecord | None] = {}
+        for i, tr in enumerate(self.tracks):
+            blob = blobs[chosen[i]] if i in chosen else None
+            if blob is None and tr.live(t):
+                tr.confidence = 0.0
+            out[tr.name] = self._record(tr, t, blob, points[chosen[i]] if blob else None, clutter,
+                                        headings.get(tr.name)) if tr.live(t) else None
+        return out
 
-    def update(self, frame: Frame, imu_heading_rad: float | None = None) -> TrackRecord | None:
-        """Process one frame; ``imu_heading_rad`` (trunk IMU yaw, CONTRACTS convention) overrides the rule."""
-        mask = self.foreground(frame.image)
-        self._frames_seen += 1
-        if not self.warmed_up:
-            return None
-        cfg = self.config
-        dt = 0.0 if self._last_t_s is None else frame.t_host_s - self._last_t_s
-        self._last_t_s = frame.t_host_s
-        self._kalman.predict(dt)
-        chosen: Blob | None = None
-        raw = np.full(2, np.nan)
-        acquiring = not self._kalman.initialised or (
-            self._last_fix_t_s is not None and frame.t_host_s - self._last_fix_t_s > cfg.max_coast_s)
-        for blob in self.blobs(mask):
-            point = self.ground_point_m(blob)
-            if acquiring and self._on_player_side(point) or (
-                    not acquiring and self._kalman.innovation_distance_m(point) <= cfg.gate_m):
-                chosen, raw = blob, point
-                break
-        if chosen is not None:
-            self._learn_around(frame.image, chosen)
-            if acquiring:  # a new track: a stale prediction says nothing about where he is now
-                innovation = 0.0
-                self._kalman.reset(raw)
-            else:
-                innovation = self._kalman.innovation_distance_m(raw)
-                self._kalman.update(raw)
-            self._last_fix_t_s = frame.t_host_s
-            self._confidence = float(np.clip(1.0 - innovation / cfg.gate_m, 0.1, 1.0))
-        elif self._last_fix_t_s is None or frame.t_host_s - self._last_fix_t_s > cfg.max_coast_s:
-            return None  # never seen, or lost for too long: report nothing rather than a guess
-        else:
-            self._confidence = 0.0
-        x, y, vx, vy = self._kalman.state
+    update = update_all  # several athletes: a dict per frame (PlayerTracker's update returns the one record)
+
+    def _record(self, tr: _Track, t_s: float, blob: Blob | None, raw_m: np.ndarray | None, clutter_px: int,
+                imu_heading_rad: float | None) -> TrackRecord:
+        x, y, vx, vy = tr.kalman.state
         if imu_heading_rad is not None:
             heading = float(imu_heading_rad)
         else:
-            heading = float(seed_heading_rule((x, y), (vx, vy), cfg.running_speed_mps))
+            heading = float(seed_heading_rule((x, y), (vx, vy), self.config.running_speed_mps))
         nan = float("nan")
-        if chosen is not None:
-            centroid = (float(chosen.centroid_px[0]), float(chosen.centroid_px[1]))
-            (x0, y0), (x1, y1) = chosen.pixels_xy.min(axis=0), chosen.pixels_xy.max(axis=0) + 1
-            bbox = (float(x0), float(y0), float(x1), float(y1))
+        if blob is not None:
+            centroid = (float(blob.centroid_px[0]), float(blob.centroid_px[1]))
+            bbox, area, raw = blob.bbox_px(), blob.area_px, (float(raw_m[0]), float(raw_m[1]))
         else:
-            centroid, bbox = (nan, nan), (nan, nan, nan, nan)
-        return TrackRecord(
-            frame.t_host_s, float(x), float(y), heading, self._confidence, float(vx), float(vy),
-            float(raw[0]), float(raw[1]), centroid, chosen.area_px if chosen else nan, bbox,
-            int(cv2.countNonZero(mask)) - int(chosen.area_px if chosen else 0),
-        )
+            centroid, bbox, area, raw = (nan, nan), (nan, nan, nan, nan), nan, (nan, nan)
+        return TrackRecord(t_s, float(x), float(y), heading, tr.confidence, float(vx), float(vy), raw[0], raw[1],
+                           centroid, area, bbox, clutter_px, tr.name)
+
+
+class PlayerTracker(MultiPlayerTracker):
+    """One athlete: feed frames in time order with :meth:`update`; returns ``None`` during warm-up and until a
+    player is seen. ``config.player_side`` says where to acquire him when an opponent is in view too."""
+
+    def __init__(self, calibration: CourtCalibration, config: TrackerConfig = TrackerConfig(),
+                 athlete: str = DEFAULT_ATHLETE) -> None:
+        super().__init__(calibration, {athlete: config.player_side}, config)
+
+    def update(self, frame: Frame, imu_heading_rad: float | None = None) -> TrackRecord | None:  # type: ignore[override]
+        """Process one frame; ``imu_heading_rad`` (trunk IMU yaw, CONTRACTS convention) overrides the rule."""
+        name = self.tracks[0].name
+        return self.update_all(frame, None if imu_heading_rad is None else {name: imu_heading_rad})[name]

@@ -22,7 +22,9 @@ from engine.errors import CourtsideError
 from firmware_protocol.emulator import StationConfig, TraceSource
 from gateway.emulation.stations import EmulatedStation, start_emulated_station
 
-from gui.demo.performance import STATION_SENSORS, Performance, build_performance
+from engine.mocap import SEED000_SENSORS
+from gui.demo.performance import (OPPONENT, OPPONENT_STATION, PLAYER, STATION_SENSORS, Performance, build_opponent,
+                                  build_performance)
 
 if TYPE_CHECKING:
     from gateway.court_config import CourtConfig
@@ -30,15 +32,20 @@ if TYPE_CHECKING:
 log = logging.getLogger("courtside.demo")
 
 
-def start_stations(perf: Performance, rate_hz: int = 100, noise_g: float = 0.02, radio_loss: float = 0.002,
-                   drift_ppm: tuple[float, ...] = (35.0, -20.0)) -> list[EmulatedStation]:
+def start_stations(perf: Performance, opponent: Performance | None = None, rate_hz: int = 100,
+                   noise_g: float = 0.02, radio_loss: float = 0.002,
+                   drift_ppm: tuple[float, ...] = (35.0, -20.0, 60.0)) -> list[EmulatedStation]:
     """One real-time emulated station per entry of STATION_SENSORS on its own pty, replaying the performance's
-    readings (looped). Ground truth for gateway time t is ``perf.pose_at(t - stations[0].wall0_s)`` (the
-    stations start within a millisecond of each other)."""
+    readings (looped), plus the ``opponent``'s station (`OPPONENT_STATION`, the six seed-000 sensors). Ground
+    truth for gateway time t is ``perf.pose_at(t - stations[0].wall0_s)`` (the stations start within a
+    millisecond of each other)."""
+    worn = [(station_id, perf, sensors) for station_id, sensors in STATION_SENSORS.items()]
+    if opponent is not None:
+        worn.append((OPPONENT_STATION, opponent, SEED000_SENSORS))
     stations = []
     try:
-        for k, (station_id, sensors) in enumerate(STATION_SENSORS.items()):
-            trace = TraceSource(np.stack([perf.acc_g[n] for n in sensors], axis=1), perf.fps)
+        for k, (station_id, performance, sensors) in enumerate(worn):
+            trace = TraceSource(np.stack([performance.acc_g[n] for n in sensors], axis=1), performance.fps)
             config = StationConfig(station_id=station_id, serial=0xC0DE0000 + station_id, n_sensors=len(sensors),
                                    rate_hz=rate_hz, noise_g=noise_g, radio_loss=radio_loss,
                                    drift_ppm=drift_ppm[k % len(drift_ppm)], tick_offset=977_000 * station_id,
@@ -52,10 +59,11 @@ def start_stations(perf: Performance, rate_hz: int = 100, noise_g: float = 0.02,
 
 
 class DemoCamera:
-    """Synthetic overhead camera on the performance, tracked by the gateway's player tracker, published to the
-    gateway as camera observations (with a JPEG thumbnail and the court->image homography for the overlay).
-    An opponent rallies on the other half, as on a real court: the tracker acquires the performer on his half
-    (``TrackerConfig.player_side``) and must not follow the opponent.
+    """Synthetic overhead camera on the performance, tracked by the gateway's tracker, published to the gateway
+    as camera observations (with a JPEG thumbnail and the court->image homography for the overlay). The
+    ``opponent`` performs on the other half, as on a real court (without one, a scripted rally stands in for
+    him): one track per athlete (`MultiPlayerTracker`, acquired on their own halves), one observation per
+    athlete per frame, named ``player`` / ``opponent``.
 
     Runs as a gateway camera hook (``start(sink)`` / ``stop()``); frames are paced to the wall clock so their
     times line up with the emulated stations' samples. Like a real camera it never delivers a frame more than
@@ -65,30 +73,36 @@ class DemoCamera:
     MAX_LAG_S = 0.25
 
     def __init__(self, perf: Performance, t0_monotonic_s: float, duration_s: float, fps: float = 12.0,
-                 image_size: tuple[int, int] = (640, 360)) -> None:
+                 image_size: tuple[int, int] = (640, 360), opponent: Performance | None = None) -> None:
         from gateway.camera.court import COURT_KEYPOINTS_M
         from gateway.camera.court_calibration import CourtCalibration
         from gateway.camera.paths import PlayerPath, scripted_rally_path
         from gateway.camera.synthetic import SyntheticCourtCamera, default_court_camera
-        from gateway.camera.tracker import PlayerTracker, TrackerConfig
+        from gateway.camera.tracker import MultiPlayerTracker
 
         self.t0 = t0_monotonic_s
         self.empty_s = 2.5  # empty court first: the tracker learns the background
         t = np.arange(0.0, duration_s + 1.0, 1.0 / perf.fps)
-        xy, heading = perf.ground_path(t)
-        frames = np.floor(t * perf.fps).astype(int) % perf.n_frames
-        lift = np.clip(perf.positions_m[frames, 0, 1] - np.median(perf.positions_m[:, 0, 1]), 0.0, None)
-        path = PlayerPath(t + self.empty_s, xy, heading, lift)
-        side = "near" if xy[0, 1] < 0 else "far"
-        opponent = scripted_rally_path(duration_s + 1.0, seed=3, side="far" if side == "near" else "near",
-                                       start_s=self.empty_s)
+
+        def ground_path(performance: Performance) -> PlayerPath:
+            xy, heading = performance.ground_path(t)
+            frames = np.floor(t * performance.fps).astype(int) % performance.n_frames
+            standing = np.median(performance.positions_m[:, 0, 1])
+            lift = np.clip(performance.positions_m[frames, 0, 1] - standing, 0.0, None)
+            return PlayerPath(t + self.empty_s, xy, heading, lift)
+
+        path = ground_path(perf)
+        side = "near" if path.xy_m[0, 1] < 0 else "far"
+        other_side = "far" if side == "near" else "near"
+        other = ground_path(opponent) if opponent is not None else scripted_rally_path(
+            duration_s + 1.0, seed=3, side=other_side, start_s=self.empty_s)
         camera = default_court_camera(image_size)
-        self.source = SyntheticCourtCamera(path, camera=camera, fps=fps, empty_s=self.empty_s, opponents=[opponent])
+        self.source = SyntheticCourtCamera(path, camera=camera, fps=fps, empty_s=self.empty_s, opponents=[other])
         names = list(COURT_KEYPOINTS_M)
         clicks = camera.project(np.c_[[COURT_KEYPOINTS_M[n] for n in names], np.zeros(len(names))])
         calibration = CourtCalibration.fit(clicks, names=names, image_size=image_size,
                                            camera_matrix=camera.camera_matrix)
-        self.tracker = PlayerTracker(calibration, TrackerConfig(player_side=side))
+        self.tracker = MultiPlayerTracker(calibration, {PLAYER: side, OPPONENT: other_side})
         self.court_to_image = camera.ground_homography()
         self.thumbnail_every = 2
         self._stop = threading.Event()
@@ -122,25 +136,33 @@ class DemoCamera:
             if self._stop.wait(max(0.0, frame.t_host_s - time.monotonic())):
                 return
             # thumbnails are the full frame here (scale 1), so the overlay homography is the camera's own
-            obs = observation(frame, self.tracker.update(frame), self.court_to_image, 1.0)
+            records = self.tracker.update_all(frame)
+            status = self.tracker.status()
             jpeg = None
             if frame.index % self.thumbnail_every == 0:
                 ok, data = cv2.imencode(".jpg", frame.image, [cv2.IMWRITE_JPEG_QUALITY, 70])
                 jpeg = data.tobytes() if ok else None
-            sink(obs, jpeg)
+            for name, record in records.items():  # the thumbnail rides on the first athlete's observation
+                sink(observation(frame, record, self.court_to_image, 1.0, name, status[name]), jpeg)
+                jpeg = None
             self.frames_published += 1
 
 
 def demo_court_config(listen: tuple[str, int], record_dir: Path) -> "CourtConfig":
-    """The demo's court as a court config: emulated stations (replaced by the performance-driven ones), the
-    calibration wizard over every worn site, fast status and clock warm-up for a short demo."""
+    """The demo's court as a court config: emulated stations (replaced by the performance-driven ones), two
+    ``[[athletes]]`` (the player on stations 1-2, near; the opponent on station 3, far), each with a calibration
+    wizard over its worn sites, fast status and clock warm-up for a short demo."""
+    from gateway.athletes import AthleteConfig, SensorRef
     from gateway.court_config import CalibrationConfig, CourtConfig, StationsConfig
 
+    player = [(SensorRef("st", sid, i), name) for sid, names in STATION_SENSORS.items() for i, name in enumerate(names)]
+    opponent = [(SensorRef("st", OPPONENT_STATION, i), name) for i, name in enumerate(SEED000_SENSORS)]
+    athletes = tuple(AthleteConfig(name, side, tuple(r for r, _ in worn), tuple(n for _, n in worn))
+                     for name, side, worn in ((PLAYER, "near", player), (OPPONENT, "far", opponent)))
     return CourtConfig(listen=listen, record_dir=record_dir, name="courtside-demo", status_interval_s=0.5,
-                       clock_lock_after_s=5.0, stations=StationsConfig(emulate=len(STATION_SENSORS)),
-                       calibration=CalibrationConfig(placements=tuple(n for names in STATION_SENSORS.values()
-                                                                      for n in names),
-                                                     pose="npose", records_dir=record_dir / "calibrations"))
+                       clock_lock_after_s=5.0, stations=StationsConfig(emulate=len(STATION_SENSORS) + 1),
+                       calibration=CalibrationConfig(pose="npose", records_dir=record_dir / "calibrations"),
+                       athletes=athletes)
 
 
 @contextlib.contextmanager
@@ -151,13 +173,13 @@ def demo_hardware(listen: tuple[str, int], record_dir: Path, camera: bool,
     stations and the camera are the demo's own (they replay the performance)."""
     from gateway.assembly import build_court
 
-    perf = build_performance()
+    perf, opponent = build_performance(), build_opponent()
     with contextlib.ExitStack() as stack:
-        stations = start_stations(perf)
+        stations = start_stations(perf, opponent)
         for st in stations:
             stack.callback(st.stop)
         t0 = stations[0].wall0_s
-        cam = DemoCamera(perf, t0, (duration_s or 3600.0) + 5.0) if camera else None
+        cam = DemoCamera(perf, t0, (duration_s or 3600.0) + 5.0, opponent=opponent) if camera else None
         try:
             court = build_court(demo_court_config(listen, record_dir), camera=cam, emulators=stations)
         except OSError as exc:  # e.g. the address is taken by another demo or gateway: one line, not a traceback

@@ -16,6 +16,11 @@ HELD_OUT_CLIPS = ("16_32", "16_36", "16_05")  # walk, run, forward jump: not in 
 EXTRA_SENSORS = ("left_wrist", "right_wrist", "left_ankle", "right_ankle", "right_foot")
 STATION_SENSORS = {1: SEED000_SENSORS, 2: EXTRA_SENSORS}  # station id -> worn sensors, in sensor-index order
 COURT_START_M = np.array([-5.0, -10.0])  # court (x, y) where the performance starts: inside the near baseline
+# The second athlete (issue 20): other held-out clips, on the far half, wearing the six seed-000 sensors on station 3
+PLAYER, OPPONENT = "player", "opponent"
+OPPONENT_CLIPS = ("16_21", "16_11")  # two more walks: not in the demo's motion graph either
+OPPONENT_STATION = 3
+OPPONENT_START_M = np.array([-5.0, 10.0])
 
 
 @dataclass
@@ -65,15 +70,17 @@ class Performance:
         return xy, heading
 
 
-def build_performance(clip_names: tuple[str, ...] = HELD_OUT_CLIPS, fps: float = GRAPH_FPS) -> Performance:
-    """Chain the clips: each starts where the previous one ended (ground position), all on one skeleton."""
+def build_performance(clip_names: tuple[str, ...] = HELD_OUT_CLIPS, fps: float = GRAPH_FPS,
+                      start_m: np.ndarray = COURT_START_M) -> Performance:
+    """Chain the clips: each starts where the previous one ended (ground position), all on one skeleton,
+    starting at court ``start_m`` (the opponent's: `OPPONENT_START_M`, on the far half)."""
     clips = sample_clips()
     missing = [c for c in clip_names if c not in clips]
     if missing:
         raise ValueError(f"unknown clip(s) {missing}; shipped: {sorted(clips)}")
     names = sorted({n for sensors in STATION_SENSORS.values() for n in sensors})
     positions, accs = [], {n: [] for n in names}
-    cursor = COURT_START_M.copy()
+    cursor = np.array(start_m, float)
     for name in clip_names:
         motion = load_clip(clips[name], fps=fps)
         pos, glob = forward_kinematics(motion)
@@ -86,7 +93,7 @@ def build_performance(clip_names: tuple[str, ...] = HELD_OUT_CLIPS, fps: float =
         for k, n in enumerate(names):
             accs[n].append(acc[:, k])
         skeleton = motion.skeleton
-    pos = along_baseline(np.concatenate(positions), COURT_START_M)
+    pos = along_baseline(np.concatenate(positions), np.asarray(start_m, float))
     heading = np.concatenate([root_heading(load_clip(clips[c], fps=fps), p)
                               for c, p in zip(clip_names, np.split(pos, np.cumsum([len(p) for p in positions])[:-1]))])
     return Performance(fps, pos, heading, {n: np.concatenate(v) for n, v in accs.items()}, skeleton,
@@ -112,14 +119,21 @@ def placements_for_demo(perf: Performance) -> list:
     return standard_placements(perf.skeleton, tuple(n for names in STATION_SENSORS.values() for n in names))
 
 
+def build_opponent() -> Performance:
+    """The second athlete's performance (`OPPONENT_CLIPS` from `OPPONENT_START_M`)."""
+    return build_performance(OPPONENT_CLIPS, start_m=OPPONENT_START_M)
+
+
 def sensor_segments() -> dict[tuple[str, int], str]:
-    """(station, sensor) -> worn placement name, for the device panel's body diagram and the recording gate."""
-    return {(f"st{sid}", i): name for sid, names in STATION_SENSORS.items() for i, name in enumerate(names)}
+    """(station, sensor) -> worn placement name, for the device panel's body diagram and the recording gate
+    (both athletes' sensors)."""
+    worn = {(f"st{sid}", i): name for sid, names in STATION_SENSORS.items() for i, name in enumerate(names)}
+    return worn | {(f"st{OPPONENT_STATION}", i): name for i, name in enumerate(SEED000_SENSORS)}
 
 
-def synthesis_sensors() -> list[tuple[str, int]]:
-    """Live sensors feeding the graph's sensors (SEED000 order), all on station 1."""
-    return [("st1", i) for i in range(len(SEED000_SENSORS))]
+def synthesis_sensors(station: int = 1) -> list[tuple[str, int]]:
+    """Live sensors feeding the graph's sensors (SEED000 order), all on ``station`` (the opponent's: 3)."""
+    return [(f"st{station}", i) for i in range(len(SEED000_SENSORS))]
 
 
 class TruthClock:

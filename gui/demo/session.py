@@ -9,8 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gui.demo.hardware import demo_hardware, hardware_in_subprocess
-from gui.demo.performance import (Performance, TruthClock, build_performance, sensor_segments, synthesis_sensors,
-                                  truth_from_events)
+from gui.demo.performance import (OPPONENT, OPPONENT_STATION, PLAYER, Performance, TruthClock, build_opponent,
+                                  build_performance, sensor_segments, synthesis_sensors, truth_from_events)
 
 log = logging.getLogger("courtside.demo")
 
@@ -38,8 +38,9 @@ def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
 
     hardware = hardware_in_subprocess if separate_process else demo_hardware
     perf = build_performance()  # deterministic: the same frames the stations replay, for ground truth here
-    spec = adapter("motion-graph").shipped_spec(exclude=perf.clip_names)
-    log.info("%s, minus held-out %s", spec.label, ", ".join(perf.clip_names))
+    held_out = perf.clip_names + build_opponent().clip_names  # both athletes' clips stay out of the graph
+    spec = adapter("motion-graph").shipped_spec(exclude=held_out)
+    log.info("%s, minus held-out %s", spec.label, ", ".join(held_out))
     with contextlib.ExitStack() as stack:
         address, t0 = stack.enter_context(hardware(listen, record_dir, camera, duration_s))
         client = GatewayClient(*address).connect()
@@ -49,7 +50,9 @@ def demo_session(lag_s: float = 0.5, listen: tuple[str, int] = ("127.0.0.1", 0),
                                truth=TruthClock(perf, t0), truth_for_take=truth_from_events,
                                sensor_segments=sensor_segments(),
                                sensor_joints=sensor_joints(perf.skeleton, sensor_segments()),
-                               title="Courtside demo — emulated stations replaying held-out CMU mocap")
+                               title="Courtside demo — two athletes, emulated stations replaying held-out CMU mocap",
+                               athlete=PLAYER, more_athletes={
+                                   OPPONENT: synthesis_setup(spec, synthesis_sensors(OPPONENT_STATION), lag_s)})
         stack.callback(window.shutdown)
         window.resize(1500, 950)
         yield DemoSession(perf, address, client, window)

@@ -18,6 +18,8 @@ from gui.render.court import COURT_LENGTH_M, DOUBLES_WIDTH_M, court_line_segment
 
 LINE_PEN = QtGui.QColor(240, 240, 240)
 PLAYER_COLOUR = QtGui.QColor(255, 140, 20)
+# more athletes (issue 20): the same colours as their skeletons in the 3-D view (gui.widgets.skeleton_view)
+OTHER_COLOURS = (QtGui.QColor(77, 217, 77), QtGui.QColor(217, 89, 217))
 
 
 def apply_homography(h: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -34,6 +36,7 @@ class CameraView(QtWidgets.QWidget):
         self.image: QtGui.QImage | None = None
         self._jpeg: bytes | None = None
         self.header: dict[str, Any] = {}
+        self.others: list[tuple[dict[str, Any], QtGui.QColor]] = []  # more athletes' observations, colours
         self.setMinimumSize(240, 160)
 
     def set_frame(self, header: dict[str, Any] | None, jpeg: bytes | None) -> None:
@@ -74,17 +77,19 @@ class CameraView(QtWidgets.QWidget):
             ends = apply_homography(h, segs.reshape(-1, 2)).reshape(-1, 2, 2)
             for (x0, y0), (x1, y1) in ends:
                 p.drawLine(QtCore.QPointF(x0, y0), QtCore.QPointF(x1, y1))
-            pos = self.header.get("position_m")
-            if pos is not None:
-                (fx, fy), = apply_homography(h, np.array([pos[:2]]))
-                p.setPen(QtGui.QPen(PLAYER_COLOUR, 2.5 / sx))
-                p.drawEllipse(QtCore.QPointF(fx, fy), 6 / sx, 6 / sx)
-                p.drawLine(QtCore.QPointF(fx - 10 / sx, fy), QtCore.QPointF(fx + 10 / sx, fy))
-                p.drawLine(QtCore.QPointF(fx, fy - 10 / sx), QtCore.QPointF(fx, fy + 10 / sx))
-        bbox = self.header.get("bbox_px")
-        if bbox is not None:
-            p.setPen(QtGui.QPen(PLAYER_COLOUR, 1.5 / sx))
-            p.drawRect(QtCore.QRectF(bbox[0], bbox[1], bbox[2] - bbox[0], bbox[3] - bbox[1]))
+            for header, colour in [(self.header, PLAYER_COLOUR), *self.others]:
+                pos = header.get("position_m")
+                if pos is not None:
+                    (fx, fy), = apply_homography(h, np.array([pos[:2]]))
+                    p.setPen(QtGui.QPen(colour, 2.5 / sx))
+                    p.drawEllipse(QtCore.QPointF(fx, fy), 6 / sx, 6 / sx)
+                    p.drawLine(QtCore.QPointF(fx - 10 / sx, fy), QtCore.QPointF(fx + 10 / sx, fy))
+                    p.drawLine(QtCore.QPointF(fx, fy - 10 / sx), QtCore.QPointF(fx, fy + 10 / sx))
+        for header, colour in [(self.header, PLAYER_COLOUR), *self.others]:
+            bbox = header.get("bbox_px")
+            if bbox is not None:
+                p.setPen(QtGui.QPen(colour, 1.5 / sx))
+                p.drawRect(QtCore.QRectF(bbox[0], bbox[1], bbox[2] - bbox[0], bbox[3] - bbox[1]))
         p.end()
 
 
@@ -98,6 +103,7 @@ class CourtMinimap(QtWidgets.QWidget):
         self.trail_m = np.zeros((0, 2))
         self.position_m: np.ndarray | None = None
         self.heading_rad: float | None = None
+        self.others: list[tuple[np.ndarray, Any, float | None, QtGui.QColor]] = []  # (trail, pos, heading, colour)
         self.setMinimumSize(120, 200)
 
     def set_track(self, trail_m: np.ndarray, position_m: Any, heading_rad: float | None) -> None:
@@ -128,24 +134,33 @@ class CourtMinimap(QtWidgets.QWidget):
         for (x0, y0), (x1, y1) in court_line_segments():
             p.drawLine(QtCore.QPointF(x0, y0), QtCore.QPointF(x1, y1))
         p.drawLine(QtCore.QPointF(-DOUBLES_WIDTH_M / 2 - 0.9, 0), QtCore.QPointF(DOUBLES_WIDTH_M / 2 + 0.9, 0))
-        if len(self.trail_m) > 1:
-            trail_pen = QtGui.QPen(QtGui.QColor(255, 200, 120, 160), 2)
+        tracks = [(self.trail_m, self.position_m, self.heading_rad, PLAYER_COLOUR), *self.others]
+        for trail_m, position_m, heading_rad, colour in tracks:
+            self._draw_track(p, trail_m, position_m, heading_rad, colour)
+        p.end()
+
+    @staticmethod
+    def _draw_track(p: QtGui.QPainter, trail_m: np.ndarray, position_m: Any, heading_rad: float | None,
+                    colour: QtGui.QColor) -> None:
+        if len(trail_m) > 1:
+            faded = QtGui.QColor(colour)
+            faded.setAlpha(160)
+            trail_pen = QtGui.QPen(faded.lighter(130), 2)
             trail_pen.setCosmetic(True)
             p.setPen(trail_pen)
-            p.drawPolyline(QtGui.QPolygonF([QtCore.QPointF(x, y) for x, y in self.trail_m]))
-        if self.position_m is not None:
-            x, y = self.position_m
+            p.drawPolyline(QtGui.QPolygonF([QtCore.QPointF(x, y) for x, y in trail_m]))
+        if position_m is not None:
+            x, y = np.asarray(position_m, float)[:2]
             p.setPen(QtCore.Qt.NoPen)
-            p.setBrush(PLAYER_COLOUR)
+            p.setBrush(colour)
             p.drawEllipse(QtCore.QPointF(x, y), 0.35, 0.35)
-            if self.heading_rad is not None:
+            if heading_rad is not None:
                 # heading 0 faces +y (towards the far baseline), positive counter-clockwise seen from above
-                hx, hy = -math.sin(self.heading_rad), math.cos(self.heading_rad)
-                arrow = QtGui.QPen(PLAYER_COLOUR, 2)
+                hx, hy = -math.sin(heading_rad), math.cos(heading_rad)
+                arrow = QtGui.QPen(colour, 2)
                 arrow.setCosmetic(True)
                 p.setPen(arrow)
                 p.drawLine(QtCore.QPointF(x, y), QtCore.QPointF(x + 1.2 * hx, y + 1.2 * hy))
-        p.end()
 
 
 class CameraPane(QtWidgets.QWidget):
@@ -154,11 +169,13 @@ class CameraPane(QtWidgets.QWidget):
         self.view = CameraView()
         self.minimap = CourtMinimap()
         self.info = QtWidgets.QLabel("camera: –")
+        self.athletes_info = QtWidgets.QLabel("")
         self._last_header: dict[str, Any] | None = None
         self._last_jpeg: bytes | None = None
         right = QtWidgets.QVBoxLayout()
         right.addWidget(self.minimap, 1)
         right.addWidget(self.info)
+        right.addWidget(self.athletes_info)
         layout = QtWidgets.QHBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.view, 3)
@@ -180,3 +197,23 @@ class CameraPane(QtWidgets.QWidget):
             self.info.setText(f"t {header.get('t_host_s', 0):.2f} s  pos ({pos[0]:+.2f}, {pos[1]:+.2f}) m  "
                               f"conf {float(header.get('confidence', float('nan'))):.2f}{state}\n"
                               f"camera {stats.fps:.1f} fps, {stats.dropped} dropped")
+
+    def update_athletes(self, tracks: dict[str, tuple[dict[str, Any], np.ndarray]], first: str | None) -> None:
+        """The other athletes' newest observations and trails (`gui.bridge.GatewayBridge.athlete_tracks`), in
+        their own colours on the overlay and the minimap; ``first`` is the athlete `update_camera` shows.
+        One athlete: nothing to add (no repaint)."""
+        others = [(header, trail) for name, (header, trail) in tracks.items() if name != first]
+        if not others:
+            return
+        colours = [OTHER_COLOURS[k % len(OTHER_COLOURS)] for k in range(len(others))]
+        self.view.others = [(header, colour) for (header, _), colour in zip(others, colours)]
+        self.minimap.others = [(trail[:, 1:3], header.get("position_m"), header.get("heading_rad"), colour)
+                               for (header, trail), colour in zip(others, colours)]
+        lines = []
+        for name, (header, _) in tracks.items():
+            pos = header.get("position_m")
+            lines.append(f"{name}: " + (f"({pos[0]:+.1f}, {pos[1]:+.1f}) m" if pos is not None
+                                        else str(header.get("status", "not tracking")).upper()))
+        self.athletes_info.setText("  ".join(lines))
+        self.view.update()
+        self.minimap.update()

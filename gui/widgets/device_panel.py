@@ -106,6 +106,9 @@ class DevicePanel(QtWidgets.QWidget):
         self._new_rows = False
         self.sensor_health: dict[tuple[str, int], Sync] = {}  # last status: per-sensor health light
         self.commands_allowed = True  # False for a viewer connection: the gateway refuses station commands
+        # who wears each sensor (the samples' ``athlete``; the console shares its bridge's dict): with several
+        # athletes each station row names its athlete(s), so the panel reads per athlete (issue 20)
+        self.sensor_athletes: dict[tuple[str, int], str] = {}
         layout = QtWidgets.QHBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.tree, 1)
@@ -154,6 +157,7 @@ class DevicePanel(QtWidgets.QWidget):
             sync = sync_status(st)
             clock = st.get("clock") or {}
             row = self._item(("station", sid), None, f"station {sid}")
+            row.setText(0, self._station_label(sid))
             values = {1: str(st.get("link", "?")), 7: str(st.get("crc_errors", 0)),
                       8: _fmt(clock.get("offset_s"), ".2f", 1e3), 9: _fmt(clock.get("skew_ppm"), ".1f"),
                       10: _fmt(clock.get("residual_s"), ".3f", 1e3), 11: sync.value}
@@ -182,6 +186,14 @@ class DevicePanel(QtWidgets.QWidget):
             for col in range(len(COLUMNS)):
                 self.tree.resizeColumnToContents(col)
             self._new_rows = False
+
+    def _station_label(self, sid: str) -> str:
+        """``station st1``, or ``station st1 · alice`` when several athletes wear the sensors."""
+        athletes = dict(self.sensor_athletes)  # a snapshot: the network thread adds entries
+        if len(set(athletes.values())) < 2:
+            return f"station {sid}"
+        who = sorted({name for (station, _), name in athletes.items() if station == sid})
+        return f"station {sid}" + (f" · {', '.join(who)}" if who else "")
 
     def _drop_rows_not_in(self, status: dict[str, Any]) -> None:
         """Forget rows of stations the gateway no longer lists (a reader is named by its port until the first

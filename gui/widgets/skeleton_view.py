@@ -15,6 +15,13 @@ from gui.render.camera import CameraMode, OrbitCamera
 from gui.render.skeleton_renderer import ESTIMATE_STYLE, TRUTH_STYLE, SkeletonRenderer, SkeletonStyle
 
 TRUTH_OFFSET_M = np.array([1.5, 0.0, 0.0])  # ground truth drawn beside the estimate, not on top of it
+# More athletes (issue 20): athlete k (k >= 1) is drawn k x this beside the first athlete, on the other side from
+# the ground truth, each in its own colour. Why fixed offsets rather than court positions: an engine's root is in
+# its own world (not anchored to the court), so two athletes' roots can coincide; side by side stays readable.
+ATHLETE_OFFSET_M = np.array([-1.5, 0.0, 0.0])
+ATHLETE_STYLES = (SkeletonStyle(bone_rgb=(0.3, 0.85, 0.3), joint_rgb=(0.6, 1.0, 0.5)),
+                  SkeletonStyle(bone_rgb=(0.85, 0.35, 0.85), joint_rgb=(1.0, 0.6, 1.0)))
+ATHLETE_CSS = ("#4dd94d", "#d959d9")
 # Render at most this many pixels and let Qt scale up: llvmpipe cost grows with the pixel count and the
 # skeleton reads fine at 640x360 upscaled (a 1500x950 window otherwise costs ~2.5x more per frame).
 MAX_RENDER_PIXELS = 640 * 360
@@ -54,6 +61,8 @@ class SkeletonView(QtWidgets.QWidget):
         self.truth_offset_m = TRUTH_OFFSET_M.copy()
         self.estimate_style = ESTIMATE_STYLE
         self.confidence_level: float | None = None
+        self.athlete: str | None = None  # the estimate's athlete (named in the legend when there are several)
+        self.others: dict[str, tuple[np.ndarray, SkeletonStyle]] = {}  # more athletes: name -> (pose, style)
         self._image: QtGui.QImage | None = None
         self._pixels: np.ndarray | None = None
         self._dirty = True
@@ -84,11 +93,30 @@ class SkeletonView(QtWidgets.QWidget):
             self.camera.snap_to(root)
             self._snapped = True
         self.camera.follow(root)
-        text = ("<span style='color:#ff9a2a'>■ estimate</span>  " if self.estimate_m is not None else "") + (
-            "<span style='color:#4fd8e6'>■ ground truth</span>" if self.truth_m is not None else "")
+        self._update_legend()
+        self._dirty = True
+
+    def set_other_athletes(self, poses: dict[str, tuple[np.ndarray | None, float | None]]) -> None:
+        """Poses (J,3) m and confidence (None = not reported) of the athletes after the first, in order; a None
+        pose keeps that athlete's last one."""
+        for k, (name, (pose, confidence)) in enumerate(poses.items()):
+            if pose is None:
+                continue
+            style = ATHLETE_STYLES[k % len(ATHLETE_STYLES)]
+            if confidence is not None and np.isfinite(confidence):
+                style = confidence_style(style, round(float(np.clip(confidence, 0, 1)), 1))
+            self.others[name] = (np.asarray(pose, float), style)
+        self._update_legend()
+        self._dirty = True
+
+    def _update_legend(self) -> None:
+        name = f" {self.athlete}" if self.athlete and self.others else ""
+        text = (f"<span style='color:#ff9a2a'>■ estimate{name}</span>  " if self.estimate_m is not None else "")
+        text += "".join(f"<span style='color:{ATHLETE_CSS[k % len(ATHLETE_CSS)]}'>■ {other}</span>  "
+                        for k, other in enumerate(self.others))
+        text += "<span style='color:#4fd8e6'>■ ground truth</span>" if self.truth_m is not None else ""
         self.legend.setText(text)
         self.legend.adjustSize()
-        self._dirty = True
 
     def set_segment_colours(self, segment_rgb: dict[int, tuple[float, float, float]]) -> None:
         """Paint the estimate's segments (joint index -> RGB), e.g. sensors in trouble; {} = normal colours."""
@@ -134,6 +162,10 @@ class SkeletonView(QtWidgets.QWidget):
             if self.truth_m is not None:
                 offset = self.truth_offset_m if self.estimate_m is not None else 0.0
                 skeletons.append((self.truth_m + offset, self.parents, TRUTH_STYLE))
+            anchor = self.estimate_m[0] if self.estimate_m is not None else None
+            for k, (pose, style) in enumerate(self.others.values(), 1):
+                shift = (anchor - pose[0]) * [1, 0, 1] if anchor is not None else 0.0  # beside the first one
+                skeletons.append((pose + shift + k * ATHLETE_OFFSET_M, self.parents, style))
         self._pixels = np.ascontiguousarray(self.renderer.render(self.camera, skeletons))
         h, w = self._pixels.shape[:2]
         self._image = rgba_to_qimage(self._pixels)

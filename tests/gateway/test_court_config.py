@@ -211,6 +211,7 @@ def test_cli_refuses_a_bad_config_with_one_line_and_exit_2(tmp_path):
 def test_shipped_example_config_loads_and_every_key_is_documented():
     from dataclasses import fields
 
+    from gateway.athletes import AthleteConfig
     from gateway.court_config import AuthConfig, CalibrationConfig, CameraConfig, LslConfig, StationsConfig
 
     root = Path(__file__).resolve().parents[2]
@@ -219,10 +220,12 @@ def test_shipped_example_config_loads_and_every_key_is_documented():
     assert config.authenticated and config.camera.source == "/dev/video0" and config.stations.discover
     text, docs = example.read_text(), (root / "docs" / "gateway.md").read_text()
     sections = {"": CourtConfig, "[stations] ": StationsConfig, "[camera] ": CameraConfig,
-                "[calibration] ": CalibrationConfig, "[auth] ": AuthConfig, "[lsl] ": LslConfig}
+                "[calibration] ": CalibrationConfig, "[auth] ": AuthConfig, "[lsl] ": LslConfig,
+                "[[athletes]] ": AthleteConfig}
+    assert [a.name for a in config.athletes] == ["alice", "bob"] and config.athletes[1].sensors[0].key == "sn"
     for prefix, cls in sections.items():
         for f in fields(cls):
-            if f.name in ("stations", "camera", "calibration", "auth", "lsl"):
+            if f.name in ("stations", "camera", "calibration", "auth", "lsl", "athletes"):
                 continue  # the tables themselves
             assert f"\n{f.name} =" in text, f"{f.name} missing from {example.name}"
             assert f"`{prefix}{f.name}`" in docs or f"`{prefix}{f.name}`," in docs or f", `{f.name}`" in docs, f.name

@@ -1,4 +1,4 @@
-"""The demo's synthetic camera shows an opponent on the other half; its tracker follows the performer."""
+"""The demo's synthetic camera shows the opponent on the other half; one track follows each athlete."""
 from __future__ import annotations
 
 import threading
@@ -7,22 +7,27 @@ import time
 import numpy as np
 
 from gui.demo.hardware import DemoCamera
-from gui.demo.performance import build_performance
+from gui.demo.performance import OPPONENT, PLAYER, build_opponent, build_performance
 
 
-def test_demo_camera_tracks_the_performer_not_the_opponent():
+def test_demo_camera_tracks_each_athlete_with_its_own_track():
     perf = build_performance()
-    cam = DemoCamera(perf, t0_monotonic_s=0.0, duration_s=12.0)
+    cam = DemoCamera(perf, t0_monotonic_s=0.0, duration_s=12.0, opponent=build_opponent())
     assert len(cam.source.opponents) == 1
-    err, opponent_sides = [], set()
+    err: dict[str, list[float]] = {PLAYER: [], OPPONENT: []}
+    opponent_sides = set()
     for frame in cam.source:
-        record = cam.tracker.update(frame)
-        if record is not None and frame.truth.visible:
-            err.append(np.hypot(record.x_m - frame.truth.x_m, record.y_m - frame.truth.y_m))
-            opponent = cam.source.opponents[0].state(frame.truth.t_true_s)
-            opponent_sides.add(np.sign(opponent.y_m) != np.sign(frame.truth.y_m))
-    assert len(err) > 0.9 * 12.0 * 12  # 12 fps
-    assert np.sqrt(np.mean(np.square(err))) < 0.25
+        records = cam.tracker.update_all(frame)
+        if not frame.truth.visible:
+            continue
+        opponent = cam.source.opponents[0].state(frame.truth.t_true_s)
+        opponent_sides.add(np.sign(opponent.y_m) != np.sign(frame.truth.y_m))
+        for name, (x, y) in ((PLAYER, (frame.truth.x_m, frame.truth.y_m)), (OPPONENT, (opponent.x_m, opponent.y_m))):
+            if records[name] is not None:
+                err[name].append(np.hypot(records[name].x_m - x, records[name].y_m - y))
+    for name, e in err.items():
+        assert len(e) > 0.9 * 12.0 * 12, name  # 12 fps
+        assert np.sqrt(np.mean(np.square(e))) < 0.25, name
     assert opponent_sides == {True}  # the opponent really was on the other half all along
 
 
@@ -46,4 +51,5 @@ def test_demo_camera_that_falls_behind_the_wall_clock_skips_ahead_instead_of_pub
     first = published[0][0]
     assert first["t_host_s"] >= started - cam.MAX_LAG_S  # the old code started 7.5 s in the past (empty court)
     assert first["frame_index"] >= 5.0 * 12 and cam.source.dropped >= 5.0 * 12  # the skipped frames count as dropped
-    assert [o["frame_index"] for o, _ in published] == sorted({o["frame_index"] for o, _ in published})
+    frames = [o["frame_index"] for o, _ in published if o["athlete"] == PLAYER]  # one observation per athlete
+    assert frames == sorted(set(frames))

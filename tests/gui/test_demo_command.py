@@ -1,5 +1,6 @@
 """`courtside demo` end to end in a subprocess: real emulated stations replaying held-out mocap, gateway,
-synthetic camera, console — and its screenshot shows both the synthesized and the ground-truth skeleton."""
+synthetic camera, console — and its screenshot shows the synthesized skeletons of both athletes and the ground
+truth of the first."""
 from __future__ import annotations
 
 import os
@@ -25,8 +26,10 @@ def test_demo_runs_for_its_duration_and_shows_two_skeletons(tmp_path):
     view = (slice(int(0.06 * h), int(0.5 * h)), slice(0, int(0.58 * w)))  # the 3-D pane, top left
     estimate = ((r > 100) & (b < 80) & (r - g > 30))[view]
     truth = ((g > 100) & (b > 100) & (r < 90))[view]
+    opponent = ((g > 150) & (r < 130) & (b < 130))[view]  # the second athlete's skeleton (green)
     assert estimate.sum() > 300, estimate.sum()
     assert truth.sum() > 300, truth.sum()
+    assert opponent.sum() > 300, opponent.sum()
     assert "held-out" in proc.stderr and "demo gateway on" in proc.stderr
 
 

@@ -62,7 +62,28 @@ def test_leave_one_content_out_holds_out_every_clip_of_the_content(capsys):
                       "--engines", "motion-graph,baselines", "--sensor-sets", "6"]) == 0
     out = capsys.readouterr().out
     assert "[content 16_01]" in out and "[content 16_35]" in out
-    assert len(table_rows(out)) == 7  # mean x2, graph x2, camera only, NN x2 (both groups share the keys)
+    assert len(table_rows(out)) == 8  # mean x2, oracle, graph x2, camera only, NN x2 (both groups share the keys)
+    assert "[all groups]" in out
+
+
+def test_orientation_rows_and_the_oracle_fractions(capsys):
+    """--inputs acc,acc+ori: the motion graph with accelerations only and with orientations (realistic filter
+    errors) in the same table as the database oracle, and which fraction of the oracle's gain each row gets."""
+    assert courtside(["evaluate", "--protocol", "loco", "--sample", "--groups", "16_35", "--test-clips", "1",
+                      "--engines", "motion-graph,baselines", "--sensor-sets", "6", "--inputs", "acc,acc+ori"]) == 0
+    out = capsys.readouterr().out
+    rows = table_rows(out)
+    oracle = rows[("database oracle", "-", "yes")][1]
+    assert oracle < rows[("nearest neighbour", "6", "yes")][1]  # root-relative: the floor of one database pose
+    # the graph blends its 8 best paths' poses, so it may even pass the oracle; on this clip it comes within 1 cm
+    assert abs(rows[("motion graph +ori", "6", "yes")][1] - oracle) < 1.0, out
+    assert re.search(r"motion graph \+ori, 6 sensors: -?[\d.]+ of the oracle's gain, [-+][\d.]+ cm from it", out), out
+
+
+def test_bad_inputs_option_is_one_line(capsys):
+    assert courtside(["evaluate", "--protocol", "loco", "--sample", "--inputs", "acc,gps"]) == 2
+    err = capsys.readouterr().err
+    assert "--inputs" in err and len(err.strip().splitlines()) == 1
 
 
 def test_held_out_databases_hold_nothing_of_the_held_out_clips(motions):

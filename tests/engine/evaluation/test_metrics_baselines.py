@@ -68,3 +68,24 @@ def test_nearest_neighbour_finds_a_database_window_and_dead_reckons_its_path(mot
     joints, _ = nn.predict(clip.acc_g[5:35], None, None, clip.ground_m[5], clip.heading_rad[5])
     assert np.allclose(joints[:, error_joint_indices(motions[0].skeleton)],
                        clip.positions_m[5:35][:, error_joint_indices(motions[0].skeleton)], atol=1e-4)
+
+
+def test_database_oracle_finds_a_database_clip_exactly_and_is_the_floor_for_a_held_out_one(motions):
+    """The oracle plays, frame by frame, the database pose nearest the truth: zero root-relative error on a clip
+    the database holds; on a held-out clip no database-playing baseline does better than it."""
+    from engine.evaluation.baselines import database_oracle
+
+    cfg = GraphConfig(sensor_names=["left_forearm", "right_forearm"])
+    clips = clips_from_motions(motions, standard_placements(motions[0].skeleton, cfg.sensor_names), cfg)
+    graph = build_from_clips(clips, cfg)
+    clip = clips[2]
+    joints, nodes = database_oracle(graph, clip.positions_m, motions[0].skeleton, clip.ground_m, clip.heading_rad)
+    assert np.array_equal(graph.node_clip[nodes], np.full(clip.n_frames, 2))
+    assert frame_errors(joints, clip.positions_m, motions[0].skeleton).root_relative_cm.max() < 1e-3
+    held = graph.without_clips([2])
+    joints, _ = database_oracle(held, clip.positions_m, motions[0].skeleton, clip.ground_m, clip.heading_rad)
+    oracle = frame_errors(joints, clip.positions_m, motions[0].skeleton).root_relative_cm.mean()
+    nn_joints, _ = NearestNeighbour(held, (0, 1), window=10).predict(clip.acc_g, clip.ground_m, clip.heading_rad,
+                                                                   clip.ground_m[0], clip.heading_rad[0])
+    nn = frame_errors(nn_joints, clip.positions_m, motions[0].skeleton).root_relative_cm.mean()
+    assert 0.5 < oracle < nn
