@@ -54,7 +54,7 @@ def per_type_table(shared: Path, tests_per_type: int) -> None:
     CMU subject 16 (walk / run / jump, labelled from the root trajectory) with leave-one-out over
     `tests_per_type` clips of each type; hopping from CMU 131_03 (start-hop-stop, its own skeleton), split in
     two halves that are held out in turn (hop has no all-types entry: different skeleton)."""
-    from engine.hmm.evaluation import behaviour_of, leave_one_out
+    from engine.hmm.evaluation import behaviour_of, hmm_leave_one_out
     from engine.mocap import resample
     from engine.olng.metrics import summarise
 
@@ -74,9 +74,9 @@ def per_type_table(shared: Path, tests_per_type: int) -> None:
             pool, lab = motions, labels
             idx = [i for i, b in enumerate(labels) if b == kind]
             tests = [idx[int(k)] for k in np.linspace(0, len(idx) - 1, min(tests_per_type, len(idx)))]
-            mixed = leave_one_out(pool, tests, ("right_foot",), labels=lab)
-        one = leave_one_out(pool, tests, ("right_foot",), labels=lab, train_indices=idx)
-        two = leave_one_out(pool, tests, ("right_foot", "right_wrist"), labels=lab, train_indices=idx)
+            mixed = hmm_leave_one_out(pool, tests, ("right_foot",), labels=lab)
+        one = hmm_leave_one_out(pool, tests, ("right_foot",), labels=lab, train_indices=idx)
+        two = hmm_leave_one_out(pool, tests, ("right_foot", "right_wrist"), labels=lab, train_indices=idx)
         fmt = lambda sc: f"{summarise(sc)['joint_cm']:6.2f} / {summarise(sc)['rms_root_cm']:5.2f}"  # noqa: E731
         frames = summarise(one)["frames"]
         print(f"{kind:<8}{frames:>7}{fmt(one):>16}{fmt(two):>16}{fmt(mixed) if mixed else '-':>20}")

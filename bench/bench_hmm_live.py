@@ -4,7 +4,7 @@ quaternion, through `OrientationErrorModel.realistic()`).
 
 Leave-one-out over the shipped CMU subject-16 clips (each clip held out once, the model trained on the others),
 one right-foot IMU simulated on the held-out clip with the default sensor error model, reconstructed through
-`engine.hmm.evaluation.leave_one_out` (foot IK on). Columns: mean joint error in the heading frame (engine.graph's
+`engine.hmm.evaluation.hmm_leave_one_out` (foot IK on). Columns: mean joint error in the heading frame (engine.graph's
 measure) and RMS in the root frame (Tautges et al.), mean over clips; the ratio column is against acc + gyro in
 this run. A mean-pose baseline (the training clips' mean root-frame pose) is in the same table.
 
@@ -19,7 +19,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from engine.hmm.config import HMMConfig  # noqa: E402
-from engine.hmm.evaluation import leave_one_out  # noqa: E402
+from engine.hmm.evaluation import hmm_leave_one_out  # noqa: E402
 from engine.mocap import SensorErrorModel, forward_kinematics, load_clip, sample_clips  # noqa: E402
 from engine.olng.metrics import root_frame  # noqa: E402
 
@@ -42,7 +42,7 @@ def main() -> int:
     for name, config in (("acc + gyro (seed 004)", HMMConfig()),
                          ("acc only", HMMConfig(imu_channels="acc")),
                          ("acc + gyro + tilt", HMMConfig(imu_channels="acc+gyro+tilt"))):
-        scores = leave_one_out(motions, tests, ("right_foot",), error_model=SensorErrorModel(), config=config)
+        scores = hmm_leave_one_out(motions, tests, ("right_foot",), error_model=SensorErrorModel(), config=config)
         rows[name] = (np.mean([s.joint_cm.mean() for s in scores]), np.mean([s.rms_root_cm.mean() for s in scores]))
     rows["mean pose (baseline)"] = (float("nan"), np.mean([mean_pose_rms_cm(motions, t) for t in tests]))
     print(f"HMM leave-one-out on {len(motions)} shipped CMU subject-16 clips, right-foot IMU, load avg "

@@ -26,7 +26,8 @@ from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph, build_from_clips
 from engine.graph.mocap_adapter import clips_from_motions
 from engine.graph.online import FixedLagSynthesizer
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
+from engine.graph.search import ViterbiSearch
 from engine.mocap import SensorErrorModel, load_database, sample_clips, standard_placements
 
 

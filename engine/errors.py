@@ -7,6 +7,7 @@ location when known, and the problem. `engine` is pure numpy/scipy, so gateway a
 module without pulling in anything heavy."""
 from __future__ import annotations
 
+import argparse
 import functools
 import sys
 from pathlib import Path
@@ -29,6 +30,19 @@ class MalformedFileError(CourtsideError, ValueError):
         self.problem = problem
         where = f"{self.path}, line {line}" if line is not None else self.path
         super().__init__(f"{where}: {problem}")
+
+
+class UsageError(CourtsideError):
+    """A bad command-line argument (argparse's own checks: unknown option, missing value, bad choice)."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse in the project's one error style: a bad argument raises `UsageError`, which the dispatcher (or
+    `cli_command`) reports as one line with exit status 2, like any other bad input, instead of argparse's usage
+    block and `SystemExit`. ``--help`` is unchanged."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise UsageError(f"{message} (see {self.prog} --help)")
 
 
 def check_output_dir(path: str | Path) -> None:

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from engine import progress
-from engine.errors import MalformedFileError, cli_command
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, cli_command
 from engine.stream.offline import acc_in_sensor_order
 
 SAMPLE_PREFIX = "16_"
@@ -36,14 +36,14 @@ def _database_paths(args: argparse.Namespace) -> list[Path]:
     if args.mocap_dir:
         paths += [Path(p) for p in sorted(glob.glob(str(Path(args.mocap_dir) / args.pattern)))]
     if not paths:
-        raise SystemExit("courtside reconstruct: no clips: give clip files, --sample, or --mocap-dir with --pattern")
+        raise CourtsideError("no clips: give clip files, --sample, or --mocap-dir with --pattern")
     return paths
 
 
 def _olng_config(args: argparse.Namespace):
-    from engine.olng.config import GraphConfig, OLNGConfig
+    from engine.olng.config import NeighbourhoodGraphConfig, OLNGConfig
 
-    return OLNGConfig(graph=GraphConfig(k_neighbours=args.k, i_best=args.i_best, window=args.window))
+    return OLNGConfig(graph=NeighbourhoodGraphConfig(k_neighbours=args.k, i_best=args.i_best, window=args.window))
 
 
 def _load_motions(args: argparse.Namespace):
@@ -143,7 +143,7 @@ def _reconstruct_motion_graph(args: argparse.Namespace) -> int:
     from engine.graph.cli import synthesize_main
 
     if not args.graph:
-        raise SystemExit("courtside reconstruct --method motion-graph needs --graph (from `courtside build-graph`)")
+        raise CourtsideError("--method motion-graph needs --graph (from `courtside build-graph`)")
     return synthesize_main(["--graph", args.graph, "--input", args.input, "-o", args.output])
 
 
@@ -163,33 +163,32 @@ def _evaluate(args: argparse.Namespace) -> int:
 
         error_model = SensorErrorModel.seed000()
     if "olng" in methods:
-        from engine.olng.config import EnergyConfig, GraphConfig, KnowledgeBaseConfig, OLNGConfig
-        from engine.olng.evaluation import Variant, leave_one_out, mean_pose_baseline
+        from engine.olng.config import EnergyConfig, KnowledgeBaseConfig, NeighbourhoodGraphConfig, OLNGConfig
+        from engine.olng.evaluation import Variant, mean_pose_baseline, olng_leave_one_out
 
         base = _olng_config(args)
         variants = [Variant("olng (4 acc)", base),
                     Variant("olng mahalanobis prior", OLNGConfig(graph=base.graph, energy=EnergyConfig(kernel="mahalanobis"))),
-                    Variant("olng no time warp", OLNGConfig(graph=GraphConfig(k_neighbours=args.k, i_best=args.i_best,
-                                                                              window=args.window, max_column_step=1, max_warp=1)))]
+                    Variant("olng no time warp", OLNGConfig(graph=NeighbourhoodGraphConfig(
+                        k_neighbours=args.k, i_best=args.i_best, window=args.window, max_column_step=1, max_warp=1)))]
         if args.orientations:  # issue 18: the channels a real IMU streams, orientations through a realistic filter
             variants += [Variant("olng (4 acc + orientation)", base, ("acc", "orientation")),
                          Variant("olng (4 acc + ori + gyro)", base, ("acc", "orientation", "gyro"))]
         kb_config = KnowledgeBaseConfig(mirror=args.mirror, reverse=args.reverse)
-        scores = leave_one_out(motions, tests, variants, kb_config, error_model, seed=args.seed)
+        scores = olng_leave_one_out(motions, tests, variants, kb_config, error_model, seed=args.seed)
         rows.update({k: summarise(v) for k, v in scores.items()})
         rows["database mean pose"] = summarise(mean_pose_baseline(motions, tests, kb_config))
     if "hmm" in methods:
-        from engine.hmm.evaluation import leave_one_out as hmm_loo
-
         from engine.hmm.config import HMMConfig
+        from engine.hmm.evaluation import hmm_leave_one_out
 
         for imus in (("right_foot",), ("right_foot", "right_wrist")):
-            scores = hmm_loo(motions, tests, imu_names=imus, error_model=error_model, seed=args.seed)
+            scores = hmm_leave_one_out(motions, tests, imu_names=imus, error_model=error_model, seed=args.seed)
             rows[f"hmm ({len(imus)} imu)"] = summarise(scores)
             if args.orientations:  # acc only, and with the tilt of a realistic filter, beside the paper's acc + gyro
                 for channels in ("acc", "acc+gyro+tilt"):
-                    scores = hmm_loo(motions, tests, imu_names=imus, error_model=error_model, seed=args.seed,
-                                     config=HMMConfig(imu_channels=channels))
+                    scores = hmm_leave_one_out(motions, tests, imu_names=imus, error_model=error_model,
+                                               seed=args.seed, config=HMMConfig(imu_channels=channels))
                     rows[f"hmm ({len(imus)} imu, {channels})"] = summarise(scores)
     if "motion-graph" in methods:
         rows.update(_motion_graph_rows(args, motions, tests))
@@ -199,25 +198,25 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 def _motion_graph_rows(args: argparse.Namespace, motions, tests) -> dict[str, dict[str, float]]:
     """engine.graph's own leave-one-out on the same clips, acc-only with the seed-003 sensors."""
-    from engine.graph.config import GraphConfig as MotionGraphConfig
-    from engine.graph.evaluate import Setting, leave_one_out, summarise
+    from engine.graph.config import GraphConfig
+    from engine.graph.evaluate import Setting, graph_leave_one_out, summarise
     from engine.graph.graph import build_from_clips
     from engine.graph.mocap_adapter import clips_from_motions
     from engine.graph.viterbi import SearchWeights
     from engine.mocap import SEED003_SENSORS, resample, standard_placements
 
-    config = MotionGraphConfig(sensor_names=list(SEED003_SENSORS))
+    config = GraphConfig(sensor_names=list(SEED003_SENSORS))
     at_rate = [resample(m, config.fps) for m in motions]
     clips = clips_from_motions(at_rate, standard_placements(at_rate[0].skeleton, SEED003_SENSORS), config)
     graph = build_from_clips(clips, config)
     setting = Setting("acc 4", tuple(range(len(SEED003_SENSORS))), SearchWeights(0.5, 0, 0))
-    scores = leave_one_out(graph, clips, at_rate[0].skeleton, [setting], tests, seed=args.seed)
+    scores = graph_leave_one_out(graph, clips, at_rate[0].skeleton, [setting], tests, seed=args.seed)
     return {"motion graph (4 acc)": summarise(scores[setting.name])}
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside reconstruct", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(prog="courtside reconstruct", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("clips", nargs="*", help="database clips (.bvh or .amc, one skeleton)")
     p.add_argument("--method", choices=["olng", "hmm", "motion-graph"], default="olng")
     p.add_argument("--input", help="take .npz")
@@ -254,8 +253,7 @@ def main(argv: list[str]) -> int:
     if args.evaluate:
         return _evaluate(args)
     if not args.input or not args.output:
-        print("courtside reconstruct: --input and -o are required (or use --evaluate)", file=sys.stderr)
-        return 2
+        raise CourtsideError("--input and -o are required (or use --evaluate)")
     if args.method == "motion-graph":
         return _reconstruct_motion_graph(args)
     summary = _reconstruct_olng(args) if args.method == "olng" else _reconstruct_hmm(args)

@@ -17,7 +17,7 @@ from engine.errors import CourtsideError
 from gateway import auth
 from gateway.athletes import DEFAULT_ATHLETE, AthleteConfig, AthleteMap
 from gateway.court_config import CameraConfig, CourtConfig, check_consistent
-from gateway.daemon import Gateway
+from gateway.daemon.core import Gateway
 from gateway.names import free_name
 from gateway.server import RequestError
 

@@ -46,6 +46,7 @@ from typing import Any, BinaryIO, Callable
 
 import numpy as np
 
+from engine import export_format
 from engine import progress
 from engine.errors import CourtsideError
 from gateway import codec
@@ -690,18 +691,19 @@ def export_take(path: Path | str, npz: Path | str | None = None, csv_dir: Path |
 
 
 def export_npz(path: Path | str, out: Path | str, *, take: Take | None = None) -> Path:
-    """One npz: ``<station>/<sensor>/<array>`` keys for samples (plus ``t_realigned_s``, the offline clock re-fit),
-    ``meta`` and ``messages`` as JSON strings. ``take``: the take at ``path`` when already loaded."""
+    """One npz in the layout `engine.export_format` defines: ``<station>/<sensor>/<array>`` keys for samples
+    (plus ``t_realigned_s``, the offline clock re-fit), ``meta`` and ``messages`` as JSON strings. ``take``: the
+    take at ``path`` when already loaded."""
     out = Path(out)
     _check_output_dir(out.parent)  # before any work or warning
     take = take or _exportable(path)
     realigned = realign_take(take)
     arrays: dict[str, Any] = {}
     for (station, sensor), cols in take.samples.items():
-        for name, value in {**cols, "t_realigned_s": realigned[(station, sensor)]}.items():
-            arrays[f"{station}/{sensor}/{name}"] = value
-    arrays["meta"] = np.array(json.dumps(take.meta))
-    arrays["messages"] = np.array(json.dumps([{"kind": m.kind, **m.header} for m in take.others]))
+        for name, value in {**cols, export_format.T_REALIGNED_S: realigned[(station, sensor)]}.items():
+            arrays[export_format.sensor_key(export_format.sensor_name(station, sensor), name)] = value
+    arrays[export_format.META] = np.array(json.dumps(take.meta))
+    arrays[export_format.MESSAGES] = np.array(json.dumps([{"kind": m.kind, **m.header} for m in take.others]))
     partial = out.with_name(out.name + ".partial")
     try:
         with open(partial, "wb") as fh:  # a file object: numpy does not append ".npz" to the name
@@ -731,7 +733,7 @@ def export_csv(path: Path | str, out_dir: Path | str, *, take: Take | None = Non
     written = []
     for (station, sensor), cols in take.samples.items():
         names, columns = [], []
-        for name, value in {**cols, "t_realigned_s": realigned[(station, sensor)]}.items():
+        for name, value in {**cols, export_format.T_REALIGNED_S: realigned[(station, sensor)]}.items():
             value = value.reshape(len(value), -1)
             if value.shape[1] == 1:
                 names.append(name)

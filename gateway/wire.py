@@ -131,12 +131,3 @@ def recv_message(sock: socket.socket, *, max_frame_bytes: int = MAX_FRAME_BYTES,
     except (codec.CodecError, RecursionError, ValueError, MemoryError) as exc:
         problem = "JSON nested too deeply" if isinstance(exc, RecursionError) else str(exc)[:200]
         raise UndecodableFrame(f"undecodable frame: {problem}") from None
-
-
-def parse_hostport(text: str, default_host: str = "127.0.0.1") -> tuple[str, int]:
-    """``"host:port"`` or ``":port"`` or ``"port"`` -> (host, port)."""
-    host, _, port = text.rpartition(":")
-    try:
-        return (host or default_host), int(port)
-    except ValueError as exc:
-        raise ValueError(f"listen address {text!r} is not host:port") from exc

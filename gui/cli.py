@@ -11,6 +11,8 @@ import logging
 import sys
 from pathlib import Path
 
+from engine.errors import ArgumentParser, CourtsideError, cli_command
+
 log = logging.getLogger("courtside.console")
 
 
@@ -24,8 +26,8 @@ def _host_port(text: str) -> tuple[str, int]:
 def _console_parser() -> argparse.ArgumentParser:
     from engine.stream.registry import engine_names
 
-    p = argparse.ArgumentParser(prog="courtside console", description="Operator console for a Courtside gateway.",
-                                epilog="Unattended capture: courtside console --connect HOST:PORT --calibrate "
+    p = ArgumentParser(prog="courtside console", description="Operator console for a Courtside gateway.",
+                       epilog="Unattended capture: courtside console --connect HOST:PORT --calibrate "
                                        "--record TAKE --duration 60 --save-poses take.poses.npz (no window needed: "
                                        "QT_QPA_PLATFORM=offscreen).")
     p.add_argument("--connect", type=_host_port, default=("127.0.0.1", 7766), metavar="HOST:PORT",
@@ -76,7 +78,7 @@ def _console_parser() -> argparse.ArgumentParser:
 
 
 def _demo_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside demo", description=__doc__.split("\n")[0])
+    p = ArgumentParser(prog="courtside demo", description=__doc__.split("\n")[0])
     p.add_argument("--duration", type=float, default=None, help="exit after this many seconds (default: run until closed)")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs of the views before exiting")
     p.add_argument("--lag", type=float, default=0.5, help="synthesis fixed lag, seconds (default 0.5)")
@@ -96,30 +98,20 @@ def _pick_synth_station(stations: list[dict], wanted: str | None, n_sensors: int
     return big[0] if len(big) == 1 else None
 
 
-def _screenshots_need_duration(command: str, args: argparse.Namespace) -> bool:
+def _check_screenshots_have_duration(args: argparse.Namespace) -> None:
     if args.screenshots is not None and args.duration is None:
-        print(f"courtside {command}: --screenshots needs --duration (they are taken just before exiting)",
-              file=sys.stderr)
-        return True
-    return False
+        raise CourtsideError("--screenshots needs --duration (they are taken just before exiting)")
 
 
+@cli_command("courtside console")
 def console_main(argv: list[str]) -> int:
     args = _console_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    if _screenshots_need_duration("console", args):
-        return 2
+    _check_screenshots_have_duration(args)
     if (args.record or args.calibrate) and (args.duration is None or args.playback is not None):
-        print("courtside console: --record/--calibrate are scripted runs against a gateway: they need --duration "
-              "and no --playback", file=sys.stderr)
-        return 2
-    from engine.errors import CourtsideError
-
-    try:
-        return _console(args)
-    except CourtsideError as exc:
-        print(f"courtside console: {exc}", file=sys.stderr)
-        return 2
+        raise CourtsideError("--record/--calibrate are scripted runs against a gateway: they need --duration and "
+                             "no --playback")
+    return _console(args)
 
 
 def _console(args: argparse.Namespace) -> int:
@@ -141,8 +133,7 @@ def _console(args: argparse.Namespace) -> int:
         try:
             playback = Playback(args.playback)
         except (OSError, ValueError) as exc:
-            print(f"courtside console: cannot play back {args.playback}: {exc}", file=sys.stderr)
-            return 2
+            raise CourtsideError(f"cannot play back {args.playback}: {exc}") from None
         stations = _stations_in_take(playback)
         # a demo take names the clips it replayed: keep them out of the graph, as the live demo does
         held_out = next((e["truth_clips"] for e in playback.events if "truth_clips" in e), [])
@@ -155,16 +146,13 @@ def _console(args: argparse.Namespace) -> int:
         try:
             client = make_client(*args.connect).connect()
         except OSError as exc:
-            print(f"courtside console: cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})",
-                  file=sys.stderr)
-            return 2
+            raise CourtsideError(f"cannot connect to gateway {args.connect[0]}:{args.connect[1]} ({exc})") from None
         if (args.record or args.calibrate) and getattr(client, "role", "operator") == "viewer":
             client.close()  # refuse before anything runs: the gateway would refuse every step (and the wizard's
             # refusals would only surface when it timed out, 90 s later)
-            print(f"courtside console: --calibrate/--record need the operator role, but gateway "
-                  f"{args.connect[0]}:{args.connect[1]} accepted this console's secret as a viewer (watch only): "
-                  "give the operator secret file", file=sys.stderr)
-            return 2
+            raise CourtsideError(f"--calibrate/--record need the operator role, but gateway "
+                                 f"{args.connect[0]}:{args.connect[1]} accepted this console's secret as a viewer "
+                                 "(watch only): give the operator secret file")
         stations = _stations_with_sensors(client)
     athletes = _athlete_stations(client, stations) if client is not None and not args.synth_station else {}
     try:
@@ -254,7 +242,6 @@ def _client_factory(args: argparse.Namespace):
 def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held_out: list[str], refresh=None):
     """(SynthesisSetup or None, worn sensor -> placement, skeleton parents or None). ``refresh`` re-reads the
     station list (live gateway)."""
-    from engine.errors import CourtsideError
     from engine.stream.databases import engine_spec
     from gui.engine_link import synthesis_setup, worn_sensors
 
@@ -372,12 +359,11 @@ def _run_window(window, duration_s: float | None, screenshots: Path | None) -> i
     return code
 
 
+@cli_command("courtside demo")
 def demo_main(argv: list[str]) -> int:
     args = _demo_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    if _screenshots_need_duration("demo", args):
-        return 2
-    from engine.errors import CourtsideError
+    _check_screenshots_have_duration(args)
     from gateway.court_config import check_consistent, is_loopback
     from gui.app import application
     from gui.demo.hardware import demo_court_config

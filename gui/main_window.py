@@ -115,18 +115,31 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self._last_tap_t: float | None = None
         self._play_wall0 = 0.0
         self._play_t0 = 0.0
+        self._make_panes(sensor_segments or {})
+        self._lay_out()
+        self._start_synthesis(synthesis, keep_poses, truth_parents, athlete, more_athletes)
+        self._clock_offset_s = 0.0
+        self._reconnecting = False
+        self.reconnects = 0
+        self._owns_client = False
+        self._status_alarms: list[Alarm] = []
+        if client is not None:
+            self.bridge.attach(client)
+            self._connected(client, gateway_clock_offset_s(client))
+        self._start_timers()
 
-        # panes
+    def _make_panes(self, sensor_segments: dict[SensorKey, str]) -> None:
+        """The panes and controls, wired to this window's actions."""
         self.alarms = AlarmBar()
         self.skeleton = SkeletonView()
         self.camera = CameraPane()
         self.traces = TracePanel(self.store)
         self.devices = DevicePanel()
-        self.devices.set_mapping(sensor_segments or {})
+        self.devices.set_mapping(sensor_segments)
         self.devices.sensor_athletes = self.bridge.sensor_athletes
         self.devices.identify_requested.connect(self._identify)
         self.recording = RecordingPanel()
-        self.recording.required = sorted(sensor_segments or {})
+        self.recording.required = sorted(sensor_segments)
         self.recording.start_requested.connect(self._start_recording)
         self.recording.stop_requested.connect(self._stop_recording)
         self.playbar = PlaybackBar()
@@ -142,6 +155,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.calibrate_button.clicked.connect(self.open_calibration)
         self.wizard = None
 
+    def _lay_out(self) -> None:
+        """Skeleton and camera on top, the tabs below, the toolbar and alarms above, the status bar."""
         top = QtWidgets.QSplitter(QtCore.Qt.Horizontal)
         top.addWidget(self.skeleton)
         top.addWidget(self.camera)
@@ -174,7 +189,10 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.status_label = QtWidgets.QLabel()
         self.statusBar().addWidget(self.status_label, 1)
 
-        # synthesis
+    def _start_synthesis(self, synthesis: SynthesisSetup | None, keep_poses: bool, truth_parents: np.ndarray | None,
+                         athlete: str | None, more_athletes: dict[str, SynthesisSetup] | None) -> None:
+        """The synthesis worker of each athlete fed by the bridge (their lag on the toolbar), or the truth skeleton
+        alone."""
         self.worker: SynthesisWorker | None = None
         self.synthesis = synthesis
         if synthesis is not None:
@@ -207,15 +225,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         if truth_parents is not None and synthesis is None:
             self.skeleton.set_skeleton(truth_parents)
 
-        self._clock_offset_s = 0.0
-        self._reconnecting = False
-        self.reconnects = 0
-        self._owns_client = False
-        self._status_alarms: list[Alarm] = []
-        if client is not None:
-            self.bridge.attach(client)
-            self._connected(client, gateway_clock_offset_s(client))
-
+    def _start_timers(self) -> None:
+        """The display tick and the link check (reconnects)."""
         self.timer = QtCore.QTimer(self)
         self.timer.setTimerType(QtCore.Qt.PreciseTimer)
         self.timer.timeout.connect(self.tick)

@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from engine.graph.geometry import rotate_ground
-from engine.graph.graph import NODE_ORIGINAL, MotionGraph
+from engine.graph.graph import MotionGraph
+from engine.graph.parts import NODE_ORIGINAL
 from engine.graph.poses import root_local
 
 

@@ -14,9 +14,8 @@ import time
 
 import numpy as np
 
-from engine.errors import CourtsideError, check_output_dir
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, check_output_dir
 from engine.progress import add_quiet_argument
-from engine.safe_load import read_json
 from engine.graph.cli import (_add_database_args, add_search_args, database_paths, evaluate_main as leave_one_out_main,
                               load_clips, weights_from_args)
 from engine.graph.config import GraphConfig
@@ -25,6 +24,7 @@ from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 from engine.mocap.orientation import OrientationErrorModel
+from engine.safe_load import read_json
 
 from . import plot, protocols, table
 from .labels import clip_label
@@ -36,8 +36,8 @@ PROTOCOLS = ("loo", "chained", "loco", "loso")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside evaluate", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(prog="courtside evaluate", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
     _add_database_args(p)
     p.add_argument("--protocol", choices=PROTOCOLS, default="loo")
@@ -153,9 +153,26 @@ def _report(per_group: dict[str, dict[protocols.Row, protocols.RowScores]], fps:
     return out
 
 
+def load_report(path: str) -> dict:
+    """A `--json` report for `--compare`: read, and its structure checked (every row's keys and compared values),
+    so a file of another shape is one line naming it, not a KeyError in the table."""
+    report = read_json(path)  # depth-safe (engine.safe_load): an unreadable or non-JSON file is one line
+    groups = report.get("groups") if isinstance(report, dict) else None
+    if not isinstance(groups, dict) or not all(isinstance(rows, list) for rows in groups.values()):
+        raise MalformedFileError(path, None, "not a --json report: no 'groups' object of row lists")
+    numbers = [field for field, _ in table.COMPARED]
+    for group, rows in groups.items():
+        for row in rows:
+            if not (isinstance(row, dict) and all(isinstance(row.get(k), str) for k in ("engine", "sensors", "camera"))
+                    and all(isinstance(row.get(k), (int, float)) for k in numbers)):
+                raise MalformedFileError(path, None, f"group {group!r}: a row without engine/sensors/camera strings "
+                                                     f"and {', '.join(numbers)} numbers")
+    return report
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    first = argparse.ArgumentParser(add_help=False)
+    first = ArgumentParser(add_help=False)
     first.add_argument("--protocol", choices=PROTOCOLS, default="loo")
     known, rest = first.parse_known_args(argv)
     if known.protocol == "loo" and "--plot" in argv:
@@ -164,10 +181,7 @@ def main(argv: list[str] | None = None) -> int:
         return leave_one_out_main(rest)  # seed 000 Tables 2/3, with its own options (--variants ...)
     args = build_parser().parse_args(argv)
     if args.compare:
-        reports = []
-        for path in args.compare:
-            reports.append(read_json(path))  # depth-safe; a bad file is one line naming it
-        print(table.format_comparison(*reports))
+        print(table.format_comparison(*(load_report(path) for path in args.compare)))
         return 0
     if not (args.clips or args.sample or args.mocap_dir):
         args.sample = True

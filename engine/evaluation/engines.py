@@ -19,13 +19,14 @@ from engine.graph.online import FixedLagSynthesizer
 from engine.graph.geometry import rotate_ground
 from engine.graph.poses import blended_joint_positions, world_joint_positions
 from engine.graph.root_fusion import RootFusion, fuse_track
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
+from engine.graph.search import ViterbiSearch
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel, Skeleton, forward_kinematics, quaternions
 from engine.stream import EngineSpec, drive_frames
 
 from .metrics import hips_heading
-from .simulate import CameraTrack
+from .simulate import SimulatedCameraTrack
 from .takes import Take, yaw_quaternion
 
 
@@ -85,7 +86,7 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
                       np.array([p.confidence for p in poses]))
 
 
-def fused_joints(joints_m: np.ndarray, take: Take, camera: CameraTrack, fusion: RootFusion) -> np.ndarray:
+def fused_joints(joints_m: np.ndarray, take: Take, camera: SimulatedCameraTrack, fusion: RootFusion) -> np.ndarray:
     """An engine's world joints (T, J, 3) on the take's grid turned and moved, frame by frame, onto the fused
     root (root_fusion.fuse_track of the camera fixes, the engine's own root -- joint 0 on the ground, the hips'
     heading -- where the camera gives none): OLNG and the HMM get the motion graph's root."""
@@ -117,7 +118,7 @@ def _camera_at(camera: tuple[np.ndarray, np.ndarray], times_s: np.ndarray, take:
 
 def olng(kb, config, acc_g: np.ndarray, times_s: np.ndarray, take: Take, root0_m: np.ndarray,
          root_quat0: np.ndarray, camera: tuple[np.ndarray, np.ndarray] | None = None,
-         warp: RootWarp = RootWarp(), fixes: CameraTrack | None = None,
+         warp: RootWarp = RootWarp(), fixes: SimulatedCameraTrack | None = None,
          fusion: RootFusion = RootFusion.off()) -> Prediction:
     """OLNG (seed 003) on its four wrist/ankle accelerometers at the knowledge-base rate; `camera` = (ground
     (T, 2), heading (T,)) on the take's frames pulls its root (else only the start is given); with `fixes` (the
@@ -131,7 +132,7 @@ def olng(kb, config, acc_g: np.ndarray, times_s: np.ndarray, take: Take, root0_m
 
 
 def online(spec: EngineSpec, acc_g: np.ndarray, times_s: np.ndarray, take: Take,
-           camera: tuple[np.ndarray, np.ndarray] | None, fixes: CameraTrack, fusion: RootFusion,
+           camera: tuple[np.ndarray, np.ndarray] | None, fixes: SimulatedCameraTrack, fusion: RootFusion,
            lag_s: float | None = None) -> Prediction:
     """Any registered engine through the `engine.stream.OnlineEngine` protocol (`drive_frames`, the push loop
     every driver uses) on its own sensors at its own rate (``acc_g`` (T', S, 3) at ``times_s``); ``camera`` =
@@ -145,7 +146,7 @@ def online(spec: EngineSpec, acc_g: np.ndarray, times_s: np.ndarray, take: Take,
 
 def hmm(model, acc_g: np.ndarray, gyro_rps: np.ndarray, skeleton: Skeleton, take: Take, root0_m: np.ndarray,
         root_quat0: np.ndarray, camera: tuple[np.ndarray, np.ndarray] | None = None,
-        warp: RootWarp = RootWarp(), fixes: CameraTrack | None = None,
+        warp: RootWarp = RootWarp(), fixes: SimulatedCameraTrack | None = None,
         fusion: RootFusion = RootFusion.off()) -> Prediction:
     """Hierarchical HMM (seed 004) on its IMU(s) at the take rate, with its foot-skate IK; `camera`, `fixes` and
     `fusion` as in `olng`."""

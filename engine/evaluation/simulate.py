@@ -32,7 +32,7 @@ class CameraModel:
 
 
 @dataclass
-class CameraTrack:
+class SimulatedCameraTrack:
     """Camera fixes on the take's frame grid; NaN where the camera gave no fix."""
 
     position_m: np.ndarray  # (T, 2)
@@ -48,7 +48,7 @@ class CameraTrack:
         return self.position_m[idx], self.heading_rad[idx]
 
 
-def camera_track(take: Take, model: CameraModel, rng: np.random.Generator) -> CameraTrack:
+def camera_track(take: Take, model: CameraModel, rng: np.random.Generator) -> SimulatedCameraTrack:
     """Noisy fixes at `model.rate_hz` (at most the take rate), the first at t = 0."""
     if not 0 < model.rate_hz <= take.fps + 1e-9:
         raise CourtsideError(f"camera rate {model.rate_hz:g} Hz must be in (0, {take.fps:g}] (the take rate)")
@@ -59,7 +59,7 @@ def camera_track(take: Take, model: CameraModel, rng: np.random.Generator) -> Ca
     head = np.full(n, np.nan)
     pos[fix] = take.ground_m[fix] + rng.normal(0.0, model.position_noise_m, (len(fix), 2))
     head[fix] = take.heading_rad[fix] + rng.normal(0.0, model.heading_noise_rad, len(fix))
-    return CameraTrack(pos, head)
+    return SimulatedCameraTrack(pos, head)
 
 
 def per_segment(take: Take, fps: float, reading: Callable[[Motion], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:

@@ -13,7 +13,8 @@ from .graph import MotionGraph, build_from_clips
 from .online import EmittedPose, FixedLagSynthesizer
 from .poses import world_joint_positions
 from .postprocess import path_to_motion
-from .viterbi import Constraint, Observations, SearchResult, SearchWeights, ViterbiLattice, ViterbiSearch
+from .viterbi import Constraint, Observations, SearchResult, SearchWeights, ViterbiLattice
+from .search import ViterbiSearch
 
 
 def label_constraint(graph: MotionGraph, label: str, frame: int, tolerance_frames: int = 10) -> Constraint:

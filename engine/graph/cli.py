@@ -7,13 +7,13 @@ import json
 import re
 import sys
 import time
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.progress import add_quiet_argument
-from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load_sensor_calibration,
                           placements_from_calibration, sample_clips, standard_placements, write_bvh)
 
@@ -22,8 +22,9 @@ from .graph import MotionGraph, build_from_clips
 from .input_checks import check_database, check_lag, check_non_negative, check_path_length, parse_sensor_map
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
 from .report import coverage_warning, format_report, graph_report, motion_range
-from .viterbi import SearchWeights
-from .warp import RootWarp, default_weights
+from .root_fusion import RootFusion
+from .viterbi import SearchWeights, default_weights
+from .warp import RootWarp
 
 _BANDAI = re.compile(r"dataset-\d+_(?P<content>[a-z-]+)_(?P<style>[a-z-]+)_\d+")
 
@@ -79,7 +80,7 @@ def load_clips(args: argparse.Namespace, config: GraphConfig):
 
 @cli_command("courtside build-graph")
 def build_graph_main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="courtside build-graph", description="Build a motion graph from mocap clips.")
+    p = ArgumentParser(prog="courtside build-graph", description="Build a motion graph from mocap clips.")
     p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
     _add_database_args(p)
     p.add_argument("-o", "--output", required=True, help="graph .npz (a .json summary is written beside it)")
@@ -136,8 +137,8 @@ def build_graph_main(argv: list[str]) -> int:
 
 
 def graph_info_main(argv: list[str]) -> int:
-    p = argparse.ArgumentParser(prog="courtside graph-info",
-                                description="What a motion graph can do: size, strongly connected components, "
+    p = ArgumentParser(prog="courtside graph-info",
+                       description="What a motion graph can do: size, strongly connected components, "
                                             "dead ends, clips reachable, turn rates and speeds covered.")
     p.add_argument("graph", help="graph .npz from build-graph")
     print(format_report(graph_report(MotionGraph.load(p.parse_args(argv).graph))))
@@ -182,23 +183,11 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
     return weights
 
 
-@cli_command("courtside synthesize")
-def synthesize_main(argv: list[str]) -> int:
-    from engine.stream import FramePose, synthesize_streams
-    from engine.stream.offline import drive_take
-    from engine.stream.poses_file import save_poses
-
-    from . import label_constraint
-    from .inputs import TIME_COLUMNS, read_take
-    from .online import FixedLagSynthesizer
-    from .poses import blended_joint_positions, world_joint_positions
-    from .postprocess import path_to_motion
-    from .root_fusion import RootFusion, fuse_track
-    from .viterbi import ViterbiSearch
-
+def _synthesize_parser() -> ArgumentParser:
+    from engine.export_format import TIME_COLUMNS
     from engine.stream.registry import engine_names
 
-    p = argparse.ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
+    p = ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
     p.add_argument("--engine", choices=engine_names(), default="motion-graph",
                    help="synthesis engine (engine.stream.registry); every engine but the motion graph runs online "
                         "(as the console) and writes joint positions: -o OUT.npz, the --save-poses format")
@@ -245,12 +234,73 @@ def synthesize_main(argv: list[str]) -> int:
     p.add_argument("--stream-vmc", metavar="[HOST:]PORT", help="also send the poses as VMC (OSC over UDP, e.g. 39539; "
                    "127.0.0.1 unless a host is given) to Unity/Blender/VSeeFace VMC receivers")
     add_quiet_argument(p)
-    args = p.parse_args(argv)
+    return p
+
+
+@dataclass
+class DecodedPath:
+    """What a motion-graph search decided for a take: the poses (frame clock) and the path behind them."""
+
+    poses: list            # engine.stream.FramePose per frame
+    nodes: np.ndarray
+    edges: np.ndarray
+    ground_m: np.ndarray
+    heading_rad: np.ndarray
+    blend_nodes: np.ndarray | None
+    broken_constraints: int = 0
+    counts: dict = field(default_factory=dict)  # the live path's statistics (online decoding)
+
+
+@dataclass(frozen=True)
+class Search:
+    """How to search: the weights, the root warp towards the camera, the output root's fusion, constraints."""
+
+    weights: SearchWeights
+    warp: RootWarp
+    fusion: RootFusion
+    constraints: list
+
+
+@cli_command("courtside synthesize")
+def synthesize_main(argv: list[str]) -> int:
+    """Read the take, decide the path (batch search, or the online decoder with --lag), write BVH and poses."""
+    args = _synthesize_parser().parse_args(argv)
     if args.engine != "motion-graph":
         return _synthesize_online(args)
     if not args.graph:
-        raise CourtsideError("courtside synthesize: the motion-graph engine needs --graph (from build-graph)")
+        raise CourtsideError("the motion-graph engine needs --graph (from build-graph)")
     graph = MotionGraph.load(args.graph)
+    take = _graph_take(args, graph)
+    warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
+    weights = weights_from_args(args, warp)
+    fusion = RootFusion.off() if args.no_root_fusion else RootFusion()
+    warning = coverage_warning(motion_range(graph), take.obs.position_m, take.obs.heading_rad, graph.config.fps)
+    if warning:
+        print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"
+                         if warp.active else ""), file=sys.stderr)
+    constraints = _constraints(args, graph)
+    stream, outputs = _pose_outputs(args, graph)
+    t0 = time.perf_counter()
+    decode = _batch_path if args.lag is None else _online_path
+    path = decode(args, graph, take, Search(weights, warp, fusion, constraints), outputs)
+    elapsed = time.perf_counter() - t0
+    _write_outputs(args, graph, take, path, outputs)
+    if stream is not None:
+        stream.close()
+    counts = path.counts
+    print(json.dumps({"samples": int(take.obs.n_samples), "first_frame": int(take.frame[0]),
+                      "search_s": round(elapsed, 3), "output": args.output,
+                      "broken_constraints": path.broken_constraints,
+                      **{k: counts[k] for k in ("confidence_mean", "reanchors") if k in counts}}))
+    return 0
+
+
+def _graph_take(args: argparse.Namespace, graph: MotionGraph):
+    """The take on the graph's frame clock (engine.graph.inputs.TakeFrames), its readings rotated into the graph's
+    nominal mountings with --calibration; refuses what the graph cannot decode (no skeleton, a take longer than
+    its longest path)."""
+    from .inputs import read_take
+
     sensor_map = parse_sensor_map(args.sensor_map, graph.config.sensor_names)
     check_lag(args.lag, graph.config.fps)
     check_output_dir(args.output)
@@ -263,27 +313,30 @@ def synthesize_main(argv: list[str]) -> int:
             take = calibrated_take(take, graph.skeleton, graph.config.sensor_names, args.calibration)
         except ValueError as exc:  # a record made for another skeleton's joint frames
             raise MalformedFileError(args.calibration, None, str(exc)) from None
-    obs = take.obs
     if graph.skeleton is None:
         raise MalformedFileError(args.graph, None, "graph holds no skeleton (rebuild it with build-graph)")
-    check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, obs.n_samples, graph.config.fps)
-    warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
-    weights = weights_from_args(args, warp)
-    fusion = RootFusion.off() if args.no_root_fusion else RootFusion()
-    warning = coverage_warning(motion_range(graph), obs.position_m, obs.heading_rad, graph.config.fps)
-    if warning:
-        print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"
-                         if warp.active else ""), file=sys.stderr)
+    check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, take.obs.n_samples,
+                      graph.config.fps)
+    return take
+
+
+def _constraints(args: argparse.Namespace, graph: MotionGraph) -> list:
+    """--require LABEL@SECONDS as search constraints (eq. 8); the batch search only."""
+    from . import label_constraint
+
     try:
         constraints = [label_constraint(graph, r.rsplit("@", 1)[0], int(round(float(r.rsplit("@", 1)[1])
                                                                                 * graph.config.fps)),
                                         args.require_tolerance) for r in args.require]
     except (KeyError, ValueError, IndexError) as exc:
-        print(f"error: bad --require {args.require}: {exc}", file=sys.stderr)
-        return 2
+        raise CourtsideError(f"bad --require {args.require}: {exc}") from None
     if constraints and args.lag is not None:
-        print("error: --require needs the batch search (no --lag)", file=sys.stderr)
-        return 2
+        raise CourtsideError("--require needs the batch search (no --lag)")
+    return constraints
+
+
+def _pose_outputs(args: argparse.Namespace, graph: MotionGraph) -> tuple:
+    """(the BVH server to close at the end or None, every pose output: --stream-bvh, --stream-vmc)."""
     stream, outputs = None, []
     if args.stream_bvh:
         from engine.livestream.stream_cli import open_stream
@@ -294,69 +347,90 @@ def synthesize_main(argv: list[str]) -> int:
         from engine.livestream.stream_cli import open_vmc
 
         outputs.append(open_vmc(args.stream_vmc, graph.skeleton))
-    t0 = time.perf_counter()
-    broken = 0
-    fps = graph.config.fps
+    return stream, outputs
+
+
+def _batch_path(args: argparse.Namespace, graph: MotionGraph, take, search: Search, outputs: list) -> DecodedPath:
+    """The whole take searched at once; the output root fused from the camera over the whole take."""
+    from engine.stream import FramePose
+
+    from .poses import blended_joint_positions, world_joint_positions
+    from .root_fusion import fuse_track
+    from .search import ViterbiSearch
+
+    obs, fps = take.obs, graph.config.fps
+    res = ViterbiSearch(graph, search.weights, warp=search.warp).run(obs, search.constraints)
+    ground, heading = fuse_track(search.fusion, fps, obs.position_m, obs.heading_rad, res.ground_m, res.heading_rad)
+    joints = world_joint_positions(graph, res.nodes, ground, heading) if res.blend_nodes is None else \
+        blended_joint_positions(graph, res.blend_nodes, ground, heading)
+    poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
+    return DecodedPath(poses, res.nodes, res.edges, ground, heading, res.blend_nodes, res.broken_constraints)
+
+
+def _online_path(args: argparse.Namespace, graph: MotionGraph, take, search: Search, outputs: list) -> DecodedPath:
+    """The fixed-lag decoder, sample by sample: a gateway take through the console's own live path, a
+    synthesis-input take frame by frame (engine.stream); each pose streamed as it is decided."""
+    from engine.stream import synthesize_streams
+    from engine.stream.offline import drive_take
+
+    from .online import FixedLagSynthesizer
+
+    obs, fps = take.obs, graph.config.fps
+    made = []
+
+    def make():
+        syn = FixedLagSynthesizer(graph, args.lag, search.weights, obs.sensor_indices, warp=search.warp,
+                                  fusion=search.fusion)
+        if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
+            from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
+
+            syn = StreamingSynthesizer(syn, PoseStreamer(graph, graph.skeleton, outputs, realtime=True))
+        made.append(syn)
+        return syn
+
     counts: dict = {}
-    if args.lag is None:
-        res = ViterbiSearch(graph, weights, warp=warp).run(obs, constraints)
-        nodes, edges, blend_nodes = res.nodes, res.edges, res.blend_nodes
-        ground, heading = fuse_track(fusion, fps, obs.position_m, obs.heading_rad, res.ground_m, res.heading_rad)
-        broken = res.broken_constraints
-        joints = world_joint_positions(graph, nodes, ground, heading) if blend_nodes is None else \
-            blended_joint_positions(graph, blend_nodes, ground, heading)
-        poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
+    if take.streams is not None:  # a gateway take: the live path, sample by sample
+        poses, session = synthesize_streams(make, take.streams, take.stream_keys, fps, start_s=args.start,
+                                            use_camera_heading=args.camera_heading)
+        counts = vars(session.stats)
     else:
-        made = []
+        poses = drive_take(make(), obs.acc_g, obs, int(take.frame[0]), fps)
+    counts.update(confidence_mean=round(float(np.mean([q.confidence for q in poses])), 3) if poses else None,
+                  reanchors=len(made[-1].reanchors))
+    emitted = [q.source for q in poses]
+    nodes = np.array([q.node for q in emitted])
+    blend_nodes = None if not emitted or emitted[0].blend_nodes is None else \
+        np.stack([q.blend_nodes for q in emitted])
+    edges = np.full(len(nodes), -1)
+    for t in range(1, len(nodes)):
+        try:
+            edges[t] = graph.edge_index(nodes[t - 1:t], nodes[t:t + 1])[0]
+        except KeyError:
+            edges[t] = -1  # the decoder changed its mind: blended like a transition
+    return DecodedPath(poses, nodes, edges, np.array([q.ground_m for q in emitted]),
+                       np.array([q.heading_rad for q in emitted]), blend_nodes, counts=counts)
 
-        def make():
-            syn = FixedLagSynthesizer(graph, args.lag, weights, obs.sensor_indices, warp=warp, fusion=fusion)
-            if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
-                from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
 
-                syn = StreamingSynthesizer(syn, PoseStreamer(graph, graph.skeleton, outputs, realtime=True))
-            made.append(syn)
-            return syn
+def _write_outputs(args: argparse.Namespace, graph: MotionGraph, take, path: DecodedPath, outputs: list) -> None:
+    """The BVH (blended, foot-skate cleaned), the batch search's frames to the pose outputs, --save-poses."""
+    from engine.stream.poses_file import save_poses
 
-        if take.streams is not None:  # a gateway take: the live path, sample by sample
-            poses, session = synthesize_streams(make, take.streams, take.stream_keys, fps, start_s=args.start,
-                                                use_camera_heading=args.camera_heading)
-            counts = vars(session.stats)
-        else:
-            poses = drive_take(make(), obs.acc_g, obs, int(take.frame[0]), fps)
-        counts.update(confidence_mean=round(float(np.mean([q.confidence for q in poses])), 3) if poses else None,
-                      reanchors=len(made[-1].reanchors))
-        emitted = [q.source for q in poses]
-        nodes = np.array([q.node for q in emitted])
-        ground = np.array([q.ground_m for q in emitted])
-        heading = np.array([q.heading_rad for q in emitted])
-        blend_nodes = None if not emitted or emitted[0].blend_nodes is None else \
-            np.stack([q.blend_nodes for q in emitted])
-        edges = np.full(len(nodes), -1)
-        for t in range(1, len(nodes)):
-            try:
-                edges[t] = graph.edge_index(nodes[t - 1:t], nodes[t:t + 1])[0]
-            except KeyError:
-                edges[t] = -1  # the decoder changed its mind: blended like a transition
-    elapsed = time.perf_counter() - t0
-    motion = path_to_motion(graph, graph.skeleton, nodes, edges, ground, heading, blend=not args.no_blend,
-                            foot_ik=not args.no_ik, name=Path(args.input).stem, blend_nodes=blend_nodes)
+    from .postprocess import path_to_motion
+
+    motion = path_to_motion(graph, graph.skeleton, path.nodes, path.edges, path.ground_m, path.heading_rad,
+                            blend=not args.no_blend, foot_ik=not args.no_ik, name=Path(args.input).stem,
+                            blend_nodes=path.blend_nodes)
     write_bvh(args.output, motion)
     if outputs and args.lag is None:  # the batch search decides the whole path at once: stream the written frames
         from engine.livestream.stream_cli import stream_motion
 
         stream_motion(outputs, motion)
-    if stream is not None:
-        stream.close()
     if args.save_poses:
+        poses = path.poses
         save_poses(args.save_poses, poses, graph.skeleton.parents,
-                   {"engine": "motion-graph", "database": str(args.graph), "lag_s": args.lag, "rate_hz": fps,
-                    "start_frame": int(poses[0].frame) if poses else None, "input": str(args.input),
-                    "use_camera_heading": args.camera_heading, **counts})
-    print(json.dumps({"samples": int(obs.n_samples), "first_frame": int(take.frame[0]), "search_s": round(elapsed, 3),
-                      "output": args.output, "broken_constraints": broken,
-                      **{k: counts[k] for k in ("confidence_mean", "reanchors") if k in counts}}))
-    return 0
+                   {"engine": "motion-graph", "database": str(args.graph), "lag_s": args.lag,
+                    "rate_hz": graph.config.fps, "start_frame": int(poses[0].frame) if poses else None,
+                    "input": str(args.input), "use_camera_heading": args.camera_heading, **path.counts})
 
 
 def _synthesize_online(args: argparse.Namespace) -> int:
@@ -392,10 +466,10 @@ def _synthesize_online(args: argparse.Namespace) -> int:
 
 @cli_command("courtside evaluate")
 def evaluate_main(argv: list[str]) -> int:
-    from .evaluate import Setting, leave_one_out, summarise
+    from .evaluate import Setting, graph_leave_one_out, summarise
 
-    p = argparse.ArgumentParser(prog="courtside evaluate",
-                                description="Leave-one-out evaluation (seed 000 Tables 2/3) on real mocap.")
+    p = ArgumentParser(prog="courtside evaluate",
+                       description="Leave-one-out evaluation (seed 000 Tables 2/3) on real mocap.")
     p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
     _add_database_args(p)
     p.add_argument("--variants", default="plain,msv", help="comma list of plain, msv, interp, msv+interp")
@@ -433,7 +507,7 @@ def evaluate_main(argv: list[str]) -> int:
                           sensor_names=list(args.sensors))
         graph = build_from_clips(clips, cfg, sensor_model)
         t0 = time.perf_counter()
-        scores = leave_one_out(graph, clips, motions[0].skeleton, settings, tests, seed=args.seed)
+        scores = graph_leave_one_out(graph, clips, motions[0].skeleton, settings, tests, seed=args.seed)
         per = (time.perf_counter() - t0) / len(settings)
         for s in settings:
             r = summarise(scores[s.name])

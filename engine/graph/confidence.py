@@ -17,7 +17,8 @@ import numpy as np
 
 from engine.mocap import SensorErrorModel
 
-from .graph import EDGE_NATURAL, MotionGraph
+from .graph import MotionGraph
+from .parts import EDGE_NATURAL
 from .metadata import advance
 from .viterbi import SearchWeights, ViterbiLattice
 from .warp import RootWarp

@@ -47,12 +47,3 @@ class GraphConfig:
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)
-
-    @classmethod
-    def from_json(cls, text: str) -> "GraphConfig":
-        data = json.loads(text)
-        known = set(cls.__dataclass_fields__)
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ValueError(f"unknown graph config keys: {', '.join(unknown)}")
-        return cls(**data)

@@ -19,7 +19,8 @@ from .clips import ClipData
 from .geometry import wrap_angle
 from .graph import MotionGraph
 from .poses import root_local, world_joint_positions
-from .viterbi import Observations, SearchWeights, ViterbiSearch
+from .viterbi import Observations, SearchWeights
+from .search import ViterbiSearch
 
 
 @dataclass(frozen=True)
@@ -80,7 +81,7 @@ def score(graph: MotionGraph, clip: ClipData, error_joints: np.ndarray, obs: Obs
                                 else np.zeros(0, dtype=bool)))  # label absent from the graph: not scored
 
 
-def leave_one_out(graph: MotionGraph, clips: list[ClipData], skeleton, settings: list[Setting],
+def graph_leave_one_out(graph: MotionGraph, clips: list[ClipData], skeleton, settings: list[Setting],
                   test_clips: list[int], seed: int = 0, noise: Noise = Noise(),
                   error_model: SensorErrorModel | None = None) -> dict[str, list[ClipScore]]:
     """Scores per setting over the test clips (each synthesised from the graph without itself)."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import zipfile
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -24,46 +24,11 @@ from .clips import ClipData
 from .components import ComponentReport, component_labels, largest_component
 from .config import GraphConfig
 from .metadata import step_offsets
+from .parts import EDGE_KIND_NAMES, EDGE_NATURAL, EDGE_TRANSITION, NODE_ORIGINAL, GraphParts
 from .transitions import clip_end_transitions, find_transitions
 
-NODE_ORIGINAL, NODE_SLOW, NODE_INTERP = 0, 1, 2
-EDGE_NATURAL, EDGE_TRANSITION, EDGE_SPEEDUP, EDGE_SLOWDOWN, EDGE_INTERP = 0, 1, 2, 3, 4
-EDGE_KIND_NAMES = ("natural", "transition", "speed-up", "slow-down", "interpolated")
 FORMAT_VERSION = 1
 _NON_ARRAYS = {"config", "clip_names", "label_names", "skeleton", "build_report"}
-
-
-@dataclass
-class GraphParts:
-    """Growing lists of node/edge/metadata arrays; MSV and interpolation append to it before assembly."""
-
-    node: dict[str, list[np.ndarray]] = field(default_factory=dict)
-    edge: dict[str, list[np.ndarray]] = field(default_factory=dict)
-    meta: dict[str, list[np.ndarray]] = field(default_factory=dict)
-    n_nodes: int = 0
-    n_meta: int = 0
-
-    def add_nodes(self, **arrays: np.ndarray) -> np.ndarray:
-        """Append nodes (each array's first axis = the new nodes); returns their ids."""
-        n = len(next(iter(arrays.values())))
-        for key, arr in arrays.items():
-            self.node.setdefault(key, []).append(arr)
-        ids = np.arange(self.n_nodes, self.n_nodes + n)
-        self.n_nodes += n
-        return ids
-
-    def add_meta(self, acc_g: np.ndarray, dheading_rad: np.ndarray, dpos_m: np.ndarray) -> np.ndarray:
-        """Append metadata rows; returns their row ids."""
-        for key, arr in (("acc", acc_g), ("dheading", dheading_rad), ("dpos", dpos_m)):
-            self.meta.setdefault(key, []).append(np.asarray(arr))
-        ids = np.arange(self.n_meta, self.n_meta + len(dheading_rad))
-        self.n_meta += len(dheading_rad)
-        return ids
-
-    def add_edges(self, src: np.ndarray, dst: np.ndarray, kind: int, meta: np.ndarray) -> None:
-        for key, arr in (("src", src), ("dst", dst), ("meta", meta)):
-            self.edge.setdefault(key, []).append(np.asarray(arr, dtype=np.int64))
-        self.edge.setdefault("kind", []).append(np.full(len(src), kind, dtype=np.int8))
 
 
 @dataclass

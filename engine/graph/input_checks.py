@@ -10,14 +10,15 @@ from __future__ import annotations
 
 import json
 import logging
-import zipfile
 from pathlib import Path
 
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from engine.array_checks import READ_ERRORS
 from engine.errors import CourtsideError, MalformedFileError
+from engine.export_format import ACC_G, GYRO_RPS, MESSAGES, QUAT_WXYZ, T_HOST_S, sensor_key
 from engine.safe_load import parse_json
 
 log = logging.getLogger(__name__)
@@ -31,7 +32,7 @@ def open_npz(path: Path) -> np.lib.npyio.NpzFile:
     """An .npz opened without pickle; anything else (empty, truncated, .npy, a pickle) is a MalformedFileError."""
     try:
         data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except READ_ERRORS as exc:
         hint = ("; a device recording (CSV/TSV, Xsens, x-IMU3) becomes a take with `courtside import-imu`"
                 if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx") else "")
         raise MalformedFileError(path, None, f"not a readable .npz ({exc}){hint}") from None
@@ -46,7 +47,7 @@ def array(path: Path, data, name: str, ndim: int | None = None, kind: str = "flo
         value = data[name]
     except ValueError as exc:  # object arrays need pickle, which is never allowed
         raise MalformedFileError(path, None, f"'{name}' cannot be read without pickle ({exc})") from None
-    except (OSError, EOFError, zipfile.BadZipFile) as exc:  # a damaged member of the archive
+    except READ_ERRORS as exc:  # a damaged member of the archive
         raise MalformedFileError(path, None, f"'{name}' is damaged ({exc})") from None
     if kind == "str":
         if value.dtype.kind not in "US":
@@ -103,7 +104,7 @@ a quaternion that is not one is a wrong column or a wrong unit)."""
 def check_channels(path: Path, data, prefix: str, leading: tuple[int, ...]) -> None:
     """Optional ``<prefix>quat_wxyz`` (*leading, 4) unit quaternions and ``<prefix>gyro_rps`` (*leading, 3) rad/s:
     shaped like the accelerations, each row all finite or all NaN (a sensor with no value there)."""
-    for name, width in (("quat_wxyz", 4), ("gyro_rps", 3)):
+    for name, width in ((QUAT_WXYZ, 4), (GYRO_RPS, 3)):
         key = prefix + name
         if key not in data.files:
             continue
@@ -116,7 +117,7 @@ def check_channels(path: Path, data, prefix: str, leading: tuple[int, ...]) -> N
         if partial.any() or np.isinf(values).any():
             where = tuple(int(i) for i in np.argwhere(partial | np.isinf(values).any(axis=-1))[0])
             raise MalformedFileError(path, None, f"{key} row {where} is neither finite nor all NaN")
-        if name == "quat_wxyz":
+        if name == QUAT_WXYZ:
             norm = np.linalg.norm(np.where(finite, values, 0.0), axis=-1)
             bad = finite.all(axis=-1) & (np.abs(norm - 1.0) > QUAT_NORM_TOLERANCE)
             if bad.any():
@@ -128,21 +129,22 @@ def check_channels(path: Path, data, prefix: str, leading: tuple[int, ...]) -> N
 def check_gateway_export(path: Path, data, keys: list[str]) -> None:
     """The export layout: per recorded sensor ``<key>/acc_g`` (N, 3) and ``<key>/t_host_s`` (N,) increasing."""
     for key in keys:
-        if f"{key}/t_host_s" not in data.files:
-            raise MalformedFileError(path, None, f"'{key}/acc_g' has no '{key}/t_host_s' beside it")
-        acc = array(path, data, f"{key}/acc_g", 2)
-        t = array(path, data, f"{key}/t_host_s", 1)
+        acc_key, t_key = sensor_key(key, ACC_G), sensor_key(key, T_HOST_S)
+        if t_key not in data.files:
+            raise MalformedFileError(path, None, f"'{acc_key}' has no '{t_key}' beside it")
+        acc = array(path, data, acc_key, 2)
+        t = array(path, data, t_key, 1)
         if acc.shape[1] != 3 or len(acc) != len(t):
             raise MalformedFileError(path, None, f"'{key}': acc_g {acc.shape} and t_host_s {t.shape} must be "
                                                  "(N, 3) and (N,)")
         # a real recording may step back now and then (the online clock map re-fits; engine.stream drops samples
         # that are not after every earlier one, live and offline alike), but overall its times must increase
         if len(t) < 2 or not np.all(np.isfinite(t)) or not t[-1] > t[0] or np.mean(np.diff(t) > 0) < 0.5:
-            raise MalformedFileError(path, None, f"'{key}/t_host_s' must hold at least 2 finite, increasing times")
-        _check_finite(path, f"{key}/acc_g", acc[:, None], 1.0 / float(np.median(np.diff(t))))
-        check_channels(path, data, f"{key}/", (len(acc),))
-    if "messages" in data.files:
-        messages = parse_json(str(array(path, data, "messages", 0, kind="str")), f"{path}: 'messages'")
+            raise MalformedFileError(path, None, f"'{t_key}' must hold at least 2 finite, increasing times")
+        _check_finite(path, acc_key, acc[:, None], 1.0 / float(np.median(np.diff(t))))
+        check_channels(path, data, sensor_key(key, ""), (len(acc),))
+    if MESSAGES in data.files:
+        messages = parse_json(str(array(path, data, MESSAGES, 0, kind="str")), f"{path}: '{MESSAGES}'")
         if not isinstance(messages, list) or not all(isinstance(m, dict) for m in messages):
             raise MalformedFileError(path, None, "'messages' must be a JSON list of objects")
         for i, m in enumerate(messages):

@@ -29,15 +29,16 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
-from engine.safe_load import parse_json
+from engine.export_format import (ACC_G, MESSAGES, META, OPTIONAL_CHANNELS, TIME_COLUMNS, recorded_sensors,
+                                  sensor_key)
 from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
+from engine.safe_load import parse_json
 from engine.stream import CameraTrack, FrameBatch, FrameResampler, RecordedStreams, resample_uniform, take_start_s
 
 from .input_checks import check_gateway_export, check_observations, check_sensor_map, check_synthesis_file, open_npz
 from .viterbi import Observations
 
 HEURISTIC_SPEED_MPS = SEED_HEADING_SPEED_MPS
-TIME_COLUMNS = ("t_host_s", "t_realigned_s")
 
 
 @dataclass
@@ -87,7 +88,7 @@ def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: 
         raise MalformedFileError(path, None, f"sensor names {names} do not match the acc_g columns / graph "
                                              f"sensors {graph_sensors}")
     channels = {name: np.asarray(data[name], float)[:, used] if used is not None else np.asarray(data[name], float)
-                for name in ("quat_wxyz", "gyro_rps") if name in data.files}
+                for name in OPTIONAL_CHANNELS if name in data.files}
     frames = resample_uniform(acc, fps, fps_graph, **channels)
     if not len(frames):
         raise MalformedFileError(path, None, f"{len(acc)} samples at {fps:g} Hz are less than one frame")
@@ -111,7 +112,7 @@ def recorded_streams(path: Path, data, graph_sensors: list[str], sensor_map: dic
     column). Columns are in graph-sensor order, as the console feeds them live."""
     if times not in TIME_COLUMNS:
         raise ValueError(f"times must be one of {TIME_COLUMNS}, not {times!r}")
-    keys = sorted({k.rsplit("/", 1)[0] for k in data.files if k.endswith("/acc_g")})
+    keys = recorded_sensors(data.files)
     if not keys:
         raise MalformedFileError(path, None, "no 'acc_g' array and no '<station>/<sensor>/acc_g' arrays")
     check_gateway_export(path, data, keys)
@@ -124,16 +125,16 @@ def recorded_streams(path: Path, data, graph_sensors: list[str], sensor_map: dic
     used = sorted(mapping, key=lambda k: graph_sensors.index(mapping[k]))
     samples = {}
     for k in used:
-        if f"{k}/{times}" not in data.files:
+        if sensor_key(k, times) not in data.files:
             raise MalformedFileError(path, None, f"sensor {k} has no '{times}' array")
-        samples[k] = (np.asarray(data[f"{k}/{times}"], float), np.asarray(data[f"{k}/acc_g"], float))
-        if any(f"{k}/{c}" in data.files for c in ("quat_wxyz", "gyro_rps")):  # (t, acc, quat, gyro), None = absent
-            samples[k] += tuple(np.asarray(data[f"{k}/{c}"], float) if f"{k}/{c}" in data.files else None
-                                for c in ("quat_wxyz", "gyro_rps"))
-    meta = _json(path, data, "meta", {})
+        samples[k] = (np.asarray(data[sensor_key(k, times)], float), np.asarray(data[sensor_key(k, ACC_G)], float))
+        if any(sensor_key(k, c) in data.files for c in OPTIONAL_CHANNELS):  # (t, acc, quat, gyro), None = absent
+            samples[k] += tuple(np.asarray(data[sensor_key(k, c)], float) if sensor_key(k, c) in data.files else None
+                                for c in OPTIONAL_CHANNELS)
+    meta = _json(path, data, META, {})
     if not isinstance(meta, dict):
         raise MalformedFileError(path, None, "'meta' must be a JSON object (the recording's header)")
-    cams = [m for m in _json(path, data, "messages", []) if m.get("kind") == "camera" and m.get("t_host_s") is not None]
+    cams = [m for m in _json(path, data, MESSAGES, []) if m.get("kind") == "camera" and m.get("t_host_s") is not None]
     cams.sort(key=lambda m: float(m["t_host_s"]))
     camera = [(float(m["t_host_s"]), m.get("position_m"), m.get("heading_rad")) for m in cams]
     streams = RecordedStreams(samples, camera, meta.get("started_t_host_s"))

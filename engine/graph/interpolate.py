@@ -29,7 +29,7 @@ from engine.mocap import quaternions as quat
 from .clips import ClipData
 from .config import GraphConfig
 from .geometry import wrap_angle
-from .graph import EDGE_INTERP, EDGE_NATURAL, NODE_INTERP, GraphParts
+from .parts import EDGE_INTERP, EDGE_NATURAL, NODE_INTERP, GraphParts
 from .metadata import advance, step_offsets
 from .poses import root_local
 from .slope_dtw import HAVE_DTW_PYTHON, library_path

@@ -15,7 +15,7 @@ from engine.mocap import quaternions as quat
 
 from .clips import ClipData
 from .geometry import wrap_angle
-from .graph import EDGE_SLOWDOWN, EDGE_SPEEDUP, NODE_SLOW, GraphParts
+from .parts import EDGE_SLOWDOWN, EDGE_SPEEDUP, NODE_SLOW, GraphParts
 from .metadata import step_offsets
 
 

@@ -35,7 +35,8 @@ def motion_graph_spec(graph: MotionGraph, database: str | Path, skeleton: Any = 
     from .confidence import reference_cost_per_sample
     from .online import FixedLagSynthesizer
     from .root_fusion import RootFusion
-    from .warp import RootWarp, default_weights
+    from .viterbi import default_weights
+    from .warp import RootWarp
 
     skeleton = graph.skeleton if skeleton is None else skeleton
     if skeleton is None:

@@ -2,10 +2,14 @@
 global ground position and heading, so each pose is turned and moved onto the path."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .geometry import rotate_ground
-from .graph import MotionGraph
+
+if TYPE_CHECKING:  # annotations only: the graph build (graph.py -> interpolate.py) imports this module
+    from .graph import MotionGraph
 
 
 def world_joint_positions(graph: MotionGraph, nodes: np.ndarray, ground_m: np.ndarray,

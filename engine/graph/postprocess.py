@@ -19,7 +19,8 @@ import numpy as np
 from engine.mocap import Motion, Skeleton, forward_kinematics, joint_roles
 from engine.mocap import quaternions as quat
 
-from .graph import EDGE_INTERP, EDGE_TRANSITION, MotionGraph, NODE_ORIGINAL
+from .graph import MotionGraph
+from .parts import EDGE_INTERP, EDGE_TRANSITION, NODE_ORIGINAL
 
 UP = np.array([0.0, 1.0, 0.0])
 

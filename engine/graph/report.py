@@ -20,7 +20,8 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from .graph import EDGE_SPEEDUP, NODE_ORIGINAL, MotionGraph
+from .graph import MotionGraph
+from .parts import EDGE_SPEEDUP, NODE_ORIGINAL
 
 WINDOW_S = 1.0  # turn rates and speeds are measured over this window (the "in any 1 s")
 TRACK_WINDOW_S = 2.0  # the camera track's rates are least-squares slopes over this window: with 10 deg of

@@ -6,8 +6,8 @@ One polynomial evaluated as plain float32 arithmetic rounds the same under both 
 into an fma without fastmath). Half angle h = x/2 in [-pi/2, pi/2] for x in [-pi, pi]: Taylor to h^11 / h^12
 (truncation < 6e-8), then sin x = 2 sin h cos h, cos x = cos^2 h - sin^2 h; error below 5e-7.
 
-numba's on-disk cache keys the kernels by kernels.py alone: after editing this file, delete
-engine/graph/__pycache__/kernels*.nb* (or touch kernels.py), or the compiled step keeps the old polynomial.
+numba's on-disk cache keys the kernels by kernels_numba.py alone: after editing this file, delete
+engine/graph/__pycache__/kernels_numba*.nb* (or touch kernels_numba.py), or the compiled step keeps the old polynomial.
 """
 from __future__ import annotations
 

@@ -24,48 +24,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
-try:  # numba is in the `engine` extra: the headless gateway install does not carry a JIT compiler it never uses
-    from . import kernels
-except ImportError:  # pragma: no cover - exercised only on an install without the extra
-    kernels = None
 from engine import progress
+
+from . import kernels_numpy
 from .edge_runs import EdgeRuns
 from .geometry import wrap_angle
 from .graph import MotionGraph
 from .orientation_term import OrientationTerm, places_sensors
-from .trig32 import cos_sin
 from .warp import RootWarp, follow_camera
 
-KERNELS = ("numba", "numpy")
-DEFAULT_KERNEL = "numba" if kernels is not None else "numpy"  # identical results; numba is several times faster
+try:  # numba is in the `engine` extra: the headless gateway install does not carry a JIT compiler it never uses
+    from . import kernels_numba
+except ImportError:  # pragma: no cover - exercised only on an install without the extra
+    kernels_numba = None
+
+# the step's kernels by name: two modules with the same functions (compiled / numpy reference), identical results
+BACKENDS = {"numba": kernels_numba, "numpy": kernels_numpy}
+KERNELS = tuple(BACKENDS)
+DEFAULT_KERNEL = "numba" if kernels_numba is not None else "numpy"  # numba is several times faster
 PRUNE_EVERY = 64  # samples between survivor prunes: the newest columns cost most to prune (their survivor sets
 # are large); measured 0.73 vs 0.38 ms per sample for 32 vs 64 on the 483k-edge graph; memory 64 x 4 B per node
 PRUNE_HORIZON = 512  # samples (17 s at 30 Hz): columns pruned at this age or older are not pruned again
 ACC_BATCH = 16  # batch search computes C_A rows for this many samples per pass over the metadata
-PI32 = np.float32(np.pi)
-TWO_PI32 = np.float32(2.0 * np.pi)
-
-
-def _wrap32(h: np.ndarray) -> np.ndarray:
-    """float32 angles in [-3pi, 3pi) into [-pi, pi] by one 2pi step (as kernels._wrap)."""
-    h = np.where(h > PI32, h - TWO_PI32, h)
-    return np.where(h < -PI32, h + TWO_PI32, h)
-
-
-def _warp_numpy(Px, Pz, O, mx, mz, mh, gp, maxp, gh, maxh) -> None:
-    """Reference of kernels.warp_state (same float32 operations in the same order), in place."""
-    ex = mx - Px
-    ez = mz - Pz
-    d = np.sqrt(ex * ex + ez * ez)
-    step = np.minimum(d * gp, maxp)
-    k = np.zeros_like(d)
-    np.divide(step, d, out=k, where=d > np.float32(0.0))
-    Px[:] = Px + ex * k
-    Pz[:] = Pz + ez * k
-    c = _wrap32(mh - O) * gh
-    c = np.maximum(-maxh, np.minimum(c, maxh))
-    O[:] = _wrap32(O + c)
-
 
 @dataclass(frozen=True)
 class SearchWeights:
@@ -176,6 +156,13 @@ class _Column:
     pruned_age: int = -1  # the column's age (samples) when it was last pruned
 
 
+def default_weights(warp: RootWarp) -> SearchWeights:
+    """The search weights that go with ``warp``: the camera-following preset when the root follows the camera, the
+    paper's otherwise — one rule for `courtside synthesize` and the console, so a take gives the same poses live
+    and offline."""
+    return SearchWeights.camera_following() if warp.active else SearchWeights()
+
+
 class ViterbiLattice:
     """The running search state; `ViterbiSearch` (batch) and `FixedLagSynthesizer` (online) both drive it,
     so the two give identical paths when the lag covers the whole sequence.
@@ -188,12 +175,13 @@ class ViterbiLattice:
                  kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> None:
         if kernel not in KERNELS:
             raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
-        if kernel == "numba" and kernels is None:
-            raise ValueError("kernel 'numba' needs numba: pip install 'courtside[engine]'")
+        if BACKENDS[kernel] is None:
+            raise ValueError(f"kernel {kernel!r} needs numba: pip install 'courtside[engine]'")
         self.graph = graph
         self.weights = weights
         self.prune_every = prune_every
-        self.kernel = kernel  # "numba": compiled passes (kernels.py); "numpy": the reference, bit-identical
+        self.kernel = kernel
+        self.kernels = BACKENDS[kernel]  # compiled passes (kernels_numba) or the numpy reference: bit-identical
         # Without position/heading costs the search is Markov and needs no per-path global state: positions
         # along the chosen path are integrated afterwards.
         self.track_global = weights.position != 0 or weights.heading != 0
@@ -216,9 +204,6 @@ class ViterbiLattice:
             {3 * self.n_sensors}  # acc; acc + tilt; acc + tilt + heading (orientation_term.py)
         self._meta_sq = {k: np.einsum("ij,ij->j", self._meta_acc_t[:k], self._meta_acc_t[:k],
                                       dtype=np.float64).astype(np.float32) for k in widths}  # by input width
-        if kernel == "numpy":  # scratch of the reference's row-axpys (the compiled kernel batches its own)
-            self._dots = np.empty(m, dtype=np.float32)
-            self._axpy = np.empty(m, dtype=np.float32)
         self.runs = EdgeRuns(graph.edge_src, graph.edge_dst, graph.edge_meta, graph.n_nodes)
         r = self.runs
         self._src, self._dst = r.src.astype(np.intp), r.dst.astype(np.intp)
@@ -230,7 +215,7 @@ class ViterbiLattice:
         self._dx, self._dz = (graph.meta_dpos_m[self._meta, i].astype(np.float32) for i in (0, 1))
         self._dh = graph.meta_dheading_rad[self._meta].astype(np.float32)
         self._ra = np.empty(len(self._src), dtype=np.float32)  # per-edge W_A C_A (numpy / constrained steps)
-        self._cost = np.empty(len(self._src), dtype=np.float32) if kernel == "numpy" else None
+        self._cost = np.empty(len(self._src), dtype=np.float32)  # per-edge cost (the numpy reference's fold)
         self._graph_src = graph.edge_src.astype(np.intp)
         dpos = graph.meta_dpos_m[:, 0] + 1j * graph.meta_dpos_m[:, 1]
         self._graph_d = dpos[graph.edge_meta]
@@ -254,30 +239,18 @@ class ViterbiLattice:
             return None
         m = np.asarray(acc_g, dtype=np.float64).reshape(-1)
         self._check_width(m.size, np.shape(acc_g))
-        if self.kernel == "numba":
-            return self.acc_rows_batch(m[None])[0]
-        m32 = m.astype(np.float32)
-        dots, tmp = self._dots, self._axpy
-        np.multiply(self._meta_acc_t[0], m32[0], out=dots)
-        for i in range(1, len(m32)):
-            np.multiply(self._meta_acc_t[i], m32[i], out=tmp)
-            dots += tmp
-        dots *= np.float32(-2.0)
-        dots += self._meta_sq[len(m32)]
-        dots += np.float32(m @ m)
-        dots *= np.float32(self.weights.acc / self.n_sensors)
-        return dots
+        return self.acc_rows_batch(m[None])[0]
 
     def acc_rows_batch(self, acc_g: np.ndarray) -> np.ndarray:
         """`_acc_rows` of B samples (B, S', 3) at once -> (B, M) float32, bit-identical per row (compiled: the
-        metadata is read once per batch instead of once per sample). Batch search feeds these to `step`."""
+        metadata is read once per batch instead of once per sample). Whole-take searches feed these to `step`."""
         m = np.asarray(acc_g, dtype=np.float64).reshape(len(acc_g), -1)
         self._check_width(m.shape[1], np.shape(acc_g))
         out = np.empty((len(m), self._meta_acc_t.shape[1]), dtype=np.float32)
         width = m.shape[1]
         mm = np.array([np.float32(v @ v) for v in m], dtype=np.float32)
         scale = np.full(len(m), self.weights.acc / self.n_sensors, dtype=np.float32)
-        kernels.acc_rows(self._meta_acc_t[:width], self._meta_sq[width], m.astype(np.float32), mm, scale, out)
+        self.kernels.acc_rows(self._meta_acc_t[:width], self._meta_sq[width], m.astype(np.float32), mm, scale, out)
         return out
 
     def _check_width(self, width: int, shape: tuple) -> None:
@@ -350,10 +323,8 @@ class ViterbiLattice:
              penalty: np.ndarray | None = None, rows: np.ndarray | None = None,
              quat_wxyz: np.ndarray | None = None) -> None:
         """Advance every path by one edge for the next sample (O(E) array work). `rows`: this sample's
-        `acc_rows_batch` row, if the caller computed it in a batch (compiled kernel only); `quat_wxyz` (S', 4):
-        the sensors' device-earth orientations (used with `SearchWeights.orientation` > 0)."""
-        if rows is not None and self.kernel != "numba":
-            raise ValueError("precomputed acc rows need the numba kernel")
+        `acc_rows_batch` row, if the caller computed it in a batch; `quat_wxyz` (S', 4): the sensors' device-earth
+        orientations (used with `SearchWeights.orientation` > 0)."""
         if self.t < 0:
             self.start(acc_g, position_m, heading_rad, penalty, quat_wxyz)
             return
@@ -369,8 +340,8 @@ class ViterbiLattice:
         self.constrained |= penalty is not None
         rows = self._acc_rows(acc_g) if rows is None else rows
         rows = self._zero_rows if rows is None else rows
-        # the compiled passes read rows by metadata row; the reference (and a constrained step) by edge
-        ra = self._edge_rows(rows) if self.constrained or self.kernel == "numpy" else None
+        # the compiled passes read rows by metadata row, the reference by edge; a constrained step masks by edge
+        ra = self._edge_rows(rows) if self.constrained else None
         if self.constrained:
             self._mask_constraints(ra)
         if self.track_global:  # cos/sin of every path's heading, and the cost terms if this sample has a fix
@@ -384,13 +355,8 @@ class ViterbiLattice:
         win.fill(-1)
         if w.forgets:  # the accumulated costs fade (SearchWeights.forgetting); float32, the same for both kernels
             self._G *= np.float32(w.forgetting)
-        if self.kernel == "numba":
-            self._fold_compiled(rows, ra, terms, wp, wh, best, win)
-        else:
-            self._fold_numpy(ra, terms, wp, wh, best, win)
+        self.kernels.fold(self, rows, ra, terms, wp, wh, best, win)
         if self.track_global:
-            if self.kernel == "numpy":
-                self._advance_numpy(win, self._spare_state)
             self._state, self._spare_state = self._spare_state, self._state
             if self.warp.active and (fix_pos or fix_head):
                 self._warp(position_m if fix_pos else None, heading_rad if fix_head else None)
@@ -436,7 +402,7 @@ class ViterbiLattice:
         mpos = np.zeros(2) if position_m is None else np.asarray(position_m, float)
         mh = np.float32(wrap_angle(heading_rad)) if heading_rad is not None else np.float32(0.0)
         args = (*self._state, np.float32(mpos[0]), np.float32(mpos[1]), mh, gp, maxp, gh, maxh)
-        (kernels.warp_state if self.kernel == "numba" else _warp_numpy)(*args)
+        self.kernels.warp_state(*args)
 
     def _record_fix(self, position_m, heading_rad, reset: bool) -> None:
         """Keep this sample's camera fix (None where missing) for the output replay; `reset`: the first fix of a
@@ -447,69 +413,9 @@ class ViterbiLattice:
 
     def _node_terms(self, mpos: np.ndarray, mhead: float) -> None:
         """Into `_terms`, per node: C, Sn = cos O, sin O; (ux, uz) = R(-O)(P - M); th = wrap(O - M_h); float32
-        (see kernels.node_terms)."""
-        Px, Pz, O = self._state
+        (see kernels_numpy.node_terms)."""
         mx, mz, mh = np.float32(mpos[0]), np.float32(mpos[1]), np.float32(mhead)
-        C, Sn, ux, uz, th = self._terms
-        if self.kernel == "numba":
-            kernels.node_terms(Px, Pz, O, mx, mz, mh, C, Sn, ux, uz, th)
-        else:
-            C[:], Sn[:] = cos_sin(O)
-            ax, az = Px - mx, Pz - mz
-            np.subtract(ax * C, az * Sn, out=ux)
-            np.add(ax * Sn, az * C, out=uz)
-            th[:] = _wrap32(O - mh)
-
-    def _fold_compiled(self, rows, ra, terms, wp, wh, best, win) -> None:
-        """Best cost and winning search index per node -- runs (SIMD), then the scattered edges -- and, with global
-        state, the winners' new position/heading. The accelerometer costs come by metadata row from `rows`, or by
-        search index from `ra` if constraints have masked it."""
-        r = self.runs
-        ux, uz, th = self._terms[2:] if self.track_global else (self._none32,) * 3
-        use = terms is not None
-        if ra is None:
-            table, run_row0, row = rows, r.run_meta0, self._meta32
-        else:
-            table, run_row0, row = ra, r.run_edge0, self._search_index32
-        now = (*self._state, *self._terms[:2]) if self.track_global else (self._none32,) * 5  # Px, Pz, O, C, Sn
-        new = self._spare_state if self.track_global else (self._none32,) * 3
-        edge = (self._dx, self._dz, self._dh)
-        kernels.runs_fold(r.run_src0, r.run_dst0, r.run_edge0, run_row0, r.run_len, table, self._G, ux, uz, th, *now,
-                          *edge, wp, wh, use, self.track_global, best, win, *new)
-        kernels.scattered_fold(r.sc_nodes, r.sc_indptr, self._src32, row, table, self._G, ux, uz, th, *now, *edge,
-                               wp, wh, use, self.track_global, best, win, *new, self._sc_cost)
-
-    def _fold_numpy(self, ra, terms, wp, wh, best, win) -> None:
-        """Reference fold: every edge's cost in whole-array float32 ops (the order of kernels._edge_cost), then
-        one comparison per rank layer, so ties go to the lowest search index as in the compiled passes."""
-        src, cost = self._src, self._cost
-        np.take(self._G, src, out=cost)
-        cost += ra
-        if terms is not None:
-            ux, uz, th = terms
-            x = ux[src] + self._dx
-            y = uz[src] + self._dz
-            cost += np.sqrt(x * x + y * y) * wp
-            h = np.abs(th[src] + self._dh)
-            cost += np.minimum(h, TWO_PI32 - h) * wh
-        for idx, d in self.runs.layers:
-            c = cost[idx]
-            lt = c < best[d]
-            best[d] = np.where(lt, c, best[d])
-            win[d] = np.where(lt, idx, win[d])
-
-    def _advance_numpy(self, win, new_state) -> None:
-        """Eq. 5 for every node's winning edge into `new_state` (nodes nothing reached keep stale values), in the
-        order of kernels._advance."""
-        nodes = np.flatnonzero(win >= 0)
-        e = win[nodes]
-        s = self._src[e]
-        Px, Pz, O, C, Sn = (a[s] for a in (*self._state, *self._terms[:2]))
-        dx, dz, dh = (a[e] for a in (self._dx, self._dz, self._dh))
-        nPx, nPz, nO = new_state
-        nPx[nodes] = Px + (dx * C + dz * Sn)
-        nPz[nodes] = Pz + (dz * C - dx * Sn)
-        nO[nodes] = _wrap32(O + dh)
+        self.kernels.node_terms(*self._state, mx, mz, mh, *self._terms)
 
     def reanchor(self, position_m: np.ndarray | None, heading_rad: float | None) -> None:
         """Forget the accumulated costs (every live path starts over at cost 0, so the next samples decide
@@ -582,15 +488,9 @@ class ViterbiLattice:
             age = self.t - (self.first_column_time + k)
             if col.nodes is not None and (len(col.nodes) == len(alive) or col.pruned_age >= PRUNE_HORIZON):
                 break  # (alive is a subset of col.nodes: equal) or pruned when its survivors had settled
-            if self.kernel == "numba":
-                full = col.nodes is None
-                edges, sources = kernels.survivor_column(alive if full else col.nodes, col.edges, full, alive,
-                                                         self._src32, mark)
-            else:
-                edges = self._lookup(col, alive).astype(np.int32)
-                mark[self._src[edges]] = True
-                sources = np.flatnonzero(mark)  # sorted and distinct (np.unique's hashing was 20x slower)
-                mark[sources] = False
+            full = col.nodes is None
+            edges, sources = self.kernels.survivor_column(alive if full else col.nodes, col.edges, full, alive,
+                                                          self._src32, mark)
             self.columns[k] = _Column(alive, edges, age)
             alive = sources
 
@@ -694,41 +594,27 @@ def observation(obs: Observations, t: int) -> tuple[np.ndarray | None, np.ndarra
     return acc, pos, head
 
 
-class ViterbiSearch:
-    """Batch search: the best path for a whole input sequence."""
-
-    def __init__(self, graph: MotionGraph, weights: SearchWeights = SearchWeights(), prune_every: int = PRUNE_EVERY,
-                 kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> None:
-        self.graph = graph
-        self.weights = weights
-        self.prune_every = prune_every
-        self.kernel = kernel
-        self.warp = warp
-
-    def run(self, obs: Observations, constraints: list[Constraint] | None = None) -> SearchResult:
-        if self.weights.forgets:  # decided sample by sample, as the fixed-lag decoder does (SearchWeights)
-            from .online import decide_with_forgetting
-
-            return decide_with_forgetting(self.graph, self.weights, obs, constraints, self.prune_every, self.kernel,
-                                          self.warp)
-        lattice = ViterbiLattice(self.graph, self.weights, obs.sensor_indices, self.prune_every, self.kernel,
-                                 self.warp)
-        for step in step_arguments(lattice, obs, constraints):
-            lattice.step(*step[:5], quat_wxyz=step[5])
-        return finish(lattice)
+def viterbi_search(graph: MotionGraph, weights: SearchWeights, obs: Observations,
+                   constraints: list[Constraint] | None = None, prune_every: int = PRUNE_EVERY,
+                   kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> SearchResult:
+    """Seed 000's batch search: every sample stepped, then the best final path back-traced. (A forgetting search
+    decides sample by sample instead: `engine.graph.search.ViterbiSearch` chooses.)"""
+    lattice = ViterbiLattice(graph, weights, obs.sensor_indices, prune_every, kernel, warp)
+    for step in step_arguments(lattice, obs, constraints):
+        lattice.step(*step[:5], quat_wxyz=step[5])
+    return finish(lattice)
 
 
 def step_arguments(lattice: ViterbiLattice, obs: Observations, constraints: list[Constraint] | None = None):
     """Per sample of `obs`, the arguments of `lattice.step` (acc, position, heading, constraint penalty, C_A row,
-    orientations). The compiled kernel's accelerometer rows are computed `ACC_BATCH` samples at a time in one pass
-    over the metadata (identical per row), so every whole-take caller -- the batch search and the forgetting
+    orientations). The accelerometer rows are computed `ACC_BATCH` samples at a time (compiled: in one pass over
+    the metadata; identical per row either way), so every whole-take caller -- the batch search and the forgetting
     search's fixed-lag replay -- steps bit for bit alike. Lazy: each batch is computed just before its first
     sample. With orientations the rows are computed as each sample steps (the orientation features depend on the
     samples decided so far: orientation_term.py), identical per row again."""
     penalties = constraint_penalties(constraints or [], lattice.graph.n_nodes, obs.n_samples)
     quats = obs.quat_wxyz if lattice.orientation is not None else None
-    batch = lattice.kernel == "numba" and obs.acc_g is not None and lattice.n_sensors and lattice.weights.acc != 0 \
-        and quats is None
+    batch = obs.acc_g is not None and lattice.n_sensors and lattice.weights.acc != 0 and quats is None
     rows = None
     for t in progress.bar(range(obs.n_samples), desc="search", unit="sample"):
         if batch and t % ACC_BATCH == 0:

@@ -100,12 +100,3 @@ def follow_camera(steps_local_m: np.ndarray, dheading_rad: np.ndarray, start: tu
             heading = body - offset[i]
         out_g[i], out_h[i] = ground, heading
     return np.stack([out_g.real, out_g.imag], axis=1), wrap_angle(out_h)
-
-
-def default_weights(warp: RootWarp):
-    """The search weights that go with ``warp``: the camera-following preset when the root follows the camera, the
-    paper's otherwise — one rule for `courtside synthesize` and the console, so a take gives the same poses live
-    and offline."""
-    from .viterbi import SearchWeights
-
-    return SearchWeights.camera_following() if warp.active else SearchWeights()

@@ -129,7 +129,7 @@ def to_motion(skeleton, fps: float, root_m: np.ndarray, quats: np.ndarray, foot_
     return fix_foot_skate(motion, foot_contacts(motion))
 
 
-def leave_one_out(motions: list[Motion], test_indices: list[int], imu_names: tuple[str, ...] = ("right_foot",),
+def hmm_leave_one_out(motions: list[Motion], test_indices: list[int], imu_names: tuple[str, ...] = ("right_foot",),
                   error_model: SensorErrorModel | None = None, seed: int = 0, labels: list[str] | None = None,
                   train_indices: list[int] | None = None, config: HMMConfig = HMMConfig(),
                   foot_ik: bool = True,

@@ -6,8 +6,8 @@ import argparse
 import json
 import sys
 
+from engine.errors import ArgumentParser, CourtsideError
 from engine.progress import add_quiet_argument
-from engine.errors import CourtsideError
 from engine.imu_import.csv_generic import GYRO_UNITS_RPS, TIME_UNITS_S, read_generic_csv
 from engine.imu_import.detect import QUAT_ORDERS, UNITS_TO_G
 from engine.imu_import.take import assemble
@@ -30,7 +30,7 @@ def _columns(items: list[str] | None, flag: str) -> dict[str, list[str]]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside import-imu", description=__doc__)
+    p = ArgumentParser(prog="courtside import-imu", description=__doc__)
     p.add_argument("file", help="csv/tsv file; xsens: .mvnx, an MT Manager/DOT .txt/.csv export or a folder of "
                                 "them; ximu3: the data-logger recording folder (or a device folder)")
     p.add_argument("--format", required=True, choices=["csv", "xsens", "ximu3"])

@@ -16,8 +16,8 @@ import time
 import numpy as np
 
 from engine import progress
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.progress import add_quiet_argument
-from engine.errors import CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.mocap import MarkerData, read_c3d
 
 from .baseline import bootstrap_training_labels
@@ -59,8 +59,8 @@ def run(
 
 @cli_command("courtside label")
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="courtside label", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = ArgumentParser(prog="courtside label", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("input", help="C3D whose first --train-frames frames are labelled")
     parser.add_argument("-o", "--output", required=True, help="labelled C3D to write (observed + recovered)")
     parser.add_argument("--train-frames", type=int, default=None,

@@ -14,7 +14,7 @@ import sys
 
 import numpy as np
 
-from engine.errors import report_errors
+from engine.errors import ArgumentParser, report_errors
 from engine.mocap.bvh import write_bvh
 from engine.mocap.clips import load_clip, sample_clips
 from engine.mocap.ground import foot_contacts, root_heading
@@ -48,7 +48,7 @@ def _convert(args: argparse.Namespace) -> None:
 
 
 def _main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="python -m engine.mocap", description="Inspect or convert mocap clips.")
+    parser = ArgumentParser(prog="python -m engine.mocap", description="Inspect or convert mocap clips.")
     sub = parser.add_subparsers(dest="command", required=True)
     info = sub.add_parser("info", help="summary of a clip")
     info.add_argument("clip")

@@ -26,7 +26,7 @@ import numpy as np
 
 from engine.errors import MalformedFileError
 from engine.mocap.sensors import SensorPlacement
-from engine.safe_load import read_json
+from engine.versioned_json import read_versioned_json
 
 SCHEMA = "courtside.sensor_calibration"
 SCHEMA_VERSION = 1
@@ -82,42 +82,51 @@ class SensorCalibrationData:
         return json.dumps({k: np.round(v, 6).tolist() for k, v in sorted(self.rotations.items())})
 
 
-def load_sensor_calibration(path: str | Path) -> SensorCalibrationData:
-    """Read a ``courtside.sensor_calibration`` JSON record (gateway's ``CalibrationRecord.save``) without the
-    gateway. Bad files raise MalformedFileError naming the file and the problem."""
+def read_calibration_record(path: str | Path) -> dict:
+    """The JSON document of a ``courtside.sensor_calibration`` record, checked: schema and version, a non-empty
+    ``sensors`` object, every entry's segment, proper 3x3 rotation, gravity (3,), finite numbers, one sensor per
+    segment. The one check of the format: the engine (`load_sensor_calibration`) and the gateway
+    (``gateway.calibration.CalibrationRecord.load``) both read records through it. Bad files raise
+    MalformedFileError naming the file and the problem."""
     path = Path(path)
-    doc = read_json(path)  # depth-safe (issue 22): nested 100 000 deep is one line, not a RecursionError
-    if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
-        raise MalformedFileError(path, None, f"not a sensor calibration record (schema must be {SCHEMA!r})")
-    if doc.get("schema_version") != SCHEMA_VERSION:
-        raise MalformedFileError(path, None, f"unsupported schema_version {doc.get('schema_version')!r}")
+    doc = read_versioned_json(path, SCHEMA, SCHEMA_VERSION, "a sensor calibration record",
+                              lambda p, problem: MalformedFileError(p, None, problem))
     sensors = doc.get("sensors")
     if not isinstance(sensors, dict) or not sensors:
         raise MalformedFileError(path, None, "no sensors in the record")
-    out = SensorCalibrationData(path)
+    segments: dict[str, str] = {}
     for sid, entry in sensors.items():
         try:
             segment = str(entry["segment"])
             rotation = np.asarray(entry["rotation"], float)
             gravity = np.asarray(entry["gravity_sensor_g"], float).reshape(3)
-            norm_error = float(entry["norm_error_g"])
-            correction = float(entry["correction_deg"])
-            passed = bool(entry["passed"])
+            numbers = [float(entry["norm_error_g"]), float(entry["correction_deg"])]
+            bool(entry["passed"])
         except (KeyError, TypeError, ValueError) as exc:
             raise MalformedFileError(path, None, f"sensor {sid!r}: bad entry ({exc!r})") from None
-        if not (np.all(np.isfinite(rotation)) and np.all(np.isfinite(gravity)) and np.isfinite(norm_error)
-                and np.isfinite(correction)):
+        if not (np.all(np.isfinite(rotation)) and np.all(np.isfinite(gravity)) and np.all(np.isfinite(numbers))):
             raise MalformedFileError(path, None, f"sensor {sid!r}: non-finite numbers")
         if not _is_rotation(rotation):
             raise MalformedFileError(path, None, f"sensor {sid!r}: rotation is not a proper 3x3 rotation")
-        if segment in out.rotations:
-            raise MalformedFileError(path, None, f"two sensors on segment {segment!r}: "
-                                                 f"{out.sensor_ids[segment]!r} and {sid!r}")
-        out.rotations[segment] = rotation
-        out.bias_along_gravity_g[segment] = norm_error * gravity / max(np.linalg.norm(gravity), 1e-12)
+        if segment in segments:
+            raise MalformedFileError(path, None, f"two sensors on segment {segment!r}: {segments[segment]!r} and {sid!r}")
+        segments[segment] = str(sid)
+    return doc
+
+
+def load_sensor_calibration(path: str | Path) -> SensorCalibrationData:
+    """What the engine uses of a ``courtside.sensor_calibration`` record (`read_calibration_record`), read
+    without the gateway."""
+    path = Path(path)
+    out = SensorCalibrationData(path)
+    for sid, entry in read_calibration_record(path)["sensors"].items():
+        segment = str(entry["segment"])
+        gravity = np.asarray(entry["gravity_sensor_g"], float).reshape(3)
+        out.rotations[segment] = np.asarray(entry["rotation"], float)
+        out.bias_along_gravity_g[segment] = float(entry["norm_error_g"]) * gravity / max(np.linalg.norm(gravity), 1e-12)
         out.sensor_ids[segment] = str(sid)
-        out.correction_deg[segment] = correction
-        if not passed:
+        out.correction_deg[segment] = float(entry["correction_deg"])
+        if not bool(entry["passed"]):
             out.failed.append(segment)
     return out
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 
 @dataclass(frozen=True)
-class GraphConfig:
+class NeighbourhoodGraphConfig:
     """Online lazy neighbourhood graph and kNN search (spec A2.3-A2.5)."""
 
     k_neighbours: int = 4096      # K: nearest database frames per input frame (paper: 4096)
@@ -73,6 +73,6 @@ class KnowledgeBaseConfig:
 class OLNGConfig:
     """Everything the streaming reconstructor needs."""
 
-    graph: GraphConfig = field(default_factory=GraphConfig)
+    graph: NeighbourhoodGraphConfig = field(default_factory=NeighbourhoodGraphConfig)
     energy: EnergyConfig = field(default_factory=EnergyConfig)
     knowledge_base: KnowledgeBaseConfig = field(default_factory=KnowledgeBaseConfig)

@@ -75,7 +75,7 @@ def reconstruct(kb: KnowledgeBase, config: OLNGConfig, acc_g: np.ndarray, root_p
     return world, root_rot, rec
 
 
-def leave_one_out(motions: list[Motion], test_indices: list[int], variants: list[Variant],
+def olng_leave_one_out(motions: list[Motion], test_indices: list[int], variants: list[Variant],
                   kb_config: KnowledgeBaseConfig = KnowledgeBaseConfig(), error_model: SensorErrorModel | None = None,
                   seed: int = 0, orientation_error: OrientationErrorModel = OrientationErrorModel.realistic()
                   ) -> dict[str, list[ClipErrors]]:

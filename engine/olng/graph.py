@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.olng.config import GraphConfig
+from engine.olng.config import NeighbourhoodGraphConfig
 
 
 @dataclass
@@ -39,7 +39,8 @@ class _Column:
 class OnlineLazyNeighbourhoodGraph:
     """Streaming OLNG over a database whose frames belong to clips `clip_id` (N,)."""
 
-    def __init__(self, clip_id: np.ndarray, config: GraphConfig = GraphConfig(), readings: np.ndarray | None = None) -> None:
+    def __init__(self, clip_id: np.ndarray, config: NeighbourhoodGraphConfig = NeighbourhoodGraphConfig(),
+                 readings: np.ndarray | None = None) -> None:
         """readings (N, D): the database readings; needed for skip_cost='held' (then push() needs the query)."""
         if config.window < 1 or config.max_column_step < 1 or config.max_warp < 1:
             raise ValueError("window, max_column_step and max_warp must be >= 1")

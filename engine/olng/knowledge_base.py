@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from engine.array_checks import check_arrays, check_index_range, load_npz
 from engine.olng.channels import check_channels, search_vector
 from engine.olng.pose import Rig, fk_root_frame, pose_vectors, reference_quats, tilted
 
@@ -204,16 +205,38 @@ class KnowledgeBase:
 
     @classmethod
     def load(cls, path: str | Path) -> "KnowledgeBase":
+        """A database written by `save`; a file that is not one — or holds arrays of the wrong shape, kind or
+        range — is refused with one line (MalformedFileError) before anything uses it."""
         from engine.errors import MalformedFileError
 
+        data = load_npz(path, "an OLNG knowledge base")
+        optional = {k: v for k, v in OPTIONAL_CHANNEL_ARRAYS.items() if k in data.files}   # older files lack them
+        sizes = check_arrays(path, data, KB_ARRAYS | optional)
+        fps = float(data["fps"])
+        if fps <= 0 or sizes["N"] == 0:
+            raise MalformedFileError(path, None, f"not an OLNG knowledge base: fps {fps:g}, {sizes['N']} frames")
+        for name, low, high in (("parents", -1, sizes["J"]), ("sensor_bone", 0, sizes["J"]),
+                                ("sensor_tip", 0, sizes["J"]), ("clip_id", 0, sizes["C"])):
+            check_index_range(path, name, data[name], low, high)
         try:
-            data = np.load(path, allow_pickle=False)
             rig = Rig(tuple(str(n) for n in data["names"]), data["parents"], data["offsets_m"], data["end_site"],
                       data["ref_quats"])
-            sensors = SensorRig(data["sensor_bone"], data["sensor_local_rot"], data["sensor_tip"])
-            fields = {k: data[k] for k in ("q", "x_m", "v_mps", "a_mps2", "alpha_g", "clip_id",
-                                           "root_vel_heading_mps", "yaw_rate_rps", "root_height_m")}
-            fields.update({k: data[k] for k in ("tilt", "gyro_rps", "yaw_rad") if k in data.files})  # optional
-            return cls(rig=rig, sensors=sensors, fps=float(data["fps"]), clip_names=tuple(str(n) for n in data["clip_names"]), **fields)
-        except (KeyError, ValueError, OSError) as exc:
+        except ValueError as exc:
             raise MalformedFileError(path, None, f"not an OLNG knowledge base: {exc}") from exc
+        sensors = SensorRig(data["sensor_bone"], data["sensor_local_rot"], data["sensor_tip"])
+        fields = {k: data[k] for k in ("q", "x_m", "v_mps", "a_mps2", "alpha_g", "clip_id",
+                                       "root_vel_heading_mps", "yaw_rate_rps", "root_height_m") + tuple(optional)}
+        return cls(rig=rig, sensors=sensors, fps=fps, clip_names=tuple(str(n) for n in data["clip_names"]), **fields)
+
+
+# what `KnowledgeBase.save` writes (engine.array_checks): J joints, S sensors, N frames, C clips
+KB_ARRAYS = {
+    "names": ("U", ("J",)), "parents": ("i", ("J",)), "offsets_m": ("f", ("J", 3)), "end_site": ("b", ("J",)),
+    "ref_quats": ("f", ("J", 4)), "sensor_bone": ("i", ("S",)), "sensor_local_rot": ("f", ("S", 3, 3)),
+    "sensor_tip": ("i", ("S",)), "fps": ("f", ()), "q": ("f", ("N", "J*3")), "x_m": ("f", ("N", "J", 3)),
+    "v_mps": ("f", ("N", "J", 3)), "a_mps2": ("f", ("N", "J", 3)), "alpha_g": ("f", ("N", "S*3")),
+    "clip_id": ("i", ("N",)), "root_vel_heading_mps": ("f", ("N", 3)), "yaw_rate_rps": ("f", ("N",)),
+    "root_height_m": ("f", ("N",)), "clip_names": ("U", ("C",)),
+}
+# the orientation / gyro channels (issue 18), written when the database holds them
+OPTIONAL_CHANNEL_ARRAYS = {"tilt": ("f", ("N", "S*3")), "gyro_rps": ("f", ("N", "S*3")), "yaw_rad": ("f", ("N", "S"))}

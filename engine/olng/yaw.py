@@ -7,7 +7,7 @@ rho_s = psi_s - psi_0, is body-intrinsic up to one constant per sensor, o_s (the
 norths; it drifts by a few degrees a minute). The database knows the true rho of every frame. So each frame, after
 the search, the measured rho minus the rho of the chosen hypotheses (Eq. 1 weights, a circular mean) is a sample
 of o_s; an exponentially forgetting circular mean (`time_constant_s`) estimates it. Once the estimate is steady
-(resultant length >= `min_resultant`, after `min_frames` = `GraphConfig.yaw_min_frames`), every candidate's node distance gains
+(resultant length >= `min_resultant`, after `min_frames` = `NeighbourhoodGraphConfig.yaw_min_frames`), every candidate's node distance gains
 ``yaw_weight * |exp(i rho_db) - exp(i (rho_meas - o))|`` per sensor, so the search can tell apart poses whose
 segments lean alike but point differently.
 

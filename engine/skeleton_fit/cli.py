@@ -6,12 +6,11 @@ Per joint it reports the type (ball / hinge / static), the arc the child markers
 expected centre error (from the fit's residuals and geometry: short arcs give large errors)."""
 from __future__ import annotations
 
-import argparse
 
 import numpy as np
 
+from engine.errors import ArgumentParser, MalformedFileError, check_output_dir, cli_command
 from engine.progress import add_quiet_argument
-from engine.errors import MalformedFileError, check_output_dir, cli_command
 from engine.mocap import read_c3d, write_bvh
 
 from .gdke import DegenerateFitError, JointFitConfig
@@ -31,7 +30,7 @@ def subject_markers(labels: tuple[str, ...], positions_m: np.ndarray, subject: s
 
 @cli_command("courtside fit-skeleton")
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="courtside fit-skeleton", description=__doc__)
+    parser = ArgumentParser(prog="courtside fit-skeleton", description=__doc__)
     parser.add_argument("input", help="labelled marker C3D")
     parser.add_argument("-o", "--output", required=True, help="BVH file to write")
     parser.add_argument("--subject", help="subject prefix (labels 'Subject:MARKER'); default: the first")

@@ -46,11 +46,6 @@ def frame_at_or_after(t_s: float, rate_hz: float) -> int:
     return int(math.ceil(t_s * rate_hz - _EPS))
 
 
-def frame_times(first: int, count: int, rate_hz: float) -> np.ndarray:
-    """Times (s) of frames ``first .. first + count - 1``: ``k / rate_hz`` exactly as every caller computes it."""
-    return np.arange(first, first + count, dtype=np.int64) / rate_hz
-
-
 ACC, GYRO, QUAT = slice(0, 3), slice(3, 6), slice(6, 10)  # columns of the resampler's per-sample rows
 N_COLUMNS = 10
 

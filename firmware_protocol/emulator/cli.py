@@ -13,6 +13,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from engine.errors import ArgumentParser, CourtsideError, cli_command
+
 from .link import EmulatorLink
 from .motion import MocapSource, MotionSource, TraceSource
 from .options import STATION_OPTIONS, apply_options, parse_flag
@@ -21,8 +23,8 @@ from .station import BaseStation, StationConfig
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="courtside emulate", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(prog="courtside emulate", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--stations", type=int, default=1, help="number of stations (ids 1..N, seed + id - 1)")
     for name, (field, parse, help_text) in STATION_OPTIONS.items():
         if parse is parse_flag:
@@ -81,16 +83,15 @@ def _build(args: argparse.Namespace) -> list[tuple[int, EmulatorLink, PtyTranspo
     return stations
 
 
-def main(argv: list[str] | None = None) -> int:
+@cli_command("courtside emulate")
+def main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     if args.stations < 1 or args.speed <= 0:
-        print("courtside emulate: --stations must be >= 1 and --speed > 0", file=sys.stderr)
-        return 2
+        raise CourtsideError("--stations must be >= 1 and --speed > 0")
     try:
         stations = _build(args)
-    except (ValueError, OSError) as exc:
-        print(f"courtside emulate: {exc}", file=sys.stderr)
-        return 2
+    except (ValueError, OSError) as exc:  # a bad motion file or option value, a link directory not writable
+        raise CourtsideError(str(exc)) from None
     stop = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:

@@ -12,6 +12,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from engine.array_checks import load_npy
+
 GRAVITY_UP_WORLD = np.array([0.0, 1.0, 0.0])
 
 
@@ -108,10 +110,7 @@ class TraceSource:
     @classmethod
     def from_npy(cls, path: str | Path, fps: float) -> TraceSource:
         """Load an (F, S, 3) g trace saved with numpy.save; errors name the file."""
-        try:
-            acc = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise ValueError(f"{path}: cannot read trace ({exc})") from exc
+        acc = load_npy(path, "trace")
         try:
             return cls(acc, fps)
         except ValueError as exc:

@@ -7,14 +7,14 @@ The take is an `import-imu` file, or the gateway's own recording (`courtside gat
 station each, and no station holds all the worn sensors)."""
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from engine.errors import CourtsideError, MalformedFileError
+from engine.errors import ArgumentParser, CourtsideError, MalformedFileError
+from engine.export_format import recorded_sensors
 from engine.graph.input_checks import open_npz, parse_sensor_map
 from engine.mocap import STANDARD_SENSORS
 from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, calibrate_recording,
@@ -49,7 +49,7 @@ def _read_take(path: Path, sensor_map: dict[str, str] | None = None) -> tuple[np
     """acc_g (T, S, 3), fps, placement names, sensor ids (source labels) of a synthesis-input take, or of a
     gateway export when ``sensor_map`` is given."""
     with open_npz(path) as data:
-        is_export = "acc_g" not in data.files and any(k.endswith("/acc_g") for k in data.files)
+        is_export = "acc_g" not in data.files and bool(recorded_sensors(data.files))  # engine.export_format
     if is_export:
         if not sensor_map:
             raise MalformedFileError(path, None, "a gateway recording: say which sensor is worn where with "
@@ -90,7 +90,7 @@ def _windows(texts: list[str] | None) -> dict[str, tuple[float, float]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="courtside calibrate", description=__doc__)
+    p = ArgumentParser(prog="courtside calibrate", description=__doc__)
     p.add_argument("take", help="take .npz from `courtside import-imu`, or a gateway recording exported with "
                                 "`courtside gateway export --npz` (with --sensor-map)")
     p.add_argument("--sensor-map", nargs="+", default=None, metavar="STATION/SENSOR=PLACEMENT",

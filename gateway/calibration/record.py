@@ -12,10 +12,11 @@ from typing import Any
 
 import numpy as np
 
+from engine.array_checks import READ_ERRORS
+from engine.errors import MalformedFileError
 from engine.mocap import quaternions
-from engine.mocap.calibrated import SCHEMA, SCHEMA_VERSION  # the record's schema id is defined once, engine side
+from engine.mocap.calibrated import SCHEMA, SCHEMA_VERSION, read_calibration_record  # the format, engine side
 from gateway.calibration.errors import CalibrationRecordError
-from gateway.versioned_json import read_versioned_json
 
 
 @dataclass
@@ -92,15 +93,14 @@ class CalibrationRecord:
     def load(cls, path: str | Path, with_raw: bool = True) -> "CalibrationRecord":
         """Read a record (and its raw samples); CalibrationRecordError names the file and the problem."""
         path = Path(path)
-        doc = read_versioned_json(path, SCHEMA, SCHEMA_VERSION, "a sensor calibration record", CalibrationRecordError)
+        try:  # the format's one check, shared with the engine's reader
+            doc = read_calibration_record(path)
+        except MalformedFileError as exc:
+            raise CalibrationRecordError(exc.path, exc.problem) from None
         try:
             sensors = {sid: SensorCalibration.from_dict(s) for sid, s in doc["sensors"].items()}
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationRecordError(path, f"bad sensor entry: {exc!r}") from None
-        for sid, s in sensors.items():
-            r = s.rotation
-            if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
-                raise CalibrationRecordError(path, f"sensor {sid!r}: rotation is not a proper 3x3 rotation")
         raw: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
         if with_raw:
             npz_path = path.parent / doc.get("raw_samples_file", path.with_suffix(".npz").name)
@@ -111,7 +111,7 @@ class CalibrationRecord:
                         sensor_id, kind = rest.rsplit("/", 1)
                         if kind == "t_s":
                             raw.setdefault(step, {})[sensor_id] = (data[key], data[f"{step}/{sensor_id}/acc_g"])
-            except (OSError, ValueError, KeyError) as exc:
+            except (*READ_ERRORS, KeyError) as exc:
                 raise CalibrationRecordError(npz_path, f"raw samples unreadable: {exc}") from None
         return cls(
             sensors=sensors, quality_score=float(doc["quality_score"]), grade=str(doc["grade"]),

@@ -19,7 +19,7 @@ import numpy as np
 
 from gateway.camera.court import COURT_KEYPOINTS_M, keypoints_array
 from gateway.camera.court_calibration import CourtCalibration
-from engine.errors import MalformedFileError, report_errors
+from engine.errors import ArgumentParser, MalformedFileError, report_errors
 from engine.safe_load import read_json
 from gateway.camera.errors import CameraError, CourtCalibrationFileError
 from gateway.camera.paths import scripted_rally_path
@@ -128,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="courtside camera", description=__doc__.split("\n")[0])
+    parser = ArgumentParser(prog="courtside camera", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("synth", help="render a synthetic court clip + calibration + ground truth")
     p.add_argument("--out", type=Path, default=Path("court.mp4"))

@@ -21,7 +21,7 @@ import numpy as np
 
 from gateway.camera.court import keypoints_array
 from gateway.camera.errors import CourtCalibrationFileError
-from gateway.versioned_json import read_versioned_json
+from engine.versioned_json import read_versioned_json
 
 SCHEMA = "courtside.court_calibration"
 SCHEMA_VERSION = 1

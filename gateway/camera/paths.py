@@ -69,24 +69,6 @@ class PlayerPath:
         """Second derivative (N,) of the lift: what a trunk-worn accelerometer sees on top of gravity."""
         return np.gradient(np.gradient(self.lift_m, self.t_s), self.t_s)
 
-    @classmethod
-    def from_root_trajectory(
-        cls, t_s: np.ndarray, root_world_m: np.ndarray, heading_rad: np.ndarray | None = None,
-        offset_court_m: tuple[float, float] = (0.0, 0.0), standing_height_m: float | None = None,
-    ) -> "PlayerPath":
-        """From an engine-world (Y up) root trajectory (N, 3) m: court ``(x, y) = (X, Z) + offset``.
-
-        ``lift_m`` is the root height above ``standing_height_m`` (default: the clip's median root height),
-        clipped at 0. Without ``heading_rad`` the seed's rule is applied to the path itself."""
-        t = np.asarray(t_s, float)
-        root = np.asarray(root_world_m, float)
-        xy = root[:, [0, 2]] + np.asarray(offset_court_m, float)
-        standing = float(np.median(root[:, 1])) if standing_height_m is None else standing_height_m
-        lift = np.clip(root[:, 1] - standing, 0.0, None)
-        if heading_rad is None:
-            heading_rad = rule_heading(t, xy)
-        return cls(t, xy, np.asarray(heading_rad, float), lift)
-
 
 def rule_heading(t_s: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
     """Direction of motion above :data:`RUNNING_SPEED_MPS`, else facing the net (heading = atan2(vx, vy))."""

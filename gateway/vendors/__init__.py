@@ -6,23 +6,23 @@ gateway clock with the same lower-envelope estimator and delivers the same `Samp
 streaming, statistics and LSL work unchanged."""
 from __future__ import annotations
 
+import importlib
 from typing import Any
 
-VENDOR_PREFIXES = ("ximu3:", "shimmer:")
+# source prefix -> (module, reader class); imported only when a source names it (the vendor libraries are optional)
+READERS = {
+    "ximu3:": ("gateway.vendors.ximu3_station", "Ximu3Reader"),
+    "shimmer:": ("gateway.vendors.shimmer_station", "ShimmerReader"),
+}
 _SHARED_OPTIONS = ("reconnect_interval_s", "clock_window_s", "lock_after_s")
 
 
 def make_reader(source: str, sink: Any, **options: Any) -> Any:
-    """The reader for ``source``: a vendor reader for a vendor prefix, else the project's `StationReader`."""
-    shared = {k: v for k, v in options.items() if k in _SHARED_OPTIONS}
-    if source.startswith("ximu3:"):
-        from gateway.vendors.ximu3_station import Ximu3Reader
-
-        return Ximu3Reader(source, sink, **shared)
-    if source.startswith("shimmer:"):
-        from gateway.vendors.shimmer_station import ShimmerReader
-
-        return ShimmerReader(source, sink, **shared)
+    """The reader for ``source``: the `READERS` entry of its prefix, else the project's `StationReader`."""
+    for prefix, (module, name) in READERS.items():
+        if source.startswith(prefix):
+            shared = {k: v for k, v in options.items() if k in _SHARED_OPTIONS}
+            return getattr(importlib.import_module(module), name)(source, sink, **shared)
     from gateway.station import StationReader
 
     return StationReader(source, sink, **options)

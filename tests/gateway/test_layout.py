@@ -11,7 +11,7 @@ def test_daemon_core_imports_no_emulation_harness():
         "import sys\n"
         "import gateway.daemon, gateway.assembly, gateway.court_config, gateway.server, gateway.client\n"
         "import gateway.station, gateway.links, gateway.recorder, gateway.auth, gateway.tls, gateway.wire\n"
-        "from gateway.daemon import _parser\n"
+        "from gateway.daemon.cli import _parser\n"
         "_parser().parse_args(['--port', '/dev/null'])\n"
         "print(sorted(m for m in sys.modules if m.startswith(('firmware_protocol.emulator', 'gateway.emulation'))))\n"
     )

@@ -704,3 +704,89 @@ def config_cases() -> list[Case]:
     cases.append(Case("config", "record-dir-is-a-file", {"gateway.toml": b'record_dir = "data"\n', "data": b"x"},
                       ["gateway", "--config", "{d}/gateway.toml", "--duration", "0", "--quiet"], "gateway.toml"))
     return cases
+
+
+def knowledge_base_arrays() -> dict[str, np.ndarray]:
+    """An OLNG knowledge base (`courtside reconstruct --save-kb`) over two short shipped clips, as arrays."""
+    import tempfile
+
+    from engine.olng.config import KnowledgeBaseConfig
+    from engine.olng.mocap_bridge import build_knowledge_base
+
+    clips = [load_clip(sample_clips()[name], fps=30.0).slice(0, 60) for name in ("16_01", "16_05")]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "kb.npz"
+        build_knowledge_base(clips, KnowledgeBaseConfig(mirror=False, reverse=False)).save(path)
+        with np.load(path) as z:
+            return {k: z[k] for k in z.files}
+
+
+def knowledge_base_cases(kb: dict[str, np.ndarray]) -> list[Case]:
+    """`--kb` files that parse as .npz but hold the wrong arrays (the class that ended in IndexError, TypeError or
+    ZeroDivisionError inside the OLNG before the load checked shapes, kinds and ranges)."""
+    def with_(**changes) -> bytes:
+        return _npz(**{**kb, **changes})
+
+    mutations = {
+        "empty": b"",
+        "npy-not-npz": _npy(kb["alpha_g"]),
+        "truncated": _npz(**kb)[:300],
+        "no-alpha": _npz(**{k: v for k, v in kb.items() if k != "alpha_g"}),
+        "alpha-1d": with_(alpha_g=kb["alpha_g"].ravel()),
+        "alpha-nan": with_(alpha_g=np.full_like(kb["alpha_g"], np.nan)),
+        "alpha-strings": with_(alpha_g=kb["alpha_g"].astype(str)),
+        "fps-vector": with_(fps=np.array([25.0, 50.0])),
+        "fps-zero": with_(fps=np.array(0.0)),
+        "q-fewer-frames": with_(q=kb["q"][:3]),
+        "names-fewer": with_(names=kb["names"][:2]),
+        "parents-not-tree": with_(parents=np.arange(len(kb["parents"])) + 1),
+        "sensor-bone-out-of-range": with_(sensor_bone=kb["sensor_bone"] + 1000),
+        "clip-id-out-of-range": with_(clip_id=kb["clip_id"] + 5),
+        "sensor-rot-2x2": with_(sensor_local_rot=kb["sensor_local_rot"][:, :2, :2]),
+        "no-frames": with_(**{k: kb[k][:0] for k in ("q", "x_m", "v_mps", "a_mps2", "alpha_g", "clip_id",
+                                                     "root_vel_heading_mps", "yaw_rate_rps", "root_height_m")}),
+    }
+    return [Case("knowledge-base", name, {"kb.npz": data, "take.npz": b"unused"},
+                 ["reconstruct", "--method", "olng", "--kb", "{d}/kb.npz", "--input", "{d}/take.npz", "-o",
+                  "{d}/out.bvh"], "kb.npz", outputs=("out.bvh",)) for name, data in mutations.items()]
+
+
+def report_cases() -> list[Case]:
+    """`courtside evaluate --compare` reports: JSON of another shape (the class that ended in KeyError/TypeError
+    in the comparison table)."""
+    row = {"engine": "motion graph", "sensors": "6", "camera": "yes", "global_cm": 9.0, "root_relative_cm": 8.0,
+           "position_cm": 4.0, "heading_deg": 7.0}
+    mutations = {
+        "empty": b"",
+        "not-json": b"{groups: 1}",
+        "json-list": b"[1, 2]",
+        "no-groups": json.dumps({"rows": [row]}).encode(),
+        "groups-list": json.dumps({"groups": [row]}).encode(),
+        "group-not-list": json.dumps({"groups": {"chained": row}}).encode(),
+        "row-not-object": json.dumps({"groups": {"chained": [5]}}).encode(),
+        "row-no-engine": json.dumps({"groups": {"chained": [{k: v for k, v in row.items() if k != "engine"}]}}).encode(),
+        "value-text": json.dumps({"groups": {"chained": [{**row, "global_cm": "nine"}]}}).encode(),
+    }
+    good = json.dumps({"groups": {"chained": [row]}}).encode()
+    return [Case("report", name, {"after.json": data, "before.json": good},
+                 ["evaluate", "--compare", "{d}/before.json", "{d}/after.json"], "after.json")
+            for name, data in mutations.items()]
+
+
+def trace_cases() -> list[Case]:
+    """`courtside emulate --trace` acceleration traces (.npy (F, S, 3) g)."""
+    acc = np.zeros((20, 2, 3))
+    acc[..., 1] = 1.0
+    mutations = {
+        "empty": b"",
+        "text": b"0,1,0\n" * 5,
+        "npz-not-npy": _npz(acc_g=acc),
+        "pickled": pickle.dumps(acc),
+        "truncated": _npy(acc)[:100],
+        "two-axes": _npy(acc[..., :2]),
+        "no-frames": _npy(acc[:0]),
+        "nan": _npy(np.full_like(acc, np.nan)),
+        "object-array": _npy(np.array([None, 1], dtype=object)),
+    }
+    return [Case("trace", name, {"trace.npy": data}, ["emulate", "--trace", "{d}/trace.npy", "--duration", "0.1"],
+                 "trace.npy") for name, data in mutations.items()]

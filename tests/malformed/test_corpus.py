@@ -53,7 +53,8 @@ def _cases() -> list[corpus.Case]:
     """Every case but the graph ones, which need the shared graph's bytes (built in `test_malformed_graph`)."""
     return (corpus.bvh_cases() + corpus.asf_amc_cases() + corpus.c3d_cases() + corpus.calibration_cases()
             + corpus.take_cases(corpus.take_arrays()) + corpus.recording_cases() + corpus.camera_cases()
-            + corpus.config_cases())
+            + corpus.config_cases() + corpus.knowledge_base_cases(corpus.knowledge_base_arrays())
+            + corpus.report_cases() + corpus.trace_cases())
 
 
 CASES = _cases()
@@ -130,7 +131,8 @@ def test_corpus_size_and_coverage(shared):
     files = sum(len(c.files) for c in cases)
     per_family = Counter(c.family for c in cases)
     assert len(cases) >= 150 and files >= 150
-    assert set(per_family) >= {"bvh", "asf", "amc", "c3d", "graph", "take", "calibration", "recording", "config"}
+    assert set(per_family) >= {"bvh", "asf", "amc", "c3d", "graph", "take", "calibration", "recording", "config",
+                               "knowledge-base", "report", "trace"}
     print(f"\nmalformed corpus: {len(cases)} cases, {files} files; " + ", ".join(f"{k} {v}" for k, v in
                                                                         sorted(per_family.items())))
 

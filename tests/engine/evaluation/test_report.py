@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from engine.graph.config import GraphConfig
-from engine.graph.graph import (EDGE_NATURAL, EDGE_SLOWDOWN, EDGE_TRANSITION, NODE_ORIGINAL, NODE_SLOW,
-                                MotionGraph, build_from_clips)
+from engine.graph.graph import MotionGraph, build_from_clips
+from engine.graph.parts import EDGE_NATURAL, EDGE_SLOWDOWN, EDGE_TRANSITION, NODE_ORIGINAL, NODE_SLOW
 from engine.graph.report import coverage_warning, format_report, graph_report, motion_range
 from tests.engine.graph.synth import gait_clip
 

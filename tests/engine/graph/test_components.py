@@ -6,7 +6,8 @@ import numpy as np
 from engine.graph.clips import ClipData
 from engine.graph.components import largest_component
 from engine.graph.config import GraphConfig
-from engine.graph.graph import EDGE_TRANSITION, build_from_clips
+from engine.graph.graph import build_from_clips
+from engine.graph.parts import EDGE_TRANSITION
 from engine.graph.transitions import idle_frames
 
 from .synth import gait_clip, rigid_copy

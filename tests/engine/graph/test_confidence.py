@@ -6,7 +6,8 @@ import pytest
 
 from engine.graph.config import GraphConfig
 from engine.graph.confidence import CostHistory, CostWindow, confidence, reference_cost_per_sample
-from engine.graph.graph import EDGE_TRANSITION, build_from_clips
+from engine.graph.graph import build_from_clips
+from engine.graph.parts import EDGE_TRANSITION
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.viterbi import SearchWeights
 from engine.mocap import SensorErrorModel

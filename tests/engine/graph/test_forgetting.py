@@ -17,7 +17,8 @@ from engine.graph.config import GraphConfig
 from engine.graph.graph import build_from_clips
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.poses import blended_joint_positions, root_local, world_joint_positions
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
+from engine.graph.search import ViterbiSearch
 from engine.graph.warp import RootWarp
 
 from .synth import gait_clip

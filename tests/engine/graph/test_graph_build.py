@@ -6,7 +6,8 @@ import pytest
 
 from engine.errors import MalformedFileError
 from engine.graph.config import GraphConfig
-from engine.graph.graph import EDGE_NATURAL, EDGE_TRANSITION, MotionGraph, build_from_clips
+from engine.graph.graph import MotionGraph, build_from_clips
+from engine.graph.parts import EDGE_NATURAL, EDGE_TRANSITION
 from engine.graph.transitions import contact_change_frames
 
 from .synth import gait_clip, rigid_copy

@@ -8,10 +8,12 @@ from dataclasses import replace
 import numpy as np
 
 from engine.graph.config import GraphConfig
-from engine.graph.graph import EDGE_INTERP, NODE_INTERP, build_from_clips
+from engine.graph.graph import build_from_clips
+from engine.graph.parts import EDGE_INTERP, NODE_INTERP
 from engine.graph.interpolate import find_alignments, slope_constrained_dtw
 from engine.graph.poses import root_local
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
+from engine.graph.search import ViterbiSearch
 
 from .synth import gait_clip, observe, rigid_copy, walk_path
 

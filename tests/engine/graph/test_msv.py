@@ -4,9 +4,11 @@ from __future__ import annotations
 import numpy as np
 
 from engine.graph.config import GraphConfig
-from engine.graph.graph import EDGE_NATURAL, EDGE_SLOWDOWN, EDGE_SPEEDUP, NODE_SLOW, build_from_clips
+from engine.graph.graph import build_from_clips
+from engine.graph.parts import EDGE_NATURAL, EDGE_SLOWDOWN, EDGE_SPEEDUP, NODE_SLOW
 from engine.graph.metadata import advance
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
+from engine.graph.search import ViterbiSearch
 
 from .synth import gait_clip, observe, walk_path
 

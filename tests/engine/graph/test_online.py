@@ -5,10 +5,12 @@ import numpy as np
 import pytest
 
 from engine.graph.config import GraphConfig
-from engine.graph.graph import EDGE_TRANSITION, build_from_clips
+from engine.graph.graph import build_from_clips
+from engine.graph.parts import EDGE_TRANSITION
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.poses import world_joint_positions
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
+from engine.graph.search import ViterbiSearch
 
 from .synth import gait_clip, observe, rigid_copy, walk_path
 

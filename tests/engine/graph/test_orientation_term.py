@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 from engine.graph.config import GraphConfig
-from engine.graph.graph import NODE_ORIGINAL, MotionGraph
+from engine.graph.graph import MotionGraph
+from engine.graph.parts import NODE_ORIGINAL
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.orientation_term import OrientationTerm, features, twist_yaw
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.search import ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
 from engine.mocap import quaternions as quat
 from engine.mocap import standard_placements, virtual_accelerometers
 from engine.mocap.orientation import to_device_earth, virtual_orientations, yaw_about_up

@@ -7,7 +7,7 @@ import pytest
 from engine.graph.evaluate import Noise, simulate_inputs
 from engine.graph.poses import world_joint_positions
 from engine.graph.postprocess import _contact_runs, path_to_motion, transition_times
-from engine.graph.viterbi import ViterbiSearch
+from engine.graph.search import ViterbiSearch
 from engine.mocap import SensorErrorModel, forward_kinematics, joint_roles, read_bvh, write_bvh
 
 

@@ -14,10 +14,12 @@ import pytest
 
 from engine.graph.config import GraphConfig
 from engine.graph.geometry import wrap_angle
-from engine.graph.graph import EDGE_TRANSITION, build_from_clips
+from engine.graph.graph import build_from_clips
+from engine.graph.parts import EDGE_TRANSITION
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.root_fusion import RootFuser, RootFusion, fuse_track
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
+from engine.graph.search import ViterbiSearch
 from engine.graph.warp import RootWarp
 
 from .synth import gait_clip, observe, rigid_copy, walk_path

@@ -6,8 +6,10 @@ import pytest
 
 from engine.graph.config import GraphConfig
 from engine.graph.geometry import wrap_angle
-from engine.graph.graph import EDGE_TRANSITION, build_from_clips
-from engine.graph.viterbi import Constraint, Observations, SearchWeights, ViterbiSearch
+from engine.graph.graph import build_from_clips
+from engine.graph.parts import EDGE_TRANSITION
+from engine.graph.viterbi import Constraint, Observations, SearchWeights
+from engine.graph.search import ViterbiSearch
 
 from .synth import gait_clip, observe, rigid_copy, walk_path
 

@@ -11,9 +11,11 @@ import pytest
 
 from engine.graph.config import GraphConfig
 from engine.graph.geometry import wrap_angle
-from engine.graph.graph import EDGE_TRANSITION, build_from_clips
+from engine.graph.graph import build_from_clips
+from engine.graph.parts import EDGE_TRANSITION
 from engine.graph.online import FixedLagSynthesizer
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiLattice, ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights, ViterbiLattice
+from engine.graph.search import ViterbiSearch
 from engine.graph.warp import RootWarp, warp_one
 
 from .synth import gait_clip, observe, rigid_copy, walk_path

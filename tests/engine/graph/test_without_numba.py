@@ -14,7 +14,7 @@ import engine.graph.viterbi as viterbi
 from engine.graph import GraphConfig, MotionGraph, Observations, ViterbiSearch
 from engine.mocap import load_database, sample_clips, standard_placements, virtual_accelerometers
 
-assert viterbi.kernels is None and viterbi.DEFAULT_KERNEL == "numpy"
+assert viterbi.kernels_numba is None and viterbi.DEFAULT_KERNEL == "numpy"
 motions = load_database([sample_clips()["16_11"], sample_clips()["16_35"]], fps=30.0)
 placements = standard_placements(motions[0].skeleton)
 graph = MotionGraph.build(motions, placements, GraphConfig())

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.hmm.evaluation import behaviour_of, leave_one_out, train_model
+from engine.hmm.evaluation import behaviour_of, hmm_leave_one_out, train_model
 from engine.hmm.features import imu_features
 from engine.hmm.reconstructor import HMMReconstructor
 from engine.mocap import load_clip, resample, sample_clips, standard_placements
@@ -34,16 +34,16 @@ def test_behaviour_labels_of_the_shipped_clips(motions):
 
 
 def test_one_foot_imu_beats_the_mean_pose_and_a_root_imu(motions):
-    foot = leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS)
-    root = leave_one_out(motions, WALK_TESTS, ("lower_back",), train_indices=WALKS)
+    foot = hmm_leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS)
+    root = hmm_leave_one_out(motions, WALK_TESTS, ("lower_back",), train_indices=WALKS)
     assert _joint_cm(foot) < 4.5
     assert _joint_cm(foot) < _joint_cm(root)            # Fig. 10: root placement is the worst
 
 
 def test_two_imus_beat_one_and_single_type_model_beats_all_types(motions):
-    one = leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS)
-    two = leave_one_out(motions, WALK_TESTS, ("right_foot", "right_wrist"), train_indices=WALKS)
-    mixed = leave_one_out(motions, WALK_TESTS, ("right_foot",))
+    one = hmm_leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS)
+    two = hmm_leave_one_out(motions, WALK_TESTS, ("right_foot", "right_wrist"), train_indices=WALKS)
+    mixed = hmm_leave_one_out(motions, WALK_TESTS, ("right_foot",))
     assert summarise(two)["rms_root_cm"] < summarise(one)["rms_root_cm"]   # Table 3: 2 IMUs < 1 IMU
     assert _joint_cm(one) < _joint_cm(mixed)                             # Table 3: Total row > per-type rows
 
@@ -99,8 +99,8 @@ def test_foot_ik_reduces_foot_sliding_of_the_output(motions):
 def test_recursive_forward_mode_matches_the_window_mode_on_a_walk(motions):
     from engine.hmm.config import HMMConfig
 
-    window = summarise(leave_one_out(motions, [5], ("right_foot",), train_indices=WALKS))["joint_cm"]
-    recursive = summarise(leave_one_out(motions, [5], ("right_foot",), train_indices=WALKS,
+    window = summarise(hmm_leave_one_out(motions, [5], ("right_foot",), train_indices=WALKS))["joint_cm"]
+    recursive = summarise(hmm_leave_one_out(motions, [5], ("right_foot",), train_indices=WALKS,
                                         config=HMMConfig(forward_mode="recursive")))["joint_cm"]
     assert recursive < 1.3 * window
 
@@ -146,8 +146,8 @@ def test_accelerometer_only_model_for_the_live_stream(motions):
     vs 3.54 cm); a model trained with gyroscopes refuses a frame without one instead of misreading it."""
     from engine.hmm.config import HMMConfig
 
-    both = leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS)
-    acc = leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS, config=HMMConfig(imu_channels="acc"))
+    both = hmm_leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS)
+    acc = hmm_leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS, config=HMMConfig(imu_channels="acc"))
     assert _joint_cm(both) < _joint_cm(acc) < 5.0
     model = train_model([motions[i] for i in WALKS], config=HMMConfig(imu_channels="acc"))
     assert model.imu_mean.shape == (3,)
@@ -208,7 +208,7 @@ def test_tilt_channel_ignores_the_device_yaw_and_runs_with_realistic_orientation
     runs = [reconstruct(model, acc, gyro, test.skeleton.n_joints, test.root_positions_m[0], test.rotations[0, 0],
                         quat_wxyz=to_device_earth(q_world, yaw))[1] for yaw in (0.0, 2.1)]
     assert np.allclose(runs[0], runs[1], atol=1e-9)
-    scores = leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS, config=config)
+    scores = hmm_leave_one_out(motions, WALK_TESTS, ("right_foot",), train_indices=WALKS, config=config)
     assert _joint_cm(scores) < 5.0
     with pytest.raises(ValueError, match="give quat_wxyz"):
         HMMReconstructor(model).push(acc[0], gyro[0])

@@ -24,7 +24,7 @@ def _truth(motion: Motion):
 
 
 def test_olng_root_follows_the_camera(motions):
-    from engine.olng.config import GraphConfig, KnowledgeBaseConfig, OLNGConfig
+    from engine.olng.config import NeighbourhoodGraphConfig, KnowledgeBaseConfig, OLNGConfig
     from engine.olng.mocap_bridge import build_knowledge_base
     from engine.olng.reconstructor import OLNGReconstructor
 
@@ -32,7 +32,7 @@ def test_olng_root_follows_the_camera(motions):
     test = resample(motions[5], kb.fps)
     acc = virtual_accelerometers(test, standard_placements(test.skeleton, SEED003_SENSORS))[:15]
     ground, heading = (a[:15] for a in _truth(test))
-    config = OLNGConfig(graph=GraphConfig(k_neighbours=128, i_best=16))
+    config = OLNGConfig(graph=NeighbourhoodGraphConfig(k_neighbours=128, i_best=16))
     rec = OLNGReconstructor(kb, config, root_warp=FULL)
     poses = [rec.push(acc[t], ground[t], heading[t]) for t in range(len(acc))]
     root = np.array([p.root_pos_m[[0, 2]] for p in poses])

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from engine.olng.config import GraphConfig
+from engine.olng.config import NeighbourhoodGraphConfig
 from engine.olng.graph import OnlineLazyNeighbourhoodGraph, path_weights
 
 
@@ -67,7 +67,7 @@ def test_olng_matches_brute_force_dp(seed, skip_cost):
     n, k, window = 40, 8, 5
     clip_id = (np.arange(n) >= 23).astype(int)
     readings = rng.normal(size=(n, 3))
-    graph = OnlineLazyNeighbourhoodGraph(clip_id, GraphConfig(k_neighbours=k, window=window, skip_cost=skip_cost), readings)
+    graph = OnlineLazyNeighbourhoodGraph(clip_id, NeighbourhoodGraphConfig(k_neighbours=k, window=window, skip_cost=skip_cost), readings)
     columns = []
     for t in range(9):
         centre = 3 + 2 * t
@@ -100,7 +100,7 @@ def _warp_stream(speed, frames=60, n=400, seed=7):
 def test_time_warp_recovery(speed):
     signal, query, true_index = _warp_stream(speed, frames=int(40 / max(speed, 1)) + 20)
     tree = cKDTree(signal)
-    graph = OnlineLazyNeighbourhoodGraph(np.zeros(len(signal), int), GraphConfig(k_neighbours=48, window=16), signal)
+    graph = OnlineLazyNeighbourhoodGraph(np.zeros(len(signal), int), NeighbourhoodGraphConfig(k_neighbours=48, window=16), signal)
     for t, reading in enumerate(query):
         dist, idx = tree.query(reading, k=48)
         order = np.argsort(idx)
@@ -118,7 +118,7 @@ def test_speed_three_forms_no_full_length_path(skip_cost):
     neighbourhood, so no path can span the window."""
     signal, query, _ = _warp_stream(3.0, frames=40, n=400)
     tree = cKDTree(signal)
-    config = GraphConfig(k_neighbours=8, window=16, skip_cost=skip_cost)
+    config = NeighbourhoodGraphConfig(k_neighbours=8, window=16, skip_cost=skip_cost)
     graph = OnlineLazyNeighbourhoodGraph(np.zeros(len(signal), int), config, signal)
     for reading in query:
         dist, idx = tree.query(reading, k=8)
@@ -130,14 +130,14 @@ def test_speed_three_forms_no_full_length_path(skip_cost):
 def test_paths_never_cross_clip_boundaries():
     clip_id = np.array([0] * 10 + [1] * 10)
     for clips, expect_nodes in ((clip_id, 1), (np.zeros(20, int), 2)):
-        graph = OnlineLazyNeighbourhoodGraph(clips, GraphConfig(k_neighbours=1, window=8, skip_cost="miss"))
+        graph = OnlineLazyNeighbourhoodGraph(clips, NeighbourhoodGraphConfig(k_neighbours=1, window=8, skip_cost="miss"))
         graph.push(np.array([9]), np.array([0.1]))
         graph.push(np.array([10]), np.array([0.1]))   # db step 9 -> 10 is admissible only inside one clip
         assert graph.current.nodes[0] == expect_nodes
 
 
 def test_startup_has_result_at_first_column_and_rejects_unsorted():
-    graph = OnlineLazyNeighbourhoodGraph(np.zeros(10, int), GraphConfig(window=4, skip_cost="miss"))
+    graph = OnlineLazyNeighbourhoodGraph(np.zeros(10, int), NeighbourhoodGraphConfig(window=4, skip_cost="miss"))
     graph.push(np.array([2, 5]), np.array([0.3, 0.1]))
     nodes, costs = graph.best(2)
     np.testing.assert_array_equal(nodes, [5, 2])
@@ -147,11 +147,11 @@ def test_startup_has_result_at_first_column_and_rejects_unsorted():
 
 
 def test_no_warp_config_only_allows_unit_steps():
-    graph = OnlineLazyNeighbourhoodGraph(np.zeros(30, int), GraphConfig(window=8, max_column_step=1, max_warp=1, skip_cost="miss"))
+    graph = OnlineLazyNeighbourhoodGraph(np.zeros(30, int), NeighbourhoodGraphConfig(window=8, max_column_step=1, max_warp=1, skip_cost="miss"))
     for n in (3, 5, 7):   # 2x speed: linear search cannot follow
         graph.push(np.array([n]), np.array([0.1]))
     assert graph.current.nodes[0] == 1
-    graph = OnlineLazyNeighbourhoodGraph(np.zeros(30, int), GraphConfig(window=8, skip_cost="miss"))
+    graph = OnlineLazyNeighbourhoodGraph(np.zeros(30, int), NeighbourhoodGraphConfig(window=8, skip_cost="miss"))
     for n in (3, 5, 7):
         graph.push(np.array([n]), np.array([0.1]))
     assert graph.current.nodes[0] == 3

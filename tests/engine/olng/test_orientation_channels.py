@@ -11,12 +11,12 @@ from engine.mocap import (SEED003_SENSORS, forward_kinematics, load_clip, resamp
                           virtual_accelerometers, virtual_gyroscopes)
 from engine.mocap.orientation import OrientationErrorModel, to_device_earth, virtual_orientations
 from engine.olng.channels import tilt_from_device_earth, tilt_from_world
-from engine.olng.config import GraphConfig, KnowledgeBaseConfig, OLNGConfig
+from engine.olng.config import KnowledgeBaseConfig, NeighbourhoodGraphConfig, OLNGConfig
 from engine.olng.mocap_bridge import build_knowledge_base
 from engine.olng.reconstructor import OLNGReconstructor
 
 HELD_OUT = "16_32"
-CONFIG = OLNGConfig(graph=GraphConfig(k_neighbours=512, i_best=32))
+CONFIG = OLNGConfig(graph=NeighbourhoodGraphConfig(k_neighbours=512, i_best=32))
 
 
 @pytest.fixture(scope="module")

@@ -4,11 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.olng import EnergyConfig, GraphConfig, KnowledgeBase, OLNGConfig, OLNGReconstructor
+from engine.olng import EnergyConfig, NeighbourhoodGraphConfig, KnowledgeBase, OLNGConfig, OLNGReconstructor
 
 from .synthetic import RIG, SENSORS, make_clip, root_frame_positions
 
-GRAPH = GraphConfig(k_neighbours=256, i_best=64, window=16)
+GRAPH = NeighbourhoodGraphConfig(k_neighbours=256, i_best=64, window=16)
 
 
 @pytest.fixture(scope="module")
@@ -39,8 +39,8 @@ def test_time_warping_beats_linear_search_at_varying_tempo(knowledge_base):
     """Fig. 13(b): jumping jacks at a smoothly varying tempo (0.6x-1.4x) against a database holding two fixed
     tempi; M = 32 (the default window) so a linear search must match whole 1.3 s stretches at one tempo."""
     clip = make_clip("jacks", 1.0, 6, speed_profile=lambda t: 1.0 + 0.4 * np.sin(2 * np.pi * t / 6))
-    warp = GraphConfig(k_neighbours=256, i_best=64, window=32)
-    linear = GraphConfig(k_neighbours=256, i_best=64, window=32, max_column_step=1, max_warp=1)
+    warp = NeighbourhoodGraphConfig(k_neighbours=256, i_best=64, window=32)
+    linear = NeighbourhoodGraphConfig(k_neighbours=256, i_best=64, window=32, max_column_step=1, max_warp=1)
     warp_cm, _ = _rms_cm(knowledge_base, clip, OLNGConfig(graph=warp))
     linear_cm, _ = _rms_cm(knowledge_base, clip, OLNGConfig(graph=linear))
     assert warp_cm < 0.8 * linear_cm

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from engine.mocap import SEED003_SENSORS, load_clip, resample, sample_clips, standard_placements, virtual_accelerometers
-from engine.olng.config import EnergyConfig, GraphConfig, KnowledgeBaseConfig, OLNGConfig
-from engine.olng.evaluation import Variant, leave_one_out, mean_pose_baseline
+from engine.olng.config import EnergyConfig, NeighbourhoodGraphConfig, KnowledgeBaseConfig, OLNGConfig
+from engine.olng.evaluation import Variant, olng_leave_one_out, mean_pose_baseline
 from engine.olng.metrics import summarise
 
-GRAPH = GraphConfig(k_neighbours=512, i_best=32)
+GRAPH = NeighbourhoodGraphConfig(k_neighbours=512, i_best=32)
 
 
 @pytest.fixture(scope="module")
@@ -24,8 +24,8 @@ def test_leave_one_out_beats_baselines_on_real_walks(motions):
     kb = KnowledgeBaseConfig(mirror=True)
     variants = [Variant("olng", OLNGConfig(graph=GRAPH)),
                 Variant("mahalanobis", OLNGConfig(graph=GRAPH, energy=EnergyConfig(kernel="mahalanobis"))),
-                Variant("no-warp", OLNGConfig(graph=GraphConfig(k_neighbours=512, i_best=32, max_column_step=1, max_warp=1)))]
-    scores = {k: summarise(v)["rms_root_cm"] for k, v in leave_one_out(motions, tests, variants, kb).items()}
+                Variant("no-warp", OLNGConfig(graph=NeighbourhoodGraphConfig(k_neighbours=512, i_best=32, max_column_step=1, max_warp=1)))]
+    scores = {k: summarise(v)["rms_root_cm"] for k, v in olng_leave_one_out(motions, tests, variants, kb).items()}
     mean_pose = summarise(mean_pose_baseline(motions, tests, kb))["rms_root_cm"]
     assert scores["olng"] < 0.6 * mean_pose
     assert scores["olng"] < 0.7 * scores["mahalanobis"]

@@ -1,8 +1,9 @@
-"""Reading the gateway's versioned JSON documents (court calibration, sensor-calibration records).
+"""Reading the project's versioned JSON documents (court calibration, sensor-calibration records).
 
 Why one helper: every saved document carries `schema` + `schema_version`, and a bad file must be rejected with an
 error that names the file and the exact problem (unreadable, not JSON, wrong kind, unsupported version). Each
-document type passes its own error class so callers can still catch the specific failure.
+document type passes its own error class so callers can still catch the specific failure. It lives in `engine`
+(plain json, no dependencies) so the engine and the gateway read the same documents through it.
 """
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
-"""Compiled (numba) passes of one Viterbi search step; `viterbi.ViterbiLattice` calls them.
+"""Compiled (numba) passes of one Viterbi search step; `viterbi.ViterbiLattice` calls them. `kernels_numpy` has
+the same functions with the same signatures (the lattice picks one module when it is built).
 
-Per step, in this order (the numpy reference in `viterbi.py` computes the same numbers with whole-array ops):
+Per step, in this order (the numpy reference, `kernels_numpy`, computes the same numbers with whole-array ops):
 
 1. `node_terms`: per node, cos/sin of the path's heading (`trig32`) and the source-side parts of the position
    and heading costs, u = R(-O)(P - M) and wrap(O - M_h) -- contiguous, vectorised;
@@ -21,6 +22,8 @@ a*b + c into an fma without fastmath; error_model="numpy" gives inf/nan instead 
 numpy searches give bit-identical costs, states and paths (tests/engine/graph/test_kernels.py).
 """
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -213,7 +216,7 @@ def warp_state(Px, Pz, O, mx, mz, mh, gp, maxp, gh, maxh):
     """Root warping (engine/graph/warp.py), in place for every node: move the path's ground position towards the
     camera fix (mx, mz) by gp x the distance, at most maxp metres, and turn its heading towards mh by gh x the
     wrapped difference, at most maxh radians. gp = 0 / gh = 0 leave a component untouched. float32, in the order
-    of viterbi._warp_numpy."""
+    of kernels_numpy.warp_state."""
     for i in range(len(Px)):
         ex = mx - Px[i]
         ez = mz - Pz[i]
@@ -225,3 +228,23 @@ def warp_state(Px, Pz, O, mx, mz, mh, gp, maxp, gh, maxh):
         c = _wrap(mh - O[i]) * gh
         c = max(-maxh, min(c, maxh))
         O[i] = _wrap(O[i] + c)
+
+
+def fold(lat: Any, rows, ra, terms, wp, wh, best, win) -> None:
+    """Best cost and winning search index per node -- runs (SIMD), then the scattered edges -- and, with global
+    state, the winners' new position/heading into the lattice's spare state. The accelerometer costs come by
+    metadata row from `rows`, or by search index from `ra` if constraints have masked it."""
+    r = lat.runs
+    ux, uz, th = lat._terms[2:] if lat.track_global else (lat._none32,) * 3
+    use = terms is not None
+    if ra is None:
+        table, run_row0, row = rows, r.run_meta0, lat._meta32
+    else:
+        table, run_row0, row = ra, r.run_edge0, lat._search_index32
+    now = (*lat._state, *lat._terms[:2]) if lat.track_global else (lat._none32,) * 5  # Px, Pz, O, C, Sn
+    new = lat._spare_state if lat.track_global else (lat._none32,) * 3
+    edge = (lat._dx, lat._dz, lat._dh)
+    runs_fold(r.run_src0, r.run_dst0, r.run_edge0, run_row0, r.run_len, table, lat._G, ux, uz, th, *now,
+              *edge, wp, wh, use, lat.track_global, best, win, *new)
+    scattered_fold(r.sc_nodes, r.sc_indptr, lat._src32, row, table, lat._G, ux, uz, th, *now, *edge,
+                   wp, wh, use, lat.track_global, best, win, *new, lat._sc_cost)
