@@ -210,7 +210,7 @@ class KnowledgeBase:
         from engine.errors import MalformedFileError
 
         data = load_npz(path, "an OLNG knowledge base")
-        optional = {k: v for k, v in OPTIONAL_CHANNEL_ARRAYS.items() if k in data.files}   # older files lack them
+        optional = {k: v for k, v in OPTIONAL_CHANNEL_ARRAYS.items() if k in data}   # older files lack them
         sizes = check_arrays(path, data, KB_ARRAYS | optional)
         fps = float(data["fps"])
         if fps <= 0 or sizes["N"] == 0:

@@ -166,3 +166,13 @@ def test_energy_tilt_of_a_database_pose_is_the_database_tilt(kb) -> None:
     lever_units = CONFIG.energy.tilt_lever_m / CONFIG.energy.length_unit_m
     predicted = energy.features(kb.q[frames].astype(float))["tilt"] / lever_units
     assert np.allclose(predicted, kb.tilt[frames], atol=2e-3)
+
+
+def test_saved_knowledge_base_keeps_its_channels(kb, tmp_path) -> None:
+    from engine.olng.knowledge_base import KnowledgeBase
+
+    kb.save(tmp_path / "kb.npz")
+    loaded = KnowledgeBase.load(tmp_path / "kb.npz")
+    assert loaded.channels == ("acc", "orientation", "gyro")
+    for name in ("tilt", "gyro_rps", "yaw_rad"):
+        assert np.array_equal(getattr(loaded, name), getattr(kb, name))
