@@ -31,10 +31,10 @@ import firmware_protocol as fp
 from firmware_protocol.emulator import BaseStation, StationConfig
 from gateway.client import GatewayClient
 from gateway.daemon import Gateway
-from gateway.emulation.stations import demo_config, start_emulated_station
+from firmware_protocol.emulator.stations import demo_config, start_emulated_station
 from gateway.recorder import load_take, realign_take
 from gateway.station import StationReader
-from gateway.emulation.virtual_time import run_virtual_station
+from firmware_protocol.emulator.virtual_time import run_virtual_station
 
 
 def _cpu_s() -> float:

@@ -14,7 +14,7 @@ What runs (all on this machine; sockets on 127.0.0.1 only):
   connections than allowed, a flood of invalid requests, a subscriber that never reads, and `--silent-askers`
   clients that send ``status`` requests as fast as they can without ever reading a reply (issue 22's probe: four
   of them grew the gateway by 139 MB in 13 s when queues were bounded in frames; now in bytes, with a budget);
-* the recorder writes through `gateway.faultfs.SimulatedDisk`: the disk fills twice; each time the operator (this
+* the recorder writes through `firmware_protocol.emulator.faultfs.SimulatedDisk`: the disk fills twice; each time the operator (this
   script) waits for the alarm, frees space 30 emulated seconds later and starts the next take.
 
 Reported: samples delivered by the readers = samples recorded (per take, except the samples the full disk
@@ -46,7 +46,7 @@ from firmware_protocol.framing import CRC, HEADER, crc32  # noqa: E402
 from gateway import codec  # noqa: E402
 from gateway.client import GatewayClient  # noqa: E402
 from gateway.daemon import Gateway  # noqa: E402
-from gateway.faultfs import SimulatedDisk  # noqa: E402
+from firmware_protocol.emulator.faultfs import SimulatedDisk  # noqa: E402
 from gateway.recorder import load_take  # noqa: E402
 from gateway.station import SampleBlock  # noqa: E402
 

@@ -19,8 +19,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from gateway.daemon import Gateway  # noqa: E402
 from gateway.recorder import load_take, realign_take  # noqa: E402
-from gateway.vendors.shimmer_emulator import ShimmerEmulator  # noqa: E402
-from gateway.vendors.ximu3_emulator import Ximu3Emulator  # noqa: E402
+from firmware_protocol.emulator.shimmer_device import ShimmerEmulator  # noqa: E402
+from firmware_protocol.emulator.ximu3_device import Ximu3Emulator  # noqa: E402
 
 
 def run(emu, source: str, seconds: float) -> dict:

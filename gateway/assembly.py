@@ -22,7 +22,7 @@ from gateway.names import free_name
 from gateway.server import RequestError
 
 if TYPE_CHECKING:
-    from gateway.emulation.stations import EmulatedStation
+    from firmware_protocol.emulator.stations import EmulatedStation
 
 log = logging.getLogger("gateway")
 
@@ -131,7 +131,7 @@ def build_court(config: CourtConfig, *, status_line: Callable[[str], None] | Non
         calibration = build_calibration(config)
     started: list[EmulatedStation] = []
     if emulators is None and config.stations.emulate:
-        from gateway.emulation.stations import start_court_stations  # the emulator only when asked for
+        from firmware_protocol.emulator.stations import start_court_stations  # the emulator only when asked for
 
         try:
             if config.athletes and config.stations.emulate_motion == "mocap":
@@ -184,7 +184,7 @@ def athlete_station_motion(config: CourtConfig, station_id: int) -> tuple[tuple[
     """(worn sites by sensor index, clips) that emulated station ``station_id`` replays: the sites and clips of
     the athlete wearing its sensors (``"st<id>:<i>"``; sites from the athlete's placements, else the engine's six
     seed-000 sensors), else the default station's."""
-    from gateway.emulation.stations import worn_sensor_sites
+    from firmware_protocol.emulator.stations import worn_sensor_sites
 
     for athlete in config.athletes:
         refs = sorted((ref.index, k) for k, ref in enumerate(athlete.sensors)
@@ -202,7 +202,7 @@ def start_athlete_stations(config: CourtConfig, seed: int = 0) -> list[EmulatedS
     ``stations.emulate_orientation`` they also stream orientation and angular rate (protocol v2)."""
     import numpy as np
 
-    from gateway.emulation.stations import demo_config, mocap_traces, start_emulated_station
+    from firmware_protocol.emulator.stations import demo_config, mocap_traces, start_emulated_station
 
     orientation = config.stations.emulate_orientation
     rng = np.random.default_rng(seed)

@@ -86,7 +86,7 @@ def calibration_review(path: Path) -> Path:
     from gateway.calibration.wizard import SegmentSpec
     from gateway.client import GatewayClient
     from gateway.daemon import Gateway
-    from gateway.emulation.stations import start_emulated_station
+    from firmware_protocol.emulator.stations import start_emulated_station
     from gui.app import pump, save_grab
     from gui.main_window import ConsoleWindow
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from engine.errors import CourtsideError
 from firmware_protocol.emulator import StationConfig, TraceSource
-from gateway.emulation.stations import EmulatedStation, start_emulated_station
+from firmware_protocol.emulator.stations import EmulatedStation, start_emulated_station
 
 from engine.mocap import SEED000_SENSORS
 from gui.demo.performance import (OPPONENT, OPPONENT_STATION, PLAYER, STATION_SENSORS, Performance, build_opponent,

@@ -18,7 +18,7 @@ import numpy as np
 
 def main(workdir: str, seconds: float) -> None:
     from gateway.lsl import use_loopback_config
-    from gateway.vendors.ximu3_emulator import Ximu3Emulator
+    from firmware_protocol.emulator.ximu3_device import Ximu3Emulator
 
     cfg = use_loopback_config(workdir)  # before pylsl loads liblsl, as the gateway does
     import pylsl

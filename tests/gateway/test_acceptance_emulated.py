@@ -34,7 +34,7 @@ from firmware_protocol.emulator import Fate
 from gateway.camera.service import CameraService
 from gateway.client import GatewayClient
 from gateway.daemon import Gateway
-from gateway.emulation.stations import demo_config, start_emulated_station
+from firmware_protocol.emulator.stations import demo_config, start_emulated_station
 from gateway.recorder import load_take, realign_take
 
 WARMUP_S = 30.0

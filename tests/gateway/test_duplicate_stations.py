@@ -10,7 +10,7 @@ import numpy as np
 
 from gateway.client import GatewayClient
 from gateway.daemon import Gateway
-from gateway.emulation.stations import demo_config, start_emulated_station
+from firmware_protocol.emulator.stations import demo_config, start_emulated_station
 from gateway.recorder import load_take
 
 from .test_station_reader import wait_for

@@ -18,7 +18,7 @@ import pytest
 from gateway import codec
 from gateway.client import GatewayClient, GatewayRequestError
 from gateway.daemon import Gateway
-from gateway.faultfs import SimulatedDisk
+from firmware_protocol.emulator.faultfs import SimulatedDisk
 from gateway.recorder import (CHUNK_MAGIC, FILE_MAGIC, RECORDING_FILE, Recorder, RecordingError, load_take,
                               read_recording)
 

@@ -10,7 +10,7 @@ import numpy as np
 from firmware_protocol.emulator import StationConfig
 from gateway.client import GatewayClient
 from gateway.daemon import Gateway
-from gateway.emulation.stations import start_emulated_station
+from firmware_protocol.emulator.stations import start_emulated_station
 from gateway.recorder import read_recording
 
 

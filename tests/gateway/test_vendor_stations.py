@@ -27,7 +27,7 @@ def _wait(predicate, timeout_s: float = 10.0) -> bool:
 
 def _ximu3(mode: str):
     pytest.importorskip("ximu3")
-    from gateway.vendors.ximu3_emulator import Ximu3Emulator
+    from firmware_protocol.emulator.ximu3_device import Ximu3Emulator
 
     rng = np.random.default_rng(5)  # a turning device: its gyroscope and AHRS quaternion are forwarded too
     quat = rng.normal(size=(1000, 4))
@@ -49,7 +49,7 @@ def _ximu3_ascii():
 
 def _shimmer():
     pytest.importorskip("pyshimmer")
-    from gateway.vendors.shimmer_emulator import ShimmerEmulator
+    from firmware_protocol.emulator.shimmer_device import ShimmerEmulator
 
     gyro = np.random.default_rng(6).uniform(-400, 400, (1000, 3))  # its gyroscope is enabled and forwarded too
     emu = ShimmerEmulator(name="A1B2", rate_hz=102.4, drift_ppm=-30.0, start_ticks=16_700_000, seed=2, gyro_dps=gyro)
@@ -132,8 +132,8 @@ def test_courtside_gateway_records_both_families(tmp_path):
 
     pytest.importorskip("ximu3")
     pytest.importorskip("pyshimmer")
-    from gateway.vendors.shimmer_emulator import ShimmerEmulator
-    from gateway.vendors.ximu3_emulator import Ximu3Emulator
+    from firmware_protocol.emulator.shimmer_device import ShimmerEmulator
+    from firmware_protocol.emulator.ximu3_device import Ximu3Emulator
 
     with Ximu3Emulator(serial="0000BEEF") as x, ShimmerEmulator(name="S1") as s:
         proc = subprocess.run([sys.executable, "-m", "gateway.cli", "gateway", "--port", f"ximu3:{x.path}",
@@ -154,7 +154,7 @@ def test_ximu3_emulator_ignores_line_noise_and_still_answers():
 
     import serial
 
-    from gateway.vendors.ximu3_emulator import Ximu3Emulator
+    from firmware_protocol.emulator.ximu3_device import Ximu3Emulator
 
     with Ximu3Emulator(serial="0000CAFE") as x, serial.Serial(x.path, timeout=0.2) as port:
         port.write(b"line noise \xff\x80\n")

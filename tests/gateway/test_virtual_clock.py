@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from firmware_protocol.emulator import StationConfig
-from gateway.emulation.virtual_time import run_virtual_station
+from firmware_protocol.emulator.virtual_time import run_virtual_station
 
 
 @pytest.mark.parametrize("drift_ppm, seed", [(100.0, 1), (-100.0, 2)])

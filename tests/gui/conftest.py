@@ -38,7 +38,7 @@ def live_gateway(tmp_path):
     test ends. Real parts only: BaseStation in real time behind a pty, the gateway's serial reader, TCP server."""
     from firmware_protocol.emulator import StationConfig
     from gateway.daemon import Gateway
-    from gateway.emulation.stations import start_emulated_station
+    from firmware_protocol.emulator.stations import start_emulated_station
 
     with contextlib.ExitStack() as stack:
         def start(motion, n_sensors: int, calibration=None, station_id: int = 1):

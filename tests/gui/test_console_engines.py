@@ -172,7 +172,7 @@ def test_a_named_database_with_no_way_to_tell_the_worn_sensors_is_refused(qapp, 
     off, exit 0, the graph silently unused)."""
     from firmware_protocol.emulator import StationConfig
     from gateway.daemon import Gateway
-    from gateway.emulation.stations import start_emulated_station
+    from firmware_protocol.emulator.stations import start_emulated_station
 
     stations_ = [start_emulated_station(StationConfig(station_id=i, n_sensors=n, autostart=True), motion=StillSource(n))
                  for i, n in ((1, 6), (2, 5))]

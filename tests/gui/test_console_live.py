@@ -118,7 +118,7 @@ def test_wizard_rejects_a_moving_subject(live_gateway, console, qtbot):
 def test_console_reconnects_when_the_gateway_comes_back(live_gateway, console, qtbot, tmp_path):
     from firmware_protocol.emulator import StationConfig
     from gateway.daemon import Gateway
-    from gateway.emulation.stations import start_emulated_station
+    from firmware_protocol.emulator.stations import start_emulated_station
 
     first, _ = live_gateway(StillSource(3), 3)
     host, port = first.address
@@ -146,7 +146,7 @@ def test_a_viewer_console_offers_no_control_the_gateway_would_refuse(tmp_path, q
     from firmware_protocol.emulator import StationConfig
     from gateway import auth
     from gateway.daemon import Gateway
-    from gateway.emulation.stations import start_emulated_station
+    from firmware_protocol.emulator.stations import start_emulated_station
 
     secrets = auth.Secrets(auth.new_secret().encode(), auth.new_secret().encode())
     station = start_emulated_station(StationConfig(station_id=1, n_sensors=2, autostart=True), motion=StillSource(2))
@@ -184,7 +184,7 @@ def test_synthesis_starts_afresh_after_a_reconnect_instead_of_stepping_through_t
     from engine.stream.registry import adapter
     from firmware_protocol.emulator import StationConfig
     from gateway.daemon import Gateway
-    from gateway.emulation.stations import start_emulated_station
+    from firmware_protocol.emulator.stations import start_emulated_station
     from gui.engine_link import synthesis_setup
 
     def court(address):

@@ -79,8 +79,8 @@ def test_bought_devices_record_calibrate_and_drive_the_console_with_vmc_out(tmp_
     from engine.stream.poses_file import load_poses
     from gateway.calibration import rotation_angle_deg
     from gateway.recorder import load_take
-    from gateway.vendors.shimmer_emulator import ShimmerEmulator
-    from gateway.vendors.ximu3_emulator import Ximu3Emulator
+    from firmware_protocol.emulator.shimmer_device import ShimmerEmulator
+    from firmware_protocol.emulator.ximu3_device import Ximu3Emulator
 
     x_acc, truth, length_s = _readings(100.0)
     s_acc, _, _ = _readings(SHIMMER_HZ)

@@ -10,7 +10,8 @@ from engine.evaluation.metrics import frame_errors
 from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph
 from engine.graph.poses import blended_joint_positions
-from engine.graph.viterbi import Observations, SearchWeights, ViterbiSearch
+from engine.graph.search import ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
 from engine.mocap import (SEED000_SENSORS, forward_kinematics, load_database, sample_clips, standard_placements,
                           virtual_accelerometers)
 from engine.mocap.orientation import to_device_earth, virtual_orientations

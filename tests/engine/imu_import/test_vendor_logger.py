@@ -23,7 +23,7 @@ def _signal(phase: float) -> np.ndarray:
 def test_import_reads_what_the_vendors_data_logger_wrote(tmp_path):
     ximu3 = pytest.importorskip("ximu3")
     from engine.imu_import.cli import main
-    from gateway.vendors.ximu3_emulator import Ximu3Emulator
+    from firmware_protocol.emulator.ximu3_device import Ximu3Emulator
 
     devices = [Ximu3Emulator(name=name, serial=serial, acc_g=_signal(phase), drift_ppm=drift, seed=k).start()
                for k, (name, serial, phase, drift) in enumerate([("Left Shin", "0000A001", 0.0, 40.0),

@@ -15,7 +15,7 @@ from gateway.calibration.athletes import AthleteCalibrations
 from gateway.calibration.service import CalibrationService
 from gateway.client import GatewayClient, GatewayRequestError
 from gateway.daemon import Gateway
-from gateway.emulation.stations import start_emulated_station
+from firmware_protocol.emulator.stations import start_emulated_station
 
 from .test_gateway_hook import wait_for
 

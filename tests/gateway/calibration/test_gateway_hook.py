@@ -14,7 +14,7 @@ from gateway.calibration import CalibrationRecord, rotation_angle_deg
 from gateway.calibration.service import CalibrationService
 from gateway.client import GatewayClient, GatewayRequestError
 from gateway.daemon import Gateway
-from gateway.emulation.stations import start_emulated_station
+from firmware_protocol.emulator.stations import start_emulated_station
 
 
 def wait_for(predicate, timeout_s: float = 15.0) -> bool:
