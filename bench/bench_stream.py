@@ -5,11 +5,13 @@ Six sensors at 100 Hz (jittered) plus a 12 fps camera, 60 s, resampled to 30 Hz 
 (as `courtside synthesize`), the path driving the real fixed-lag motion graph (shipped clips, lag 0.5 s), and
 the path driving the OLNG (shipped-clip knowledge base without the walk 16_32, fed that walk's virtual
 accelerometers at the 4 seed-003 sites, 100 Hz, 25 Hz frames), and the accelerometer-only HMM on that walk's
-right-foot sensor; plus the path alone with every sensor also streaming an orientation quaternion and an angular
-rate (issue 18), against the accelerations-only path in the same run. Times are per frame; the ratio
-column is against the path's live run, measured in this process; "x real time" is the frame period over the CPU
-cost per frame (below 1 the engine falls behind a live stream even on an idle core: the console then says
-FALLING BEHIND). CPU time (this process, all threads) is printed beside wall time because on a shared, loaded
+right-foot sensor, and the OLNG again with every sensor also streaming its orientation (through a realistic
+6-axis filter's errors) and angular rate (issue 18); plus the path alone with orientation + rate on every sensor,
+against the accelerations-only path in the same run. Every engine runs live (100 ms batches, as the console's
+worker) and offline (one pass, as `courtside synthesize`) in the same process: the live / offline ratio shows
+what the live path adds. Times are per frame; "x real time" is the frame period over the cost per frame (below 1
+the engine falls behind a live stream even on an idle core: the console then says FALLING BEHIND; issue 21 asks
+>= 2). CPU time (this process, all threads) is printed beside wall time because on a shared, loaded
 machine wall time measures the queue for the CPU more than the code.
 
     nice -n 10 .venv/bin/python bench/bench_stream.py [--seconds 60]
@@ -57,17 +59,26 @@ def with_orientation(rec: RecordedStreams) -> RecordedStreams:
 HELD_OUT = "16_32"  # a walk, left out of the OLNG knowledge base
 
 
-def worn_streams(clip: str, sensor_names, seconds: float) -> RecordedStreams:
+def worn_streams(clip: str, sensor_names, seconds: float, orientations: bool = False) -> RecordedStreams:
     """Real motion for the engines that search on it: the clip's virtual accelerometers at ``sensor_names``,
-    sampled at 100 Hz with jitter (looped to ``seconds``), no camera."""
-    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers
+    sampled at 100 Hz with jitter (looped to ``seconds``), no camera; with ``orientations`` each sensor also
+    streams its quaternion (sensor -> device earth, a realistic 6-axis filter's errors) and angular rate."""
+    from engine.mocap import load_clip, sample_clips, standard_placements, virtual_accelerometers, virtual_gyroscopes
+    from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
 
     motion = load_clip(sample_clips()[clip], fps=100.0)
-    acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, list(sensor_names)))
+    placements = standard_placements(motion.skeleton, list(sensor_names))
+    acc = virtual_accelerometers(motion, placements)
     rng = np.random.default_rng(1)
     n = int(seconds * 100)
     t = 1000.0 + np.arange(n) / 100.0 + rng.uniform(0, 0.002, n)
-    return RecordedStreams({k: (t, acc[np.arange(n) % len(acc), k]) for k in range(len(sensor_names))}, [], None)
+    rows = np.arange(n) % len(acc)
+    if not orientations:
+        return RecordedStreams({k: (t, acc[rows, k]) for k in range(len(sensor_names))}, [], None)
+    quats = OrientationErrorModel.realistic().apply(virtual_orientations(motion, placements), 100.0, rng)
+    gyro = virtual_gyroscopes(motion, placements)
+    return RecordedStreams({k: (t, acc[rows, k], quats[rows, k], gyro[rows, k]) for k in range(len(sensor_names))},
+                           [], None)
 
 
 def run_live(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, int]:
@@ -88,44 +99,56 @@ def run_live(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, 
     return time.perf_counter() - t0, time.process_time() - c0, session.stats.frames_in
 
 
+def run_offline(make, rec: RecordedStreams, rate_hz: float) -> tuple[float, float, int]:
+    """(wall s, CPU s, frames) for the same stream synthesised in one pass (as `courtside synthesize`)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    _, session = synthesize_streams(make, rec, list(rec.samples), rate_hz)
+    return time.perf_counter() - t0, time.process_time() - c0, session.stats.frames_in
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seconds", type=float, default=60.0)
-    p.add_argument("--olng-seconds", type=float, default=20.0, help="stream length for the (slow) OLNG row")
+    p.add_argument("--olng-seconds", type=float, default=20.0, help="stream length for the (slowest) OLNG rows")
     args = p.parse_args()
     rec = streams(args.seconds)
-    rate = 30.0
-    live_s, live_cpu_s, frames = run_live(NullEngine, rec, rate)
-    t0, c0 = time.perf_counter(), time.process_time()
-    _, session = synthesize_streams(NullEngine, rec, list(rec.samples), rate)
-    offline_s, offline_cpu_s = time.perf_counter() - t0, time.process_time() - c0
-    oriented = run_live(NullEngine, with_orientation(rec), rate)
+    path_live = run_live(NullEngine, rec, 30.0)
+    path_offline = run_offline(NullEngine, rec, 30.0)
+    oriented = run_live(NullEngine, with_orientation(rec), 30.0)
 
     from engine.stream.registry import adapter  # the console's default databases
 
-    spec = adapter("motion-graph").shipped_spec()
-    graph = run_live(lambda: spec.make(0.5), rec, spec.rate_hz)
-    olng = adapter("olng").shipped_spec(exclude=(HELD_OUT,))  # the console's `--engine olng` default: 4 sensors at 25 Hz
+    graph = adapter("motion-graph").shipped_spec()
+    olng = adapter("olng").shipped_spec(exclude=(HELD_OUT,))  # the console's default for 4 worn sensors, 25 Hz
+    hmm = adapter("hmm").shipped_spec(exclude=(HELD_OUT,))    # the console's 1-sensor default: acc-only HMM
     olng_rec = worn_streams(HELD_OUT, olng.sensor_names, min(args.seconds, args.olng_seconds))
-    olng_run = run_live(lambda: olng.make(0.5), olng_rec, olng.rate_hz)
-    hmm = adapter("hmm").shipped_spec(exclude=(HELD_OUT,))  # the console's 1-sensor default: accelerometer-only HMM
-    hmm_run = run_live(lambda: hmm.make(0.5), worn_streams(HELD_OUT, hmm.sensor_names, args.seconds), hmm.rate_hz)
+    hmm_rec = worn_streams(HELD_OUT, hmm.sensor_names, args.seconds)
+    engines = [("motion graph (lag 0.5 s)", lambda: graph.make(0.5), rec, graph.rate_hz),
+               ("OLNG (4 sensors)", lambda: olng.make(0.5), olng_rec, olng.rate_hz),
+               ("OLNG acc+orientation+gyro", lambda: olng.make(0.5),
+                worn_streams(HELD_OUT, olng.sensor_names, min(args.seconds, args.olng_seconds), orientations=True),
+                olng.rate_hz),
+               ("HMM acc-only (1 sensor)", lambda: hmm.make(0.5), hmm_rec, hmm.rate_hz)]
+    runs = [(name, run_live(make, r, hz), run_offline(make, r, hz), hz) for name, make, r, hz in engines]
     load = os.getloadavg()[0]
-    print(f"stream bench: 6 sensors x 100 Hz + 12 fps camera, {args.seconds:g} s -> {frames} frames at 30 Hz, "
+    print(f"stream bench: 6 sensors x 100 Hz + 12 fps camera, {args.seconds:g} s -> {path_live[2]} frames at 30 Hz, "
           f"load avg {load:.1f} on {os.cpu_count()} cores")
-    print(f"{'':40s}{'wall us/frame':>14s}{'CPU us/frame':>14s}{'ratio (CPU)':>12s}{'x real time (CPU)':>19s}")
-    base = 1e6 * live_cpu_s / frames
-    for name, (wall, cpu, n), rate in (("path alone, live 100 ms batches", (live_s, live_cpu_s, frames), 30.0),
-                                       ("path alone, offline one pass",
-                                        (offline_s, offline_cpu_s, session.stats.frames_in), 30.0),
-                                       ("path alone, live, + orientation + rate", oriented, 30.0),
-                                       ("path + motion graph (lag 0.5 s), live", graph, spec.rate_hz),
-                                       ("path + OLNG (4 sensors, 25 Hz), live", olng_run, olng.rate_hz),
-                                       ("path + HMM acc-only (1 sensor), live", hmm_run, hmm.rate_hz)):
+    base = 1e6 * path_live[1] / path_live[2]
+    print(f"{'':40s}{'wall us/frame':>14s}{'CPU us/frame':>14s}{'vs path (CPU)':>15s}{'x real time (CPU)':>19s}")
+    for name, (wall, cpu, n), hz in (("path alone, live 100 ms batches", path_live, 30.0),
+                                     ("path alone, offline one pass", path_offline, 30.0),
+                                     ("path alone, live, + orientation + rate", oriented, 30.0)):
         us = 1e6 * cpu / n
-        # "x real time" = frame period / CPU cost per frame: below 1 the engine cannot keep up with the stream
-        # even with a core to itself (wall time on a loaded machine is worse)
-        print(f"{name:40s}{1e6 * wall / n:14.1f}{us:14.1f}{us / base:12.2f}{1e6 / rate / us:19.2f}")
+        print(f"{name:40s}{1e6 * wall / n:14.1f}{us:14.1f}{us / base:15.2f}{1e6 / hz / us:19.2f}")
+    # "x real time" = frame period / CPU cost per frame: below 1 the engine cannot keep up with the stream even
+    # with a core to itself (wall time on a loaded machine is worse); the issue-21 goal is >= 2 live
+    print(f"\n{'engine (path included)':28s}{'live ms':>9s}{'offline ms':>11s}{'live/offline':>13s}"
+          f"{'live x rt':>10s}{'offline x rt':>13s}{'live x rt (wall)':>17s}   (CPU ms per frame)")
+    for name, (wall, cpu, n), (_, cpu_off, n_off), hz in runs:
+        live_ms, off_ms = 1e3 * cpu / n, 1e3 * cpu_off / n_off
+        print(f"{name:28s}{live_ms:9.2f}{off_ms:11.2f}{live_ms / off_ms:13.2f}{1e3 / hz / live_ms:10.2f}"
+              f"{1e3 / hz / off_ms:13.2f}{1e3 / hz / (1e3 * wall / n):17.2f}")
+
 
 if __name__ == "__main__":
     main()

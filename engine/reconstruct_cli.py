@@ -171,16 +171,25 @@ def _evaluate(args: argparse.Namespace) -> int:
                     Variant("olng mahalanobis prior", OLNGConfig(graph=base.graph, energy=EnergyConfig(kernel="mahalanobis"))),
                     Variant("olng no time warp", OLNGConfig(graph=NeighbourhoodGraphConfig(
                         k_neighbours=args.k, i_best=args.i_best, window=args.window, max_column_step=1, max_warp=1)))]
+        if args.orientations:  # issue 18: the channels a real IMU streams, orientations through a realistic filter
+            variants += [Variant("olng (4 acc + orientation)", base, ("acc", "orientation")),
+                         Variant("olng (4 acc + ori + gyro)", base, ("acc", "orientation", "gyro"))]
         kb_config = KnowledgeBaseConfig(mirror=args.mirror, reverse=args.reverse)
         scores = olng_leave_one_out(motions, tests, variants, kb_config, error_model, seed=args.seed)
         rows.update({k: summarise(v) for k, v in scores.items()})
         rows["database mean pose"] = summarise(mean_pose_baseline(motions, tests, kb_config))
     if "hmm" in methods:
+        from engine.hmm.config import HMMConfig
         from engine.hmm.evaluation import hmm_leave_one_out
 
         for imus in (("right_foot",), ("right_foot", "right_wrist")):
             scores = hmm_leave_one_out(motions, tests, imu_names=imus, error_model=error_model, seed=args.seed)
             rows[f"hmm ({len(imus)} imu)"] = summarise(scores)
+            if args.orientations:  # acc only, and with the tilt of a realistic filter, beside the paper's acc + gyro
+                for channels in ("acc", "acc+gyro+tilt"):
+                    scores = hmm_leave_one_out(motions, tests, imu_names=imus, error_model=error_model,
+                                               seed=args.seed, config=HMMConfig(imu_channels=channels))
+                    rows[f"hmm ({len(imus)} imu, {channels})"] = summarise(scores)
     if "motion-graph" in methods:
         rows.update(_motion_graph_rows(args, motions, tests))
     print(format_table(rows))
@@ -216,6 +225,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--methods", default="olng,hmm", help="--evaluate: comma list of olng, hmm, motion-graph")
     p.add_argument("--test-clips", type=int, default=3, help="--evaluate: N clips spread over the set (0 = all)")
     p.add_argument("--noise", choices=["clean", "seed000"], default="clean", help="--evaluate: sensor error model")
+    p.add_argument("--orientations", action="store_true",
+                   help="--evaluate: add rows searching on orientation (realistic filter: per-sensor yaw, drift, tilt "
+                        "noise, misalignment) and angular rate, and the HMM's accelerometer-only model")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--sample", action="store_true", help="use the CMU subject-16 clips shipped in engine/data")
     p.add_argument("--mocap-dir", help="a mocap folder, e.g. /work/shared/mocap")

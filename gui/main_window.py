@@ -398,6 +398,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             parts.append(f"{who}{engine.label}: {lag}{s.frames_per_s:.0f} frames/s, "
                          f"{streamed_summary(s)}, "
                          f"{s.push_ms:.1f} ms/frame{conf}"
+                         + (f", {s.engine_status}" if s.engine_status else "")
                          + (f", {s.frames_invalid} frames without a sensor" if s.frames_invalid else "")
                          + (f", {s.late_samples} samples / {s.late_fixes} camera fixes came after their frames"
                             if s.late_samples or s.late_fixes else "")

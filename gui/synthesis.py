@@ -60,6 +60,7 @@ class SynthesisStats:
     behind_s: float = 0.0           # newest sample minus the last frame pushed while complete frames wait for the
                                     # engine (engine.stream.StreamSynthesis.behind_s); 0 when nothing waits
     error: str = ""
+    engine_status: str = ""         # what the engine says about itself live (e.g. a cheaper setting to keep up)
 
     def falling_behind(self, rate_hz: float) -> str:
         """A warning when synthesis trails the stream by more than its lag plus ``BEHIND_WARN_S`` (the engine
@@ -132,7 +133,7 @@ class SynthesisWorker(threading.Thread):
     def _new_session(self) -> StreamSynthesis | None:
         setup = self.setup
         try:
-            return StreamSynthesis(lambda: setup.engine.make(self._lag_s), setup.sensors, setup.engine.rate_hz,
+            return StreamSynthesis(lambda: setup.engine.live(self._lag_s), setup.sensors, setup.engine.rate_hz,
                                    use_camera_heading=setup.use_camera_heading)
         except Exception as exc:  # a bad lag or database must show in the status bar, not kill the thread
             self.stats.error = f"{type(exc).__name__}: {exc}"
@@ -212,6 +213,7 @@ class SynthesisWorker(threading.Thread):
                 s.frames_with_gyro
             self.stats.late_samples, self.stats.late_fixes = s.late_samples, s.late_fixes
             self.stats.start_frame = session.first_frame
+            self._note_engine_status(getattr(session.engine, "status", ""))
             if poses:
                 with self._lock:
                     self._pose = poses[-1]
@@ -223,6 +225,12 @@ class SynthesisWorker(threading.Thread):
                 self.stats.push_ms = 1e3 * window_cost / max(1, window_frames)
                 window_t0, window_frames, window_cost = now, 0, 0.0
                 self._log_falling_behind()
+
+    def _note_engine_status(self, status: str) -> None:
+        """Keep the engine's own status line for the status bar, and log each change (unattended runs)."""
+        if status != self.stats.engine_status:
+            log.info("synthesis (%s): %s", self.setup.engine.label, status or "engine back to its full setting")
+        self.stats.engine_status = status
 
     def _log_falling_behind(self) -> None:
         """One log line when synthesis starts falling behind (an unattended run has no status bar) and one when

@@ -7,8 +7,9 @@ from dataclasses import dataclass
 @dataclass(frozen=True)
 class HMMConfig:
     fps: float = 30.0                 # paper: both streams downsampled to 30 fps
-    imu_channels: str = "acc+gyro"    # paper: acc + gyro per IMU. "acc": accelerometer only — the variant the
-                                      # live console runs, because the gateway's stream carries no gyroscope
+    imu_channels: str = "acc+gyro"    # paper: acc + gyro per IMU. "acc": accelerometer only (a stream without
+                                      # gyroscope); "+tilt": also each IMU's up vector in its own axes from its
+                                      # orientation quaternion (yaw-free, issue 18): "acc+tilt", "acc+gyro+tilt"
     # segmentation (B2.1a)
     contact_height_m: float = 0.05    # heel/toe touching: below this height above its floor level ...
     contact_speed_mps: float = 0.6    # ... and slower than this (spec: 0.3; CMU heels still move 0.3-0.5 m/s at contact)

@@ -11,7 +11,10 @@ from engine import progress
 from engine.graph.evaluate import root_local
 from engine.graph.warp import RootWarp, follow_camera
 from engine.hmm.config import HMMConfig
-from engine.hmm.features import align_hemispheres, body_features, decode, imu_features, stack_imu
+from engine.hmm.features import (align_hemispheres, body_features, channel_set, decode, imu_features,
+                                 imu_orientations, stack_imu)
+from engine.mocap.orientation import OrientationErrorModel, to_device_earth
+from engine.olng.channels import tilt_from_world
 from engine.hmm.model import HierarchicalHMM, TrainingClip
 from engine.hmm.phases import detect_events, label_phases, segments_from_labels
 from engine.hmm.reconstructor import HMMReconstructor
@@ -43,10 +46,13 @@ def training_clip(motion: Motion, imu_names: tuple[str, ...], behaviour: str, co
     events = detect_events(positions, motion.fps, joints, forward, config.contact_height_m,
                            config.contact_speed_mps, config.contact_min_frames)
     segments = segments_from_labels(label_phases(events), config.max_segment_frames, config.min_segment_frames)
-    acc, gyro = imu_features(motion, standard_placements(motion.skeleton, imu_names))
+    placements = standard_placements(motion.skeleton, imu_names)
+    acc, gyro = imu_features(motion, placements)
     err = error_joint_indices(motion.skeleton)
     align = root_local(positions[:, err], positions[:, 0, [0, 2]], heading).reshape(len(positions), -1)
-    imu = stack_imu(acc, None if config.imu_channels == "acc" else gyro)
+    use_gyro, use_tilt = channel_set(config.imu_channels)
+    imu = stack_imu(acc, gyro if use_gyro else None,
+                    tilt_from_world(imu_orientations(motion, placements)) if use_tilt else None)
     return TrainingClip(body_features(motion), imu, align, segments, behaviour)
 
 
@@ -63,15 +69,18 @@ def train_model(motions: list[Motion], imu_names: tuple[str, ...] = ("right_foot
 def reconstruct(model: HierarchicalHMM, acc_g: np.ndarray, gyro_rps: np.ndarray, joints: int, root0_m: np.ndarray,
                 root_quat0: np.ndarray, camera_position_m: np.ndarray | None = None,
                 camera_heading_rad: np.ndarray | None = None, skeleton=None,
-                root_warp: RootWarp = RootWarp()) -> tuple[np.ndarray, np.ndarray, list]:
+                root_warp: RootWarp = RootWarp(), quat_wxyz: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, list]:
     """Stream a take; returns (root positions (T, 3), local quaternions (T, J, 4), per-frame HMMFrame list).
+    ``quat_wxyz`` (T, S, 4) sensor -> device earth: the tilt channel's input (models with "+tilt").
 
     With the overhead camera's ground position (T, 2) m and/or body heading (T,) rad (NaN = no fix) the
     integrated root is pulled towards them frame by frame (engine/graph/warp.py; the first fix places it), so
     the global error is the camera's instead of metres of drift; `skeleton` (needed for the heading) gives the
     offset between the root's twist and where the hips face."""
     rec = HMMReconstructor(model)
-    frames = [rec.push(a, g) for a, g in zip(acc_g, gyro_rps)]
+    quats = [None] * len(acc_g) if quat_wxyz is None else quat_wxyz
+    frames = [rec.push(a, g, q) for a, g, q in zip(acc_g, gyro_rps, quats)]
     heading0, _ = split_heading(root_quat0[None])
     body = np.stack([f.body for f in frames])
     root, quats = decode(body, joints, root0_m, float(heading0[0]))
@@ -123,19 +132,28 @@ def to_motion(skeleton, fps: float, root_m: np.ndarray, quats: np.ndarray, foot_
 def hmm_leave_one_out(motions: list[Motion], test_indices: list[int], imu_names: tuple[str, ...] = ("right_foot",),
                   error_model: SensorErrorModel | None = None, seed: int = 0, labels: list[str] | None = None,
                   train_indices: list[int] | None = None, config: HMMConfig = HMMConfig(),
-                  foot_ik: bool = True) -> list[ClipErrors]:
+                  foot_ik: bool = True,
+                  orientation_error: OrientationErrorModel = OrientationErrorModel.realistic()) -> list[ClipErrors]:
     """Per test clip: train on the other clips (or `train_indices` minus the test clip), simulate the IMUs on
-    the held-out clip, reconstruct, score. Joint error is with the root translation removed, as in the paper."""
+    the held-out clip (orientations, for a "+tilt" model, through ``orientation_error``: a real device's yaw
+    offset, drift, tilt noise and misalignment), reconstruct, score. Joint error is with the root translation
+    removed, as in the paper."""
     out = []
     pool = list(range(len(motions))) if train_indices is None else train_indices
     for ti in progress.bar(test_indices, desc="hmm leave-one-out", unit="clip"):
         train = [i for i in pool if i != ti]
         model = train_model([motions[i] for i in train], imu_names, [labels[i] for i in train] if labels else None, config)
         test = resample(motions[ti], config.fps)
-        acc, gyro = imu_features(test, standard_placements(test.skeleton, imu_names))
+        placements = standard_placements(test.skeleton, imu_names)
+        acc, gyro = imu_features(test, placements)
         if error_model is not None:
             acc = error_model.apply(acc, test.fps, np.random.default_rng([seed, ti]))
-        root, quats, _ = reconstruct(model, acc, gyro, test.skeleton.n_joints, test.root_positions_m[0], test.rotations[0, 0])
+        device = None
+        if channel_set(config.imu_channels)[1]:
+            device = orientation_error.apply(imu_orientations(test, placements), test.fps,
+                                             np.random.default_rng([seed, ti, 1]))
+        root, quats, _ = reconstruct(model, acc, gyro, test.skeleton.n_joints, test.root_positions_m[0],
+                                     test.rotations[0, 0], quat_wxyz=device)
         pred = to_motion(test.skeleton, test.fps, root, quats, foot_ik)
         pw, pr = forward_kinematics(pred)
         tw, tr = forward_kinematics(test)

@@ -3,13 +3,15 @@
 X_t = [local joint quaternions (root with its heading removed, w >= 0), root ground displacement since t-1 in
 the heading frame of t-1 with the root height in the vertical slot (m), heading change (rad)]. Joint angular velocities (also in the paper's X) are left
 out: the output only needs poses and root motion, and they would double the regression size.
-Y_t = per IMU [acc (g, sensor frame), gyro (rad/s, sensor frame)], or acc only (`HMMConfig.imu_channels`).
+Y_t = per IMU [acc (g, sensor frame), gyro (rad/s, sensor frame), tilt (up in sensor axes)] -- the channels
+`HMMConfig.imu_channels` names (acc always; the paper's model is acc + gyro).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from engine.mocap import Motion, SensorPlacement, quaternions, virtual_accelerometers, virtual_gyroscopes
+from engine.mocap.orientation import virtual_orientations
 from engine.olng.pose import reference_quats, split_heading, yaw_quat
 
 
@@ -50,12 +52,25 @@ def imu_features(motion: Motion, placements: list[SensorPlacement]) -> tuple[np.
     return virtual_accelerometers(motion, placements), virtual_gyroscopes(motion, placements)
 
 
-IMU_CHANNELS = {"acc+gyro": 6, "acc": 3}  # feature width per IMU
+def imu_orientations(motion: Motion, placements: list[SensorPlacement]) -> np.ndarray:
+    """(F, S, 4) true sensor -> world quaternions of the worn IMUs (the tilt channel's source)."""
+    return virtual_orientations(motion, placements)
 
 
-def stack_imu(acc_g: np.ndarray, gyro_rps: np.ndarray | None) -> np.ndarray:
-    """(..., S, 3) x 2 -> (..., 6 S) IMU feature vectors; ``gyro_rps`` None -> (..., 3 S), accelerometer only."""
-    parts = [acc_g] if gyro_rps is None else [acc_g, gyro_rps]
+IMU_CHANNELS = {"acc+gyro": 6, "acc": 3, "acc+tilt": 6, "acc+gyro+tilt": 9}  # feature width per IMU
+
+
+def channel_set(imu_channels: str) -> tuple[bool, bool]:
+    """(uses gyro, uses tilt) of an `HMMConfig.imu_channels` value; refuses an unknown one."""
+    if imu_channels not in IMU_CHANNELS:
+        raise ValueError(f"imu_channels must be one of {sorted(IMU_CHANNELS)}, not {imu_channels!r}")
+    parts = imu_channels.split("+")
+    return "gyro" in parts, "tilt" in parts
+
+
+def stack_imu(acc_g: np.ndarray, gyro_rps: np.ndarray | None, tilt: np.ndarray | None = None) -> np.ndarray:
+    """(..., S, 3) blocks -> (..., w S) IMU feature vectors, per IMU [acc, gyro, tilt] of those given (not None)."""
+    parts = [p for p in (acc_g, gyro_rps, tilt) if p is not None]
     return np.concatenate(parts, axis=-1).reshape(acc_g.shape[:-2] + (-1,))
 
 

@@ -1,40 +1,62 @@
-"""The hierarchical HMM in the engine registry (`engine.stream.registry`): its spec, database builder (a model
+"""The hierarchical HMM in the engine registry (`engine.stream.registry`): its spec, database builder (models
 trained on clips) and `OnlineEngine` adapter.
 
-The seed's HMM reads accelerometer + gyroscope; the gateway streams accelerometers only, so the live HMM runs a
-model trained on accelerometers only (its accuracy against the paper's acc + gyro model is in docs/console.md).
+The seed's HMM reads accelerometer + gyroscope. A live stream may carry accelerations only (the design card's
+stations), or also angular rate and orientation (issue 18: x-IMU3, Shimmer3, emulated orientation stations). So
+the spec holds one model per channel set -- accelerometer only (always), acc + gyro (the paper's) and acc + gyro
++ tilt -- and each session runs the richest one its first complete frame can feed (`HMMEngine.channels`).
 The HMM has no database file: ``load_spec`` is None and the console refuses --graph/--kb for it."""
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from engine.stream.engines import EngineMismatchError, EnginePose, EngineSpec
+from engine.stream.engines import ACC, GYRO, ORIENTATION, EngineMismatchError, EnginePose, EngineSpec
 
 DEFAULT_IMUS = ("right_foot",)  # seed 004's one IMU
+RICHER_CHANNELS = ("acc+gyro+tilt", "acc+gyro")  # tried in this order when the stream brings them
 load_spec = None
 
 
+def _fed(channels: str, gyro: bool, orientation: bool) -> bool:
+    """Can a frame with (gyro, orientation) present feed a model on ``channels``?"""
+    parts = channels.split("+")
+    return ("gyro" not in parts or gyro) and ("tilt" not in parts or orientation)
+
+
 class HMMEngine:
-    """`engine.hmm.HMMReconstructor` in the `OnlineEngine` protocol, on a model trained on accelerometers only
-    (``HMMConfig.imu_channels == "acc"``: the live stream carries no gyroscope; a pushed ``gyro_rps`` is ignored).
-    Each frame is decided at once (no lag); the body features are decoded incrementally (root ground step and
-    heading change integrated from the first frame, as `engine.hmm.features.decode` does for a whole take) and the
-    joints follow by forward kinematics. A camera fix sets the root's ground position for that frame (the stream
-    path gives every frame the fix interpolated at its own time); without one the root is integrated from the
-    last. A dropout frame is the reconstructor's own rule (no evidence: the chains move on their transitions);
-    nothing is emitted before the first complete reading."""
+    """`engine.hmm.HMMReconstructor` in the `OnlineEngine` protocol. ``models`` maps `HMMConfig.imu_channels` to
+    a trained model and holds at least "acc"; the first complete frame picks the richest model it can feed
+    (module doc) for the whole session. Each frame is decided at once (no lag); the body features are decoded
+    incrementally (root ground step and heading change integrated from the first frame, as
+    `engine.hmm.features.decode` does for a whole take) and the joints follow by forward kinematics. A camera
+    fix sets the root's ground position for that frame (the stream path gives every frame the fix interpolated
+    at its own time); without one the root is integrated from the last. A dropout frame is the reconstructor's
+    own rule (no evidence: the chains move on their transitions); nothing is emitted before the first complete
+    reading."""
 
-    def __init__(self, model: Any, skeleton: Any) -> None:
-        from .reconstructor import HMMReconstructor
-
-        self.rec = HMMReconstructor(model)
+    def __init__(self, models: Mapping[str, Any], skeleton: Any) -> None:
+        self.models = dict(models)
         self.skeleton = skeleton
-        self.n_sensors = model.imu_mean.shape[0] // 3
+        self.n_sensors = self.models["acc"].imu_mean.shape[0] // 3
+        self.rec: Any = None             # the session's HMMReconstructor, once the first frame chose its model
         self.t = -1
         self._prev: tuple[np.ndarray, np.ndarray, float] | None = None  # (body features, root m, heading rad)
+
+    @property
+    def channels(self) -> str | None:
+        """The session's model channels (`HMMConfig.imu_channels`), None before the first frame."""
+        return None if self.rec is None else self.rec.model.config.imu_channels
+
+    def _start(self, quat_wxyz: np.ndarray | None, gyro_rps: np.ndarray | None) -> None:
+        from .reconstructor import HMMReconstructor
+
+        gyro = gyro_rps is not None and bool(np.all(np.isfinite(gyro_rps)))
+        orientation = quat_wxyz is not None and bool(np.all(np.isfinite(quat_wxyz)))
+        chosen = next((c for c in RICHER_CHANNELS if c in self.models and _fed(c, gyro, orientation)), "acc")
+        self.rec = HMMReconstructor(self.models[chosen])
 
     def push(self, acc_g: np.ndarray | None, pos_m: Any = None, heading_rad: float | None = None, *,
              quat_wxyz: np.ndarray | None = None, gyro_rps: np.ndarray | None = None) -> list[EnginePose]:
@@ -45,8 +67,14 @@ class HMMEngine:
         self.t += 1
         if acc_g is None and self._prev is None:
             return []
+        if self.rec is None:
+            self._start(quat_wxyz, gyro_rps)
         reading = np.full((self.n_sensors, 3), np.nan) if acc_g is None else np.asarray(acc_g, float)
-        body = self.rec.push(reading).body
+        nan = np.full((self.n_sensors, 3), np.nan)
+        # a channel the session's model reads but this frame lacks is a dropped frame for the model (NaN)
+        gyro = nan if gyro_rps is None else gyro_rps
+        quats = np.full((self.n_sensors, 4), np.nan) if quat_wxyz is None else quat_wxyz
+        body = self.rec.push(reading, gyro, quats).body
         joints = self.skeleton.n_joints
         if self._prev is None:  # the first frame: standing where the first decode puts it, facing +z
             roots, quats = decode(body[None], joints, np.zeros(3), 0.0)
@@ -66,27 +94,34 @@ class HMMEngine:
         return []
 
 
-def hmm_spec(model: Any, database: str, sensor_names: Sequence[str], skeleton: Any) -> EngineSpec:
-    """The hierarchical HMM live, on an accelerometer-only model (see `HMMEngine`); a model that needs gyroscope
-    readings is refused, with the reason."""
+def hmm_spec(model: Any, database: str, sensor_names: Sequence[str], skeleton: Any,
+             richer: Sequence[Any] = ()) -> EngineSpec:
+    """The hierarchical HMM live: ``model`` trained on accelerometers only (what every stream can feed; a model
+    that needs more is refused here, with the reason) plus ``richer`` models on more channels, used when the
+    stream brings them (see `HMMEngine`). ``inputs`` names every channel some model reads."""
     if model.config.imu_channels != "acc":
-        raise EngineMismatchError(f"{database}: this HMM was trained on accelerometer + gyroscope readings; the "
-                                  "gateway streams accelerometers only (train it with imu_channels='acc')")
+        raise EngineMismatchError(f"{database}: this HMM was trained on {model.config.imu_channels} readings; a "
+                                  "live stream may carry accelerometers only (train it with imu_channels='acc', "
+                                  "and pass richer models beside it)")
     n = model.imu_mean.shape[0] // 3
     if len(sensor_names) != n:
         raise EngineMismatchError(f"{database}: HMM has {n} IMU(s), named {list(sensor_names)}")
+    models = {"acc": model, **{m.config.imu_channels: m for m in richer}}
+    parts = {p for channels in models for p in channels.split("+")}
+    inputs = (ACC,) + ((ORIENTATION,) if "tilt" in parts else ()) + ((GYRO,) if "gyro" in parts else ())
     return EngineSpec("hmm", database, tuple(sensor_names), float(model.fps), np.asarray(skeleton.parents),
-                      lambda lag_s: HMMEngine(model, skeleton), lag_applies=False, skeleton=skeleton)
+                      lambda lag_s: HMMEngine(models, skeleton), lag_applies=False, skeleton=skeleton, inputs=inputs)
 
 
 def build_spec(motions: Sequence[Any], database: str, sensor_names: Sequence[str] = DEFAULT_IMUS) -> EngineSpec:
-    """The HMM trained on ``motions`` at ``sensor_names``, accelerometer only (the live stream has no gyroscope);
-    trains in a fraction of a second on the shipped clips."""
+    """The HMM trained on ``motions`` at ``sensor_names``: the accelerometer-only model and the richer ones (module
+    doc); each trains in a fraction of a second on the shipped clips."""
     from .config import HMMConfig
     from .evaluation import train_model
 
-    model = train_model(list(motions), tuple(sensor_names), config=HMMConfig(imu_channels="acc"))
-    return hmm_spec(model, database, sensor_names, motions[0].skeleton)
+    model, *richer = [train_model(list(motions), tuple(sensor_names), config=HMMConfig(imu_channels=channels))
+                      for channels in ("acc",) + RICHER_CHANNELS]
+    return hmm_spec(model, database, sensor_names, motions[0].skeleton, richer)
 
 
 def shipped_spec(exclude: Sequence[str] = (), calibration: Any = None,
@@ -98,4 +133,4 @@ def shipped_spec(exclude: Sequence[str] = (), calibration: Any = None,
     if sensor_names is None:
         worn = tuple(calibration.sensor_ids) if calibration is not None else ()  # segment -> live sensor
         sensor_names = worn if len(worn) == 1 else DEFAULT_IMUS
-    return build_spec(shipped_motions(exclude), "shipped CMU clips, accelerometer-only model", sensor_names)
+    return build_spec(shipped_motions(exclude), "shipped CMU clips", sensor_names)

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.hmm.features import IMU_CHANNELS, stack_imu
+from engine.hmm.features import IMU_CHANNELS, channel_set, stack_imu
+from engine.olng.channels import tilt_from_device_earth
 from engine.hmm.forward import chain_forward, forward
 from engine.hmm.model import HierarchicalHMM, conditional_mean
 
@@ -61,15 +62,21 @@ class HMMReconstructor:
         self._alpha = alpha
         return alpha
 
-    def push(self, acc_g: np.ndarray, gyro_rps: np.ndarray | None = None) -> HMMFrame:
-        """One IMU frame: acc (S, 3) g and gyro (S, 3) rad/s in the model's IMU order (gyro None, or ignored, for
-        a model trained on accelerometers only: ``config.imu_channels == "acc"``)."""
+    def push(self, acc_g: np.ndarray, gyro_rps: np.ndarray | None = None,
+             quat_wxyz: np.ndarray | None = None) -> HMMFrame:
+        """One IMU frame: acc (S, 3) g, gyro (S, 3) rad/s and orientation (S, 4) sensor -> device earth (Z up,
+        any yaw: only the tilt is used) in the model's IMU order; channels the model was not trained on
+        (``config.imu_channels``) are ignored and may be None. A NaN channel is a dropped frame."""
         t0 = time.perf_counter()
         m, cfg = self.model, self.model.config
-        acc_only = cfg.imu_channels == "acc"
-        if gyro_rps is None and not acc_only:
-            raise ValueError("this model was trained on acc + gyro: give gyro_rps (or train with imu_channels='acc')")
-        y = stack_imu(np.asarray(acc_g, float)[None], None if acc_only else np.asarray(gyro_rps, float)[None])[0]
+        use_gyro, use_tilt = channel_set(cfg.imu_channels)
+        if (use_gyro and gyro_rps is None) or (use_tilt and quat_wxyz is None):
+            raise ValueError(f"this model was trained on {cfg.imu_channels}: give "
+                             f"{'gyro_rps' if use_gyro and gyro_rps is None else 'quat_wxyz'}")
+        acc = np.asarray(acc_g, float)
+        tilt = tilt_from_device_earth(np.asarray(quat_wxyz, float).reshape(len(acc), 4)) if use_tilt else None
+        y = stack_imu(acc[None], np.asarray(gyro_rps, float)[None] if use_gyro else None,
+                      None if tilt is None else tilt[None])[0]
         if y.shape != m.imu_mean.shape:
             width = IMU_CHANNELS[cfg.imu_channels]
             raise ValueError(f"expected {m.imu_mean.shape[0] // width} IMU(s) of {cfg.imu_channels}, "

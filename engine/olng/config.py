@@ -21,6 +21,14 @@ class NeighbourhoodGraphConfig:
     skip_penalty: float = 1.0     # multiplier on that skip cost
     i_best: int = 256             # I: paths that become hypotheses for the energy (paper: 256)
     leafsize: int = 32            # cKDTree leaf size
+    tilt_weight: float = 1.0      # orientation channel: weight of each sensor's up vector (g-equivalent; 1 = the
+                                  # gravity part of an acc reading), engine/olng/channels.py
+    gyro_weight_s: float = 0.1    # gyro channel: rad/s -> g-equivalent (5 rad/s weighs like 0.5 g)
+    yaw_weight: float = 1.5       # orientation channel: weight of each sensor's yaw relative to sensor 0 (chord
+                                  # length, <= 2), once its device offset is estimated (engine/olng/yaw.py); 0 = off;
+                                  # swept 0.5-3 (docs)
+    yaw_min_frames: int = 10      # frames of offset samples before the yaw term may act (0.4 s at 25 Hz; 50 left
+                                  # half of a 4 s gesture clip without it)
 
 
 @dataclass(frozen=True)
@@ -32,6 +40,11 @@ class EnergyConfig:
     w_pose: float = 0.6
     w_motion: float = 0.2
     w_smooth: float = 0.2
+    w_tilt: float = 10.0                 # orientation channel (issue 18, not in the paper): each sensor's measured tilt
+                                         # against the tilt the pose gives it (engine/olng/energy.py); swept 0-30 on
+                                         # Bandai gestures + CMU walks (docs/engine-olng-hmm.md): 10 best overall
+    tilt_lever_m: float = 0.25           # a unit tilt difference weighs like this position error (a forearm's length:
+                                         # a small tilt error of a rad moves its far end about that much)
     epsilon: float = 1e-3                # pseudo-Huber floor inside sqrt(|r|): sqrt has infinite slope at 0
     variance_kept: float = 0.99          # weighted-PCA subspace keeps this fraction of the weighted variance
     min_components: int = 3              # guard when all weight sits on one pose

@@ -9,6 +9,11 @@ Levenberg-Marquardt for the Mahalanobis baseline; "trf" = scipy least_squares on
 rho_i = sqrt(omega w_i) (|r_i|^2 + eps^2)^(1/8) (sum rho^2 = omega sum w_i sqrt|r_i| up to eps), as the spec
 suggests. Jacobians are forward differences over the subspace from ONE batched FK call over (1 + dims) poses.
 Units inside: angles in EnergyConfig.angle_unit_rad (degrees), positions in length_unit_m (cm), time s.
+
+With the orientation channel (issue 18) a tilt term joins them: each sensor's measured up direction in its own
+axes against the one the pose gives it (FK: root tilt, bone rotation, sensor mounting), scaled by
+``tilt_lever_m`` into length units, weight ``w_tilt``. It is the only term that reads a segment's lean directly:
+in slow motion the control term's acceleration is gravity minus itself, i.e. nothing.
 """
 from __future__ import annotations
 
@@ -18,7 +23,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from engine.olng.config import EnergyConfig
-from engine.olng.pose import Rig, fk_root_frame
+from engine.olng.pose import Rig, fk_root_frame, root_matrices
+
+_UP = np.array([0.0, 1.0, 0.0])
 
 _FD_STEP = 1e-6
 
@@ -81,18 +88,22 @@ class FrameProblem:
     smooth_targets: np.ndarray | None   # (I, J*3) 2x^t - x^{t-1} + a dt^2
     control_targets: np.ndarray | None  # (I, S*3) predicted sensor-tip positions
     start_pose: np.ndarray              # (D,) where the search starts (previous output or mu)
+    tilt_targets: np.ndarray | None = None  # (I, S*3) measured sensor tilts (up in sensor axes) x lever (cm)
 
 
 class KernelEnergy:
     """Builds residuals for a FrameProblem and minimises them over q = mu + U z."""
 
-    def __init__(self, rig: Rig, tips: np.ndarray, config: EnergyConfig = EnergyConfig()) -> None:
+    def __init__(self, rig: Rig, tips: np.ndarray, config: EnergyConfig = EnergyConfig(),
+                 sensor_frames: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """``sensor_frames`` = (bone (S,), local_rot (S, 3, 3)) of the worn sensors: needed for the tilt term."""
         if config.kernel not in {"sqrt", "mahalanobis"}:
             raise ValueError(f"unknown kernel {config.kernel!r}: use 'sqrt' or 'mahalanobis'")
         if config.solver not in {"auto", "trf"}:
             raise ValueError(f"unknown solver {config.solver!r}: use 'auto' or 'trf'")
         self.rig = rig
         self.tips = np.asarray(tips)
+        self.sensor_frames = sensor_frames
         self.config = config
         self.last_terms: dict[str, float] = {}
         self.last_dims = 0
@@ -106,14 +117,24 @@ class KernelEnergy:
             blocks.append(("smooth", c.w_prior * c.w_smooth, problem.smooth_targets))
         if problem.control_targets is not None:
             blocks.append(("control", c.w_control, problem.control_targets))
+        if problem.tilt_targets is not None:
+            blocks.append(("tilt", c.w_tilt, problem.tilt_targets))
         return [b for b in blocks if b[1] > 0.0]   # a zero weight switches a term off
 
     def features(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """Batched f(q) for each term: pose vector itself, all joint positions (cm), sensor-tip positions (cm)."""
-        pos, _ = fk_root_frame(self.rig, q)
+        pos, rot = fk_root_frame(self.rig, q)
+        out = {"pose": q / self.config.angle_unit_rad}
+        if self.sensor_frames is not None:
+            bone, local_rot = self.sensor_frames
+            root_tilt = root_matrices(self.rig, q)                                     # (B, 3, 3) world <- root
+            up_root = np.einsum("bji,j->bi", root_tilt, _UP)                           # up in the root frame
+            up = np.einsum("sji,bskj,bk->bsi", local_rot, rot[:, bone], up_root)       # up in each sensor's axes
+            out["tilt"] = up.reshape(len(q), -1) * (self.config.tilt_lever_m / self.config.length_unit_m)
         pos = pos / self.config.length_unit_m
         flat = pos.reshape(len(q), -1)
-        return {"pose": q / self.config.angle_unit_rad, "motion": flat, "smooth": flat, "control": pos[:, self.tips].reshape(len(q), -1)}
+        out.update(motion=flat, smooth=flat, control=pos[:, self.tips].reshape(len(q), -1))
+        return out
 
     def _residual_fn(self, problem: FrameProblem):
         blocks = self._blocks(problem)

@@ -1,5 +1,6 @@
 """The OLNG knowledge base: per-frame poses, root-frame joint kinematics and simulated sensor readings
-(spec A2.1), with a kd-tree over the 12-D readings (A2.3).
+(spec A2.1), with a kd-tree over the 12-D readings (A2.3) -- or, when the database also holds each sensor's tilt
+and angular rate (issue 18, `engine.olng.channels`), over the readings plus those, one tree per channel set.
 
 Built from plain per-clip arrays so it does not depend on which reader produced the motion; the bridge in
 `engine.olng.mocap_bridge` turns `engine.mocap.Motion` clips into these arrays.
@@ -13,6 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.array_checks import check_arrays, check_index_range, load_npz
+from engine.olng.channels import check_channels, search_vector
 from engine.olng.pose import Rig, fk_root_frame, pose_vectors, reference_quats, tilted
 
 
@@ -31,12 +33,16 @@ class SensorRig:
 @dataclass(frozen=True)
 class ClipArrays:
     """One clip at the knowledge-base rate: local joint quaternions (F, J, 4) (w,x,y,z), root positions (F, 3) m
-    in the world (Y up), and the simulated accelerometer readings (F, S, 3) in g."""
+    in the world (Y up), the simulated accelerometer readings (F, S, 3) in g and, optionally, each sensor's tilt
+    (F, S, 3) (up in sensor axes, `engine.olng.channels`) and angular rate (F, S, 3) rad/s."""
 
     local_quats: np.ndarray
     root_pos_m: np.ndarray
     acc_g: np.ndarray
     name: str = ""
+    tilt: np.ndarray | None = None
+    gyro_rps: np.ndarray | None = None
+    yaw_rad: np.ndarray | None = None     # (F, S) each sensor's yaw (twist about up) in the world, engine/olng/yaw.py
 
 
 def within_clip_derivatives(values: np.ndarray, clip_id: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -77,7 +83,11 @@ class KnowledgeBase:
     yaw_rate_rps: np.ndarray    # (N,) heading rate
     root_height_m: np.ndarray   # (N,)
     clip_names: tuple[str, ...] = ()
+    tilt: np.ndarray | None = None      # (N, S*3) up direction in each sensor's axes (orientation channel)
+    gyro_rps: np.ndarray | None = None  # (N, S*3) angular rate in each sensor's axes (gyro channel)
+    yaw_rad: np.ndarray | None = None   # (N, S) each sensor's yaw about up (orientation channel: relative yaw)
     _tree: cKDTree | None = None
+    _searches: dict | None = None       # (channels, weights) -> (features (N, D), kd-tree)
 
     @property
     def size(self) -> int:
@@ -94,12 +104,35 @@ class KnowledgeBase:
             self._tree = cKDTree(self.alpha_g, leafsize=32)
         return self._tree
 
-    def neighbours(self, alpha_g: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """The k nearest database frames to one reading (S*3,): (indices ascending, their Euclidean distances).
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The IMU channels this database can search on (acc always; orientation / gyro when simulated)."""
+        return ("acc",) + (("orientation",) if self.tilt is not None else ()) + (("gyro",) if self.gyro_rps is not None else ())
+
+    def search(self, channels: tuple[str, ...], tilt_weight: float, gyro_weight_s: float) -> tuple[np.ndarray, cKDTree]:
+        """The (N, D) search features of ``channels`` (`engine.olng.channels.search_vector`) and their kd-tree,
+        built once per channel set and weights. Accelerations only: the readings and `tree` themselves."""
+        channels = check_channels(channels)
+        missing = set(channels) - set(self.channels)
+        if missing:
+            raise ValueError(f"this knowledge base holds no {', '.join(sorted(missing))} channel (rebuild it with them)")
+        if channels == ("acc",):
+            return self.alpha_g, self.tree
+        key = (channels, float(tilt_weight), float(gyro_weight_s))
+        self._searches = {} if self._searches is None else self._searches
+        if key not in self._searches:
+            blocks = [None if a is None else a.reshape(self.size, -1, 3) for a in (self.tilt, self.gyro_rps)]
+            table = search_vector(channels, self.alpha_g.reshape(self.size, -1, 3), *blocks, tilt_weight, gyro_weight_s)
+            self._searches[key] = (table, cKDTree(table, leafsize=32))
+        return self._searches[key]
+
+    def neighbours(self, alpha_g: np.ndarray, k: int, tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The k nearest database frames to one reading (S*3,) -- or a search vector of ``tree`` (`search`):
+        (indices ascending, their Euclidean distances).
 
         Sorted by database index because the OLNG finds predecessors by binary search on each column."""
         k = min(k, self.size)
-        dist, idx = self.tree.query(alpha_g, k=k, workers=1)
+        dist, idx = (self.tree if tree is None else tree).query(alpha_g, k=k, workers=1)
         dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
         order = np.argsort(idx)
         return idx[order], dist[order]
@@ -140,13 +173,20 @@ class KnowledgeBase:
             -1,
         )
         alpha = np.concatenate([clip.acc_g.reshape(len(clip.acc_g), -1) for clip in clips])
+        extra = {}
+        for channel in ("tilt", "gyro_rps", "yaw_rad"):
+            given = [getattr(clip, channel) is not None for clip in clips]
+            if any(given) and not all(given):
+                raise ValueError(f"{channel}: some clips have it and some not (the database searches on one channel set)")
+            if all(given):
+                extra[channel] = np.concatenate([getattr(c, channel).reshape(len(c.acc_g), -1) for c in clips]).astype(np.float32)
         # float32 for the per-joint tables: a 500k-frame database stays under 1 GB; values are mm-accurate
         f32 = np.float32
         return cls(
             rig=rig, sensors=sensors, fps=fps, q=q.astype(f32), x_m=x.astype(f32), v_mps=v.astype(f32),
             a_mps2=a.astype(f32), alpha_g=alpha, clip_id=clip_id,
             root_vel_heading_mps=root_vel_heading, yaw_rate_rps=yaw_rate, root_height_m=root[:, 1].copy(),
-            clip_names=tuple(clip.name for clip in clips),
+            clip_names=tuple(clip.name for clip in clips), **extra,
         )
 
     def save(self, path: str | Path) -> None:
@@ -159,6 +199,8 @@ class KnowledgeBase:
             fps=self.fps, q=self.q, x_m=self.x_m, v_mps=self.v_mps, a_mps2=self.a_mps2, alpha_g=self.alpha_g,
             clip_id=self.clip_id, root_vel_heading_mps=self.root_vel_heading_mps, yaw_rate_rps=self.yaw_rate_rps,
             root_height_m=self.root_height_m, clip_names=np.array(self.clip_names),
+            **{k: v for k, v in (("tilt", self.tilt), ("gyro_rps", self.gyro_rps), ("yaw_rad", self.yaw_rad))
+               if v is not None},
         )
 
     @classmethod
@@ -168,7 +210,8 @@ class KnowledgeBase:
         from engine.errors import MalformedFileError
 
         data = load_npz(path, "an OLNG knowledge base")
-        sizes = check_arrays(path, data, KB_ARRAYS)
+        optional = {k: v for k, v in OPTIONAL_CHANNEL_ARRAYS.items() if k in data}   # older files lack them
+        sizes = check_arrays(path, data, KB_ARRAYS | optional)
         fps = float(data["fps"])
         if fps <= 0 or sizes["N"] == 0:
             raise MalformedFileError(path, None, f"not an OLNG knowledge base: fps {fps:g}, {sizes['N']} frames")
@@ -182,7 +225,7 @@ class KnowledgeBase:
             raise MalformedFileError(path, None, f"not an OLNG knowledge base: {exc}") from exc
         sensors = SensorRig(data["sensor_bone"], data["sensor_local_rot"], data["sensor_tip"])
         fields = {k: data[k] for k in ("q", "x_m", "v_mps", "a_mps2", "alpha_g", "clip_id",
-                                       "root_vel_heading_mps", "yaw_rate_rps", "root_height_m")}
+                                       "root_vel_heading_mps", "yaw_rate_rps", "root_height_m") + tuple(optional)}
         return cls(rig=rig, sensors=sensors, fps=fps, clip_names=tuple(str(n) for n in data["clip_names"]), **fields)
 
 
@@ -195,3 +238,5 @@ KB_ARRAYS = {
     "clip_id": ("i", ("N",)), "root_vel_heading_mps": ("f", ("N", 3)), "yaw_rate_rps": ("f", ("N",)),
     "root_height_m": ("f", ("N",)), "clip_names": ("U", ("C",)),
 }
+# the orientation / gyro channels (issue 18), written when the database holds them
+OPTIONAL_CHANNEL_ARRAYS = {"tilt": ("f", ("N", "S*3")), "gyro_rps": ("f", ("N", "S*3")), "yaw_rad": ("f", ("N", "S"))}

@@ -7,8 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.mocap import (SEED003_SENSORS, Motion, SensorPlacement, Skeleton, joint_roles, mirror, resample,
-                          standard_placements, virtual_accelerometers)
+from engine.mocap import (SEED003_SENSORS, Motion, SensorPlacement, Skeleton, forward_kinematics, joint_roles, mirror,
+                          resample, standard_placements, virtual_accelerometers, virtual_gyroscopes)
+from engine.mocap.orientation import virtual_orientations
+from engine.olng.channels import tilt_from_world
+from engine.olng.yaw import device_yaw
+from engine.mocap.orientation import to_device_earth
 from engine.olng.config import KnowledgeBaseConfig
 from engine.olng.knowledge_base import ClipArrays, KnowledgeBase, SensorRig
 from engine.olng.pose import Rig
@@ -96,8 +100,13 @@ def augment(motions: list[Motion], config: KnowledgeBaseConfig) -> list[Motion]:
 
 
 def clip_arrays(motion: Motion, placements: list[SensorPlacement]) -> ClipArrays:
-    """Readings are simulated from the (augmented) motion itself, as spec A2.1 recommends."""
-    return ClipArrays(motion.rotations, motion.root_positions_m, virtual_accelerometers(motion, placements), motion.name)
+    """Readings are simulated from the (augmented) motion itself, as spec A2.1 recommends: accelerations, and
+    each sensor's tilt, yaw and angular rate (orientation / gyro channels, `engine.olng.channels`), from one FK."""
+    fk = forward_kinematics(motion)
+    quats = virtual_orientations(motion, placements, fk=fk)
+    return ClipArrays(motion.rotations, motion.root_positions_m, virtual_accelerometers(motion, placements, fk=fk),
+                      motion.name, tilt=tilt_from_world(quats), gyro_rps=virtual_gyroscopes(motion, placements, fk=fk),
+                      yaw_rad=device_yaw(to_device_earth(quats, 0.0)))
 
 
 def build_knowledge_base(motions: list[Motion], config: KnowledgeBaseConfig = KnowledgeBaseConfig(),

@@ -2,6 +2,7 @@
 `OnlineEngine` adapter."""
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -14,16 +15,34 @@ from engine.stream.engines import EngineMismatchError, EnginePose, EngineSpec
 class OLNGEngine:
     """`engine.olng.OLNGReconstructor` in the `OnlineEngine` protocol. It decides each frame at once (no lag), its
     integrated root follows the camera fix when there is one; a dropout frame holds the last reading (the
-    reconstructor's own rule), and nothing is emitted until the first complete reading. It reads accelerometers
-    only (orientation and angular rate are ignored)."""
+    reconstructor's own rule), and nothing is emitted until the first complete reading. It searches on the
+    orientation (tilt, relative yaw) and angular rate too when the first frame brings them and the knowledge base
+    holds them (`engine.olng.channels`; `channels` says which it uses).
 
-    def __init__(self, kb: Any) -> None:
+    ``keep_up`` (live use only: the console): the engine times itself and steps down to fewer neighbours and
+    hypotheses when a frame costs more than half a frame period (`engine.olng.keep_up`); `status` then says so.
+    Offline runs keep it off, so their results do not depend on the machine."""
+
+    def __init__(self, kb: Any, keep_up: bool = False) -> None:
+        from .keep_up import KeepUp, effort_levels
         from .reconstructor import OLNGReconstructor
 
         self.rec = OLNGReconstructor(kb)
         self.n_sensors = kb.alpha_g.shape[1] // 3
         self.t = -1
         self.started = False
+        graph = self.rec.config.graph
+        self.keep_up = KeepUp(effort_levels(graph.k_neighbours, graph.i_best), 1.0 / kb.fps) if keep_up else None
+
+    @property
+    def channels(self) -> tuple[str, ...] | None:
+        """The channels searched on (None until the first frame fixes them)."""
+        return self.rec.channels
+
+    @property
+    def status(self) -> str:
+        """"" normally; a cheaper setting chosen to keep up with the stream, named (one status-bar line)."""
+        return "" if self.keep_up is None or not self.keep_up.status else f"olng {self.keep_up.status}"
 
     def push(self, acc_g: np.ndarray | None, pos_m: Any = None, heading_rad: float | None = None, *,
              quat_wxyz: np.ndarray | None = None, gyro_rps: np.ndarray | None = None) -> list[EnginePose]:
@@ -32,7 +51,11 @@ class OLNGEngine:
             return []
         self.started = True
         reading = np.full((self.n_sensors, 3), np.nan) if acc_g is None else acc_g
-        return [EnginePose(self.t, self.rec.push(reading, pos_m, heading_rad).joints_world_m)]
+        t0 = time.perf_counter()
+        pose = self.rec.push(reading, pos_m, heading_rad, quat_wxyz=quat_wxyz, gyro_rps=gyro_rps)
+        if self.keep_up is not None and self.keep_up.record(time.perf_counter() - t0):
+            self.rec.set_effort(self.keep_up.effort.k_neighbours, self.keep_up.effort.i_best)
+        return [EnginePose(self.t, pose.joints_world_m)]
 
     def flush(self) -> list[EnginePose]:
         return []
@@ -40,7 +63,9 @@ class OLNGEngine:
 
 def olng_spec(kb: Any, database: str | Path, sensor_names: Sequence[str] | None = None) -> EngineSpec:
     """OLNG over a knowledge base (`courtside reconstruct --save-kb`, or built from the shipped clips). A saved
-    knowledge base does not name its sensors; it is built at the seed-003 placements unless told otherwise."""
+    knowledge base does not name its sensors; it is built at the seed-003 placements unless told otherwise.
+    ``inputs``: the channels the knowledge base can search on (a stream without orientations runs on acc alone);
+    ``make_live``: the console's engine, which keeps up with the stream (`OLNGEngine` keep_up)."""
     from engine.mocap import SEED003_SENSORS
 
     from .mocap_bridge import skeleton_from_rig
@@ -50,7 +75,8 @@ def olng_spec(kb: Any, database: str | Path, sensor_names: Sequence[str] | None 
     if len(names) != n:
         raise EngineMismatchError(f"{database}: knowledge base has {n} sensors, named {list(names)}")
     return EngineSpec("olng", str(database), names, float(kb.fps), np.asarray(skeleton_from_rig(kb.rig).parents),
-                      lambda lag_s: OLNGEngine(kb), lag_applies=False)
+                      lambda lag_s: OLNGEngine(kb), lag_applies=False, inputs=kb.channels,
+                      make_live=lambda lag_s: OLNGEngine(kb, keep_up=True))
 
 
 def build_spec(motions: Sequence[Any], database: str) -> EngineSpec:

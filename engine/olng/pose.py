@@ -131,6 +131,13 @@ def local_matrices(rig: Rig, q: np.ndarray) -> np.ndarray:
     return local if rig.ref_quats is None else _ref_matrices(rig) @ local
 
 
+def root_matrices(rig: Rig, q: np.ndarray) -> np.ndarray:
+    """Pose vectors (B, J*3) -> the root's rotation (B, 3, 3) (its tilt: the heading is not in q), without the
+    other joints' matrices."""
+    root = rotvec_to_matrix(q[:, None, :3])[:, 0]
+    return root if rig.ref_quats is None else _ref_matrices(rig)[0] @ root
+
+
 def _ref_matrices(rig: Rig) -> np.ndarray:
     """quat_to_matrix(rig.ref_quats), cached on the rig (FK runs ~1000 times per second)."""
     cached = rig.__dict__.get("_ref_matrices")

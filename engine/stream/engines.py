@@ -62,6 +62,12 @@ class EngineSpec:
     graph: Any = None               # the motion graph (motion-graph engine): what pose streaming needs
     skeleton: Any = None            # engine.mocap.Skeleton of the emitted poses, when known
     inputs: tuple[str, ...] = (ACC,)  # the channels the engine uses (ACC, ORIENTATION, GYRO)
+    make_live: Callable[[float], OnlineEngine] | None = None  # a real-time caller's engine (the console): may trade
+                                    # accuracy for time and say so in its `status`; None = `make`
+
+    def live(self, lag_s: float) -> OnlineEngine:
+        """A fresh engine for a live stream (`make_live`, else `make`)."""
+        return (self.make_live or self.make)(lag_s)
 
     @property
     def label(self) -> str:

@@ -93,7 +93,7 @@ def test_four_worn_sensors_default_to_the_olng_and_the_status_bar_names_it(live_
         assert console_main(["--connect", f"{host}:{port}", "--duration", "2",
                              "--save-poses", str(tmp_path / "p.npz")]) == 0
     assert "engine olng (default for 4 worn sensors)" in caplog.text
-    assert "olng on shipped CMU clips (4 sensors @ 25 Hz, acc)" in caplog.text
+    assert "olng on shipped CMU clips (4 sensors @ 25 Hz, acc+orientation+gyro)" in caplog.text
     from engine.stream.poses_file import load_poses
 
     saved = load_poses(tmp_path / "p.npz")
@@ -103,15 +103,16 @@ def test_four_worn_sensors_default_to_the_olng_and_the_status_bar_names_it(live_
 
 def test_one_worn_sensor_defaults_to_the_accelerometer_only_hmm_and_it_runs_live(live_gateway, qapp, tmp_path,
                                                                                 caplog):
-    """The seed-004 HMM reads acc + gyro and the stations stream no gyroscope: live it runs a model trained on
-    accelerometers only (it used to be refused, and a one-sensor court fell back to the motion graph)."""
+    """The seed-004 HMM reads acc + gyro and these stations stream no gyroscope: live it runs a model trained on
+    accelerometers only (it used to be refused, and a one-sensor court fell back to the motion graph); the spec
+    names every channel some model of it reads (the richer models run when a stream brings them)."""
     gateway, _ = live_gateway(StillSource(1), 1)
     host, port = gateway.address
     with caplog.at_level(logging.INFO, logger="courtside.console"):
         assert console_main(["--connect", f"{host}:{port}", "--duration", "3",
                              "--save-poses", str(tmp_path / "p.npz")]) == 0
     assert "engine hmm (default for 1 worn sensors)" in caplog.text
-    assert "hmm on shipped CMU clips, accelerometer-only model (1 sensors @ 30 Hz, acc)" in caplog.text
+    assert "hmm on shipped CMU clips (1 sensors @ 30 Hz, acc+orientation+gyro)" in caplog.text
     from engine.stream.poses_file import load_poses
 
     saved = load_poses(tmp_path / "p.npz")

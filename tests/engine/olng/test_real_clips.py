@@ -47,3 +47,15 @@ def test_cli_reconstructs_a_take_to_bvh_and_rejects_missing_sensors(tmp_path, mo
     assert result.skeleton.n_joints == motions[0].skeleton.n_joints
     np.savez(tmp_path / "two.npz", acc_g=acc[:, :2], fps=50.0, sensor_names=np.array(SEED003_SENSORS[:2]))
     assert main(["--method", "olng", "--input", str(tmp_path / "two.npz"), "-o", str(out), "--sample"]) == 2
+
+
+def test_evaluate_prints_the_orientation_rows(capsys):
+    """`reconstruct --evaluate --orientations` adds the OLNG rows that search on orientation (+ angular rate),
+    each a finite error in the same table as the accelerometer row and the mean pose."""
+    from engine.reconstruct_cli import main
+
+    assert main(["--evaluate", "--sample", "--test-clips", "1", "--methods", "olng", "--orientations",
+                 "--k", "128", "--i-best", "8"]) == 0
+    rows = {line[:28].strip(): line[28:].split() for line in capsys.readouterr().out.splitlines()}
+    for name in ("olng (4 acc)", "olng (4 acc + orientation)", "olng (4 acc + ori + gyro)", "database mean pose"):
+        assert np.isfinite(float(rows[name][0])), name

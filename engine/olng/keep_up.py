@@ -1,0 +1,78 @@
+"""Keep a live engine at least 2x faster than real time by stepping its effort down (and back up), and say so.
+
+WHY: the console must never fall behind the stream (issue 21). OLNG's cost per frame depends on the machine and
+its load (the same step costs 13 ms on a quiet core and several times that on a busy 2-core box). Instead of
+queueing frames, a live engine measures its own wall time per frame and, when the recent mean exceeds its budget
+(``headroom`` x the frame period: 0.5 = 2x real time), moves to the next cheaper level (fewer neighbours, fewer
+hypotheses); when the mean falls below a third of the budget it moves one level back up (the gap between the two
+thresholds keeps it from flapping, since one level roughly halves the cost). `status` is one line for the
+console's status bar. Offline runs do not use this: their results must not depend on the machine.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Effort:
+    """One level of an engine's per-frame effort (OLNG: neighbours K and hypotheses I)."""
+
+    k_neighbours: int
+    i_best: int
+
+    def label(self) -> str:
+        return f"K {self.k_neighbours} / I {self.i_best}"
+
+
+def effort_levels(k_neighbours: int, i_best: int, floor: Effort = Effort(256, 16)) -> list[Effort]:
+    """The configured effort, then halvings of K and I down to ``floor`` (never below it, never above the start)."""
+    levels = [Effort(k_neighbours, i_best)]
+    while levels[-1].k_neighbours > floor.k_neighbours or levels[-1].i_best > floor.i_best:
+        last = levels[-1]
+        levels.append(Effort(max(last.k_neighbours // 2, min(floor.k_neighbours, k_neighbours)),
+                             max(last.i_best // 2, min(floor.i_best, i_best))))
+    return levels
+
+
+class KeepUp:
+    """Chooses the effort level from measured wall time per frame (module doc)."""
+
+    def __init__(self, levels: list[Effort], frame_period_s: float, headroom: float = 0.5, window: int = 50) -> None:
+        if not levels:
+            raise ValueError("KeepUp needs at least one effort level")
+        self.levels = levels
+        self.budget_s = headroom * frame_period_s
+        self.level = 0
+        self._times: deque[float] = deque(maxlen=window)
+        self._last_mean_s = 0.0   # the mean wall time per frame that made the last change
+
+    @property
+    def effort(self) -> Effort:
+        return self.levels[self.level]
+
+    def record(self, seconds: float) -> bool:
+        """One frame's wall time; True when the level changed (the caller applies `effort`). Decides only on a
+        full window of frames measured at the current level."""
+        self._times.append(seconds)
+        if len(self._times) < self._times.maxlen:
+            return False
+        mean = sum(self._times) / len(self._times)
+        if mean > self.budget_s and self.level + 1 < len(self.levels):
+            step = 1
+        elif mean < self.budget_s / 3 and self.level > 0:
+            step = -1
+        else:
+            return False
+        self.level += step
+        self._last_mean_s = mean
+        self._times.clear()
+        return True
+
+    @property
+    def status(self) -> str:
+        """"" at full effort, else what was given up and why (one status-bar line)."""
+        if self.level == 0:
+            return ""
+        return (f"cheaper setting to keep up: {self.effort.label()} instead of {self.levels[0].label()} "
+                f"(changed at {1e3 * self._last_mean_s:.0f} ms/frame; budget {1e3 * self.budget_s:.0f} ms)")
