@@ -19,7 +19,7 @@ import numpy as np
 from engine.mocap import (SEED000_SENSORS, Motion, SensorCalibrationData, Skeleton, default_cache_dir, load_clip,
                           placements_from_calibration, standard_placements)
 from engine.stream.databases import GRAPH_FPS, shipped_clip_paths
-from engine.stream.engines import EngineMismatchError, EngineSpec
+from engine.stream.engines import ACC, ORIENTATION, EngineMismatchError, EngineSpec
 
 from .config import GraphConfig
 from .graph import MotionGraph
@@ -34,6 +34,7 @@ def motion_graph_spec(graph: MotionGraph, database: str | Path, skeleton: Any = 
     of the graph's own clips) is measured once here, not at every engine restart."""
     from .confidence import reference_cost_per_sample
     from .online import FixedLagSynthesizer
+    from .orientation_term import places_sensors
     from .root_fusion import RootFusion
     from .viterbi import default_weights
     from .warp import RootWarp
@@ -48,11 +49,14 @@ def motion_graph_spec(graph: MotionGraph, database: str | Path, skeleton: Any = 
     fusion = RootFusion() if fusion is None else fusion
     weights = default_weights(warp)
     reference = reference_cost_per_sample(graph, weights, warp)
+    # the orientation term is on in the camera-following preset when the graph's poses place its sensors
+    inputs = (ACC, ORIENTATION) if weights.orientation > 0 and places_sensors(graph) else (ACC,)
     return EngineSpec("motion-graph", str(database), names, float(graph.config.fps), np.asarray(skeleton.parents),
                       lambda lag_s: FixedLagSynthesizer(graph, lag_s, weights, warp=warp,
                                                         confidence_reference=reference, fusion=fusion),
                       graph=graph,
-                      skeleton=skeleton)
+                      skeleton=skeleton,
+                      inputs=inputs)
 
 
 def graph_cache_path(clip_paths: Sequence[Path], sensor_names: Sequence[str], config: GraphConfig,

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine import progress
+from engine.errors import CourtsideError
 
 from . import kernels_numpy
 from .edge_runs import EdgeRuns
@@ -46,6 +47,10 @@ PRUNE_EVERY = 64  # samples between survivor prunes: the newest columns cost mos
 # are large); measured 0.73 vs 0.38 ms per sample for 32 vs 64 on the 483k-edge graph; memory 64 x 4 B per node
 PRUNE_HORIZON = 512  # samples (17 s at 30 Hz): columns pruned at this age or older are not pruned again
 ACC_BATCH = 16  # batch search computes C_A rows for this many samples per pass over the metadata
+
+class PathsExhaustedError(CourtsideError):
+    """No path of the search is alive: the graph has dead ends and the take outlasted every path into them."""
+
 
 @dataclass(frozen=True)
 class SearchWeights:
@@ -440,11 +445,21 @@ class ViterbiLattice:
         return int(self._Gr[node])
 
     def best_node(self) -> int:
-        """Graph node with the lowest (broken constraints, cost) at the current sample."""
+        """Graph node with the lowest (broken constraints, cost) at the current sample. Every path may have died
+        in a dead end (a graph built with --no-connect, or a leave-out that cut a small graph into chains): that
+        is reported as `PathsExhaustedError`, never decided from a dead node."""
         if not self.constrained:
-            return int(np.argmin(self._G))
-        fewest = self._Gr == self._Gr.min()
-        return int(np.argmin(np.where(fewest, self._G, np.inf)))
+            best = int(np.argmin(self._G))
+        else:
+            fewest = self._Gr == self._Gr.min()
+            best = int(np.argmin(np.where(fewest, self._G, np.inf)))
+        if not np.isfinite(self._G[best]):
+            dead_ends = int(np.count_nonzero(np.bincount(self.graph.edge_src, minlength=self.graph.n_nodes) == 0))
+            raise PathsExhaustedError(
+                f"every path of the search ended in a dead end by sample {self.t}: the graph ({self.graph.n_nodes} "
+                f"nodes, {dead_ends} dead ends) cannot explain a take this long; build it connected (build-graph "
+                "without --no-connect) or hold out less of the database")
+        return best
 
     def ancestors(self, k: int, n_steps: int) -> np.ndarray:
         """(n_steps + 1, k) graph nodes: column 0 the best path's (`best_node`), the others the next lowest-cost

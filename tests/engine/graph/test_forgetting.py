@@ -166,3 +166,20 @@ def test_forgetting_option_on_the_command_line():
     assert weights_from_args(p.parse_args([]), RootWarp.off()) == SearchWeights()
     with pytest.raises(CourtsideError, match="--forgetting"):
         weights_from_args(p.parse_args(["--forgetting", "0"]), RootWarp())
+
+
+def test_a_take_that_outlasts_every_path_is_one_clear_error_not_a_crash(two_chains):
+    """Two chains with no transitions: a take longer than either runs every path into a dead end. The search
+    says so (the evaluation's tiny held-out graphs hit this as a reshape ValueError inside the pose blend)."""
+    from engine.graph.viterbi import PathsExhaustedError
+
+    from dataclasses import replace
+
+    g, _, _ = two_chains
+    forward = g.edge_dst == g.edge_src + 1  # the clips' own frame order only: each clip one chain into a dead end
+    g = replace(g, edge_src=g.edge_src[forward], edge_dst=g.edge_dst[forward], edge_kind=g.edge_kind[forward],
+                edge_meta=g.edge_meta[forward])
+    acc = np.repeat(g.meta_acc_g[g.node_arrival[:1]].astype(float), 3 * g.n_nodes, axis=0)
+    weights = SearchWeights(forgetting=0.9, decision_frames=6, blend_paths=8)
+    with pytest.raises(PathsExhaustedError, match="dead end"):
+        ViterbiSearch(g, weights).run(Observations(acc))
