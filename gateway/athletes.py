@@ -79,3 +79,10 @@ class AthleteMap:
         if name is not None or not any(ref[0] == "sn" for ref in self._by_ref) or serial is not None:
             self._cache[key] = name  # final unless a serial-addressed sensor may still match once HELLO arrives
         return name
+
+
+def athletes_info(athletes: AthleteMap) -> list[dict]:
+    """Who wears what, as the gateway's hello lists it (consoles set up one synthesis per athlete from it): name,
+    side, sensors (``"st1:0"`` / ``"sn<serial>:0"``; [] = every sensor), placements."""
+    return [{"name": a.name, "side": a.side, "sensors": [str(r) for r in a.sensors],
+             "placements": list(a.placements)} for a in athletes.athletes]

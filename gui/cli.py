@@ -118,6 +118,7 @@ def _console(args: argparse.Namespace) -> int:
     from engine.mocap import load_sensor_calibration
 
     from gui.app import application
+    from gui.athletes_replay import athlete_stations
     from gui.main_window import ConsoleWindow
     from gui.playback import Playback
 
@@ -154,7 +155,8 @@ def _console(args: argparse.Namespace) -> int:
                                  f"{args.connect[0]}:{args.connect[1]} accepted this console's secret as a viewer "
                                  "(watch only): give the operator secret file")
         stations = _stations_with_sensors(client)
-    athletes = _athlete_stations(client, stations) if client is not None and not args.synth_station else {}
+    athletes = (athlete_stations((getattr(client, "server_hello", {}) or {}).get("athletes"), stations)
+                if client is not None and not args.synth_station else {})
     try:
         refresh = client.list_stations if client is not None else None
         more: dict = {}
@@ -196,22 +198,6 @@ def _console(args: argparse.Namespace) -> int:
         print(f"courtside console: {script.failure}", file=sys.stderr)
         return 1
     return code
-
-
-def _athlete_stations(client, stations: list[dict]) -> dict[str, str]:
-    """Athlete -> the station carrying its first sensor, from the gateway's hello (`Gateway.athletes_info`):
-    ``"st<id>:<i>"`` names the station directly, ``"sn<serial>:<i>"`` through the stations' HELLO serials.
-    Athletes without sensors (the single default athlete) are left out."""
-    out = {}
-    serials = {s.get("station_serial"): str(s["station"]) for s in stations if s.get("station_serial") is not None}
-    for athlete in (getattr(client, "server_hello", {}) or {}).get("athletes") or []:
-        if not athlete.get("sensors"):
-            continue
-        ref = str(athlete["sensors"][0]).split(":")[0]
-        station = ref if ref.startswith("st") else serials.get(int(ref[2:], 0))
-        if station is not None:
-            out[str(athlete["name"])] = station
-    return out
 
 
 def _athlete_args(args: argparse.Namespace, station: str, k: int) -> argparse.Namespace:

@@ -29,7 +29,7 @@ import numpy as np
 
 import firmware_protocol as fp
 from gateway import auth, wire
-from gateway.athletes import AthleteConfig, AthleteMap
+from gateway.athletes import AthleteConfig, AthleteMap, athletes_info
 from gateway.device_checks import I32_MAX, I32_MIN, command_int
 from gateway.links import DiscoveredPort, Link, LinkError, discover_hid, discover_serial, open_link
 from gateway.recorder import Recorder
@@ -282,10 +282,8 @@ class Gateway:
                 "athletes": self.athletes_info()}
 
     def athletes_info(self) -> list[dict[str, Any]]:
-        """Who wears what (consoles set up one synthesis per athlete from it): name, side, sensors
-        (``"st1:0"`` / ``"sn<serial>:0"``; [] = every sensor), placements."""
-        return [{"name": a.name, "side": a.side, "sensors": [str(r) for r in a.sensors],
-                 "placements": list(a.placements)} for a in self.athletes.athletes]
+        """Who wears what (`gateway.athletes.athletes_info`)."""
+        return athletes_info(self.athletes)
 
     def discover_stations(self) -> list[str]:
         """Hot-plug: add every base station found by USB VID:PID (serial and HID) that is not read yet.
