@@ -568,7 +568,8 @@ class Take:
     """A recording reassembled per stream, arrays concatenated in time order:
     ``samples[(station, sensor)][name]``, ``clock_points[station][name]`` (every clock-sync point: ``raw_ticks``,
     ``ticks``, ``epoch``, ``arrival_s``; ``tick_hz`` in ``clock_tick_hz[station]``), other messages in ``others``.
-    ``end`` is the take_end record (None: the writer never closed the take, e.g. a crash)."""
+    ``end`` is the take_end record (None: the writer never closed the take, e.g. a crash). ``sample_athletes``: who
+    wore each sample stream (its chunks' ``athlete`` tag; streams nobody wore, or recorded before athletes, absent)."""
 
     meta: dict[str, Any]
     samples: dict[tuple[str, int], dict[str, np.ndarray]]
@@ -577,6 +578,7 @@ class Take:
     others: list[codec.Message]
     problem: str | None
     end: dict[str, Any] | None = None
+    sample_athletes: dict[tuple[str, int], str] = field(default_factory=dict)
 
 
 _CLOCK_POINT_ARRAYS = ("raw_ticks", "ticks", "epoch", "arrival_s")
@@ -643,6 +645,7 @@ def load_take(path: Path | str) -> Take:
         {station: _concatenate(path, f"clock points of {station}", msgs) for station, msgs in sorted(points.items())},
         {station: float(msgs[-1].header["tick_hz"]) for station, msgs in points.items()},
         others, contents.problem, contents.end,
+        {key: str(msgs[0].header["athlete"]) for key, msgs in sorted(samples.items()) if "athlete" in msgs[0].header},
     )
 
 

@@ -155,8 +155,8 @@ def _console(args: argparse.Namespace) -> int:
                                  f"{args.connect[0]}:{args.connect[1]} accepted this console's secret as a viewer "
                                  "(watch only): give the operator secret file")
         stations = _stations_with_sensors(client)
-    athletes = (athlete_stations((getattr(client, "server_hello", {}) or {}).get("athletes"), stations)
-                if client is not None and not args.synth_station else {})
+    athletes = {} if args.synth_station else playback.athlete_stations() if playback is not None else (
+        athlete_stations((getattr(client, "server_hello", {}) or {}).get("athletes"), stations))
     try:
         refresh = client.list_stations if client is not None else None
         more: dict = {}

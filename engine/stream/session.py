@@ -24,7 +24,7 @@ import numpy as np
 
 from .camera import CameraTrack
 from .engines import OnlineEngine
-from .frames import FrameBatch, FrameResampler
+from .frames import _EPS as FRAME_TIME_EPS, FrameBatch, FrameResampler
 
 TAKE_START_MARGIN_S = 0.5
 
@@ -113,7 +113,10 @@ class StreamSynthesis:
         are sliced); returns the poses the engine decided."""
         until = np.inf
         if not self.camera.empty and self.camera.newest_s >= self.resampler.newest_s - self.camera_wait_s:
-            until = self.camera.newest_s  # a live camera holds frames back until the fix after them is in
+            # a live camera holds frames back until the fix after them is in: strictly after, so a frame on (or,
+            # rounded, an ulp past) the newest fix waits for the next one; pushed now it would be interpolated
+            # from the pair ending at that fix (or get none), offline from the pair starting at it
+            until = self.camera.newest_s - 2 * FRAME_TIME_EPS / self.rate_hz
         return self.push_frames(self.resampler.frames(until, max_frames))
 
     @property
