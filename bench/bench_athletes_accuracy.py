@@ -2,6 +2,7 @@
 columns").
 
     PYTHONPATH=$PWD nice -n 10 .venv/bin/python bench/bench_athletes_accuracy.py [--engine motion-graph] [--lag 0.5]
+        [--mocap-dir ../shared/mocap --pattern 'bandai-namco-1/data/*.bvh' --take-seconds 30]
 
 Two different chained takes of the shipped clips (held out of the engine's database) are worn by two athletes,
 alice on station st1 and bob on st2 (a two-`[[athletes]]` court map, the gateway's hello built from it), each
@@ -16,14 +17,17 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from engine.evaluation.engines import on_take_grid
 from engine.evaluation.metrics import frame_errors
-from engine.evaluation.takes import chain_clips
+from engine.evaluation.labels import clip_label
+from engine.evaluation.takes import chain_clips, plan_chained_takes
 from engine.mocap import load_clip, sample_clips
 from engine.stream.databases import engine_spec
+from engine.stream.registry import adapter
 from engine.stream.session import synthesize_streams
 from gateway.athletes import AthleteConfig, AthleteMap, SensorRef, athletes_info
 from gui.athletes_replay import SimulatedAthlete, athlete_stations, in_stream_order, simulate_athlete, synthesize_athletes
@@ -60,12 +64,30 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--engine", default="motion-graph")
     p.add_argument("--lag", type=float, default=0.5, help="fixed lag of each athlete's live engine (s)")
+    p.add_argument("--mocap-dir", type=Path, default=None,
+                   help="a mocap corpus (e.g. ../shared/mocap) instead of the shipped clips: two chained takes of "
+                        "--take-seconds planned from its labels, a graph built from the rest")
+    p.add_argument("--pattern", default="bandai-namco-1/data/*.bvh", help="clip files under --mocap-dir")
+    p.add_argument("--take-seconds", type=float, default=30.0)
+    p.add_argument("--fps", type=float, default=30.0, help="--mocap-dir clips resampled to this rate")
     args = p.parse_args()
-    clips = sample_clips()
+    if args.mocap_dir is None:
+        clips = sample_clips()
+        takes = {name: clips_ for name, (_, clips_) in TAKES.items()}
+    else:
+        clips = {path.stem: path for path in sorted(args.mocap_dir.glob(args.pattern))}
     names = list(clips)
-    motions = [load_clip(clips[n]) for n in names]
-    held = [c for _, takes in TAKES.values() for c in takes]
-    spec, _ = engine_spec(args.engine, n_worn=6, exclude=held)
+    motions = [load_clip(clips[n], None if args.mocap_dir is None else args.fps) for n in names]
+    if args.mocap_dir is not None:
+        labels = [clip_label(clips[n]).content for n in names]
+        plan = plan_chained_takes(labels, [m.n_frames / m.fps for m in motions], 2, args.take_seconds, 0, "walk")
+        takes = {name: [names[i] for i in ids] for name, ids in zip(TAKES, plan)}
+    held = [c for clips_ in takes.values() for c in clips_]
+    if args.mocap_dir is None:
+        spec, _ = engine_spec(args.engine, n_worn=6, exclude=held)
+    else:
+        train = [m for n, m in zip(names, motions) if n not in held]
+        spec = adapter(args.engine).build_spec(train, f"{len(train)} clips of {args.mocap_dir / args.pattern}")
     stations = [{"station": st, "sensors": [{"sensor": k, "nominal_hz": 100.0} for k in range(len(spec.sensor_names))]}
                 for st, _ in TAKES.values()]
     routing = athlete_stations(court(len(spec.sensor_names)), stations)
@@ -74,7 +96,7 @@ def main() -> int:
         keys, _ = worn_sensors(list(spec.sensor_names), station)
         check_worn_sensors(spec, keys, stations)
         setups[name] = synthesis_setup(spec, keys, args.lag)
-        take = chain_clips(motions, [names.index(c) for c in TAKES[name][1]], names)
+        take = chain_clips(motions, [names.index(c) for c in takes[name]], names)
         sims[name] = simulate_athlete(name, station, take, spec.sensor_names, OFFSETS_S[name], seed)
     together = synthesize_athletes(setups, in_stream_order(*(s.messages for s in sims.values())))
     alone = {name: synthesize_athletes({name: setups[name]}, sims[name].messages)[name] for name in setups}
@@ -82,7 +104,7 @@ def main() -> int:
                                         spec.rate_hz)[0] for name in setups}
     print(f"{spec.label}, lag {args.lag:g} s; database without {', '.join(held)}")
     for name, sim in sims.items():
-        print(f"{name} ({sim.station}): {sim.take.duration_s:.1f} s of " + " > ".join(TAKES[name][1]))
+        print(f"{name} ({sim.station}): {sim.take.duration_s:.1f} s of " + " > ".join(takes[name]))
     columns = {(name, mode): scores(poses[name], sims[name]) for name in setups
                for mode, poses in (("two athletes", together), ("alone", alone), ("offline", offline))}
     print(f"{'':28s}" + "".join(f"{f'{n}: {m}':>20s}" for n, m in columns))
