@@ -30,7 +30,8 @@ from engine.stream.databases import engine_spec
 from engine.stream.registry import adapter
 from engine.stream.session import synthesize_streams
 from gateway.athletes import AthleteConfig, AthleteMap, SensorRef, athletes_info
-from gui.athletes_replay import SimulatedAthlete, athlete_stations, in_stream_order, simulate_athlete, synthesize_athletes
+from gui.athletes_replay import (SimulatedAthlete, athlete_stations, in_stream_order, simulate_athlete,
+                                 synthesize_athletes)
 from gui.engine_link import check_worn_sensors, synthesis_setup, worn_sensors
 
 TAKES = {"alice": ("st1", ["16_05", "16_21"]), "bob": ("st2", ["16_11", "16_45"])}  # the demo's held-out clips

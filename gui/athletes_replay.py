@@ -68,7 +68,8 @@ def simulate_athlete(name: str, station: str, take: Take, sensor_names: Sequence
     fixes = np.flatnonzero(np.isfinite(cam.heading_rad))
     t_s, cam_t_s = times + offset_s, fixes / take.fps + offset_s
     streams = RecordedStreams({(station, k): (t_s, acc[:, k], quat[:, k]) for k in range(acc.shape[1])},
-                              [(float(t), cam.position_m[i], float(cam.heading_rad[i])) for t, i in zip(cam_t_s, fixes)])
+                              [(float(t), cam.position_m[i], float(cam.heading_rad[i]))
+                               for t, i in zip(cam_t_s, fixes)])
     messages = in_stream_order(sample_messages(station, name, t_s, acc, quat),
                                camera_messages(name, cam_t_s, cam.position_m[fixes], cam.heading_rad[fixes]))
     return SimulatedAthlete(name, station, take, offset_s, streams, messages)

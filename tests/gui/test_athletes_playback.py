@@ -1,7 +1,8 @@
 """Playback of a two-athlete take (issue 20): a take recorded by the gateway's recorder with samples tagged alice
-(st1) and bob (st2) and one camera track each; `courtside console --playback TAKE --save-poses` (the play button pressed)
-synthesises every athlete the recording names, each from its own station and camera track: each saved file's poses equal the offline
-synthesis of its athlete's own streams, bit for bit, for every frame the console decided."""
+(st1) and bob (st2) and one camera track each; `courtside console --playback TAKE --save-poses` (the play button
+pressed) synthesises every athlete the recording names, each from its own station and camera track: each saved
+file's poses equal the offline synthesis of its athlete's own streams, bit for bit, for every frame the console
+decided."""
 from __future__ import annotations
 
 import json
