@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .graph import MotionGraph
-from .orientation_term import row_nodes
+from .orientation_term import row_nodes, scaled_rows
 from .parts import NODE_ORIGINAL
 
 TIME_CONSTANT_S = 0.5  # the low-pass's memory: longer than a gesture's accelerations swing, short enough to
@@ -66,13 +66,7 @@ class GravityTerm:
         nodes = row_nodes(graph)
         used = nodes >= 0
         f = unit(node_low_passed(graph, sensor_indices, self.alpha))[np.where(used, nodes, 0)]  # (M, S, 3)
-        f[~used] = 0.0
-        acc = np.asarray(graph.meta_acc_g, float)[:, sensor_indices][used]
-        acc_var = acc.reshape(len(acc), -1).var(axis=0).sum()
-        f_var = f[used].reshape(int(used.sum()), -1).var(axis=0).sum()
-        self.scale = float(np.sqrt(weight * acc_var / max(f_var, 1e-12)))
-        self.meta_rows_t = np.ascontiguousarray((f * self.scale).astype(np.float32).transpose(1, 2, 0)).reshape(
-            -1, len(f))
+        self.scale, self.meta_rows_t = scaled_rows(graph, sensor_indices, f, used, weight)
         self._mean: np.ndarray | None = None  # the live low-pass, None before the first sample
 
     def push(self, acc_g: np.ndarray | None) -> np.ndarray | None:
