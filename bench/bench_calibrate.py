@@ -23,7 +23,7 @@ from engine.mocap import (SEED000_SENSORS, load_clip, rebase_to_tpose, standard_
                           virtual_accelerometers)
 from gateway.calibration.alignment import rotation_angle_deg  # noqa: E402
 from gateway.calibration.recording import calibrate_recording, standard_segment_poses  # noqa: E402
-from tests.engine.imu_import.formats import mounted, standing_then_walking  # noqa: E402
+from bench.support.imu_formats import mounted, standing_then_walking  # noqa: E402
 
 FPS = 100.0
 NAMES = list(SEED000_SENSORS)

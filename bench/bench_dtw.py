@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from engine.graph.interpolate import slope_constrained_dtw  # noqa: E402
 from engine.graph.slope_dtw import library_path  # noqa: E402
 from engine.hmm.dtw import distance_matrix, dtw, dtw_reference  # noqa: E402
-from tests.engine.dtw_libraries.inputs import hmm_inputs, interpolation_costs  # noqa: E402
+from bench.support.dtw_inputs import hmm_inputs, interpolation_costs  # noqa: E402
 
 
 def best_of(fn, repeats: int = 3) -> float:

@@ -10,9 +10,10 @@ Every table carries a baseline measured in the same run so numbers compare acros
 * latency: the emulated station's own share (sample latched -> frame on the USB wire: radio batching + jitter);
 * clock: naive timestamping (each sample stamped with its batch's host arrival time) on the same run.
 
-The acceptance run (`--acceptance-minutes M`) is tests/gateway/test_acceptance_emulated.py's `run_acceptance`
-at full length: 4 stations x 6 x 100 Hz over ptys + the synthetic camera, loss/corruption, an unplug/replug every
-~2 min; it prints delivered vs recorded counts, clock error after warm-up, reconnect times, and exits 1 on FAIL.
+The acceptance run (`--acceptance-minutes M`) is `bench.support.acceptance.run_acceptance` (the suite
+runs it for 1 and 3 min) at full length: 4 stations x 6 x 100 Hz over ptys + the synthetic camera,
+loss/corruption, an unplug/replug every ~2 min; it prints delivered vs recorded counts, clock error after
+warm-up, reconnect times, and exits 1 on FAIL.
 """
 from __future__ import annotations
 
@@ -27,14 +28,16 @@ from pathlib import Path
 
 import numpy as np
 
-import firmware_protocol as fp
-from firmware_protocol.emulator import BaseStation, StationConfig
-from gateway.client import GatewayClient
-from gateway.daemon import Gateway
-from firmware_protocol.emulator.stations import demo_config, start_emulated_station
-from gateway.recorder import load_take, realign_take
-from gateway.station import StationReader
-from firmware_protocol.emulator.virtual_time import run_virtual_station
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the checkout first: bench.support
+
+import firmware_protocol as fp  # noqa: E402
+from firmware_protocol.emulator import BaseStation, StationConfig  # noqa: E402
+from gateway.client import GatewayClient  # noqa: E402
+from gateway.daemon import Gateway  # noqa: E402
+from firmware_protocol.emulator.stations import demo_config, start_emulated_station  # noqa: E402
+from gateway.recorder import load_take, realign_take  # noqa: E402
+from gateway.station import StationReader  # noqa: E402
+from firmware_protocol.emulator.virtual_time import run_virtual_station  # noqa: E402
 
 
 def _cpu_s() -> float:
@@ -226,7 +229,7 @@ def bench_clock(hours: float = 1.0) -> None:
 
 
 def bench_acceptance(minutes: float, speed: float, unplugs: int | None, seed: int = 42) -> bool:
-    from tests.gateway.test_acceptance_emulated import run_acceptance
+    from bench.support.acceptance import run_acceptance
 
     span = minutes * 60.0
     n_unplugs = unplugs if unplugs is not None else max(1, round((span - 12.0) / 120.0))  # about every 2 min

@@ -16,7 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from engine.imu_import import assemble, read_generic_csv, read_xsens, read_ximu3  # noqa: E402
 from engine.mocap import SEED000_SENSORS, standard_placements  # noqa: E402
-from tests.engine.imu_import.formats import (Truth, clip, virtual_recording, write_generic_csv,  # noqa: E402
+from bench.support.imu_formats import (Truth, clip, virtual_recording, write_generic_csv,  # noqa: E402
                                              write_mt_exports, write_mvnx, write_ximu3_logger)
 
 

@@ -32,8 +32,8 @@ from engine.labeling.labeler import RECOVERED, OnlineLabeler
 from engine.labeling.scenario import DegradeConfig, Score, bring_together, degrade, score_frame
 from engine.mocap import MarkerData, read_c3d
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from conftest import find_shared_mocap  # noqa: E402  (one place that knows where the shared data lives)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from bench.support.shared_data import find_shared_mocap  # noqa: E402  (one place that knows where the shared data lives)
 
 
 def label_stream(positions, subjects, fps, train, config, seed=0):

@@ -8,20 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from bench.support.shared_data import find_shared_mocap
+
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
-
-REPO_ROOT = Path(__file__).resolve().parent.parent
-
-
-def find_shared_mocap() -> Path | None:
-    """The full real-mocap set (../shared/mocap beside the checkout, or $COURTSIDE_MOCAP_DIR).
-
-    The project also ships a few clips in engine/data so the demo and most tests run without it."""
-    candidates = [os.environ.get("COURTSIDE_MOCAP_DIR"), REPO_ROOT.parent / "shared" / "mocap", Path("/work/shared/mocap")]
-    for candidate in candidates:
-        if candidate and (Path(candidate) / "README.md").is_file():
-            return Path(candidate)
-    return None
 
 
 @pytest.fixture(scope="session")

@@ -21,7 +21,7 @@ import pytest
 from engine.mocap import SEED000_SENSORS, standard_placements, virtual_accelerometers
 from gateway import auth
 from gateway.client import GatewayClient
-from tests.engine.imu_import.formats import mounted, standing_then_walking
+from bench.support.imu_formats import mounted, standing_then_walking
 from tests.gateway.court_setup import courtside, start_gateway, stop_gateway, wait_for
 
 XIMU3 = {"left_forearm": "0000A001", "left_shin": "0000A002", "lower_back": "0000A003"}

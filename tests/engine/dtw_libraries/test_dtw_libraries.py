@@ -9,7 +9,7 @@ from engine.graph.interpolate import slope_constrained_dtw
 from engine.graph.slope_dtw import HAVE_DTW_PYTHON, library_path
 from engine.hmm.dtw import HAVE_DTAIDISTANCE, distance_matrix, dtw, dtw_reference
 
-from .inputs import hmm_inputs, interpolation_costs
+from bench.support.dtw_inputs import hmm_inputs, interpolation_costs
 
 
 @pytest.mark.skipif(not HAVE_DTAIDISTANCE, reason="dtaidistance (engine extra) not installed")

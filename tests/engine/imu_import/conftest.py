@@ -5,7 +5,7 @@ import pytest
 
 from engine.mocap import SEED000_SENSORS, standard_placements
 
-from .formats import Truth, clip, virtual_recording
+from bench.support.imu_formats import Truth, clip, virtual_recording
 
 
 @pytest.fixture(scope="session")

@@ -8,7 +8,7 @@ import pytest
 from engine.errors import CourtsideError, MalformedFileError
 from engine.imu_import import DetectionError, assemble, read_generic_csv, read_xsens, read_ximu3
 
-from .formats import write_generic_csv, write_mt_exports, write_mvnx, write_ximu3_logger
+from bench.support.imu_formats import write_generic_csv, write_mt_exports, write_mvnx, write_ximu3_logger
 
 
 def _match(take, truth, acc_tol_g=2e-5, quat_tol=1e-5):

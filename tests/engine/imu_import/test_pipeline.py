@@ -13,7 +13,7 @@ from engine.mocap import SEED000_SENSORS, read_bvh, standard_placements
 from gateway.calibration import rotation_angle_deg
 from gateway.calibration.record import CalibrationRecord
 
-from .formats import mounted, standing_then_walking, virtual_recording, write_generic_csv, write_mvnx, \
+from bench.support.imu_formats import mounted, standing_then_walking, virtual_recording, write_generic_csv, write_mvnx, \
     write_ximu3_logger
 
 NAMES = list(SEED000_SENSORS)

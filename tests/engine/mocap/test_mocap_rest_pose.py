@@ -17,7 +17,7 @@ def _sources(shared) -> dict[str, M.Motion]:
 
 @pytest.fixture(scope="module")
 def sources():
-    from tests.conftest import find_shared_mocap
+    from bench.support.shared_data import find_shared_mocap
     return _sources(find_shared_mocap())
 
 

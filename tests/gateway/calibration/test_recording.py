@@ -12,7 +12,7 @@ from engine.mocap import SEED000_SENSORS, load_sensor_calibration, reading_corre
     virtual_accelerometers
 from gateway.calibration import CalibrationRecord, rotation_angle_deg
 from gateway.calibration.recording import calibrate_recording, standard_segment_poses
-from tests.engine.imu_import.formats import mounted, standing_then_walking
+from bench.support.imu_formats import mounted, standing_then_walking
 
 NAMES = list(SEED000_SENSORS)
 FPS = 100.0
