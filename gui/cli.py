@@ -267,14 +267,16 @@ def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held
 
 
 def _stations_with_sensors(client, wait_s: float = 5.0) -> list[dict]:
-    """The gateway's station list once its stations have reported sensors (a gateway that has just started lists
-    stations before their first samples; the engine default depends on how many sensors are worn)."""
+    """The gateway's station list once every listed station has reported its sensors, or after ``wait_s`` (a
+    gateway that has just started lists stations before their first samples; the engine default depends on how
+    many sensors are worn, and which station carries them is decided from all of them: taking the list when the
+    first one reported picked a station that was alone only because the other had not reported yet)."""
     import time
 
     deadline = time.monotonic() + wait_s
     while True:
         stations = client.list_stations()
-        if any(s.get("sensors") for s in stations) or time.monotonic() > deadline:
+        if (stations and all(s.get("sensors") for s in stations)) or time.monotonic() > deadline:
             return stations
         time.sleep(0.2)
 

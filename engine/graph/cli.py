@@ -159,6 +159,13 @@ def add_search_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--orientation-heading", type=float, default=None, metavar="SHARE",
                    help="share of the orientation term's heading part (limb heading relative to the pelvis sensor, "
                         "per-sensor yaw offsets learnt online) against its tilt part (default 0: tilt alone)")
+    p.add_argument("--gravity-weight", type=float, default=None, metavar="W",
+                   help="accelerations only: weight of the tilt from low-passed accelerations "
+                        "(engine/graph/gravity_term.py) relative to the accelerations' (default 0 = off)")
+    p.add_argument("--sensor-weighting", type=float, default=None, metavar="POWER",
+                   help="weight each sensor's accelerations by (between-pose / within-pose spread) ** POWER over "
+                        "the database (engine/graph/sensor_weights.py; default 0 = every sensor alike; negative "
+                        "powers favour the sensors whose accelerations vary less between poses)")
 
 
 def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights:
@@ -180,6 +187,13 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
     if args.orientation_heading is not None:
         check_non_negative("--orientation-heading", [args.orientation_heading])
         weights = replace(weights, orientation_heading=args.orientation_heading)
+    if args.gravity_weight is not None:
+        check_non_negative("--gravity-weight", [args.gravity_weight])
+        weights = replace(weights, gravity=args.gravity_weight)
+    if args.sensor_weighting is not None:
+        if not np.isfinite(args.sensor_weighting):
+            raise CourtsideError(f"--sensor-weighting {args.sensor_weighting!r}: must be a finite number")
+        weights = replace(weights, sensor_weighting=args.sensor_weighting)
     return weights
 
 

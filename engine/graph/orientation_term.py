@@ -99,6 +99,21 @@ def features(quat_world: np.ndarray, reference: int | None, offset_rad: np.ndarr
     return np.concatenate([tilt, heading], axis=-2)
 
 
+def scaled_rows(graph: MotionGraph, sensor_indices: list[int], f: np.ndarray, used: np.ndarray,
+                weight: float) -> tuple[float, np.ndarray]:
+    """Extra C_A features (M, K, 3) of the metadata rows (`used`: the rows a node or edge uses; the others are
+    zeroed) -> (scale, (3K, M) float32 rows to append to the lattice's acc metadata), scaled by
+    sqrt(weight x the database's acc variance / the features' variance): at weight 1 neither part drowns the
+    other."""
+    f = f.copy()
+    f[~used] = 0.0
+    acc = np.asarray(graph.meta_acc_g, float)[:, sensor_indices][used]
+    acc_var = acc.reshape(len(acc), -1).var(axis=0).sum()
+    f_var = f[used].reshape(int(used.sum()), -1).var(axis=0).sum()
+    scale = float(np.sqrt(weight * acc_var / max(f_var, 1e-12)))
+    return scale, np.ascontiguousarray((f * scale).astype(np.float32).transpose(1, 2, 0)).reshape(-1, len(f))
+
+
 class OrientationTerm:
     """The database side of the term for one sensor selection: scaled feature rows (3K, M) float32 to append to
     the lattice's acc metadata, each node's relative yaws, and encoders for observed device-earth quaternions."""
@@ -118,13 +133,7 @@ class OrientationTerm:
         self.node_rel_yaw = psi - psi[:, [self.reference or 0]]  # (N, S) d_i of every node (unused: no reference)
         zero = None if self.reference is None else np.zeros(self.n_sensors)
         f = features(q_nodes[np.where(used, nodes, 0)], self.reference, zero, heading_share)  # (M, K, 3)
-        f[~used] = 0.0
-        acc = np.asarray(graph.meta_acc_g, float)[:, sensor_indices][used]
-        acc_var = acc.reshape(len(acc), -1).var(axis=0).sum()
-        ori_var = f[used].reshape(int(used.sum()), -1).var(axis=0).sum()
-        self.scale = float(np.sqrt(weight * acc_var / max(ori_var, 1e-12)))
-        self.meta_rows_t = np.ascontiguousarray((f * self.scale).astype(np.float32).transpose(1, 2, 0)).reshape(
-            -1, len(f))
+        self.scale, self.meta_rows_t = scaled_rows(graph, sensor_indices, f, used, weight)
 
     def encoder(self) -> "OrientationEncoder":
         return OrientationEncoder(self)

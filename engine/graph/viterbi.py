@@ -31,7 +31,9 @@ from . import kernels_numpy
 from .edge_runs import EdgeRuns
 from .geometry import wrap_angle
 from .graph import MotionGraph
+from .gravity_term import GravityTerm
 from .orientation_term import OrientationTerm, places_sensors
+from .sensor_weights import sensor_weights
 from .warp import RootWarp, follow_camera
 
 try:  # numba is in the `engine` extra: the headless gateway install does not carry a JIT compiler it never uses
@@ -76,6 +78,10 @@ class SearchWeights:
     # and the term is skipped for samples without orientations (an acc-only take searches exactly as before)
     orientation_heading: float = 0.0  # share of its heading-relative-to-the-pelvis part (learnt yaw offsets)
     # against its tilt part; 0 = tilt alone (measured best: docs/engine-evaluation.md, "Orientations")
+    gravity: float = 0.0  # weight of the tilt estimated from low-passed accelerations (gravity_term.py) when the
+    # orientation term is off; 0 = off (docs/engine-evaluation.md, "Accelerations that listen")
+    sensor_weighting: float = 0.0  # power of the per-sensor C_A weights from how much each sensor tells about
+    # pose (sensor_weights.py); 0 = every sensor alike (off); negative favours the less pose-specific sensors
 
     def __post_init__(self) -> None:
         if self.blend_paths < 1 or (self.blend_paths > 1 and not self.forgets):
@@ -198,11 +204,19 @@ class ViterbiLattice:
         m = len(graph.meta_acc_g)
         # (3S, M) float32: one contiguous row per sensor axis (a single copy: this runs once per search)
         acc_t = np.asarray(graph.meta_acc_g, dtype=np.float32)[:, sel, :].transpose(1, 2, 0).reshape(-1, m)
+        # per-sensor weights: both sides of C_A's acc rows times sqrt(w) (None: every sensor alike, untouched)
+        self._acc_scale = None
+        if weights.sensor_weighting != 0 and self.n_sensors:
+            self._acc_scale = np.repeat(np.sqrt(sensor_weights(graph, sel, weights.sensor_weighting)), 3)
+            acc_t = (acc_t * self._acc_scale[:, None].astype(np.float32)).astype(np.float32)
         # the orientation term's features are extra rows of the same squared distance (orientation_term.py);
         # a sample without orientations uses the first 3S rows alone (a contiguous view)
         self.orientation = OrientationTerm(graph, sel, weights.orientation, weights.orientation_heading) \
             if weights.orientation > 0 and self.n_sensors and places_sensors(graph) else None
         self._encoder = None if self.orientation is None else self.orientation.encoder()
+        self._gravity = None
+        if self.orientation is None and weights.gravity > 0 and self.n_sensors:
+            self.orientation = self._gravity = GravityTerm(graph, sel, weights.gravity)
         self._meta_acc_t = np.ascontiguousarray(
             acc_t if self.orientation is None else np.concatenate([acc_t, self.orientation.meta_rows_t]))
         widths = {3 * self.n_sensors, 6 * self.n_sensors, len(self._meta_acc_t)} if self.orientation else \
@@ -251,6 +265,9 @@ class ViterbiLattice:
         metadata is read once per batch instead of once per sample). Whole-take searches feed these to `step`."""
         m = np.asarray(acc_g, dtype=np.float64).reshape(len(acc_g), -1)
         self._check_width(m.shape[1], np.shape(acc_g))
+        if self._acc_scale is not None:
+            m = m.copy()
+            m[:, :len(self._acc_scale)] *= self._acc_scale
         out = np.empty((len(m), self._meta_acc_t.shape[1]), dtype=np.float32)
         width = m.shape[1]
         mm = np.array([np.float32(v @ v) for v in m], dtype=np.float32)
@@ -265,7 +282,10 @@ class ViterbiLattice:
     def encode(self, acc_g: np.ndarray | None, quat_wxyz: np.ndarray | None) -> np.ndarray | None:
         """The C_A input of one sample: the accelerations, followed by the orientation features when the term is
         on and the sample has orientations (the encoder counts samples: once per sample, in order)."""
-        feats = None if self._encoder is None else self._encoder.push(quat_wxyz)
+        if self._gravity is not None:
+            feats = self._gravity.push(acc_g)
+        else:
+            feats = None if self._encoder is None else self._encoder.push(quat_wxyz)
         if acc_g is None or feats is None:
             return acc_g
         return np.concatenate([np.asarray(acc_g, float).reshape(-1, 3), feats])
@@ -629,7 +649,7 @@ def step_arguments(lattice: ViterbiLattice, obs: Observations, constraints: list
     samples decided so far: orientation_term.py), identical per row again."""
     penalties = constraint_penalties(constraints or [], lattice.graph.n_nodes, obs.n_samples)
     quats = obs.quat_wxyz if lattice.orientation is not None else None
-    batch = obs.acc_g is not None and lattice.n_sensors and lattice.weights.acc != 0 and quats is None
+    batch = obs.acc_g is not None and lattice.n_sensors and lattice.weights.acc != 0 and lattice.orientation is None
     rows = None
     for t in progress.bar(range(obs.n_samples), desc="search", unit="sample"):
         if batch and t % ACC_BATCH == 0:

@@ -137,7 +137,7 @@ def test_status_bar_names_engine_and_database(live_gateway, qtbot, wrist_graph):
             qtbot.waitUntil(lambda: window.worker.stats.frames_in > 0, timeout=10_000)
             window.tick()
             text = window.status_label.text()
-            assert f"motion-graph on {wrist_graph} (4 sensors @ 30 Hz, acc)" in text and "lag 0.50 s" in text
+            assert f"motion-graph on {wrist_graph} (4 sensors @ 30 Hz, acc+orientation)" in text and "lag 0.50 s" in text
         finally:
             window.shutdown()
 
