@@ -348,6 +348,7 @@ class StreamServer:
         self.reliable_queue_bytes = reliable_queue_bytes
         self.queue_budget_bytes = queue_budget_bytes
         self._queued_bytes = 0  # all clients' queues together, <= queue_budget_bytes
+        self._peak_queued_bytes = 0  # high-water mark: a backlog that lives for microseconds still shows here
         self._budget_lock = threading.Lock()
         self.secrets = secrets
         self.max_clients = max_clients  # authenticated (or, without a secret, all) connections
@@ -444,6 +445,7 @@ class StreamServer:
             if self._queued_bytes + size > self._budget(display):
                 return False
             self._queued_bytes += size
+            self._peak_queued_bytes = max(self._peak_queued_bytes, self._queued_bytes)
             return True
 
     def evict_largest_backlog(self) -> None:
@@ -464,6 +466,11 @@ class StreamServer:
     def queued_bytes(self) -> int:
         """Bytes queued for all clients now (never above ``queue_budget_bytes``)."""
         return self._queued_bytes
+
+    @property
+    def peak_queued_bytes(self) -> int:
+        """The most bytes ever queued for all clients together (the budget's high-water mark)."""
+        return self._peak_queued_bytes
 
     def make_room_for(self, role: str) -> bool:
         """Whether a client just authenticated as ``role`` may stay. At the limit an operator evicts the viewer

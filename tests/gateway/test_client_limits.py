@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import os
 import socket
-import time
 
 from gateway import auth, wire
 from gateway.client import GatewayClient
@@ -81,7 +80,6 @@ def test_clients_that_ask_without_reading_stay_within_the_byte_budget(tmp_path):
     gw = Gateway([f"/nonexistent/tty{i}" for i in range(12)], listen=(HOST, 0), record_dir=tmp_path / "rec",
                  status_interval_s=30.0, max_clients=8,
                  server_options={"reliable_queue_bytes": limit, "queue_budget_bytes": budget}).start()
-    peak = [0]
     try:
         reply_bytes = len(wire.pack(wire.REPLY, {"id": 1, "ok": True, "result": gw.handle_request("status", {})}))
         sockets = []
@@ -89,13 +87,10 @@ def test_clients_that_ask_without_reading_stay_within_the_byte_budget(tmp_path):
             for _ in range(4):
                 sock, sent = _ask_without_reading(gw.address, 3000)  # replies worth ~80x the client's limit
                 sockets.append(sock)
-                peak[0] = max(peak[0], gw.server.queued_bytes)
                 assert reader.request("ping")
-            for _ in range(40):
-                peak[0] = max(peak[0], gw.server.queued_bytes)
-                time.sleep(0.02)
             assert reader.status()["n_clients"] >= 1 and reader.connected
-        assert 0 < peak[0] <= budget, peak[0]
+        # the high-water mark, not a sample: a non-reader's backlog may be cut within microseconds of forming
+        assert 0 < gw.server.peak_queued_bytes <= budget, gw.server.peak_queued_bytes
         # the non-readers were cut off (the kernel's buffers held only a few replies each)
         assert wait_for(lambda: len(gw.server.client_stats()) == 0, 10.0), gw.server.client_stats()
         assert gw.server.queued_bytes == 0
