@@ -68,6 +68,8 @@ def is_video_file(source: int | str) -> bool:
 def build_camera(config: CameraConfig, athletes: tuple[AthleteConfig, ...] = ()) -> Any:
     """Open the configured camera and its court calibration, with one track per athlete (default: the single
     athlete, acquired on ``config.player_side``); `CourtsideError` names what failed."""
+    import cv2
+
     from gateway.camera.court_calibration import CourtCalibration
     from gateway.camera.errors import CameraError
     from gateway.camera.service import CameraService
@@ -75,6 +77,9 @@ def build_camera(config: CameraConfig, athletes: tuple[AthleteConfig, ...] = ())
     from gateway.camera.tracker import MultiPlayerTracker, TrackerConfig
 
     assert config.source is not None and config.court is not None
+    # One OpenCV thread: the camera thread's per-frame work is a few ms, and a pool fanned out over the board's
+    # cores costs more CPU in hand-offs than it saves in latency (and competes with the stations' threads).
+    cv2.setNumThreads(1)
     try:
         calibration = CourtCalibration.load(config.court)
         if is_video_file(config.source):

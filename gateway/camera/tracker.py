@@ -38,7 +38,6 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from itertools import product
 
-import cv2
 import numpy as np
 
 from engine.heading import seed_heading_rule
@@ -61,7 +60,9 @@ class TrackerConfig:
     var_threshold: float = 25.0
     mixtures: int = 3                   # MOG2 Gaussians per pixel (OpenCV's default 5): the model is frozen after
                                         # warm-up, so 3 track identically here and save 40 % of its memory (board)
-    min_area_px: int = 40
+    min_area_px: int = 40               # full-resolution pixels, as every *_px below
+    detect_downscale: int = 2           # background subtraction, morphology and blobs at 1/n resolution (1 = full):
+                                        # a quarter of the pixels, a quarter of the CPU (the board's budget)
     court_margin_m: float = 3.5
     ground_point: str = "auto"          # "foot", "centroid" (needs intrinsics), or "auto" (centroid if possible)
     foot_percentile: float = 98.0
@@ -253,7 +254,7 @@ class MultiPlayerTracker:
         in_use = [blobs[b] for b in set(chosen.values()) | merged]
         if in_use and all(tr.live(t) for tr in self.tracks):  # never learn a player who is out of track
             self.detector.learn_around(frame.image, in_use)
-        clutter = int(cv2.countNonZero(mask)) - int(sum(b.area_px for b in in_use))
+        clutter = self.detector.mask_area_px(mask) - int(sum(b.area_px for b in in_use))
         headings = imu_headings_rad or {}
         out: dict[str, TrackRecord | None] = {}
         for i, tr in enumerate(self.tracks):
