@@ -86,6 +86,7 @@ class CourtForeground:
         # arms and legs a few frames in ten, and the centroid's jitter would drown the IMU-camera lag check
         self._open = _ellipse(3 / self.downscale)
         self._close = _ellipse(7 / self.downscale)
+        self._last_detected: np.ndarray | None = None  # the last frame detected on, gain-matched (learn_around)
         self.frames_seen = 0
         self._updates_due = 0
 
@@ -140,7 +141,8 @@ class CourtForeground:
         else:
             if self._background is None:
                 self._refresh_background()
-            raw = self._mog.apply(self._compensate_gain(small), learningRate=0.0)
+            self._last_detected = self._compensate_gain(small)
+            raw = self._mog.apply(self._last_detected, learningRate=0.0)
         self.frames_seen += 1
         mask = cv2.bitwise_and(cv2.threshold(raw, 254, 255, cv2.THRESH_BINARY)[1], self._roi)  # shadows (127) out
         if self._open is not None:
@@ -174,19 +176,19 @@ class CourtForeground:
         foot_px = blob.centroid_px + down * np.percentile(along, self.config.foot_percentile)
         return self.calibration.image_to_court(foot_px[None])[0]
 
-    def learn_around(self, image: np.ndarray, players: Sequence[Blob]) -> None:
-        """Background update that cannot learn the players: their (grown) boxes are replaced by the background.
-        Called once per frame while at least one player is tracked; learns every ``background_update_every``."""
+    def learn_around(self, players: Sequence[Blob]) -> None:
+        """Background update that cannot learn the players: the last frame given to :meth:`foreground`, with their
+        (grown) boxes replaced by the background. Called once per frame while at least one player is tracked;
+        learns every ``background_update_every``."""
         cfg = self.config
         self._updates_due += 1
         if not cfg.background_update_every or self._updates_due < cfg.background_update_every:
             return
         self._updates_due = 0
         background = self._background
-        small = self._detection_image(image)
-        if background is None or background.shape != small.shape:
+        if background is None or self._last_detected is None:
             return
-        composite = self._compensate_gain(small).copy()
+        composite = self._last_detected.copy()
         m = cfg.background_update_margin_px
         for player in players:
             x0, y0, x1, y1 = player.bbox_px()
