@@ -69,8 +69,8 @@ class CourtForeground:
         # var_threshold is the full-resolution setting. Block averages are less noisy (pixel variance 7 -> 3.3 DN^2
         # on the synthetic court, under MOG2's variance floor of 4), so an unchanged threshold would flag smaller
         # contrasts than at full resolution; sqrt(downscale) keeps it nearer the old absolute contrast. Measured at
-        # half resolution against x1 and x2: x1 slightly worse on position and lag, x2 within 3 mm on position but
-        # a worse lag check (docs/camera-calibration.md).
+        # half resolution against x1 and x2: x1 slightly worse on position and lag, x2 within 4 mm on position but
+        # a larger lag error (docs/camera-calibration.md).
         self._mog = cv2.createBackgroundSubtractorMOG2(config.history, config.var_threshold * self.downscale**0.5,
                                                        detectShadows=True)
         self._mog.setNMixtures(config.mixtures)
@@ -83,7 +83,7 @@ class CourtForeground:
         self._background: np.ndarray | None = None
         self._background_level = 0.0
         # open 3x3 / close 7x7 full-resolution pixels, scaled: at half resolution the 3x3 opening would erase
-        # arms and legs a few frames in ten, and the centroid's jitter would drown the IMU-camera lag check
+        # thin arms and legs in some frames, and the centroid's jitter would drown the IMU-camera lag check
         self._open = _ellipse(3 / self.downscale)
         self._close = _ellipse(7 / self.downscale)
         self._last_detected: np.ndarray | None = None  # the last frame detected on, gain-matched (learn_around)
