@@ -29,7 +29,7 @@ from engine.safe_load import read_json
 from . import plot, protocols, table
 from .labels import clip_label
 from .confidence_quality import ConfidenceQuality, confidence_quality
-from .simulate import CameraModel
+from .simulate import CalibrationCapture, CameraModel
 from .takes import plan_chained_takes
 
 PROTOCOLS = ("loo", "chained", "loco", "loso")
@@ -78,6 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "tilt noise, misalignment)")
     p.add_argument("--orientation-noise", choices=["realistic", "clean"], default="realistic",
                    help="acc+ori rows: the orientation filter's error model (clean = a shared north, no error)")
+    p.add_argument("--no-calibration-capture", action="store_true",
+                   help="acc+ori rows: no N-pose capture before each take (no yaw offsets or strapping solved: the "
+                        "worn segments are posed by their tilt only)")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
     p.add_argument("--plot", metavar="OUT.png", help="draw the first take's per-second error of every row and the "
                                                      "table as bars (needs the plot extra: courtside[plot])")
@@ -114,7 +117,8 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
         weights=weights_from_args(args, warp), warp=warp,
         fusion=RootFusion.off() if args.no_root_fusion else RootFusion(
             args.camera_noise_m, float(np.radians(args.camera_noise_deg))),
-        lag_s=args.lag, seed=args.seed)
+        lag_s=args.lag, seed=args.seed,
+        capture=None if args.no_calibration_capture else CalibrationCapture())
 
 
 def _database(args: argparse.Namespace) -> protocols.Database:

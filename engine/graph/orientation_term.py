@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.mocap import quaternions as quat
-from engine.mocap.orientation import from_device_earth, virtual_orientations, yaw_about_up
+from engine.mocap.orientation import from_device_earth, twist_yaw, virtual_orientations, yaw_about_up
 from engine.mocap.sensors import standard_placements
 from engine.mocap.skeleton import Motion
 
@@ -45,13 +45,6 @@ OFFSET_TIME_CONSTANT_S = 30.0  # the yaw-offset estimate's memory: long enough t
 # poses, short enough to follow a filter's drift (OrientationErrorModel.realistic: 3 deg/min)
 MIN_LEARNED_S = 1.0  # decided samples (in seconds) before the heading part is used
 UP = np.array([0.0, 1.0, 0.0])
-
-
-def twist_yaw(quat_world: np.ndarray) -> np.ndarray:
-    """(...,) rad: the rotation's twist about the world's up axis (+Y), q = yaw_about_up(ψ) * swing with the
-    swing's axis horizontal; turning the frame by a yaw δ adds δ to ψ exactly."""
-    q = np.asarray(quat_world, float)
-    return 2.0 * np.arctan2(q[..., 2], q[..., 0])
 
 
 def places_sensors(graph: MotionGraph) -> bool:

@@ -41,6 +41,13 @@ def yaw_about_up(yaw_rad: np.ndarray) -> np.ndarray:
     return np.stack([np.cos(half), zero, np.sin(half), zero], axis=-1)
 
 
+def twist_yaw(quat_world: np.ndarray) -> np.ndarray:
+    """(...,) rad: the rotation's twist about the world's up axis (+Y), q = yaw_about_up(ψ) * swing with the
+    swing's axis horizontal; turning the frame by a yaw δ adds δ to ψ exactly."""
+    q = np.asarray(quat_world, float)
+    return 2.0 * np.arctan2(q[..., 2], q[..., 0])
+
+
 def virtual_orientations(motion: Motion, placements: list[SensorPlacement],
                          fk: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """(F, S, 4) unit quaternions (w, x, y, z), sensor -> engine world, exact (no error): the orientation a perfect
@@ -102,7 +109,7 @@ class OrientationErrorModel:
         n_frames, n_sensors, _ = q.shape
         t_min = np.arange(n_frames) / fps / 60.0
         if self.misalignment_deg > 0:
-            q = quat.multiply(q, _random_rotations(rng, n_sensors, np.radians(self.misalignment_deg))[None])
+            q = quat.multiply(q, random_rotations(rng, n_sensors, np.radians(self.misalignment_deg))[None])
         if self.tilt_noise_deg > 0:
             q = quat.multiply(self._tilt_errors(rng, n_frames, n_sensors, fps), q)
         yaw = np.zeros((n_frames, n_sensors))
@@ -130,7 +137,7 @@ class OrientationErrorModel:
         return quat.from_rotvec(rotvec)
 
 
-def _random_rotations(rng: np.random.Generator, n: int, sd_rad: float) -> np.ndarray:
+def random_rotations(rng: np.random.Generator, n: int, sd_rad: float) -> np.ndarray:
     """(n, 4) rotations about random axes by normally distributed angles (sd ``sd_rad``)."""
     axes = rng.normal(size=(n, 3))
     axes /= np.linalg.norm(axes, axis=1, keepdims=True)

@@ -1,0 +1,144 @@
+"""Posing the instrumented segments from their measured orientations (issue 18): the search plays database poses,
+the orientations then turn each worn segment onto what its sensor says.
+
+Why: a database-playing method cannot pass the database oracle (the nearest database pose per frame), and on
+motions the database lacks that floor is high (gestures left out: 7.4 cm root-relative against 12.5 for the mean
+pose). A forearm, shin, pelvis or chest sensor's orientation says where that segment points *now*, whether or not
+the database holds the pose: turning the segment's subtree (hand below the forearm, foot below the shin, the
+upper body below the chest) onto it moves the pose off the database toward the truth. Unworn segments (upper
+arms, thighs, neck) keep the played pose.
+
+Frames: a segment's orientation is its sensor's (sensor -> world) quaternion; the database side is
+`orientation_term.node_sensor_orientations` (the node's pose in its clip frame), the measured side the sensors'
+world orientations after calibration (`orientation_calibration`): each sensor's yaw relative to the pelvis sensor
+is what counts, so the measured orientations are turned about the vertical so the pelvis sensor's yaw equals the
+played pose's, and the pose is placed on the path as before. Without a pelvis sensor only the tilt of each segment
+(its swing away from the played pose's yaw) is applied."""
+from __future__ import annotations
+
+import numpy as np
+
+from engine.mocap import quaternions as quat
+from engine.mocap.orientation import from_device_earth, twist_yaw, yaw_about_up
+from engine.mocap.orientation_calibration import OrientationCalibration
+from engine.mocap.roles import joint_roles
+from engine.mocap.sensors import standard_placements
+
+from .graph import MotionGraph
+from .orientation_term import REFERENCE_SENSOR, node_sensor_orientations, places_sensors
+from .poses import blended_joint_positions
+
+
+def _descendants(parents: np.ndarray, joint: int) -> np.ndarray:
+    """(J,) bool: the joints below `joint` (not itself) in the skeleton's tree."""
+    below = np.zeros(len(parents), bool)
+    for j in range(len(parents)):  # parents come before children in every engine skeleton
+        p = parents[j]
+        below[j] = p >= 0 and (p == joint or below[p])
+    return below
+
+
+class SegmentPoser:
+    """For one sensor selection of a graph: which joints each sensor's segment moves, in tree order."""
+
+    def __init__(self, graph: MotionGraph, sensor_indices: list[int] | tuple[int, ...]) -> None:
+        names = [graph.config.sensor_names[i] for i in sensor_indices]
+        placements = standard_placements(graph.skeleton, names)
+        parents = np.asarray(graph.skeleton.parents)
+        self.graph = graph
+        self.sensor_indices = list(sensor_indices)
+        self.n_sensors = len(self.sensor_indices)
+        self.reference = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else None
+        self.joints = np.array([p.joint for p in placements])
+        roles = joint_roles(graph.skeleton)
+        self.left_hip, self.right_hip = roles["left_hip"], roles["right_hip"]
+        depth = np.array([self._depth(parents, j) for j in self.joints])
+        self.order = np.argsort(depth, kind="stable")  # parents' segments first: a child's pose builds on them
+        self.below = np.stack([_descendants(parents, j) for j in self.joints])  # (S, J)
+        # which sensors' segments each sensor's turn carries along (S, S): k's joint lies below i's
+        self.carries = self.below[:, self.joints]
+
+    @staticmethod
+    def _depth(parents: np.ndarray, joint: int) -> int:
+        d = 0
+        while parents[joint] >= 0:
+            joint, d = parents[joint], d + 1
+        return d
+
+    def pose(self, nodes: np.ndarray, quat_world: np.ndarray, gain: float = 1.0, use_yaw: bool = True
+             ) -> np.ndarray:
+        """(..., J, 3) clip-frame joint positions of `nodes` (...,) with each worn segment's subtree turned onto
+        the measured orientation `quat_world` (..., S, 4) (sensor -> world, calibrated; a frame whose
+        quaternions are not all finite keeps the played pose), by `gain` of the way (1 = all of it).
+
+        With `use_yaw` and a pelvis sensor, each segment takes its measured yaw relative to the pelvis (the
+        measured orientations turned about the vertical so the pelvis sensor's yaw is the node's: the yaw
+        offsets must be calibrated); otherwise each takes only its measured tilt, keeping the yaw the played
+        pose (after its parents' turns) gives it: no yaw calibration needed."""
+        nodes = np.asarray(nodes, dtype=np.intp)
+        pts = self.graph.node_positions_m[nodes].astype(float)
+        current = node_sensor_orientations(self.graph)[nodes][..., self.sensor_indices, :].copy()
+        q = np.broadcast_to(np.asarray(quat_world, float), current.shape)
+        ok = np.isfinite(q).all(axis=(-1, -2))
+        q = np.where(ok[..., None, None], q, quat.identity())
+        relative = use_yaw and self.reference is not None
+        if relative:
+            turn = twist_yaw(current[..., self.reference, :]) - twist_yaw(q[..., self.reference, :])
+            q = quat.multiply(yaw_about_up(turn)[..., None, :], q)
+        for i in self.order:
+            target = q[..., i, :] if relative else quat.multiply(
+                yaw_about_up(twist_yaw(current[..., i, :]) - twist_yaw(q[..., i, :])), q[..., i, :])
+            turn = quat.multiply(target, quat.conjugate(current[..., i, :]))
+            if gain != 1.0:
+                turn = quat.slerp(quat.identity(turn.shape[:-1]), turn, np.full(turn.shape[:-1], gain))
+            turn = np.where(ok[..., None], turn, quat.identity())
+            pivot = pts[..., self.joints[i], :][..., None, :]
+            below = self.below[i]
+            pts[..., below, :] = quat.rotate(turn[..., None, :], pts[..., below, :] - pivot) + pivot
+            carried = self.carries[i] | (np.arange(len(self.joints)) == i)
+            current[..., carried, :] = quat.multiply(turn[..., None, :], current[..., carried, :])
+        return self._keep_heading(self.graph.node_positions_m[nodes], pts)
+
+    def _keep_heading(self, played: np.ndarray, posed: np.ndarray) -> np.ndarray:
+        """`posed` turned about the vertical through the root so its hips heading is the played pose's: the
+        path (camera, root fusion) decides where the body faces, the sensors only how it is posed around it."""
+        def heading(p: np.ndarray) -> np.ndarray:
+            lateral = p[..., self.left_hip, :] - p[..., self.right_hip, :]
+            return np.arctan2(-lateral[..., 2], lateral[..., 0])
+
+        turn = yaw_about_up(heading(played) - heading(posed))[..., None, :]
+        root = posed[..., :1, :]
+        return quat.rotate(turn, posed - root) + root
+
+
+class SegmentPosing:
+    """The output side of the orientations, shared by the batch search and the fixed-lag decoder (same input,
+    same output): the decided (blended) poses with each worn segment turned onto its sensor. With a
+    `calibration` (the N-pose capture's yaw offsets and strapping) segments take their yaw relative to the
+    pelvis too; without one only their tilt."""
+
+    def __init__(self, poser: SegmentPoser, gain: float, calibration: OrientationCalibration | None = None) -> None:
+        self.poser, self.gain, self.calibration = poser, gain, calibration
+
+    @classmethod
+    def for_search(cls, graph: MotionGraph, sensor_indices: tuple[int, ...] | None, gain: float,
+                   calibration: OrientationCalibration | None = None) -> "SegmentPosing | None":
+        """None where there is nothing to pose: gain 0, no sensors, or a graph without joint rotations."""
+        if gain <= 0 or not sensor_indices or not places_sensors(graph):
+            return None
+        return cls(SegmentPoser(graph, sensor_indices), gain, calibration)
+
+    def world_orientations(self, quat_device: np.ndarray) -> np.ndarray:
+        """(..., S, 4) device-earth readings -> sensor orientations in the world (each still turned by its
+        unknown yaw without a calibration; the tilt-only posing does not read it)."""
+        if self.calibration is not None:
+            return self.calibration.world(quat_device)
+        return from_device_earth(np.asarray(quat_device, float))
+
+    def joint_positions(self, blend_nodes: np.ndarray, ground_m: np.ndarray, heading_rad: np.ndarray,
+                        quat_device: np.ndarray) -> np.ndarray:
+        """(T, J, 3) world joints: the mean of the poses of `blend_nodes` (T, k), each posed by the samples'
+        device-earth orientations (T, S, 4) (NaN rows: played as they are), placed at (ground, heading)."""
+        world = self.world_orientations(quat_device)[:, None]
+        pts = self.poser.pose(blend_nodes, world, self.gain, use_yaw=self.calibration is not None)
+        return blended_joint_positions(self.poser.graph, blend_nodes, ground_m, heading_rad, pts)

@@ -1,0 +1,123 @@
+"""Posing the worn segments onto their measured orientations (engine/graph/orientation_pose.py, issue 18), on the
+shipped CMU clips, against answers known by construction: a segment turned by a known rotation, orientations
+turned by yaws the posing must not see, and the batch search equal to the live decoder."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.graph.config import GraphConfig
+from engine.graph.graph import MotionGraph
+from engine.graph.online import FixedLagSynthesizer
+from engine.graph.orientation_pose import SegmentPoser, SegmentPosing
+from engine.graph.orientation_term import node_sensor_orientations
+from engine.graph.search import ViterbiSearch
+from engine.graph.viterbi import Observations, SearchWeights
+from engine.mocap import joint_roles
+from engine.mocap import quaternions as quat
+from engine.mocap import standard_placements, virtual_accelerometers
+from engine.mocap.orientation import to_device_earth, virtual_orientations, yaw_about_up
+from engine.mocap.orientation_calibration import OrientationCalibration
+
+YAWS = np.array([2.0, -1.3, 0.4, 3.0, -2.5, 1.1])  # per-sensor device yaw offsets (rad)
+WEIGHTS = SearchWeights(1.0, 0.0, 0.0, forgetting=0.9, decision_frames=6, blend_paths=4, orientation=1.0)
+
+
+@pytest.fixture(scope="module")
+def graph(sample_motions):
+    return MotionGraph.build(sample_motions, standard_placements(sample_motions[0].skeleton), GraphConfig())
+
+
+@pytest.fixture(scope="module")
+def poser(graph):
+    return SegmentPoser(graph, list(range(6)))
+
+
+def _own(graph, nodes):
+    """The nodes' own sensor orientations (clip frame = the world the database was captured in)."""
+    return node_sensor_orientations(graph)[nodes]
+
+
+@pytest.mark.parametrize("use_yaw", [True, False])
+def test_the_played_pose_s_own_orientations_change_nothing(graph, poser, use_yaw):
+    nodes = np.arange(0, graph.n_nodes, 37)
+    posed = poser.pose(nodes, _own(graph, nodes), use_yaw=use_yaw)
+    assert np.allclose(posed, graph.node_positions_m[nodes], atol=1e-5)
+
+
+def test_a_turned_forearm_turns_the_hand_about_the_elbow_and_nothing_else(graph, poser):
+    roles = joint_roles(graph.skeleton)
+    node = 40
+    measured = _own(graph, np.array([node]))[0].copy()
+    turn = quat.from_rotvec(np.array([0.0, 0.0, np.radians(30.0)]))  # 30 deg about the forward axis
+    measured[1] = quat.multiply(turn, measured[1])  # right forearm
+    posed = poser.pose(np.array([node]), measured[None])[0]
+    played = graph.node_positions_m[node].astype(float)
+    elbow = roles["right_elbow"]
+    below = poser.below[1]
+    want = quat.rotate(turn, played[below] - played[elbow]) + played[elbow]
+    assert np.allclose(posed[below], want, atol=1e-5)
+    assert np.allclose(posed[~below], played[~below], atol=1e-5)
+    assert np.linalg.norm(posed[roles["right_hand"]] - played[roles["right_hand"]]) > 0.05
+
+
+def test_tilt_posing_ignores_every_sensor_s_yaw_and_relative_posing_a_shared_one(graph, poser, sample_motions):
+    """A clip's true orientations, once as measured and once turned by per-sensor yaws (tilt posing must not
+    see them) or by one yaw for all (relative posing must not see it: only yaw relative to the pelvis counts)."""
+    motion = sample_motions[1]
+    q = virtual_orientations(motion, standard_placements(motion.skeleton))[::5]
+    nodes = np.arange(len(q)) * 3 % graph.n_nodes
+    tilt = poser.pose(nodes, q, use_yaw=False)
+    assert np.allclose(poser.pose(nodes, quat.multiply(yaw_about_up(YAWS), q), use_yaw=False), tilt, atol=1e-5)
+    relative = poser.pose(nodes, q, use_yaw=True)
+    assert np.allclose(poser.pose(nodes, quat.multiply(yaw_about_up(0.7), q), use_yaw=True), relative, atol=1e-5)
+    assert not np.allclose(relative, tilt, atol=1e-3)
+
+
+def test_posing_another_clip_s_nodes_gives_the_worn_bones_the_clip_s_elevation(graph, poser, sample_motions):
+    """Nodes of clip 1 posed onto clip 0's true orientations: each worn bone (elbow -> wrist, knee -> ankle)
+    rises from the vertical exactly as in clip 0 (same skeleton: the sensors' frames sit on the bones), where
+    the played pose was degrees off."""
+    from engine.mocap import forward_kinematics
+
+    roles = joint_roles(graph.skeleton)
+    motion = sample_motions[0]
+    q = virtual_orientations(motion, standard_placements(motion.skeleton))
+    other = np.flatnonzero(graph.node_clip == 1)[: len(q)]
+    truth = forward_kinematics(motion)[0][: len(other)]
+    bones = [(roles[f"{s}_{a}"], roles[f"{s}_{b}"]) for s in ("left", "right")
+             for a, b in (("elbow", "wrist"), ("knee", "ankle"))]
+
+    def elevation_deg(pts):
+        d = np.stack([pts[:, b] - pts[:, a] for a, b in bones], axis=1)
+        return np.degrees(np.arcsin(d[..., 1] / np.linalg.norm(d, axis=-1)))
+
+    posed = poser.pose(other, q[: len(other)])
+    assert np.abs(elevation_deg(posed) - elevation_deg(truth)).max() < 0.5
+    assert np.abs(elevation_deg(graph.node_positions_m[other].astype(float)) - elevation_deg(truth)).mean() > 5.0
+
+
+def test_live_equals_batch_with_posing(graph, sample_motions):
+    """The fixed-lag decoder's emitted joints equal the batch search's posed joints, bit for bit."""
+    motion = sample_motions[0]
+    placements = standard_placements(motion.skeleton)
+    q_world = virtual_orientations(motion, placements)
+    acc = virtual_accelerometers(motion, placements) + np.random.default_rng(3).normal(0.0, 0.2, (len(q_world), 6, 3))
+    q_device = to_device_earth(q_world, YAWS)
+    calibration = OrientationCalibration(YAWS, np.tile([1.0, 0.0, 0.0, 0.0], (6, 1)))
+    batch = ViterbiSearch(graph, WEIGHTS).run(Observations(acc, quat_wxyz=q_device))
+    posing = SegmentPosing.for_search(graph, tuple(range(6)), WEIGHTS.segment_pose, calibration)
+    want = posing.joint_positions(batch.blend_nodes, batch.ground_m, batch.heading_rad, q_device)
+    syn = FixedLagSynthesizer(graph, 2.0, WEIGHTS, confidence_reference=1.0, orientation_calibration=calibration)
+    out = []
+    for t in range(len(acc)):
+        out += syn.push(acc[t], quat_wxyz=q_device[t])
+    out += syn.flush()
+    assert np.array_equal(np.stack([p.joint_positions_m for p in out]), want)
+    assert not np.allclose(want, posing.joint_positions(batch.blend_nodes, batch.ground_m, batch.heading_rad,
+                                                        np.full_like(q_device, np.nan)), atol=1e-3)
+
+
+def test_without_orientations_or_with_gain_zero_the_database_pose_plays(graph):
+    assert SegmentPosing.for_search(graph, tuple(range(6)), 0.0) is None
+    assert SegmentPosing.for_search(graph, None, 1.0) is None
