@@ -17,8 +17,7 @@ from engine.graph.confidence import reference_cost_per_sample
 from engine.graph.graph import MotionGraph
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.geometry import rotate_ground
-from engine.graph.orientation_pose import SegmentPosing
-from engine.graph.poses import blended_joint_positions
+from engine.graph.orientation_pose import SegmentPosing, decided_joint_positions
 from engine.graph.root_fusion import RootFusion, fuse_track
 from engine.graph.viterbi import Observations, SearchWeights
 from engine.graph.search import ViterbiSearch
@@ -79,9 +78,7 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
         res = ViterbiSearch(graph, weights, warp=warp).run(Observations(acc, pos, head, sensors, quats))
         ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
         posing = SegmentPosing.for_search(graph, sensors, weights.segment_pose, calibration)
-        blend = res.nodes[:, None] if res.blend_nodes is None else res.blend_nodes
-        joints = blended_joint_positions(graph, blend, ground, heading) if posing is None or quats is None \
-            else posing.joint_positions(blend, ground, heading, quats)
+        joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, quats)
         return Prediction(joints, graph.node_clip[res.nodes].astype(int))
     reference = reference_cost_per_sample(graph, weights, warp, sensors, error_model=error_model,
                                           camera_noise_m=fusion.position_noise_m,

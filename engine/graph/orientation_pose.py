@@ -142,3 +142,15 @@ class SegmentPosing:
         world = self.world_orientations(quat_device)[:, None]
         pts = self.poser.pose(blend_nodes, world, self.gain, use_yaw=self.calibration is not None)
         return blended_joint_positions(self.poser.graph, blend_nodes, ground_m, heading_rad, pts)
+
+
+def decided_joint_positions(graph: MotionGraph, nodes: np.ndarray, blend_nodes: np.ndarray | None,
+                            ground_m: np.ndarray, heading_rad: np.ndarray, posing: SegmentPosing | None = None,
+                            quat_device: np.ndarray | None = None) -> np.ndarray:
+    """(T, J, 3) world joints of a batch search's decisions -- `nodes` (T,), or the blend of the best paths
+    `blend_nodes` (T, k), at (ground, heading) -- with the worn segments posed onto `quat_device` (T, S, 4) when
+    there is a `posing` and orientations: what the fixed-lag decoder emits for the same decisions."""
+    blend = np.asarray(nodes)[:, None] if blend_nodes is None else blend_nodes
+    if posing is None or quat_device is None:
+        return blended_joint_positions(graph, blend, ground_m, heading_rad)
+    return posing.joint_positions(blend, ground_m, heading_rad, quat_device)

@@ -1,6 +1,8 @@
 """Posing the worn segments onto their measured orientations (engine/graph/orientation_pose.py, issue 18), on the
 shipped CMU clips, against answers known by construction: a segment turned by a known rotation, orientations
-turned by yaws the posing must not see, and the batch search equal to the live decoder."""
+turned by yaws the posing must not see, and the batch search equal to the live decoder; `courtside synthesize
+--calibration` with a record that calibrated the sensors' orientations poses with their yaw, batch = live = the
+console's engine."""
 from __future__ import annotations
 
 import numpy as np
@@ -121,3 +123,77 @@ def test_live_equals_batch_with_posing(graph, sample_motions):
 def test_without_orientations_or_with_gain_zero_the_database_pose_plays(graph):
     assert SegmentPosing.for_search(graph, tuple(range(6)), 0.0) is None
     assert SegmentPosing.for_search(graph, None, 1.0) is None
+
+
+def _take_with_npose_capture(tmp_path, motion, seed: int = 4):
+    """A take of ``motion`` as orientation IMUs record it after the athlete held the N-pose for 1 s (the
+    realistic filter error model over capture and take alike), and the record of the calibration that capture
+    gives (what the wizard saves: nominal mountings, the orientation pair per sensor)."""
+    import json
+
+    from engine.mocap import SEED000_SENSORS, root_heading
+    from engine.mocap.calibrated import orientation_fields
+    from engine.mocap.orientation import OrientationErrorModel
+    from engine.mocap.orientation_calibration import pose_sensor_orientations
+
+    names = list(SEED000_SENSORS)
+    placements = standard_placements(motion.skeleton, names)
+    heading = root_heading(motion)
+    n_capture = int(motion.fps)
+    held = pose_sensor_orientations(motion.skeleton, names, heading_rad=float(heading[0]))
+    q = np.concatenate([np.repeat(held[None], n_capture, axis=0), virtual_orientations(motion, placements)])
+    readings = OrientationErrorModel.realistic().apply(q, motion.fps, np.random.default_rng(seed))
+    cal = OrientationCalibration.from_still_pose(readings[:n_capture], pose_sensor_orientations(motion.skeleton, names))
+    np.savez(tmp_path / "take.npz", acc_g=virtual_accelerometers(motion, placements), fps=motion.fps,
+             sensor_names=np.array(names), quat_wxyz=readings[n_capture:],
+             position_m=motion.root_positions_m[:, [0, 2]], heading_rad=heading)
+    record = tmp_path / "take.calibration.json"
+    record.write_text(json.dumps({"schema": "courtside.sensor_calibration", "schema_version": 1, "sensors": {
+        f"st1/{k}": {"segment": p.name, "rotation": p.rotation.tolist(), "gravity_sensor_g": [0, 1, 0],
+                     "norm_error_g": 0.0, "correction_deg": 0.0, "passed": True,
+                     **orientation_fields(cal.yaw_rad[k], cal.mount_wxyz[k])} for k, p in enumerate(placements)}}))
+    return tmp_path / "take.npz", record
+
+
+def test_synthesize_with_an_orientation_calibration_poses_with_yaw_live_as_offline(graph, sample_motions, tmp_path,
+                                                                                 capsys):
+    """`courtside synthesize --calibration REC` on a take with orientations: the record's orientation calibration
+    poses the segments with their yaw (the output differs from tilt-only posing and says which it did); the batch
+    search gives the live decoder's poses (`--lag`, root fusion off: the batch fuses over the whole take), and
+    the console's engine for that record (`load_spec(graph, calibration)`, which says `calibrated yaw` in its
+    status label) gives `--lag`'s poses, bit for bit."""
+    import json
+
+    from engine.graph.cli import synthesize_main
+    from engine.graph.online_engine import load_spec
+    from engine.graph.inputs import read_take
+    from engine.mocap import load_sensor_calibration
+    from engine.stream.offline import drive_take
+    from engine.stream.poses_file import load_poses
+
+    graph_path = tmp_path / "g.npz"
+    graph.save(graph_path)
+    take, record = _take_with_npose_capture(tmp_path, sample_motions[1])
+    base = ["--graph", str(graph_path), "--input", str(take), "-o", str(tmp_path / "out.bvh")]
+
+    def run(name: str, *extra: str) -> tuple[np.ndarray, dict]:
+        assert synthesize_main(base + ["--save-poses", str(tmp_path / f"{name}.npz"), *extra]) == 0
+        summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        return load_poses(tmp_path / f"{name}.npz").joint_positions_m, summary
+
+    yaw, summary = run("yaw", "--calibration", str(record), "--no-root-fusion")
+    assert summary["segment_posing"] == "calibrated yaw"
+    tilt, summary = run("tilt", "--no-root-fusion")
+    assert summary["segment_posing"] == "tilt only"
+    moved = np.linalg.norm(yaw - tilt, axis=-1).max(axis=1)
+    print(f"yaw posing moved joints by up to {100 * moved.max():.1f} cm (median frame {100 * np.median(moved):.1f} cm)")
+    assert np.median(moved) > 0.01
+    live, _ = run("live", "--calibration", str(record), "--no-root-fusion", "--lag", "1.0")
+    assert np.array_equal(live, yaw)
+    fused, _ = run("fused", "--calibration", str(record), "--lag", "1.0")
+    spec = load_spec(graph_path, load_sensor_calibration(record))
+    assert spec.label.endswith("acc+orientation (calibrated yaw))"), spec.label
+    frames = read_take(take, graph.config.sensor_names, graph.config.fps)
+    console = drive_take(spec.make(1.0), frames.obs.acc_g, frames.obs, int(frames.frame[0]), spec.rate_hz)
+    assert np.array_equal(np.stack([p.joint_positions_m for p in console]), fused)
+    assert load_spec(graph_path).label.endswith("acc+orientation (tilt only))")
