@@ -75,7 +75,8 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
     quats = quat_wxyz[:, list(sensor_indices)] if acc is not None and quat_wxyz is not None else None
     calibration = None if calibration is None or quats is None else calibration.select(sensor_indices)
     if lag_s is None:
-        res = ViterbiSearch(graph, weights, warp=warp).run(Observations(acc, pos, head, sensors, quats))
+        res = ViterbiSearch(graph, weights, warp=warp).run(
+            Observations(acc, pos, head, sensors, quats, orientation_calibration=calibration))
         ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
         posing = SegmentPosing.for_search(graph, sensors, weights.segment_pose, calibration)
         joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, quats)

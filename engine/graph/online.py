@@ -72,7 +72,8 @@ class FixedLagSynthesizer:
         # a forgetting search decides sooner (SearchWeights.decision_frames) and holds the decided samples until
         # the lag has passed, so the fused root (root_fusion.py) still smooths the camera over the whole lag
         self.decision_lag = min(self.lag, weights.decision_frames) if weights.forgets else self.lag
-        self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp)
+        self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp,
+                                      orientation_calibration)
         self.next_emit = 0  # first sample not yet emitted
         self.next_decide = 0  # first sample not yet decided
         self._decided: list[tuple] = []  # (node, edge, ground, heading, blend nodes) of samples next_emit.. decided
@@ -214,7 +215,8 @@ def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Obse
     over the whole take with lag `weights.decision_frames`, so offline and live decide every sample the same way
     (bit for bit: both step through `viterbi.step_arguments`)."""
     syn = FixedLagSynthesizer(graph, weights.decision_frames / graph.config.fps, weights, obs.sensor_indices,
-                              prune_every, kernel, warp, confidence_reference=float("nan"), reanchor_ratio=0.0)
+                              prune_every, kernel, warp, confidence_reference=float("nan"), reanchor_ratio=0.0,
+                              orientation_calibration=obs.orientation_calibration)
     lat = syn.lattice
     poses: list[EmittedPose] = []
     for step in step_arguments(lat, obs, constraints):

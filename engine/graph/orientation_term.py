@@ -35,6 +35,7 @@ import numpy as np
 
 from engine.mocap import quaternions as quat
 from engine.mocap.orientation import from_device_earth, twist_yaw, virtual_orientations, yaw_about_up
+from engine.mocap.orientation_calibration import OrientationCalibration
 from engine.mocap.sensors import standard_placements
 from engine.mocap.skeleton import Motion
 
@@ -112,8 +113,12 @@ class OrientationTerm:
     the lattice's acc metadata, each node's relative yaws, and encoders for observed device-earth quaternions."""
 
     def __init__(self, graph: MotionGraph, sensor_indices: list[int], weight: float, heading_share: float = 0.0,
-                 offset_time_constant_s: float = OFFSET_TIME_CONSTANT_S) -> None:
+                 offset_time_constant_s: float = OFFSET_TIME_CONSTANT_S,
+                 calibration: OrientationCalibration | None = None, calibrated_heading_share: float = 0.0) -> None:
         names = [graph.config.sensor_names[i] for i in sensor_indices]
+        self.calibration = calibration  # known yaw offsets and strapping: the readings are turned into the world
+        if calibration is not None:
+            heading_share = calibrated_heading_share
         self.heading_share = heading_share  # 0: the tilt part alone (no reference, nothing to learn)
         self.reference = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names and heading_share > 0 else None
         self.n_sensors = len(sensor_indices)
@@ -154,8 +159,12 @@ class OrientationEncoder:
             raise ValueError(f"expected {self.term.n_sensors} sensors x 4 quaternion components, got {q.shape}")
         if not np.isfinite(q).all():
             return None
-        q = from_device_earth(q)
         ref = self.term.reference
+        if self.term.calibration is not None:  # offsets known: nothing to learn
+            q = self.term.calibration.world(q)
+            return features(q, ref, None if ref is None else np.zeros(self.term.n_sensors),
+                            self.term.heading_share) * self.term.scale
+        q = from_device_earth(q)
         offset = None
         if ref is not None:
             psi = twist_yaw(q)

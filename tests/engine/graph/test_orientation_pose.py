@@ -100,14 +100,16 @@ def test_posing_another_clip_s_nodes_gives_the_worn_bones_the_clip_s_elevation(g
 
 
 def test_live_equals_batch_with_posing(graph, sample_motions):
-    """The fixed-lag decoder's emitted joints equal the batch search's posed joints, bit for bit."""
+    """With a calibration (the search's heading part on known offsets, segments posed with their yaw), the
+    fixed-lag decoder's emitted joints equal the batch search's posed joints, bit for bit."""
     motion = sample_motions[0]
     placements = standard_placements(motion.skeleton)
     q_world = virtual_orientations(motion, placements)
     acc = virtual_accelerometers(motion, placements) + np.random.default_rng(3).normal(0.0, 0.2, (len(q_world), 6, 3))
     q_device = to_device_earth(q_world, YAWS)
     calibration = OrientationCalibration(YAWS, np.tile([1.0, 0.0, 0.0, 0.0], (6, 1)))
-    batch = ViterbiSearch(graph, WEIGHTS).run(Observations(acc, quat_wxyz=q_device))
+    batch = ViterbiSearch(graph, WEIGHTS).run(Observations(acc, quat_wxyz=q_device,
+                                                           orientation_calibration=calibration))
     posing = SegmentPosing.for_search(graph, tuple(range(6)), WEIGHTS.segment_pose, calibration)
     want = posing.joint_positions(batch.blend_nodes, batch.ground_m, batch.heading_rad, q_device)
     syn = FixedLagSynthesizer(graph, 2.0, WEIGHTS, confidence_reference=1.0, orientation_calibration=calibration)
