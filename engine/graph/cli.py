@@ -412,11 +412,12 @@ def _batch_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sear
     from .root_fusion import fuse_track
     from .search import ViterbiSearch
 
-    obs, fps = take.obs, graph.config.fps
+    indices, fps = _columns(graph, take.obs), graph.config.fps
+    calibration = search.calibration_of(indices)
+    obs = replace(take.obs, orientation_calibration=calibration)  # the search's orientation term reads it too
     res = ViterbiSearch(graph, search.weights, warp=search.warp).run(obs, search.constraints)
     ground, heading = fuse_track(search.fusion, fps, obs.position_m, obs.heading_rad, res.ground_m, res.heading_rad)
-    indices = _columns(graph, obs)
-    posing = SegmentPosing.for_search(graph, indices, search.weights.segment_pose, search.calibration_of(indices))
+    posing = SegmentPosing.for_search(graph, indices, search.weights.segment_pose, calibration)
     joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, obs.quat_wxyz)
     poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
     return DecodedPath(poses, res.nodes, res.edges, ground, heading, res.blend_nodes, res.broken_constraints)
