@@ -30,6 +30,18 @@ def wait_for(predicate, timeout_s: float = 15.0) -> bool:
     return False
 
 
+def through_the_npose(client: GatewayClient, subject) -> dict:
+    """Drive the wizard as the console does: assign the subject's sensors ("st1/i"), pass the placement check,
+    wait for the N-pose capture, skip the tap; returns the state in review."""
+    for i, sid in enumerate(subject.segments):
+        client.calibration("assign", sensor=f"st1/{i}", segment=subject.segments[sid])
+    assert client.calibration("confirm")["accepted"]  # -> placement
+    assert wait_for(lambda: all(s["placement_ok"] for s in client.calibration("state")["sensors"].values()))
+    assert client.calibration("confirm")["accepted"]  # -> npose, auto-start when still
+    assert wait_for(lambda: client.calibration("state")["step"] == "tap")
+    return client.calibration("confirm")["state"]  # skip the tap
+
+
 def test_calibration_through_the_gateway(tmp_path, specs, subject):
     ids = list(subject.segments)  # "st0/i" in the fixture; the gateway names them "st1/i"
     world_from_sensor = np.stack([subject.world_from_sensor(sid) for sid in ids])  # standing in the N-pose
@@ -40,15 +52,9 @@ def test_calibration_through_the_gateway(tmp_path, specs, subject):
     try:
         with Gateway([station.path], listen=("127.0.0.1", 0), record_dir=tmp_path, status_interval_s=0.1,
                      calibration=service) as gw, GatewayClient(*gw.address).connect() as client:
-            for i, sid in enumerate(ids):
-                client.calibration("assign", sensor=f"st1/{i}", segment=subject.segments[sid])
             with pytest.raises(GatewayRequestError, match="unknown segment"):
                 client.calibration("assign", sensor="st1/0", segment="tail")
-            assert client.calibration("confirm")["accepted"]  # -> placement
-            assert wait_for(lambda: all(s["placement_ok"] for s in client.calibration("state")["sensors"].values()))
-            assert client.calibration("confirm")["accepted"]  # -> npose, auto-start when still
-            assert wait_for(lambda: client.calibration("state")["step"] == "tap")
-            state = client.calibration("confirm")["state"]  # skip the tap
+            state = through_the_npose(client, subject)
             assert state["step"] == "review" and state["tap_skipped"] and state["quality"]["passed"]
             for i, sid in enumerate(ids):
                 q = np.array(state["sensors"][f"st1/{i}"]["rotation_wxyz"])
@@ -94,13 +100,7 @@ def test_orientation_calibration_through_the_gateway(tmp_path, specs, subject):
     try:
         with Gateway([station.path], listen=("127.0.0.1", 0), record_dir=tmp_path, status_interval_s=0.1,
                      calibration=service) as gw, GatewayClient(*gw.address).connect() as client:
-            for i, sid in enumerate(ids):
-                client.calibration("assign", sensor=f"st1/{i}", segment=subject.segments[sid])
-            assert client.calibration("confirm")["accepted"]  # -> placement
-            assert wait_for(lambda: all(s["placement_ok"] for s in client.calibration("state")["sensors"].values()))
-            assert client.calibration("confirm")["accepted"]  # -> npose, auto-start when still
-            assert wait_for(lambda: client.calibration("state")["step"] == "tap")
-            state = client.calibration("confirm")["state"]  # skip the tap
+            state = through_the_npose(client, subject)
             assert "orientation calibrated for 6 of 6 sensors" in " ".join(state["messages"])
             saved = client.calibration("save", name="oriented", subject="p1")
     finally:
