@@ -146,9 +146,9 @@ class SensorCalibrationData:
 def read_calibration_record(path: str | Path) -> dict:
     """The JSON document of a ``courtside.sensor_calibration`` record, checked: schema and version, a non-empty
     ``sensors`` object, every entry's segment, proper 3x3 rotation, gravity (3,), finite numbers, the optional
-    orientation pair (`read_orientation_fields`), one sensor per segment. The one check of the format: the engine (`load_sensor_calibration`) and the gateway
-    (``gateway.calibration.CalibrationRecord.load``) both read records through it. Bad files raise
-    MalformedFileError naming the file and the problem."""
+    orientation pair (`read_orientation_fields`), one sensor per segment. The one check of the format: the engine
+    (`load_sensor_calibration`) and the gateway (``gateway.calibration.CalibrationRecord.load``) both read records
+    through it. Bad files raise MalformedFileError naming the file and the problem."""
     path = Path(path)
     doc = read_versioned_json(path, SCHEMA, SCHEMA_VERSION, "a sensor calibration record",
                               lambda p, problem: MalformedFileError(p, None, problem))

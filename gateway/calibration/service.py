@@ -1,7 +1,8 @@
 """Calibration hook for the gateway daemon: request actions -> :class:`CalibrationWizard`, samples in.
 
 Contract (docs/gateway.md "Hooks"): ``handle(action, args) -> result``, ``state() -> dict`` and
-``on_samples(station, sensor, t_host_s, acc_g, quat_wxyz=None)`` (orientations of a sensor that streams them). Sensor ids in the wizard are ``"<station>/<sensor>"``.
+``on_samples(station, sensor, t_host_s, acc_g, quat_wxyz=None)`` (orientations of a sensor that streams them).
+Sensor ids in the wizard are ``"<station>/<sensor>"``.
 Reader threads push samples while client threads send actions, so one lock serialises both.
 
 ``save`` writes ``<records_dir>/<name>.calibration.json`` (+ ``.npz``) and nothing else: the client names the

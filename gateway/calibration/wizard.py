@@ -77,8 +77,8 @@ def segment_specs_from_placements(placements: list[Any], pose_rotations: np.ndar
     ``pose_rotations`` (J, 3, 3), the joints' global rotations in the pose the subject really holds (e.g.
     ``gateway.calibration.pose.reference_npose(skeleton)[1]``, what ``CalibrationService.standard`` uses), is
     given: then each segment's up is world up seen in that joint's frame, ``G_j^T (0, 1, 0)``, and its nominal
-    sensor's orientation in the pose is ``G_j R`` (as `engine.mocap.orientation_calibration.pose_sensor_orientations`
-    computes it: a placement's sensor frame is the same in every skeleton's joint frames)."""
+    sensor's orientation in the pose is ``G_j R``: the same pose for the accelerometer and the orientation, so both
+    halves of a record describe one strap."""
     specs = {}
     for p in placements:
         world_from_segment = np.eye(3) if pose_rotations is None else np.asarray(pose_rotations, float)[p.joint]
