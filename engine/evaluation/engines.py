@@ -79,10 +79,10 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
         res = ViterbiSearch(graph, weights, warp=warp).run(
             Observations(acc, pos, head, sensors, quats, orientation_calibration=calibration))
         ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
-        posing = SegmentPosing.for_search(graph, sensors, weights.segment_pose, calibration)
+        posing = SegmentPosing.for_search(graph, sensors, weights, calibration)
         blend = res.nodes[:, None] if res.blend_nodes is None else res.blend_nodes
-        joints = blended_joint_positions(graph, blend, ground, heading) if posing is None or quats is None \
-            else posing.joint_positions(blend, ground, heading, quats)
+        joints = blended_joint_positions(graph, blend, ground, heading) if posing is None \
+            else posing.joint_positions(blend, ground, heading, *posing.over_take(acc, quats))
         return Prediction(joints, graph.node_clip[res.nodes].astype(int))
     reference = reference_cost_per_sample(graph, weights, warp, sensors, error_model=error_model,
                                           camera_noise_m=fusion.position_noise_m,
