@@ -78,8 +78,8 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
         res = ViterbiSearch(graph, weights, warp=warp).run(
             Observations(acc, pos, head, sensors, quats, orientation_calibration=calibration))
         ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
-        posing = SegmentPosing.for_search(graph, sensors, weights.segment_pose, calibration)
-        joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, quats)
+        posing = SegmentPosing.for_search(graph, sensors, weights, calibration)
+        joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, acc, quats)
         return Prediction(joints, graph.node_clip[res.nodes].astype(int))
     reference = reference_cost_per_sample(graph, weights, warp, sensors, error_model=error_model,
                                           camera_noise_m=fusion.position_noise_m,

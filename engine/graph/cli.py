@@ -328,11 +328,10 @@ def synthesize_main(argv: list[str]) -> int:
     if stream is not None:
         stream.close()
     counts = path.counts
-    posing = None if take.obs.quat_wxyz is None or weights.segment_pose <= 0 or not places_sensors(graph) else \
-        "calibrated yaw" if orientation is not None else "tilt only"
     print(json.dumps({"samples": int(take.obs.n_samples), "first_frame": int(take.frame[0]),
                       "search_s": round(elapsed, 3), "output": args.output,
-                      "broken_constraints": path.broken_constraints, "segment_posing": posing,
+                      "broken_constraints": path.broken_constraints,
+                      "segment_posing": _segment_posing(graph, weights, take.obs.quat_wxyz is not None, orientation),
                       **{k: counts[k] for k in ("confidence_mean", "reanchors") if k in counts}}))
     return 0
 
@@ -372,6 +371,16 @@ def _orientation_calibration(args: argparse.Namespace, graph: MotionGraph) -> Or
         print(f"note: {args.calibration}: not every graph sensor's orientation is calibrated (the record's still "
               "capture had no orientations from some): worn segments are posed by their tilt only", file=sys.stderr)
     return cal
+
+
+def _segment_posing(graph: MotionGraph, weights: SearchWeights, has_orientations: bool,
+                    calibration: OrientationCalibration | None) -> str | None:
+    """How the worn segments were posed (orientation_pose.SegmentPosing), for the summary line."""
+    if weights.segment_pose <= 0 or not places_sensors(graph):
+        return None
+    if has_orientations:
+        return "calibrated yaw" if calibration is not None else "tilt only"
+    return "tilt from accelerations" if weights.tilt_from_acc_s > 0 and calibration is None else None
 
 
 def _constraints(args: argparse.Namespace, graph: MotionGraph) -> list:
@@ -417,8 +426,9 @@ def _batch_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sear
     obs = replace(take.obs, orientation_calibration=calibration)  # the search's orientation term reads it too
     res = ViterbiSearch(graph, search.weights, warp=search.warp).run(obs, search.constraints)
     ground, heading = fuse_track(search.fusion, fps, obs.position_m, obs.heading_rad, res.ground_m, res.heading_rad)
-    posing = SegmentPosing.for_search(graph, indices, search.weights.segment_pose, calibration)
-    joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, obs.quat_wxyz)
+    posing = SegmentPosing.for_search(graph, indices, search.weights, calibration)
+    joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, obs.acc_g,
+                                     obs.quat_wxyz)
     poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
     return DecodedPath(poses, res.nodes, res.edges, ground, heading, res.blend_nodes, res.broken_constraints)
 

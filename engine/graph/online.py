@@ -91,9 +91,8 @@ class FixedLagSynthesizer:
         self._high_for = 0  # consecutive samples with the window cost above reanchor_ratio x reference
         self.reanchors: list[int] = []  # samples at which the search re-anchored
         self._posing = SegmentPosing.for_search(graph, tuple(range(graph.n_sensors)) if sensor_indices is None
-                                                else tuple(sensor_indices), weights.segment_pose,
-                                                orientation_calibration)
-        self._quats: list[np.ndarray | None] = []  # device-earth orientations of samples next_emit.. (posing)
+                                                else tuple(sensor_indices), weights, orientation_calibration)
+        self._pose_inputs: list[tuple[np.ndarray, np.ndarray]] = []  # SegmentPosing.sample of samples next_emit..
 
     def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None, heading_rad: float | None = None,
              penalty: np.ndarray | None = None, rows: np.ndarray | None = None, *,
@@ -107,7 +106,7 @@ class FixedLagSynthesizer:
         lat.step(acc_g, pos_m, heading_rad, penalty, rows, quat_wxyz)
         self._fuser.push(pos_m, heading_rad)
         if self._posing is not None:
-            self._quats.append(None if quat_wxyz is None else np.array(quat_wxyz, float))
+            self._pose_inputs.append(self._posing.sample(acc_g, quat_wxyz))
         t = lat.t
         per_sample = self._window.push(lat.cost_offset)
         self._history.push(lat.cost_offset)
@@ -192,11 +191,10 @@ class FixedLagSynthesizer:
         heading = np.array([d[3] for d in out], dtype=float)
         out_ground, out_heading = self._fuser.decide(ground, heading)
         blend = np.stack([d[4] for d in out]) if out[0][4] is not None else nodes[:, None]
-        quats, self._quats = self._quats[:k], self._quats[k:]
-        if self._posing is not None and any(q is not None for q in quats):
-            missing = np.full((self._posing.poser.n_sensors, 4), np.nan)
-            joints = self._posing.joint_positions(blend, out_ground, out_heading,
-                                                  np.stack([missing if q is None else q for q in quats]))
+        inputs, self._pose_inputs = self._pose_inputs[:k], self._pose_inputs[k:]
+        if self._posing is not None:
+            joints = self._posing.joint_positions(blend, out_ground, out_heading, np.stack([i[0] for i in inputs]),
+                                                  np.stack([i[1] for i in inputs]))
         elif out[0][4] is not None:
             joints = blended_joint_positions(self.graph, blend, out_ground, out_heading)
         else:

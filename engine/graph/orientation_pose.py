@@ -25,8 +25,10 @@ from engine.mocap.roles import joint_roles
 from engine.mocap.sensors import standard_placements
 
 from .graph import MotionGraph
+from .acc_tilt import TiltFromAccelerations
 from .orientation_term import REFERENCE_SENSOR, node_sensor_orientations, places_sensors
 from .poses import blended_joint_positions
+from .viterbi import SearchWeights
 
 
 def _descendants(parents: np.ndarray, joint: int) -> np.ndarray:
@@ -65,11 +67,12 @@ class SegmentPoser:
             joint, d = parents[joint], d + 1
         return d
 
-    def pose(self, nodes: np.ndarray, quat_world: np.ndarray, gain: float = 1.0, use_yaw: bool = True
+    def pose(self, nodes: np.ndarray, quat_world: np.ndarray, gain: float | np.ndarray = 1.0, use_yaw: bool = True
              ) -> np.ndarray:
         """(..., J, 3) clip-frame joint positions of `nodes` (...,) with each worn segment's subtree turned onto
         the measured orientation `quat_world` (..., S, 4) (sensor -> world, calibrated; a frame whose
-        quaternions are not all finite keeps the played pose), by `gain` of the way (1 = all of it).
+        quaternions are not all finite keeps the played pose), by `gain` of the way (1 = all of it; a float, or
+        an array broadcasting to (..., S): per sample and sensor).
 
         With `use_yaw` and a pelvis sensor, each segment takes its measured yaw relative to the pelvis (the
         measured orientations turned about the vertical so the pelvis sensor's yaw is the node's: the yaw
@@ -89,8 +92,9 @@ class SegmentPoser:
             target = q[..., i, :] if relative else quat.multiply(
                 yaw_about_up(twist_yaw(current[..., i, :]) - twist_yaw(q[..., i, :])), q[..., i, :])
             turn = quat.multiply(target, quat.conjugate(current[..., i, :]))
-            if gain != 1.0:
-                turn = quat.slerp(quat.identity(turn.shape[:-1]), turn, np.full(turn.shape[:-1], gain))
+            share = np.broadcast_to(gain, current.shape[:-1])[..., i]  # a float, or per sample and sensor
+            if np.any(share != 1.0):
+                turn = quat.slerp(quat.identity(turn.shape[:-1]), turn, share)
             turn = np.where(ok[..., None], turn, quat.identity())
             pivot = pts[..., self.joints[i], :][..., None, :]
             below = self.below[i]
@@ -112,21 +116,27 @@ class SegmentPoser:
 
 
 class SegmentPosing:
-    """The output side of the orientations, shared by the batch search and the fixed-lag decoder (same input,
-    same output): the decided (blended) poses with each worn segment turned onto its sensor. With a
-    `calibration` (the N-pose capture's yaw offsets and strapping) segments take their yaw relative to the
-    pelvis too; without one only their tilt."""
+    """The output side of the worn sensors, shared by the batch search and the fixed-lag decoder (same input, same
+    output): the decided (blended) poses with each worn segment turned onto what its sensor says. With
+    orientations and a `calibration` (the N-pose capture's yaw offsets and strapping) segments take their yaw
+    relative to the pelvis too; with orientations alone, their tilt; with accelerations alone (and
+    `tilt_time_constant_s` > 0), their tilt from the low-passed accelerations (acc_tilt.py), each sensor's share
+    falling while it accelerates. Stateful (the low-pass): feed every sample in order through `sample`."""
 
-    def __init__(self, poser: SegmentPoser, gain: float, calibration: OrientationCalibration | None = None) -> None:
+    def __init__(self, poser: SegmentPoser, gain: float, calibration: OrientationCalibration | None = None,
+                 tilt_time_constant_s: float = 0.0) -> None:
         self.poser, self.gain, self.calibration = poser, gain, calibration
+        self._acc_tilt = TiltFromAccelerations(poser.graph.config.fps, tilt_time_constant_s) \
+            if tilt_time_constant_s > 0 and calibration is None else None  # calibrated: posed with yaw, never by acc
 
     @classmethod
-    def for_search(cls, graph: MotionGraph, sensor_indices: tuple[int, ...] | None, gain: float,
+    def for_search(cls, graph: MotionGraph, sensor_indices: tuple[int, ...] | None, weights: SearchWeights,
                    calibration: OrientationCalibration | None = None) -> "SegmentPosing | None":
-        """None where there is nothing to pose: gain 0, no sensors, or a graph without joint rotations."""
-        if gain <= 0 or not sensor_indices or not places_sensors(graph):
+        """None where there is nothing to pose: `weights.segment_pose` 0, no sensors, or a graph without joint
+        rotations."""
+        if weights.segment_pose <= 0 or not sensor_indices or not places_sensors(graph):
             return None
-        return cls(SegmentPoser(graph, sensor_indices), gain, calibration)
+        return cls(SegmentPoser(graph, sensor_indices), weights.segment_pose, calibration, weights.tilt_from_acc_s)
 
     def world_orientations(self, quat_device: np.ndarray) -> np.ndarray:
         """(..., S, 4) device-earth readings -> sensor orientations in the world (each still turned by its
@@ -135,22 +145,46 @@ class SegmentPosing:
             return self.calibration.world(quat_device)
         return from_device_earth(np.asarray(quat_device, float))
 
+    def sample(self, acc_g: np.ndarray | None, quat_device: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """One sample's posing inputs: (sensor orientations in the world (S, 4), shares (S,) of the turn); the
+        orientations when the sample has them all, else the tilt from the accelerations, else nothing (share 0)."""
+        n = self.poser.n_sensors
+        tilt = None if self._acc_tilt is None or acc_g is None else self._acc_tilt.push(acc_g)
+        if quat_device is not None and np.isfinite(quat_device).all():
+            return self.world_orientations(quat_device), np.full(n, self.gain)
+        if tilt is not None:
+            return tilt[0], self.gain * tilt[1]
+        return np.tile(quat.identity(), (n, 1)), np.zeros(n)
+
+    def over_take(self, acc_g: np.ndarray | None, quat_device: np.ndarray | None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """`sample` over a whole take ((T, S, 3) g and/or (T, S, 4) device-earth): ((T, S, 4), (T, S)). A sample
+        with a missing acceleration (a dropout: NaN) has none, as the live push loop (`engine.stream.drive_frames`)
+        gives the decoder none, so the low-pass sees the same samples batch and live."""
+        n_samples = len(acc_g) if acc_g is not None else len(quat_device)
+        out = [self.sample(None if acc_g is None or not np.isfinite(acc_g[t]).all() else acc_g[t],
+                           None if quat_device is None else quat_device[t]) for t in range(n_samples)]
+        return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
+
     def joint_positions(self, blend_nodes: np.ndarray, ground_m: np.ndarray, heading_rad: np.ndarray,
-                        quat_device: np.ndarray) -> np.ndarray:
-        """(T, J, 3) world joints: the mean of the poses of `blend_nodes` (T, k), each posed by the samples'
-        device-earth orientations (T, S, 4) (NaN rows: played as they are), placed at (ground, heading)."""
-        world = self.world_orientations(quat_device)[:, None]
-        pts = self.poser.pose(blend_nodes, world, self.gain, use_yaw=self.calibration is not None)
+                        world: np.ndarray, share: np.ndarray) -> np.ndarray:
+        """(T, J, 3) world joints: the mean of the poses of `blend_nodes` (T, k), each posed by its sample's
+        (`sample`) orientations (T, S, 4) and shares (T, S), placed at (ground, heading). Nothing to pose (every
+        share 0): exactly the played blend."""
+        if not np.any(share):
+            return blended_joint_positions(self.poser.graph, blend_nodes, ground_m, heading_rad)
+        pts = self.poser.pose(blend_nodes, world[:, None], share[:, None, :], use_yaw=self.calibration is not None)
         return blended_joint_positions(self.poser.graph, blend_nodes, ground_m, heading_rad, pts)
 
 
 def decided_joint_positions(graph: MotionGraph, nodes: np.ndarray, blend_nodes: np.ndarray | None,
                             ground_m: np.ndarray, heading_rad: np.ndarray, posing: SegmentPosing | None = None,
-                            quat_device: np.ndarray | None = None) -> np.ndarray:
+                            acc_g: np.ndarray | None = None, quat_device: np.ndarray | None = None) -> np.ndarray:
     """(T, J, 3) world joints of a batch search's decisions -- `nodes` (T,), or the blend of the best paths
-    `blend_nodes` (T, k), at (ground, heading) -- with the worn segments posed onto `quat_device` (T, S, 4) when
-    there is a `posing` and orientations: what the fixed-lag decoder emits for the same decisions."""
+    `blend_nodes` (T, k), at (ground, heading) -- with the worn segments posed by the take's samples (`acc_g`
+    (T, S, 3), `quat_device` (T, S, 4), `SegmentPosing.over_take`) when there is a `posing`: what the fixed-lag
+    decoder emits for the same decisions."""
     blend = np.asarray(nodes)[:, None] if blend_nodes is None else blend_nodes
-    if posing is None or quat_device is None:
+    if posing is None or (acc_g is None and quat_device is None):
         return blended_joint_positions(graph, blend, ground_m, heading_rad)
-    return posing.joint_positions(blend, ground_m, heading_rad, quat_device)
+    return posing.joint_positions(blend, ground_m, heading_rad, *posing.over_take(acc_g, quat_device))

@@ -5,6 +5,8 @@ turned by yaws the posing must not see, and the batch search equal to the live d
 console's engine."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -110,21 +112,23 @@ def test_live_equals_batch_with_posing(graph, sample_motions):
     calibration = OrientationCalibration(YAWS, np.tile([1.0, 0.0, 0.0, 0.0], (6, 1)))
     batch = ViterbiSearch(graph, WEIGHTS).run(Observations(acc, quat_wxyz=q_device,
                                                            orientation_calibration=calibration))
-    posing = SegmentPosing.for_search(graph, tuple(range(6)), WEIGHTS.segment_pose, calibration)
-    want = posing.joint_positions(batch.blend_nodes, batch.ground_m, batch.heading_rad, q_device)
+    posing = SegmentPosing.for_search(graph, tuple(range(6)), WEIGHTS, calibration)
+    want = posing.joint_positions(batch.blend_nodes, batch.ground_m, batch.heading_rad,
+                                  *posing.over_take(acc, q_device))
     syn = FixedLagSynthesizer(graph, 2.0, WEIGHTS, confidence_reference=1.0, orientation_calibration=calibration)
     out = []
     for t in range(len(acc)):
         out += syn.push(acc[t], quat_wxyz=q_device[t])
     out += syn.flush()
     assert np.array_equal(np.stack([p.joint_positions_m for p in out]), want)
-    assert not np.allclose(want, posing.joint_positions(batch.blend_nodes, batch.ground_m, batch.heading_rad,
-                                                        np.full_like(q_device, np.nan)), atol=1e-3)
+    played = posing.joint_positions(batch.blend_nodes, batch.ground_m, batch.heading_rad,
+                                    *posing.over_take(None, np.full_like(q_device, np.nan)))
+    assert not np.allclose(want, played, atol=1e-3)
 
 
-def test_without_orientations_or_with_gain_zero_the_database_pose_plays(graph):
-    assert SegmentPosing.for_search(graph, tuple(range(6)), 0.0) is None
-    assert SegmentPosing.for_search(graph, None, 1.0) is None
+def test_without_sensors_or_with_gain_zero_the_database_pose_plays(graph):
+    assert SegmentPosing.for_search(graph, tuple(range(6)), replace(WEIGHTS, segment_pose=0.0)) is None
+    assert SegmentPosing.for_search(graph, None, WEIGHTS) is None
 
 
 def _take_with_npose_capture(tmp_path, motion, seed: int = 4):

@@ -57,8 +57,8 @@ def _synthesise(graph: MotionGraph, take_npz) -> np.ndarray:
         order = [names.index(n) for n in graph.config.sensor_names]
         acc, quats = data["acc_g"][:, order], data["quat_wxyz"][:, order]
     res = ViterbiSearch(graph, WEIGHTS).run(Observations(acc, quat_wxyz=quats))
-    posing = SegmentPosing.for_search(graph, tuple(range(len(order))), WEIGHTS.segment_pose)  # tilt: no calibration
-    return posing.joint_positions(res.blend_nodes, res.ground_m, res.heading_rad, quats)
+    posing = SegmentPosing.for_search(graph, tuple(range(len(order))), WEIGHTS)  # tilt: no calibration
+    return posing.joint_positions(res.blend_nodes, res.ground_m, res.heading_rad, *posing.over_take(acc, quats))
 
 
 def test_random_per_sensor_yaws_synthesise_as_well_as_aligned_ones(setup, tmp_path):
