@@ -72,11 +72,14 @@ def motion_graph_spec(graph: MotionGraph, database: str | Path, skeleton: Any = 
                       inputs_note=note)
 
 
+CACHE_CONTENTS = "2: graphs store their sensor rotations"  # a change of what a cached graph holds starts a new cache
+
+
 def graph_cache_path(clip_paths: Sequence[Path], sensor_names: Sequence[str], config: GraphConfig,
                      cache_dir: Path | None = None, calibration: SensorCalibrationData | None = None) -> Path:
     """Cache file name from the clip files' identity (path, size, mtime), sensors, config and the calibrated
     rotations (if any)."""
-    parts = [json.dumps(list(sensor_names)), config.to_json()]
+    parts = [json.dumps(list(sensor_names)), config.to_json(), CACHE_CONTENTS]
     if calibration is not None:
         parts.append(calibration.fingerprint())
     parts += [f"{p.resolve()}|{p.stat().st_size}|{p.stat().st_mtime_ns}" for p in sorted(clip_paths)]

@@ -40,8 +40,20 @@ def _descendants(parents: np.ndarray, joint: int) -> np.ndarray:
     return below
 
 
+def _partial_turn(turn: np.ndarray, share: np.ndarray) -> np.ndarray:
+    """(..., 4) the rotations `turn` (..., 4) scaled to `share` (...,) of their angle about the same axis: the
+    short-arc slerp from the identity, in closed form (0 = identity, 1 = the turn itself)."""
+    turn = np.where(turn[..., :1] < 0, -turn, turn)  # the short arc
+    sin_half = np.linalg.norm(turn[..., 1:], axis=-1, keepdims=True)
+    half = np.arctan2(sin_half, turn[..., :1]) * share[..., None]
+    axis = turn[..., 1:] / np.maximum(sin_half, 1e-12)
+    return np.concatenate([np.cos(half), axis * np.sin(half)], axis=-1)
+
+
 class SegmentPoser:
-    """For one sensor selection of a graph: which joints each sensor's segment moves, in tree order."""
+    """For one sensor selection of a graph: which joints each sensor's segment moves, in levels of the tree (a
+    level's segments lie in disjoint subtrees, so each level is turned in one vectorised step: live, one frame's
+    8 blended poses cost a handful of numpy calls per level, not per sensor)."""
 
     def __init__(self, graph: MotionGraph, sensor_indices: list[int] | tuple[int, ...]) -> None:
         names = [graph.config.sensor_names[i] for i in sensor_indices]
@@ -54,11 +66,25 @@ class SegmentPoser:
         self.joints = np.array([p.joint for p in placements])
         roles = joint_roles(graph.skeleton)
         self.left_hip, self.right_hip = roles["left_hip"], roles["right_hip"]
-        depth = np.array([self._depth(parents, j) for j in self.joints])
-        self.order = np.argsort(depth, kind="stable")  # parents' segments first: a child's pose builds on them
         self.below = np.stack([_descendants(parents, j) for j in self.joints])  # (S, J)
-        # which sensors' segments each sensor's turn carries along (S, S): k's joint lies below i's
-        self.carries = self.below[:, self.joints]
+        # every node's sensor orientations (N, S, 4), computed here (FK of every node: seconds on a large graph)
+        # so that no live frame waits for it
+        self.node_orientations = node_sensor_orientations(graph)[:, self.sensor_indices]
+        carries = self.below[:, self.joints]  # (S, S): sensor k's segment lies below sensor i's
+        level = np.zeros(self.n_sensors, int)  # 1 + the deepest level among the sensors above it
+        for i in np.argsort([self._depth(parents, j) for j in self.joints], kind="stable"):
+            above = np.flatnonzero(carries[:, i])
+            level[i] = 1 + level[above].max() if len(above) else 0
+        self.levels = []  # per level: (its sensors, joint -> which of them turns it, sensor -> which carries it)
+        for lv in range(level.max() + 1 if self.n_sensors else 0):
+            members = np.flatnonzero(level == lv)
+            joint_owner = np.full(len(parents), -1)
+            carrier = np.full(self.n_sensors, -1)
+            for m, i in enumerate(members):
+                joint_owner[self.below[i]] = m
+                carrier[carries[i]] = m
+                carrier[i] = m
+            self.levels.append((members, joint_owner, carrier))
 
     @staticmethod
     def _depth(parents: np.ndarray, joint: int) -> int:
@@ -80,27 +106,25 @@ class SegmentPoser:
         pose (after its parents' turns) gives it: no yaw calibration needed."""
         nodes = np.asarray(nodes, dtype=np.intp)
         pts = self.graph.node_positions_m[nodes].astype(float)
-        current = node_sensor_orientations(self.graph)[nodes][..., self.sensor_indices, :].copy()
+        current = self.node_orientations[nodes]
         q = np.broadcast_to(np.asarray(quat_world, float), current.shape)
         ok = np.isfinite(q).all(axis=(-1, -2))
         q = np.where(ok[..., None, None], q, quat.identity())
+        share = np.where(ok[..., None], np.broadcast_to(gain, current.shape[:-1]), 0.0)
         relative = use_yaw and self.reference is not None
         if relative:
             turn = twist_yaw(current[..., self.reference, :]) - twist_yaw(q[..., self.reference, :])
             q = quat.multiply(yaw_about_up(turn)[..., None, :], q)
-        for i in self.order:
-            target = q[..., i, :] if relative else quat.multiply(
-                yaw_about_up(twist_yaw(current[..., i, :]) - twist_yaw(q[..., i, :])), q[..., i, :])
-            turn = quat.multiply(target, quat.conjugate(current[..., i, :]))
-            share = np.broadcast_to(gain, current.shape[:-1])[..., i]  # a float, or per sample and sensor
-            if np.any(share != 1.0):
-                turn = quat.slerp(quat.identity(turn.shape[:-1]), turn, share)
-            turn = np.where(ok[..., None], turn, quat.identity())
-            pivot = pts[..., self.joints[i], :][..., None, :]
-            below = self.below[i]
-            pts[..., below, :] = quat.rotate(turn[..., None, :], pts[..., below, :] - pivot) + pivot
-            carried = self.carries[i] | (np.arange(len(self.joints)) == i)
-            current[..., carried, :] = quat.multiply(turn[..., None, :], current[..., carried, :])
+        for members, joint_owner, carrier in self.levels:
+            cur, meas = current[..., members, :], q[..., members, :]
+            target = meas if relative else quat.multiply(yaw_about_up(twist_yaw(cur) - twist_yaw(meas)), meas)
+            turn = _partial_turn(quat.multiply(target, quat.conjugate(cur)), share[..., members])
+            moved = joint_owner >= 0
+            owner = joint_owner[moved]
+            pivot = pts[..., self.joints[members][owner], :]
+            pts[..., moved, :] = quat.rotate(turn[..., owner, :], pts[..., moved, :] - pivot) + pivot
+            held = carrier >= 0
+            current[..., held, :] = quat.multiply(turn[..., carrier[held], :], current[..., held, :])
         return self._keep_heading(self.graph.node_positions_m[nodes], pts)
 
     def _keep_heading(self, played: np.ndarray, posed: np.ndarray) -> np.ndarray:

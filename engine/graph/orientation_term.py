@@ -17,6 +17,11 @@ sensor's yaw is arbitrary and drifts (engine/mocap/orientation.py). So the term 
   drift. Until `MIN_LEARNED_S` of samples are decided only the tilt part is used. (A prior from the database's
   mean d_i was measured first and made every gesture take worse: the forearms' d_i spread over the whole circle.)
 
+With an N-pose calibration (engine/mocap/orientation_calibration.py: each sensor's yaw offset and strapping
+from the still capture) nothing is learnt: the readings are turned into the world first, the offsets are zero
+from the first sample, and the heading part's share is `SearchWeights.calibrated_heading` (0.5; measured better
+than tilt alone on held-out gestures, where learnt offsets were worse: docs/engine-evaluation.md).
+
 Together the two parts are the 3x3 rotation matrix of yaw(-(ψ_pelvis + offset_i)) * q_i (row 1 = tilt, rows 0
 and 2 = heading), so their squared distance is the chordal distance, 4 (1 - cos θ) for a rotation by θ.
 Without the pelvis sensor among the worn ones only the tilt part exists.
@@ -30,6 +35,8 @@ Batch and fixed-lag searches see the same features: the batch search with forget
 (online.decide_with_forgetting), and the estimate only ever reads decided samples.
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -64,6 +71,8 @@ def node_sensor_orientations(graph: MotionGraph) -> np.ndarray:
     if not places_sensors(graph):
         raise ValueError("this graph stores no joint rotations or sensor placements: rebuild it to use orientations")
     placements = standard_placements(graph.skeleton, graph.config.sensor_names)
+    if graph.sensor_rotations is not None:  # the strapping the graph's virtual sensors were built with
+        placements = [replace(p, rotation=r) for p, r in zip(placements, graph.sensor_rotations)]
     motion = Motion(graph.skeleton, graph.config.fps, graph.node_root_m.astype(float),
                     graph.node_rotations.astype(float))
     graph.__dict__["_sensor_orientations"] = out = virtual_orientations(motion, placements)
