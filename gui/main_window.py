@@ -534,7 +534,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                 "use_camera_heading": setup.use_camera_heading,
                 "frames_in": worker.stats.frames_in, "frames_invalid": worker.stats.frames_invalid,
                 "frames_with_camera": worker.stats.frames_with_camera,
-                "engine_inputs": list(spec.inputs),
+                "engine_inputs": list(spec.inputs), "engine_label": spec.label,
                 "frames_with_orientation": worker.stats.frames_with_orientation,
                 "frames_with_gyro": worker.stats.frames_with_gyro,
                 # live = offline needs the console to have seen every recorded sample: count what it missed

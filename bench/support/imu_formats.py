@@ -201,8 +201,9 @@ def write_mt_exports(folder: Path, truth: Truth, device_ids: list[str], packet_s
 
 def standing_then_walking(stand_s: float = 3.0, walks: tuple[str | Motion, ...] = ("16_11", "16_16", "16_21"),
                           tpose_s: float = 0.0, fps: float = 100.0, seed: int = 3, bow_s: float = 0.0,
-                          sit_s: float = 0.0) -> Motion:
-    """A take as a real one starts: the subject stands relaxed (the reference N-pose with a slow ~1° sway), moves
+                          sit_s: float = 0.0, sway_deg: float = 1.0) -> Motion:
+    """A take as a real one starts: the subject stands relaxed (the reference N-pose with a slow ``sway_deg`` sway
+    of every joint), moves
     within 1 s into the first walking pose and walks (shipped CMU walks, or given Motions of one upright T-pose skeleton, joined end to start with
     continuous ground position and heading), optionally
     moving within 1 s into a held T-pose (the CMU zero pose, facing the last walking heading) for ``tpose_s``
@@ -227,7 +228,7 @@ def standing_then_walking(stand_s: float = 3.0, walks: tuple[str | Motion, ...] 
         rots.append(r)
         roots.append(p)
     n_stand, n_t = int(stand_s * fps), int(tpose_s * fps)
-    sway = quat.from_rotvec(np.radians(1.0) * np.sin(np.linspace(0, 3, n_stand))[:, None, None]
+    sway = quat.from_rotvec(np.radians(sway_deg) * np.sin(np.linspace(0, 3, n_stand))[:, None, None]
                             * rng.normal(size=(1, skeleton.n_joints, 3)))
     stand = quat.multiply(quat.from_matrix(reference_npose(skeleton)[0])[None], sway)
     stand[:, 0] = quat.multiply(_yaw(float(root_heading(parts[0])[0]))[None], stand[:, 0])

@@ -19,6 +19,7 @@ from engine.progress import add_quiet_argument
 from engine.graph.cli import (_add_database_args, add_search_args, database_paths, evaluate_main as leave_one_out_main,
                               load_clips, weights_from_args)
 from engine.graph.config import GraphConfig
+from engine.graph.input_checks import check_non_negative
 from engine.graph.graph import MotionGraph, build_from_clips
 from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
@@ -29,7 +30,7 @@ from engine.safe_load import read_json
 from . import plot, protocols, table
 from .labels import clip_label
 from .confidence_quality import ConfidenceQuality, confidence_quality
-from .simulate import CameraModel
+from .simulate import CalibrationCapture, CameraModel
 from .takes import plan_chained_takes
 
 PROTOCOLS = ("loo", "chained", "loco", "loso")
@@ -78,6 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "tilt noise, misalignment)")
     p.add_argument("--orientation-noise", choices=["realistic", "clean"], default="realistic",
                    help="acc+ori rows: the orientation filter's error model (clean = a shared north, no error)")
+    p.add_argument("--no-calibration-capture", action="store_true",
+                   help="acc+ori rows: no N-pose capture before each take (no yaw offsets or strapping solved: the "
+                        "worn segments are posed by their tilt only)")
+    p.add_argument("--posing-error-deg", type=float, default=CalibrationCapture.posing_error_deg, metavar="DEG",
+                   help="acc+ori rows: how far (sd, degrees) each segment is off the reference N-pose while the "
+                        "athlete holds it for the calibration capture (default %(default)s)")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
     p.add_argument("--plot", metavar="OUT.png", help="draw the first take's per-second error of every row and the "
                                                      "table as bars (needs the plot extra: courtside[plot])")
@@ -102,6 +109,7 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
     if bad:
         raise CourtsideError(f"--sensor-sets: {bad} not among {sorted(protocols.SENSOR_SETS)}")
     warp = RootWarp(*args.root_warp) if any(args.root_warp) else RootWarp.off()
+    check_non_negative("--posing-error-deg", [args.posing_error_deg])
     inputs = tuple(i for i in args.inputs.split(",") if i)
     if not inputs or set(inputs) - set(protocols.INPUTS):
         raise CourtsideError(f"--inputs: expected a comma list of {', '.join(protocols.INPUTS)}, got {args.inputs!r}")
@@ -114,7 +122,8 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
         weights=weights_from_args(args, warp), warp=warp,
         fusion=RootFusion.off() if args.no_root_fusion else RootFusion(
             args.camera_noise_m, float(np.radians(args.camera_noise_deg))),
-        lag_s=args.lag, seed=args.seed)
+        lag_s=args.lag, seed=args.seed,
+        capture=None if args.no_calibration_capture else CalibrationCapture(posing_error_deg=args.posing_error_deg))
 
 
 def _database(args: argparse.Namespace) -> protocols.Database:

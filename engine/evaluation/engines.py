@@ -17,12 +17,13 @@ from engine.graph.confidence import reference_cost_per_sample
 from engine.graph.graph import MotionGraph
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.geometry import rotate_ground
-from engine.graph.poses import blended_joint_positions, world_joint_positions
+from engine.graph.orientation_pose import SegmentPosing, decided_joint_positions
 from engine.graph.root_fusion import RootFusion, fuse_track
 from engine.graph.viterbi import Observations, SearchWeights
 from engine.graph.search import ViterbiSearch
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel, Skeleton, forward_kinematics, quaternions
+from engine.mocap.orientation_calibration import OrientationCalibration
 from engine.stream import EngineSpec, drive_frames
 
 from .metrics import hips_heading
@@ -56,11 +57,14 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
                  camera_position_m: np.ndarray, camera_heading_rad: np.ndarray, weights: SearchWeights,
                  use_camera: bool, warp: RootWarp = RootWarp.off(), lag_s: float | None = None,
                  fusion: RootFusion = RootFusion.off(), error_model: SensorErrorModel | None = None,
-                 quat_wxyz: np.ndarray | None = None) -> Prediction:
+                 quat_wxyz: np.ndarray | None = None,
+                 calibration: OrientationCalibration | None = None) -> Prediction:
     """Batch Viterbi search, or with `lag_s` the online fixed-lag decoder (what a live user sees, with its
     confidence against the database's own clips observed through `error_model`, default seed 000's); without the
     camera only its first fix is kept (where the paths start) and the root is neither warped nor fused.
-    `quat_wxyz` (T, S, 4): the graph sensors' device-earth orientations (used if `weights.orientation` > 0)."""
+    `quat_wxyz` (T, S, 4): the graph sensors' device-earth orientations (the search's term if
+    `weights.orientation` > 0; the worn segments posed onto them if `weights.segment_pose` > 0, with their yaw
+    relative to the pelvis when the N-pose `calibration` is given)."""
     pos, head = camera_position_m.copy(), camera_heading_rad.copy()
     if not use_camera:
         pos[1:], head[1:] = np.nan, np.nan
@@ -69,17 +73,19 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
     acc = acc_g[:, list(sensor_indices)] if weights.acc and acc_g is not None else None
     sensors = tuple(sensor_indices) if acc is not None else None
     quats = quat_wxyz[:, list(sensor_indices)] if acc is not None and quat_wxyz is not None else None
+    calibration = None if calibration is None or quats is None else calibration.select(sensor_indices)
     if lag_s is None:
-        res = ViterbiSearch(graph, weights, warp=warp).run(Observations(acc, pos, head, sensors, quats))
+        res = ViterbiSearch(graph, weights, warp=warp).run(
+            Observations(acc, pos, head, sensors, quats, orientation_calibration=calibration))
         ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
-        joints = world_joint_positions(graph, res.nodes, ground, heading) if res.blend_nodes is None \
-            else blended_joint_positions(graph, res.blend_nodes, ground, heading)
+        posing = SegmentPosing.for_search(graph, sensors, weights, calibration)
+        joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, acc, quats)
         return Prediction(joints, graph.node_clip[res.nodes].astype(int))
     reference = reference_cost_per_sample(graph, weights, warp, sensors, error_model=error_model,
                                           camera_noise_m=fusion.position_noise_m,
                                           camera_noise_rad=fusion.heading_noise_rad)
     syn = FixedLagSynthesizer(graph, lag_s, weights, sensors, warp=warp, fusion=fusion,
-                              confidence_reference=reference)
+                              confidence_reference=reference, orientation_calibration=calibration)
     poses = drive_frames(syn, acc, pos, head, quat_wxyz=quats)
     return Prediction(np.stack([p.joint_positions_m for p in poses]),
                       graph.node_clip[np.array([p.node for p in poses])].astype(int),

@@ -88,6 +88,8 @@ class EvalConfig:
     inputs: tuple[str, ...] = ("acc",)  # motion graph rows per sensor set (INPUTS)
     orientation_model: OrientationErrorModel = field(default_factory=OrientationErrorModel.realistic)
     orientation_weight: float = 1.0  # SearchWeights.orientation of the acc+ori rows
+    capture: simulate.CalibrationCapture | None = field(default_factory=simulate.CalibrationCapture)
+    # the acc+ori rows' N-pose capture before each take (None: no calibration, segments posed by tilt only)
 
 
 @dataclass
@@ -201,8 +203,14 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
         record(Row(ORACLE, "-", CAMERA_ON),
                lambda: engines.Prediction(*_oracle(graph, take, cam_pos, cam_head)))
     if "motion-graph" in cfg.engines:
-        quats = simulate.orientations(take, graph.config.sensor_names, cfg.orientation_model,
-                                      np.random.default_rng(streams[4])) if "acc+ori" in cfg.inputs else None
+        quats, calibration = None, None
+        if "acc+ori" in cfg.inputs and cfg.capture is not None:
+            quats, calibration = simulate.calibrated_orientations(
+                take, graph.config.sensor_names, cfg.orientation_model, np.random.default_rng(streams[4]),
+                cfg.capture, graph.skeleton)
+        elif "acc+ori" in cfg.inputs:
+            quats = simulate.orientations(take, graph.config.sensor_names, cfg.orientation_model,
+                                          np.random.default_rng(streams[4]))
         for inputs in cfg.inputs:
             name, ori = ("motion graph", 0.0) if inputs == "acc" else ("motion graph +ori", cfg.orientation_weight)
             w_on = replace(cfg.weights, orientation=ori)
@@ -212,7 +220,8 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
                     record(Row(name, str(k), camera),
                            lambda: engines.motion_graph(graph, acc, idx, cam.position_m, cam.heading_rad, w,
                                                         camera == CAMERA_ON, cfg.warp, cfg.lag_s, cfg.fusion,
-                                                        cfg.error_model, quats if ori else None))
+                                                        cfg.error_model, quats if ori else None,
+                                                        calibration))
         record(Row("camera only (W_A=0)", "0", CAMERA_ON),
                lambda: engines.motion_graph(graph, None, (), cam.position_m, cam.heading_rad,
                                             replace(cfg.weights, acc=0.0), True,

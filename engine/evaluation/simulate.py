@@ -15,9 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.errors import CourtsideError
-from engine.mocap import (Motion, SensorErrorModel, resample, standard_placements, virtual_accelerometers,
+from engine.mocap import (Motion, SensorErrorModel, Skeleton, resample, standard_placements, virtual_accelerometers,
                           virtual_gyroscopes)
-from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
+from engine.mocap import quaternions as quat
+from engine.mocap.orientation import OrientationErrorModel, random_rotations, virtual_orientations
+from engine.mocap.orientation_calibration import OrientationCalibration, pose_sensor_orientations
 
 from .takes import Take
 
@@ -87,11 +89,43 @@ def gyroscopes(take: Take, sensor_names: tuple[str, ...] | list[str], fps: float
                        lambda m: virtual_gyroscopes(m, standard_placements(m.skeleton, sensor_names)))[0]
 
 
+@dataclass(frozen=True)
+class CalibrationCapture:
+    """The still N-pose the athlete holds before the take (what the wizard asks for): `seconds` of it, held with
+    `posing_error_deg` (sd) of each segment's orientation off the reference pose -- people do not hold a template
+    exactly -- and solved against the reference pose on the database's skeleton."""
+
+    seconds: float = 2.0
+    posing_error_deg: float = 8.0
+
+
+def _true_orientations(take: Take, sensor_names: tuple[str, ...] | list[str], fps: float) -> np.ndarray:
+    return per_segment(take, fps,
+                       lambda m: virtual_orientations(m, standard_placements(m.skeleton, sensor_names)))[0]
+
+
 def orientations(take: Take, sensor_names: tuple[str, ...] | list[str], error_model: OrientationErrorModel,
                  rng: np.random.Generator, fps: float | None = None) -> np.ndarray:
     """(T', S, 4) device-earth quaternions (Z up, yaw per sensor) of the named standard sensors at `fps` (default:
     the take rate): the true orientations segment by segment, then ONE draw of `error_model` over the take (the
     per-sensor yaw offsets and drifts of one set of hardware)."""
     fps = take.fps if fps is None else fps
-    q, _ = per_segment(take, fps, lambda m: virtual_orientations(m, standard_placements(m.skeleton, sensor_names)))
-    return error_model.apply(q, fps, rng)
+    return error_model.apply(_true_orientations(take, sensor_names, fps), fps, rng)
+
+
+def calibrated_orientations(take: Take, sensor_names: tuple[str, ...] | list[str], error_model: OrientationErrorModel,
+                            rng: np.random.Generator, capture: CalibrationCapture, reference_skeleton: Skeleton,
+                            fps: float | None = None) -> tuple[np.ndarray, OrientationCalibration]:
+    """`orientations`, but the readings start with the athlete holding the N-pose for `capture.seconds` (facing
+    the take's first heading, on the take's first skeleton, each segment off the template by the posing error):
+    returns the take's readings and the calibration solved from the capture against the reference pose on
+    `reference_skeleton` (the database's), as the wizard would."""
+    fps = take.fps if fps is None else fps
+    n_capture = max(1, int(round(capture.seconds * fps)))
+    held = pose_sensor_orientations(take.segments[0].motion.skeleton, sensor_names,
+                                    heading_rad=float(take.heading_rad[0]))
+    held = quat.multiply(random_rotations(rng, len(held), np.radians(capture.posing_error_deg)), held)
+    q = np.concatenate([np.repeat(held[None], n_capture, axis=0), _true_orientations(take, sensor_names, fps)])
+    readings = error_model.apply(q, fps, rng)
+    template = pose_sensor_orientations(reference_skeleton, sensor_names)
+    return readings[n_capture:], OrientationCalibration.from_still_pose(readings[:n_capture], template)

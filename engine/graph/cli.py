@@ -14,6 +14,7 @@ import numpy as np
 
 from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.progress import add_quiet_argument
+from engine.mocap.orientation_calibration import OrientationCalibration
 from engine.mocap import (SEED000_SENSORS, STANDARD_SENSORS, load_database, load_sensor_calibration,
                           placements_from_calibration, sample_clips, standard_placements, write_bvh)
 
@@ -21,6 +22,7 @@ from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
 from .input_checks import check_database, check_lag, check_non_negative, check_path_length, parse_sensor_map
 from .mocap_adapter import clips_from_motions, mocap_sensor_model
+from .orientation_term import places_sensors
 from .report import coverage_warning, format_report, graph_report, motion_range
 from .root_fusion import RootFusion
 from .viterbi import SearchWeights, default_weights
@@ -165,6 +167,10 @@ def add_search_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--orientation-heading", type=float, default=None, metavar="SHARE",
                    help="share of the orientation term's heading part (limb heading relative to the pelvis sensor, "
                         "per-sensor yaw offsets learnt online) against its tilt part (default 0: tilt alone)")
+    p.add_argument("--segment-pose", type=float, default=None, metavar="GAIN",
+                   help="takes with quat_wxyz: how far each worn segment is turned from the played database pose "
+                        "onto its measured orientation (engine/graph/orientation_pose.py; default 1 = all the way, "
+                        "0 = play database poses as they are)")
     p.add_argument("--gravity-weight", type=float, default=None, metavar="W",
                    help="accelerations only: weight of the tilt from low-passed accelerations "
                         "(engine/graph/gravity_term.py) relative to the accelerations' (default 0 = off)")
@@ -193,6 +199,10 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
     if args.orientation_heading is not None:
         check_non_negative("--orientation-heading", [args.orientation_heading])
         weights = replace(weights, orientation_heading=args.orientation_heading)
+    if args.segment_pose is not None:
+        if not (np.isfinite(args.segment_pose) and 0 <= args.segment_pose <= 1):
+            raise CourtsideError(f"--segment-pose {args.segment_pose!r}: must be in [0, 1]")
+        weights = replace(weights, segment_pose=args.segment_pose)
     if args.gravity_weight is not None:
         check_non_negative("--gravity-weight", [args.gravity_weight])
         weights = replace(weights, gravity=args.gravity_weight)
@@ -246,7 +256,9 @@ def _synthesize_parser() -> ArgumentParser:
     p.add_argument("--no-blend", action="store_true")
     p.add_argument("--no-ik", action="store_true")
     p.add_argument("--calibration", metavar="RECORD", help="sensor-calibration record (`courtside calibrate` or the "
-                   "wizard): readings are rotated from the measured into the graph's nominal sensor mountings")
+                   "wizard): readings are rotated from the measured into the graph's nominal sensor mountings, and "
+                   "when it calibrated every worn sensor's orientation (a take with quat_wxyz) the worn segments are "
+                   "posed with their yaw relative to the pelvis, not only their tilt")
     p.add_argument("--stream-bvh", metavar="[HOST:]PORT", help="also serve the poses as BVH lines over TCP (Axis "
                    "Neuron convention, e.g. 7001; 127.0.0.1 unless a host is given): with --lag each pose as it is "
                    "decided, at the take's rate; without, the written frames")
@@ -273,12 +285,19 @@ class DecodedPath:
 
 @dataclass(frozen=True)
 class Search:
-    """How to search: the weights, the root warp towards the camera, the output root's fusion, constraints."""
+    """How to search: the weights, the root warp towards the camera, the output root's fusion, constraints, and
+    the orientation calibration of the graph's sensors (graph order; None: segments posed by tilt only)."""
 
     weights: SearchWeights
     warp: RootWarp
     fusion: RootFusion
     constraints: list
+    orientation_calibration: OrientationCalibration | None = None
+
+    def calibration_of(self, sensor_indices: tuple[int, ...] | None) -> OrientationCalibration | None:
+        """The orientation calibration of the searched sensors, in their column order (None: all, graph order)."""
+        cal = self.orientation_calibration
+        return cal if cal is None or sensor_indices is None else cal.select(sensor_indices)
 
 
 @cli_command("courtside synthesize")
@@ -299,10 +318,11 @@ def synthesize_main(argv: list[str]) -> int:
         print(warning + (" (root warping on: the root follows the camera, the poses stay the database's)"
                          if warp.active else ""), file=sys.stderr)
     constraints = _constraints(args, graph)
+    orientation = _orientation_calibration(args, graph)
     stream, outputs = _pose_outputs(args, graph)
     t0 = time.perf_counter()
     decode = _batch_path if args.lag is None else _online_path
-    path = decode(args, graph, take, Search(weights, warp, fusion, constraints), outputs)
+    path = decode(args, graph, take, Search(weights, warp, fusion, constraints, orientation), outputs)
     elapsed = time.perf_counter() - t0
     _write_outputs(args, graph, take, path, outputs)
     if stream is not None:
@@ -311,6 +331,7 @@ def synthesize_main(argv: list[str]) -> int:
     print(json.dumps({"samples": int(take.obs.n_samples), "first_frame": int(take.frame[0]),
                       "search_s": round(elapsed, 3), "output": args.output,
                       "broken_constraints": path.broken_constraints,
+                      "segment_posing": _segment_posing(graph, weights, take.obs.quat_wxyz is not None, orientation),
                       **{k: counts[k] for k in ("confidence_mean", "reanchors") if k in counts}}))
     return 0
 
@@ -338,6 +359,28 @@ def _graph_take(args: argparse.Namespace, graph: MotionGraph):
     check_path_length(args.graph, graph.edge_src, graph.edge_dst, graph.n_nodes, take.obs.n_samples,
                       graph.config.fps)
     return take
+
+
+def _orientation_calibration(args: argparse.Namespace, graph: MotionGraph) -> OrientationCalibration | None:
+    """--calibration's orientation calibration of the graph's sensors (None without a record, or when some
+    worn sensor's orientation was not calibrated: then a note says the segments are posed by tilt only)."""
+    if not args.calibration:
+        return None
+    cal = load_sensor_calibration(args.calibration).orientation_calibration(graph.config.sensor_names)
+    if cal is None:
+        print(f"note: {args.calibration}: not every graph sensor's orientation is calibrated (the record's still "
+              "capture had no orientations from some): worn segments are posed by their tilt only", file=sys.stderr)
+    return cal
+
+
+def _segment_posing(graph: MotionGraph, weights: SearchWeights, has_orientations: bool,
+                    calibration: OrientationCalibration | None) -> str | None:
+    """How the worn segments were posed (orientation_pose.SegmentPosing), for the summary line."""
+    if weights.segment_pose <= 0 or not places_sensors(graph):
+        return None
+    if has_orientations:
+        return "calibrated yaw" if calibration is not None else "tilt only"
+    return "tilt from accelerations" if weights.tilt_from_acc_s > 0 and calibration is None else None
 
 
 def _constraints(args: argparse.Namespace, graph: MotionGraph) -> list:
@@ -374,15 +417,18 @@ def _batch_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sear
     """The whole take searched at once; the output root fused from the camera over the whole take."""
     from engine.stream import FramePose
 
-    from .poses import blended_joint_positions, world_joint_positions
+    from .orientation_pose import SegmentPosing, decided_joint_positions
     from .root_fusion import fuse_track
     from .search import ViterbiSearch
 
-    obs, fps = take.obs, graph.config.fps
+    indices, fps = _columns(graph, take.obs), graph.config.fps
+    calibration = search.calibration_of(indices)
+    obs = replace(take.obs, orientation_calibration=calibration)  # the search's orientation term reads it too
     res = ViterbiSearch(graph, search.weights, warp=search.warp).run(obs, search.constraints)
     ground, heading = fuse_track(search.fusion, fps, obs.position_m, obs.heading_rad, res.ground_m, res.heading_rad)
-    joints = world_joint_positions(graph, res.nodes, ground, heading) if res.blend_nodes is None else \
-        blended_joint_positions(graph, res.blend_nodes, ground, heading)
+    posing = SegmentPosing.for_search(graph, indices, search.weights, calibration)
+    joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, obs.acc_g,
+                                     obs.quat_wxyz)
     poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
     return DecodedPath(poses, res.nodes, res.edges, ground, heading, res.blend_nodes, res.broken_constraints)
 
@@ -396,11 +442,15 @@ def _online_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sea
     from .online import FixedLagSynthesizer
 
     obs, fps = take.obs, graph.config.fps
+    indices, acc = obs.sensor_indices, obs.acc_g
+    if take.streams is None and indices is not None and acc is not None:  # frames in the graph's sensor order,
+        order = np.argsort(indices)  # as drive_take orders the orientations
+        indices, acc = tuple(int(i) for i in np.asarray(indices)[order]), acc[:, order]
     made = []
 
     def make():
-        syn = FixedLagSynthesizer(graph, args.lag, search.weights, obs.sensor_indices, warp=search.warp,
-                                  fusion=search.fusion)
+        syn = FixedLagSynthesizer(graph, args.lag, search.weights, indices, warp=search.warp, fusion=search.fusion,
+                                  orientation_calibration=search.calibration_of(indices))
         if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
             from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
 
@@ -414,7 +464,7 @@ def _online_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sea
                                             use_camera_heading=args.camera_heading)
         counts = vars(session.stats)
     else:
-        poses = drive_take(make(), obs.acc_g, obs, int(take.frame[0]), fps)
+        poses = drive_take(make(), acc, obs, int(take.frame[0]), fps)
     counts.update(confidence_mean=round(float(np.mean([q.confidence for q in poses])), 3) if poses else None,
                   reanchors=len(made[-1].reanchors))
     emitted = [q.source for q in poses]
@@ -429,6 +479,11 @@ def _online_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sea
             edges[t] = -1  # the decoder changed its mind: blended like a transition
     return DecodedPath(poses, nodes, edges, np.array([q.ground_m for q in emitted]),
                        np.array([q.heading_rad for q in emitted]), blend_nodes, counts=counts)
+
+
+def _columns(graph: MotionGraph, obs) -> tuple[int, ...]:
+    """The graph sensor of each of the take's observation columns."""
+    return tuple(obs.sensor_indices) if obs.sensor_indices is not None else tuple(range(graph.n_sensors))
 
 
 def _write_outputs(args: argparse.Namespace, graph: MotionGraph, take, path: DecodedPath, outputs: list) -> None:

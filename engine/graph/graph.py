@@ -61,6 +61,8 @@ class MotionGraph:
     node_rotations: np.ndarray | None = None  # (N, J, 4) local joint rotations (w, x, y, z)
     node_root_m: np.ndarray | None = None  # (N, 3) root position in the source clip's frame
     skeleton: Skeleton | None = None  # the database skeleton, so a synthesis can be written as BVH
+    sensor_rotations: np.ndarray | None = None  # (S, 3, 3) each sensor's axes -> its joint frame as the graph was
+    # built (a calibrated strapping: engine.mocap.calibrated); None = the standard placements' (orientation_term)
     build_report: dict | None = None  # what the builder's component step did (components.ComponentReport)
 
     # ----- sizes and search helpers -------------------------------------------------------------
@@ -125,7 +127,7 @@ class MotionGraph:
         # metadata rows stay as they are (rows of dropped nodes are simply no longer referenced)
         return MotionGraph(
             config=self.config, clip_names=self.clip_names, label_names=self.label_names, skeleton=self.skeleton,
-            build_report=self.build_report, **kwargs,
+            build_report=self.build_report, sensor_rotations=self.sensor_rotations, **kwargs,
             edge_src=new_id[self.edge_src[ekeep]].astype(np.int32),
             edge_dst=new_id[self.edge_dst[ekeep]].astype(np.int32),
             edge_kind=self.edge_kind[ekeep], edge_meta=self.edge_meta[ekeep],
@@ -160,7 +162,7 @@ class MotionGraph:
                 if header.get("format_version") != FORMAT_VERSION:
                     raise MalformedFileError(path, None, f"unsupported graph format {header.get('format_version')}")
                 names = {f.name for f in fields(cls)} - _NON_ARRAYS
-                optional = {"node_rotations", "node_root_m"}
+                optional = {"node_rotations", "node_root_m", "sensor_rotations"}
                 missing = sorted(names - optional - set(data.files))
                 if missing:
                     raise MalformedFileError(path, None, f"missing arrays: {', '.join(missing)}")
@@ -221,6 +223,7 @@ class MotionGraph:
         graph = build_from_clips(clips_from_motions(motions, placements, config, labels), config,
                                  mocap_sensor_model(motions[0].skeleton, placements, config.fps))
         graph.skeleton = motions[0].skeleton
+        graph.sensor_rotations = np.stack([p.rotation for p in placements]).astype(float)
         return graph
 
 

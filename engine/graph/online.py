@@ -11,7 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.mocap.orientation_calibration import OrientationCalibration
+
 from .graph import MotionGraph
+from .orientation_pose import SegmentPosing
 from .poses import blended_joint_positions, world_joint_positions
 from .viterbi import (DEFAULT_KERNEL, PRUNE_EVERY, Constraint, Observations, SearchResult, SearchWeights,
                       ViterbiLattice, step_arguments)
@@ -49,14 +52,19 @@ class FixedLagSynthesizer:
     evidence instead of defending a wrong history. `reanchor_ratio` = 0 never re-anchors.
 
     `fusion` (root_fusion.py): the output root is the camera track smoothed over the same lag, the chosen path
-    supplying the root-relative pose (and the root only where the camera is absent); off = the path's own root."""
+    supplying the root-relative pose (and the root only where the camera is absent); off = the path's own root.
+
+    Samples pushed with orientations get their worn segments posed onto them (orientation_pose.SegmentPosing,
+    `weights.segment_pose`; yaw relative to the pelvis too with an `orientation_calibration` from the N-pose
+    capture, else tilt only)."""
 
     def __init__(self, graph: MotionGraph, lag_s: float, weights: SearchWeights = SearchWeights(),
                  sensor_indices: tuple[int, ...] | None = None, prune_every: int = PRUNE_EVERY,
                  kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off(),
                  confidence_reference: float | None = None, confidence_window_s: float = 2.0,
                  reanchor_ratio: float = 4.0, reanchor_after_s: float = 3.0,
-                 fusion: RootFusion = RootFusion.off()) -> None:
+                 fusion: RootFusion = RootFusion.off(),
+                 orientation_calibration: OrientationCalibration | None = None) -> None:
         if lag_s < 0:
             raise ValueError("lag must be non-negative")
         self.graph = graph
@@ -64,7 +72,8 @@ class FixedLagSynthesizer:
         # a forgetting search decides sooner (SearchWeights.decision_frames) and holds the decided samples until
         # the lag has passed, so the fused root (root_fusion.py) still smooths the camera over the whole lag
         self.decision_lag = min(self.lag, weights.decision_frames) if weights.forgets else self.lag
-        self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp)
+        self.lattice = ViterbiLattice(graph, weights, sensor_indices, prune_every, kernel, warp,
+                                      orientation_calibration)
         self.next_emit = 0  # first sample not yet emitted
         self.next_decide = 0  # first sample not yet decided
         self._decided: list[tuple] = []  # (node, edge, ground, heading, blend nodes) of samples next_emit.. decided
@@ -81,6 +90,9 @@ class FixedLagSynthesizer:
         self._reanchor_after = max(1, int(round(reanchor_after_s * fps)))
         self._high_for = 0  # consecutive samples with the window cost above reanchor_ratio x reference
         self.reanchors: list[int] = []  # samples at which the search re-anchored
+        self._posing = SegmentPosing.for_search(graph, tuple(range(graph.n_sensors)) if sensor_indices is None
+                                                else tuple(sensor_indices), weights, orientation_calibration)
+        self._pose_inputs: list[tuple[np.ndarray, np.ndarray]] = []  # SegmentPosing.sample of samples next_emit..
 
     def push(self, acc_g: np.ndarray | None, pos_m: np.ndarray | None = None, heading_rad: float | None = None,
              penalty: np.ndarray | None = None, rows: np.ndarray | None = None, *,
@@ -93,6 +105,8 @@ class FixedLagSynthesizer:
         lat = self.lattice
         lat.step(acc_g, pos_m, heading_rad, penalty, rows, quat_wxyz)
         self._fuser.push(pos_m, heading_rad)
+        if self._posing is not None:
+            self._pose_inputs.append(self._posing.sample(acc_g, quat_wxyz))
         t = lat.t
         per_sample = self._window.push(lat.cost_offset)
         self._history.push(lat.cost_offset)
@@ -176,8 +190,13 @@ class FixedLagSynthesizer:
         ground = np.array([d[2] for d in out], dtype=float).reshape(-1, 2)
         heading = np.array([d[3] for d in out], dtype=float)
         out_ground, out_heading = self._fuser.decide(ground, heading)
-        if out[0][4] is not None:
-            joints = blended_joint_positions(self.graph, np.stack([d[4] for d in out]), out_ground, out_heading)
+        blend = np.stack([d[4] for d in out]) if out[0][4] is not None else nodes[:, None]
+        inputs, self._pose_inputs = self._pose_inputs[:k], self._pose_inputs[k:]
+        if self._posing is not None:
+            joints = self._posing.joint_positions(blend, out_ground, out_heading, np.stack([i[0] for i in inputs]),
+                                                  np.stack([i[1] for i in inputs]))
+        elif out[0][4] is not None:
+            joints = blended_joint_positions(self.graph, blend, out_ground, out_heading)
         else:
             joints = world_joint_positions(self.graph, nodes, out_ground, out_heading)
         self.next_emit = last + 1
@@ -194,7 +213,8 @@ def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Obse
     over the whole take with lag `weights.decision_frames`, so offline and live decide every sample the same way
     (bit for bit: both step through `viterbi.step_arguments`)."""
     syn = FixedLagSynthesizer(graph, weights.decision_frames / graph.config.fps, weights, obs.sensor_indices,
-                              prune_every, kernel, warp, confidence_reference=float("nan"), reanchor_ratio=0.0)
+                              prune_every, kernel, warp, confidence_reference=float("nan"), reanchor_ratio=0.0,
+                              orientation_calibration=obs.orientation_calibration)
     lat = syn.lattice
     poses: list[EmittedPose] = []
     for step in step_arguments(lat, obs, constraints):

@@ -5,7 +5,10 @@ The online engine is `engine.graph.online.FixedLagSynthesizer` itself (it speaks
 Its default database is a graph over the shipped clips, cached as .npz keyed by the clip files, sensor names,
 graph config and calibrated rotations, so a second start only loads it. With a sensor-calibration record (written
 by the gateway's calibration workflow) the graph's virtual sensors use the measured sensor-to-segment rotations
-(`engine.mocap.placements_from_calibration`); each calibration gets its own cached graph."""
+(`engine.mocap.placements_from_calibration`); each calibration gets its own cached graph. When the record also
+calibrated every worn sensor's orientation (its earth-frame yaw and strapping, issue 18), the decoder poses the
+worn segments with their yaw relative to the pelvis (`orientation_pose.SegmentPosing`), else with their tilt
+only; the status bar says which."""
 from __future__ import annotations
 
 import hashlib
@@ -18,6 +21,7 @@ import numpy as np
 
 from engine.mocap import (SEED000_SENSORS, Motion, SensorCalibrationData, Skeleton, default_cache_dir, load_clip,
                           placements_from_calibration, standard_placements)
+from engine.mocap.orientation_calibration import OrientationCalibration
 from engine.stream.databases import GRAPH_FPS, shipped_clip_paths
 from engine.stream.engines import ACC, ORIENTATION, EngineMismatchError, EngineSpec
 
@@ -26,12 +30,15 @@ from .graph import MotionGraph
 
 
 def motion_graph_spec(graph: MotionGraph, database: str | Path, skeleton: Any = None, warp: Any = None,
-                      fusion: Any = None) -> EngineSpec:
+                      fusion: Any = None, orientation_calibration: OrientationCalibration | None = None
+                      ) -> EngineSpec:
     """Fixed-lag Viterbi over a `MotionGraph` (from `courtside build-graph` or the console's cache), with
     `courtside synthesize`'s defaults: root warping towards the camera (``warp``, default
     `engine.graph.warp.RootWarp()`) and the weights that go with it, the output root fused from the camera track
     (``fusion``, default `engine.graph.root_fusion.RootFusion()`). The confidence reference (the cost per sample
-    of the graph's own clips) is measured once here, not at every engine restart."""
+    of the graph's own clips) is measured once here, not at every engine restart. ``orientation_calibration``
+    (the graph's sensors in order, `SensorCalibrationData.orientation_calibration`): segments posed with their yaw
+    relative to the pelvis, else by tilt only."""
     from .confidence import reference_cost_per_sample
     from .online import FixedLagSynthesizer
     from .orientation_term import places_sensors
@@ -49,21 +56,30 @@ def motion_graph_spec(graph: MotionGraph, database: str | Path, skeleton: Any = 
     fusion = RootFusion() if fusion is None else fusion
     weights = default_weights(warp)
     reference = reference_cost_per_sample(graph, weights, warp)
-    # the orientation term is on in the camera-following preset when the graph's poses place its sensors
-    inputs = (ACC, ORIENTATION) if weights.orientation > 0 and places_sensors(graph) else (ACC,)
+    # orientations feed the search's term (camera-following preset) and pose the worn segments, when the graph's
+    # poses place its sensors
+    listens = places_sensors(graph) and (weights.orientation > 0 or weights.segment_pose > 0)
+    inputs = (ACC, ORIENTATION) if listens else (ACC,)
+    note = "" if not (listens and weights.segment_pose > 0) else \
+        "calibrated yaw" if orientation_calibration is not None else "tilt only"
     return EngineSpec("motion-graph", str(database), names, float(graph.config.fps), np.asarray(skeleton.parents),
                       lambda lag_s: FixedLagSynthesizer(graph, lag_s, weights, warp=warp,
-                                                        confidence_reference=reference, fusion=fusion),
+                                                        confidence_reference=reference, fusion=fusion,
+                                                        orientation_calibration=orientation_calibration),
                       graph=graph,
                       skeleton=skeleton,
-                      inputs=inputs)
+                      inputs=inputs,
+                      inputs_note=note)
+
+
+CACHE_CONTENTS = "2: graphs store their sensor rotations"  # a change of what a cached graph holds starts a new cache
 
 
 def graph_cache_path(clip_paths: Sequence[Path], sensor_names: Sequence[str], config: GraphConfig,
                      cache_dir: Path | None = None, calibration: SensorCalibrationData | None = None) -> Path:
     """Cache file name from the clip files' identity (path, size, mtime), sensors, config and the calibrated
     rotations (if any)."""
-    parts = [json.dumps(list(sensor_names)), config.to_json()]
+    parts = [json.dumps(list(sensor_names)), config.to_json(), CACHE_CONTENTS]
     if calibration is not None:
         parts.append(calibration.fingerprint())
     parts += [f"{p.resolve()}|{p.stat().st_size}|{p.stat().st_mtime_ns}" for p in sorted(clip_paths)]
@@ -94,11 +110,18 @@ def load_or_build_graph(exclude: Sequence[str] = (), sensor_names: Sequence[str]
     return graph, skeleton, cache
 
 
+def _orientation_calibration(graph: MotionGraph, calibration: SensorCalibrationData | None
+                             ) -> OrientationCalibration | None:
+    """The record's orientation calibration of the graph's sensors, in the graph's order (None without one)."""
+    return None if calibration is None else calibration.orientation_calibration(graph.config.sensor_names)
+
+
 def shipped_spec(exclude: Sequence[str] = (), calibration: SensorCalibrationData | None = None,
                  cache_dir: Path | None = None) -> EngineSpec:
     """The motion-graph engine on the shipped clips (the console's default database), cached."""
     graph, skeleton, cache = load_or_build_graph(exclude=exclude, calibration=calibration, cache_dir=cache_dir)
-    return motion_graph_spec(graph, f"shipped CMU clips ({cache.name})", skeleton)
+    return motion_graph_spec(graph, f"shipped CMU clips ({cache.name})", skeleton,
+                             orientation_calibration=_orientation_calibration(graph, calibration))
 
 
 def build_spec(motions: Sequence[Motion], database: str) -> EngineSpec:
@@ -108,6 +131,9 @@ def build_spec(motions: Sequence[Motion], database: str) -> EngineSpec:
     return motion_graph_spec(graph, database, motions[0].skeleton)
 
 
-def load_spec(path: str | Path) -> EngineSpec:
-    """The motion-graph engine on a graph file from `courtside build-graph`."""
-    return motion_graph_spec(MotionGraph.load(path), path)
+def load_spec(path: str | Path, calibration: SensorCalibrationData | None = None) -> EngineSpec:
+    """The motion-graph engine on a graph file from `courtside build-graph`; a record's orientation calibration
+    applies to any graph (its sensor frames are the placements', not a skeleton's joint frames), its mounting
+    rotations only to a graph built with them."""
+    graph = MotionGraph.load(path)
+    return motion_graph_spec(graph, path, orientation_calibration=_orientation_calibration(graph, calibration))

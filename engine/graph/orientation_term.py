@@ -17,6 +17,11 @@ sensor's yaw is arbitrary and drifts (engine/mocap/orientation.py). So the term 
   drift. Until `MIN_LEARNED_S` of samples are decided only the tilt part is used. (A prior from the database's
   mean d_i was measured first and made every gesture take worse: the forearms' d_i spread over the whole circle.)
 
+With an N-pose calibration (engine/mocap/orientation_calibration.py: each sensor's yaw offset and strapping
+from the still capture) nothing is learnt: the readings are turned into the world first, the offsets are zero
+from the first sample, and the heading part's share is `SearchWeights.calibrated_heading` (0.5; measured better
+than tilt alone on held-out gestures, where learnt offsets were worse: docs/engine-evaluation.md).
+
 Together the two parts are the 3x3 rotation matrix of yaw(-(ψ_pelvis + offset_i)) * q_i (row 1 = tilt, rows 0
 and 2 = heading), so their squared distance is the chordal distance, 4 (1 - cos θ) for a rotation by θ.
 Without the pelvis sensor among the worn ones only the tilt part exists.
@@ -31,10 +36,13 @@ Batch and fixed-lag searches see the same features: the batch search with forget
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from engine.mocap import quaternions as quat
-from engine.mocap.orientation import from_device_earth, virtual_orientations, yaw_about_up
+from engine.mocap.orientation import from_device_earth, twist_yaw, virtual_orientations, yaw_about_up
+from engine.mocap.orientation_calibration import OrientationCalibration
 from engine.mocap.sensors import standard_placements
 from engine.mocap.skeleton import Motion
 
@@ -45,13 +53,6 @@ OFFSET_TIME_CONSTANT_S = 30.0  # the yaw-offset estimate's memory: long enough t
 # poses, short enough to follow a filter's drift (OrientationErrorModel.realistic: 3 deg/min)
 MIN_LEARNED_S = 1.0  # decided samples (in seconds) before the heading part is used
 UP = np.array([0.0, 1.0, 0.0])
-
-
-def twist_yaw(quat_world: np.ndarray) -> np.ndarray:
-    """(...,) rad: the rotation's twist about the world's up axis (+Y), q = yaw_about_up(ψ) * swing with the
-    swing's axis horizontal; turning the frame by a yaw δ adds δ to ψ exactly."""
-    q = np.asarray(quat_world, float)
-    return 2.0 * np.arctan2(q[..., 2], q[..., 0])
 
 
 def places_sensors(graph: MotionGraph) -> bool:
@@ -70,6 +71,8 @@ def node_sensor_orientations(graph: MotionGraph) -> np.ndarray:
     if not places_sensors(graph):
         raise ValueError("this graph stores no joint rotations or sensor placements: rebuild it to use orientations")
     placements = standard_placements(graph.skeleton, graph.config.sensor_names)
+    if graph.sensor_rotations is not None:  # the strapping the graph's virtual sensors were built with
+        placements = [replace(p, rotation=r) for p, r in zip(placements, graph.sensor_rotations)]
     motion = Motion(graph.skeleton, graph.config.fps, graph.node_root_m.astype(float),
                     graph.node_rotations.astype(float))
     graph.__dict__["_sensor_orientations"] = out = virtual_orientations(motion, placements)
@@ -119,8 +122,12 @@ class OrientationTerm:
     the lattice's acc metadata, each node's relative yaws, and encoders for observed device-earth quaternions."""
 
     def __init__(self, graph: MotionGraph, sensor_indices: list[int], weight: float, heading_share: float = 0.0,
-                 offset_time_constant_s: float = OFFSET_TIME_CONSTANT_S) -> None:
+                 offset_time_constant_s: float = OFFSET_TIME_CONSTANT_S,
+                 calibration: OrientationCalibration | None = None, calibrated_heading_share: float = 0.0) -> None:
         names = [graph.config.sensor_names[i] for i in sensor_indices]
+        self.calibration = calibration  # known yaw offsets and strapping: the readings are turned into the world
+        if calibration is not None:
+            heading_share = calibrated_heading_share
         self.heading_share = heading_share  # 0: the tilt part alone (no reference, nothing to learn)
         self.reference = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names and heading_share > 0 else None
         self.n_sensors = len(sensor_indices)
@@ -161,8 +168,12 @@ class OrientationEncoder:
             raise ValueError(f"expected {self.term.n_sensors} sensors x 4 quaternion components, got {q.shape}")
         if not np.isfinite(q).all():
             return None
-        q = from_device_earth(q)
         ref = self.term.reference
+        if self.term.calibration is not None:  # offsets known: nothing to learn
+            q = self.term.calibration.world(q)
+            return features(q, ref, None if ref is None else np.zeros(self.term.n_sensors),
+                            self.term.heading_share) * self.term.scale
+        q = from_device_earth(q)
         offset = None
         if ref is not None:
             psi = twist_yaw(q)

@@ -16,7 +16,14 @@ def world_joint_positions(graph: MotionGraph, nodes: np.ndarray, ground_m: np.nd
                           heading_rad: np.ndarray) -> np.ndarray:
     """(T, J, 3) joint positions (m, world frame) of `nodes` placed at the path's (ground, heading) per sample."""
     nodes = np.asarray(nodes, dtype=np.intp)
-    pts = graph.node_positions_m[nodes].astype(float)
+    return place_node_points(graph, nodes, graph.node_positions_m[nodes].astype(float), ground_m, heading_rad)
+
+
+def place_node_points(graph: MotionGraph, nodes: np.ndarray, pts: np.ndarray, ground_m: np.ndarray,
+                      heading_rad: np.ndarray) -> np.ndarray:
+    """(T, J, 3) points given in each node's clip frame (its pose, possibly re-posed: orientation_pose) placed at
+    the path's (ground, heading) per sample, as `world_joint_positions` places the node's own pose."""
+    pts = np.array(pts, float, copy=True)
     pts[..., 0] -= graph.node_ground_m[nodes, 0][:, None]
     pts[..., 2] -= graph.node_ground_m[nodes, 1][:, None]
     turn = np.asarray(heading_rad, float) - graph.node_heading_rad[nodes]
@@ -37,11 +44,13 @@ def root_local(joints_m: np.ndarray, ground_m: np.ndarray, heading_rad: np.ndarr
 
 
 def blended_joint_positions(graph: MotionGraph, blend_nodes: np.ndarray, ground_m: np.ndarray,
-                            heading_rad: np.ndarray) -> np.ndarray:
+                            heading_rad: np.ndarray, node_points: np.ndarray | None = None) -> np.ndarray:
     """(T, J, 3) the mean of the poses of `blend_nodes` (T, k), each placed at the path's (ground, heading) per
-    sample: the k poses averaged in the root frame (placement is linear in the root-frame pose)."""
+    sample: the k poses averaged in the root frame (placement is linear in the root-frame pose). `node_points`
+    (T, k, J, 3): the nodes' poses re-posed in their clip frames (orientation_pose), else their own."""
     blend_nodes = np.asarray(blend_nodes, dtype=np.intp)
     t, k = blend_nodes.shape
-    placed = world_joint_positions(graph, blend_nodes.reshape(-1), np.repeat(ground_m, k, axis=0),
-                                   np.repeat(heading_rad, k))
+    flat = blend_nodes.reshape(-1)
+    pts = graph.node_positions_m[flat] if node_points is None else np.asarray(node_points).reshape(t * k, -1, 3)
+    placed = place_node_points(graph, flat, pts, np.repeat(ground_m, k, axis=0), np.repeat(heading_rad, k))
     return placed.reshape(t, k, -1, 3).mean(axis=1)

@@ -26,6 +26,7 @@ import numpy as np
 
 from engine import progress
 from engine.errors import CourtsideError
+from engine.mocap.orientation_calibration import OrientationCalibration
 
 from . import kernels_numpy
 from .edge_runs import EdgeRuns
@@ -78,8 +79,14 @@ class SearchWeights:
     # and the term is skipped for samples without orientations (an acc-only take searches exactly as before)
     orientation_heading: float = 0.0  # share of its heading-relative-to-the-pelvis part (learnt yaw offsets)
     # against its tilt part; 0 = tilt alone (measured best: docs/engine-evaluation.md, "Orientations")
+    calibrated_heading: float = 0.5  # the same share when an N-pose calibration gives the yaw offsets (nothing
+    # to learn: measured better than tilt alone, docs/engine-evaluation.md)
     gravity: float = 0.0  # weight of the tilt estimated from low-passed accelerations (gravity_term.py) when the
     # orientation term is off; 0 = off (docs/engine-evaluation.md, "Accelerations that listen")
+    segment_pose: float = 1.0  # with orientations: how far each worn segment is turned from the played pose onto
+    # its measured orientation (orientation_pose.py; 1 = all the way, 0 = play database poses as they are)
+    tilt_from_acc_s: float = 0.2  # without orientations: the time constant (s) of the low-pass that gives each
+    # worn segment's tilt from its accelerations for the posing (acc_tilt.py); 0 = play database poses as they are
     sensor_weighting: float = 0.0  # power of the per-sensor C_A weights from how much each sensor tells about
     # pose (sensor_weights.py); 0 = every sensor alike (off); negative favours the less pose-specific sensors
 
@@ -132,6 +139,8 @@ class Observations:
     sensor_indices: tuple[int, ...] | None = None
     quat_wxyz: np.ndarray | None = None  # (T, S', 4) sensor -> device earth (Z up, yaw per sensor), NaN = missing
     gyro_rps: np.ndarray | None = None  # (T, S', 3) rad/s in the sensor frame, NaN = missing
+    orientation_calibration: OrientationCalibration | None = None  # of the S' sensors: how to read `quat_wxyz`
+    # (yaw offsets + strapping from the N-pose capture; None = unknown yaws)
 
     @property
     def n_samples(self) -> int:
@@ -183,7 +192,8 @@ class ViterbiLattice:
 
     def __init__(self, graph: MotionGraph, weights: SearchWeights = SearchWeights(),
                  sensor_indices: tuple[int, ...] | None = None, prune_every: int = PRUNE_EVERY,
-                 kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> None:
+                 kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off(),
+                 orientation_calibration: OrientationCalibration | None = None) -> None:
         if kernel not in KERNELS:
             raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
         if BACKENDS[kernel] is None:
@@ -211,7 +221,9 @@ class ViterbiLattice:
             acc_t = (acc_t * self._acc_scale[:, None].astype(np.float32)).astype(np.float32)
         # the orientation term's features are extra rows of the same squared distance (orientation_term.py);
         # a sample without orientations uses the first 3S rows alone (a contiguous view)
-        self.orientation = OrientationTerm(graph, sel, weights.orientation, weights.orientation_heading) \
+        self.orientation = OrientationTerm(graph, sel, weights.orientation, weights.orientation_heading,
+                                           calibration=orientation_calibration,
+                                           calibrated_heading_share=weights.calibrated_heading) \
             if weights.orientation > 0 and self.n_sensors and places_sensors(graph) else None
         self._encoder = None if self.orientation is None else self.orientation.encoder()
         self._gravity = None
@@ -634,7 +646,8 @@ def viterbi_search(graph: MotionGraph, weights: SearchWeights, obs: Observations
                    kernel: str = DEFAULT_KERNEL, warp: RootWarp = RootWarp.off()) -> SearchResult:
     """Seed 000's batch search: every sample stepped, then the best final path back-traced. (A forgetting search
     decides sample by sample instead: `engine.graph.search.ViterbiSearch` chooses.)"""
-    lattice = ViterbiLattice(graph, weights, obs.sensor_indices, prune_every, kernel, warp)
+    lattice = ViterbiLattice(graph, weights, obs.sensor_indices, prune_every, kernel, warp,
+                             obs.orientation_calibration)
     for step in step_arguments(lattice, obs, constraints):
         lattice.step(*step[:5], quat_wxyz=step[5])
     return finish(lattice)

@@ -8,7 +8,17 @@ them) read what the real, imperfectly strapped sensors read.
 The engine must not depend on the gateway, so the record is read here from its JSON (``schema:
 courtside.sensor_calibration``, ``schema_version: 1``, written by ``gateway.calibration.CalibrationRecord.save``):
 only the per-sensor ``segment`` (= standard placement name), ``rotation`` (3x3), ``gravity_sensor_g``,
-``norm_error_g``, ``correction_deg`` and ``passed`` are used.
+``norm_error_g``, ``correction_deg`` and ``passed`` are used, and, for a sensor that streamed its orientation
+during the still capture (issue 18), the optional pair ``orientation_yaw_rad`` (its earth frame's yaw about the
+world vertical) and ``orientation_mount_wxyz`` (its strapping): `engine.mocap.orientation_calibration`'s
+`OrientationCalibration` of that sensor. The pair is optional within ``schema_version: 1`` (older readers ignore
+it, records without it read as before), and `orientation_fields` / `read_orientation_fields` are its one
+definition, which the gateway's writer and reader use too.
+
+Frames of the orientation pair: the yaw is about the engine world's up, relative to wherever the athlete faced
+during the capture (only yaws relative to the pelvis sensor are used), and the strapping maps the sensor's axes
+onto the *nominal* sensor frame of its standard placement, which is the same in every skeleton's joint frames (a
+placement is defined on the T-pose); so unlike ``rotation`` the pair is not tied to the wizard's skeleton.
 
 Frames: the record's rotations are in the joint frames of the skeleton whose standard placements gave the
 wizard its nominal mountings (``CalibrationService.standard``: the shipped CMU skeleton, which the console and
@@ -18,18 +28,23 @@ between the measured and the graph's nominal rotation must equal the correction 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.mocap.orientation_calibration import OrientationCalibration
 from engine.mocap.sensors import SensorPlacement
 from engine.versioned_json import read_versioned_json
 
 SCHEMA = "courtside.sensor_calibration"
 SCHEMA_VERSION = 1
+ORIENTATION_YAW, ORIENTATION_MOUNT = "orientation_yaw_rad", "orientation_mount_wxyz"  # optional, per sensor
+
+log = logging.getLogger(__name__)
 
 
 def _is_rotation(r: np.ndarray) -> bool:
@@ -38,6 +53,32 @@ def _is_rotation(r: np.ndarray) -> bool:
 
 def _angle_deg(r: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0))))
+
+
+def orientation_fields(yaw_rad: float | None, mount_wxyz: np.ndarray | None) -> dict:
+    """A sensor entry's optional orientation pair as written (nothing when the sensor has none); the
+    strapping's sign is fixed (w >= 0), one of the two equal quaternions."""
+    if yaw_rad is None or mount_wxyz is None:
+        return {}
+    mount = np.asarray(mount_wxyz, float).reshape(4)
+    return {ORIENTATION_YAW: float(yaw_rad), ORIENTATION_MOUNT: (mount if mount[0] >= 0 else -mount).tolist()}
+
+
+def read_orientation_fields(entry: Mapping) -> tuple[float, np.ndarray] | None:
+    """A sensor entry's orientation pair ``(yaw_rad, mount_wxyz (4,))``, or None when it has none. ValueError
+    when only one of the two is there, or either is not finite, or the strapping is not a unit quaternion."""
+    has = [entry.get(k) is not None for k in (ORIENTATION_YAW, ORIENTATION_MOUNT)]
+    if not any(has):
+        return None
+    if not all(has):
+        raise ValueError(f"{ORIENTATION_YAW} and {ORIENTATION_MOUNT} go together; only one is given")
+    yaw = float(entry[ORIENTATION_YAW])
+    mount = np.asarray(entry[ORIENTATION_MOUNT], float).reshape(4)
+    if not (np.isfinite(yaw) and np.isfinite(mount).all()):
+        raise ValueError("non-finite orientation calibration")
+    if abs(np.linalg.norm(mount) - 1.0) > 1e-3:
+        raise ValueError(f"{ORIENTATION_MOUNT} is not a unit quaternion (norm {np.linalg.norm(mount):.4f})")
+    return yaw, mount
 
 
 def calibrated_placements(placements: list[SensorPlacement], rotations: Mapping[str, np.ndarray],
@@ -68,7 +109,9 @@ class SensorCalibrationData:
     gravity direction (sensor frame) -- the only bias component one still pose observes (it also absorbs scale
     error), so it is offered, not applied by default. ``sensor_ids``: the live sensor on each segment.
     ``correction_deg``: angle between the measured and the nominal mounting, as the wizard computed it.
-    ``failed``: segments whose sensor did not pass the wizard's checks."""
+    ``failed``: segments whose sensor did not pass the wizard's checks. ``orientation``: segment -> (yaw rad,
+    strapping (4,)) of the sensors whose orientation was calibrated (`orientation_calibration` turns it into the
+    engine's `OrientationCalibration`)."""
 
     path: Path
     rotations: dict[str, np.ndarray] = field(default_factory=dict)
@@ -76,18 +119,36 @@ class SensorCalibrationData:
     sensor_ids: dict[str, str] = field(default_factory=dict)
     correction_deg: dict[str, float] = field(default_factory=dict)
     failed: list[str] = field(default_factory=list)
+    orientation: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
 
     def fingerprint(self) -> str:
         """Stable text of the rotations (and nothing else), for cache keys."""
         return json.dumps({k: np.round(v, 6).tolist() for k, v in sorted(self.rotations.items())})
 
+    def orientation_calibration(self, sensor_names: Sequence[str]) -> OrientationCalibration | None:
+        """The orientation calibration of the worn ``sensor_names`` (segments), in that order, or None -- said in a
+        log line -- unless every one of them has one: the engine poses segments with their yaw relative to the
+        pelvis only when all are calibrated (a segment whose earth-frame yaw is unknown would be turned by it),
+        and with tilt alone otherwise."""
+        names = list(sensor_names)
+        missing = [n for n in names if n not in self.orientation]
+        if missing:
+            if len(missing) < len(names):
+                log.info("%s: no orientation calibration for %s (the sensor streamed no orientation during the "
+                         "still capture): worn segments posed by tilt only", self.path, ", ".join(missing))
+            else:
+                log.info("%s: no orientation calibration in the record: worn segments posed by tilt only", self.path)
+            return None
+        return OrientationCalibration(np.array([self.orientation[n][0] for n in names]),
+                                      np.stack([self.orientation[n][1] for n in names]))
+
 
 def read_calibration_record(path: str | Path) -> dict:
     """The JSON document of a ``courtside.sensor_calibration`` record, checked: schema and version, a non-empty
-    ``sensors`` object, every entry's segment, proper 3x3 rotation, gravity (3,), finite numbers, one sensor per
-    segment. The one check of the format: the engine (`load_sensor_calibration`) and the gateway
-    (``gateway.calibration.CalibrationRecord.load``) both read records through it. Bad files raise
-    MalformedFileError naming the file and the problem."""
+    ``sensors`` object, every entry's segment, proper 3x3 rotation, gravity (3,), finite numbers, the optional
+    orientation pair (`read_orientation_fields`), one sensor per segment. The one check of the format: the engine
+    (`load_sensor_calibration`) and the gateway (``gateway.calibration.CalibrationRecord.load``) both read records
+    through it. Bad files raise MalformedFileError naming the file and the problem."""
     path = Path(path)
     doc = read_versioned_json(path, SCHEMA, SCHEMA_VERSION, "a sensor calibration record",
                               lambda p, problem: MalformedFileError(p, None, problem))
@@ -102,6 +163,7 @@ def read_calibration_record(path: str | Path) -> dict:
             gravity = np.asarray(entry["gravity_sensor_g"], float).reshape(3)
             numbers = [float(entry["norm_error_g"]), float(entry["correction_deg"])]
             bool(entry["passed"])
+            read_orientation_fields(entry)
         except (KeyError, TypeError, ValueError) as exc:
             raise MalformedFileError(path, None, f"sensor {sid!r}: bad entry ({exc!r})") from None
         if not (np.all(np.isfinite(rotation)) and np.all(np.isfinite(gravity)) and np.all(np.isfinite(numbers))):
@@ -128,6 +190,9 @@ def load_sensor_calibration(path: str | Path) -> SensorCalibrationData:
         out.correction_deg[segment] = float(entry["correction_deg"])
         if not bool(entry["passed"]):
             out.failed.append(segment)
+        orientation = read_orientation_fields(entry)
+        if orientation is not None:
+            out.orientation[segment] = orientation
     return out
 
 

@@ -41,6 +41,13 @@ def yaw_about_up(yaw_rad: np.ndarray) -> np.ndarray:
     return np.stack([np.cos(half), zero, np.sin(half), zero], axis=-1)
 
 
+def twist_yaw(quat_world: np.ndarray) -> np.ndarray:
+    """(...,) rad: the rotation's twist about the world's up axis (+Y), q = yaw_about_up(ψ) * swing with the
+    swing's axis horizontal; turning the frame by a yaw δ adds δ to ψ exactly."""
+    q = np.asarray(quat_world, float)
+    return 2.0 * np.arctan2(q[..., 2], q[..., 0])
+
+
 def virtual_orientations(motion: Motion, placements: list[SensorPlacement],
                          fk: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """(F, S, 4) unit quaternions (w, x, y, z), sensor -> engine world, exact (no error): the orientation a perfect
@@ -97,14 +104,17 @@ class OrientationErrorModel:
 
     def apply(self, quat_world: np.ndarray, fps: float, rng: np.random.Generator) -> np.ndarray:
         """Device-earth readings (F, S, 4) from true sensor -> world orientations (F, S, 4); deterministic for a
-        given rng state."""
+        given rng state (one `draw`, then `OrientationErrors.apply`)."""
         q = np.asarray(quat_world, float)
-        n_frames, n_sensors, _ = q.shape
+        return self.draw(q.shape[0], q.shape[1], fps, rng).apply(q)
+
+    def draw(self, n_frames: int, n_sensors: int, fps: float, rng: np.random.Generator) -> "OrientationErrors":
+        """One set of hardware's errors over `n_frames` frames at `fps`: what `apply` adds, kept so a test or an
+        emulator knows the answer a calibration must find (each sensor's yaw offset at any frame)."""
         t_min = np.arange(n_frames) / fps / 60.0
-        if self.misalignment_deg > 0:
-            q = quat.multiply(q, _random_rotations(rng, n_sensors, np.radians(self.misalignment_deg))[None])
-        if self.tilt_noise_deg > 0:
-            q = quat.multiply(self._tilt_errors(rng, n_frames, n_sensors, fps), q)
+        misalignment = random_rotations(rng, n_sensors, np.radians(self.misalignment_deg)) \
+            if self.misalignment_deg > 0 else None
+        tilt = self._tilt_errors(rng, n_frames, n_sensors, fps) if self.tilt_noise_deg > 0 else None
         yaw = np.zeros((n_frames, n_sensors))
         if self.yaw_offset:
             yaw += rng.uniform(-np.pi, np.pi, n_sensors)
@@ -114,7 +124,7 @@ class OrientationErrorModel:
             steps = rng.normal(0.0, 1.0, (n_frames, n_sensors)) * np.sqrt(1.0 / fps / 60.0)
             steps[0] = 0.0
             yaw += np.radians(self.yaw_walk_deg_per_sqrt_min) * np.cumsum(steps, axis=0)
-        return quat.canonical_sign(to_device_earth(q, yaw))
+        return OrientationErrors(yaw, tilt, misalignment)
 
     def _tilt_errors(self, rng: np.random.Generator, n_frames: int, n_sensors: int, fps: float) -> np.ndarray:
         """(F, S, 4) small rotations about horizontal world axes: two AR(1) angle processes per sensor (about X and
@@ -130,7 +140,28 @@ class OrientationErrorModel:
         return quat.from_rotvec(rotvec)
 
 
-def _random_rotations(rng: np.random.Generator, n: int, sd_rad: float) -> np.ndarray:
+@dataclass(frozen=True)
+class OrientationErrors:
+    """One draw of `OrientationErrorModel`: ``yaw_rad`` (F, S) each sensor's earth-frame yaw per frame (offset,
+    drift and walk), ``tilt_wxyz`` (F, S, 4) the filter's tilt error or None, ``misalignment_wxyz`` (S, 4) the
+    strapping or None."""
+
+    yaw_rad: np.ndarray
+    tilt_wxyz: np.ndarray | None = None
+    misalignment_wxyz: np.ndarray | None = None
+
+    def apply(self, quat_world: np.ndarray) -> np.ndarray:
+        """Device-earth readings (F, S, 4) of true sensor -> world orientations (F, S, 4):
+        ``conj(E) * yaw(t) * tilt(t) * q_world * misalignment``."""
+        q = np.asarray(quat_world, float)
+        if self.misalignment_wxyz is not None:
+            q = quat.multiply(q, self.misalignment_wxyz[None])
+        if self.tilt_wxyz is not None:
+            q = quat.multiply(self.tilt_wxyz, q)
+        return quat.canonical_sign(to_device_earth(q, self.yaw_rad))
+
+
+def random_rotations(rng: np.random.Generator, n: int, sd_rad: float) -> np.ndarray:
     """(n, 4) rotations about random axes by normally distributed angles (sd ``sd_rad``)."""
     axes = rng.normal(size=(n, 3))
     axes /= np.linalg.norm(axes, axis=1, keepdims=True)

@@ -95,8 +95,9 @@ def shipped_spec(exclude: Sequence[str] = (), calibration: Any = None) -> Engine
     return build_spec(shipped_motions(exclude), "shipped CMU clips")
 
 
-def load_spec(path: str | Path) -> EngineSpec:
-    """OLNG on a knowledge base saved by `courtside reconstruct --save-kb`."""
+def load_spec(path: str | Path, calibration: Any = None) -> EngineSpec:
+    """OLNG on a knowledge base saved by `courtside reconstruct --save-kb` (a calibration record does not change
+    it)."""
     from .knowledge_base import KnowledgeBase
 
     return olng_spec(KnowledgeBase.load(path), path)

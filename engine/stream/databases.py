@@ -62,4 +62,4 @@ def engine_spec(engine: str | None, *, graph_path: Path | None = None, kb_path: 
     if calibration is not None:
         notes.append(f"{path}: the database's virtual sensors keep the mounting it was built with (build it with "
                      "the calibration record, e.g. `courtside build-graph --calibration`, to use its rotations)")
-    return module.load_spec(path), notes
+    return module.load_spec(path, calibration), notes

@@ -62,6 +62,8 @@ class EngineSpec:
     graph: Any = None               # the motion graph (motion-graph engine): what pose streaming needs
     skeleton: Any = None            # engine.mocap.Skeleton of the emitted poses, when known
     inputs: tuple[str, ...] = (ACC,)  # the channels the engine uses (ACC, ORIENTATION, GYRO)
+    inputs_note: str = ""           # how it uses them, shown after them (the motion graph: "calibrated yaw" when
+                                    # it poses segments with their yaw relative to the pelvis, else "tilt only")
     make_live: Callable[[float], OnlineEngine] | None = None  # a real-time caller's engine (the console): may trade
                                     # accuracy for time and say so in its `status`; None = `make`
 
@@ -71,9 +73,10 @@ class EngineSpec:
 
     @property
     def label(self) -> str:
-        """One line for a status bar: engine, database, sensors, channels."""
+        """One line for a status bar: engine, database, sensors, channels (and how they are used)."""
+        note = f" ({self.inputs_note})" if self.inputs_note else ""
         return (f"{self.name} on {self.database} ({len(self.sensor_names)} sensors @ {self.rate_hz:g} Hz, "
-                f"{'+'.join(self.inputs)})")
+                f"{'+'.join(self.inputs)}{note})")
 
 
 @dataclass(frozen=True)

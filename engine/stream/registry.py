@@ -9,7 +9,8 @@ for engines nobody runs):
   engine this way on the clips a take is held out of;
 * ``shipped_spec(exclude, calibration) -> EngineSpec``: the engine on the clips the project ships (the console's
   default database), minus the ``exclude`` clip names, with a sensor-calibration record or None;
-* ``load_spec(path) -> EngineSpec``: the engine on a database file (None: the engine has no file format).
+* ``load_spec(path, calibration) -> EngineSpec``: the engine on a database file, with a sensor-calibration record
+  or None (what of it applies to a database already built; None: the engine has no file format).
 
 The console (`engine.stream.databases.engine_spec`), `courtside synthesize --engine` and `courtside
 reconstruct --evaluate --engines` all look engines up here; the names are the same everywhere."""

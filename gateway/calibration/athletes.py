@@ -29,11 +29,11 @@ class AthleteCalibrations:
         self.default = next(iter(self.services))
 
     def on_athlete_samples(self, athlete: str | None, station: str, sensor: int, t_host_s: np.ndarray,
-                           acc_g: np.ndarray) -> None:
+                           acc_g: np.ndarray, quat_wxyz: np.ndarray | None = None) -> None:
         """Samples of one block, to the wizard of the athlete wearing the sensor (others' wizards never see them)."""
         service = self.services.get(athlete) if athlete is not None else None
         if service is not None:
-            service.on_samples(station, sensor, t_host_s, acc_g)
+            service.on_samples(station, sensor, t_host_s, acc_g, quat_wxyz)
 
     def state(self) -> dict[str, Any]:
         states = {name: service.state() for name, service in self.services.items()}

@@ -4,11 +4,14 @@
 The take is an `import-imu` file, or the gateway's own recording (`courtside gateway export --npz`) with
 ``--sensor-map STATION/SENSOR=PLACEMENT``: then the record's sensor ids are the live ``station/sensor`` keys, so
 `courtside console --calibration` reads each segment from that live sensor (devices bought off the shelf are one
-station each, and no station holds all the worn sensors)."""
+station each, and no station holds all the worn sensors). A take with orientations (``quat_wxyz``: an
+`import-imu` file from devices that report one, or a recording of orientation-capable stations) also gets each
+sensor's yaw and strapping calibrated from the standing stretches (issue 18)."""
 from __future__ import annotations
 
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,10 +27,24 @@ from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationCon
 EXPORT_RATE_HZ = 50.0  # a gateway recording is brought to this frame clock (0.5 s windows, gait below 6 Hz)
 
 
-def _read_gateway_export(path: Path, sensor_map: dict[str, str]) -> tuple[np.ndarray, float, list[str], list[str]]:
-    """acc_g (T, S, 3), fps, placement names, live sensor ids of a gateway export, on one frame clock by the
-    console's own sample -> frame path (`engine.graph.inputs.read_take`). Frames a dropout touched are filled
-    linearly from their neighbours: calibration averages windows, and a NaN would void a whole window."""
+@dataclass
+class CalibrationTake:
+    """What calibration reads of a take: ``acc_g`` (T, S, 3) at ``fps``, each column's placement ``names`` and
+    sensor id (``labels``), and ``quat_wxyz`` (T, S, 4) when the take has orientations (NaN where a sensor has
+    none)."""
+
+    acc_g: np.ndarray
+    fps: float
+    names: list[str]
+    labels: list[str]
+    quat_wxyz: np.ndarray | None = None
+
+
+def _read_gateway_export(path: Path, sensor_map: dict[str, str]) -> CalibrationTake:
+    """A gateway export on one frame clock by the console's own sample -> frame path
+    (`engine.graph.inputs.read_take`), sensor ids = the live keys. Accelerations of frames a dropout touched are
+    filled linearly from their neighbours: calibration averages windows, and a NaN would void a whole window (an
+    orientation stays NaN there: windows with one are not used for it)."""
     from engine.graph.inputs import read_take
 
     placements = list(sensor_map.values())
@@ -42,12 +59,12 @@ def _read_gateway_export(path: Path, sensor_map: dict[str, str]) -> tuple[np.nda
             for axis in range(3):
                 acc[bad, k, axis] = np.interp(np.flatnonzero(bad), good, acc[good, k, axis])
     names = [placements[i] for i in take.obs.sensor_indices]
-    return acc, EXPORT_RATE_HZ, names, list(take.stream_keys)
+    return CalibrationTake(acc, EXPORT_RATE_HZ, names, list(take.stream_keys), take.obs.quat_wxyz)
 
 
-def _read_take(path: Path, sensor_map: dict[str, str] | None = None) -> tuple[np.ndarray, float, list[str], list[str]]:
-    """acc_g (T, S, 3), fps, placement names, sensor ids (source labels) of a synthesis-input take, or of a
-    gateway export when ``sensor_map`` is given."""
+def _read_take(path: Path, sensor_map: dict[str, str] | None = None) -> CalibrationTake:
+    """A synthesis-input take (sensor ids = its source labels), or a gateway export when ``sensor_map`` is
+    given."""
     with open_npz(path) as data:
         is_export = "acc_g" not in data.files and bool(recorded_sensors(data.files))  # engine.export_format
     if is_export:
@@ -66,12 +83,15 @@ def _read_take(path: Path, sensor_map: dict[str, str] | None = None) -> tuple[np
         names = [str(n) for n in data["sensor_names"]]
         labels = [str(n) for n in data["source_labels"]] if "source_labels" in data.files else names
         fps = float(data["fps"])
+        quat = np.asarray(data["quat_wxyz"], float) if "quat_wxyz" in data.files else None
     if acc.ndim != 3 or acc.shape[1:] != (len(names), 3):
         raise MalformedFileError(path, None, f"acc_g has shape {acc.shape}, expected (T, {len(names)}, 3)")
+    if quat is not None and quat.shape != acc.shape[:2] + (4,):
+        raise MalformedFileError(path, None, f"quat_wxyz has shape {quat.shape}, expected {acc.shape[:2] + (4,)}")
     unknown = [n for n in names if n not in STANDARD_SENSORS]
     if unknown:
         raise MalformedFileError(path, None, f"sensor names {unknown} are not standard placements")
-    return acc, fps, names, labels
+    return CalibrationTake(acc, fps, names, labels, quat)
 
 
 def _windows(texts: list[str] | None) -> dict[str, tuple[float, float]]:
@@ -106,13 +126,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--subject", default="")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
-    acc, fps, names, labels = _read_take(path, parse_sensor_map(args.sensor_map, list(STANDARD_SENSORS),
-                                                               "a standard placement"))
+    take = _read_take(path, parse_sensor_map(args.sensor_map, list(STANDARD_SENSORS), "a standard placement"))
+    names = take.names
     windows = _windows(args.second_pose)
     config = RecordingCalibrationConfig(max_std_g=args.max_std)
     try:
-        record = calibrate_recording(acc, fps, labels, names, standard_segment_poses(names, tuple(windows)), config,
-                                     windows, args.subject, path.stem)
+        record = calibrate_recording(take.acc_g, take.fps, take.labels, names,
+                                     standard_segment_poses(names, tuple(windows)), config, windows, args.subject,
+                                     path.stem, quat_wxyz=take.quat_wxyz)
     except ValueError as exc:
         raise CourtsideError(f"{path}: {exc}") from None
     try:
@@ -130,5 +151,8 @@ def main(argv: list[str] | None = None) -> int:
     print(json.dumps({"output": args.output, "quality": record.quality_score, "grade": record.grade,
                       "passed": record.passed,
                       "sensors": {sid: {"segment": s.segment, "correction_deg": round(s.correction_deg, 1),
-                                        "quality": round(s.quality, 2)} for sid, s in record.sensors.items()}}))
+                                        "quality": round(s.quality, 2),
+                                        **({} if s.orientation_yaw_rad is None else
+                                           {"orientation_yaw_deg": round(float(np.degrees(s.orientation_yaw_rad)), 1)})}
+                                  for sid, s in record.sensors.items()}}))
     return 0

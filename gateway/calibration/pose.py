@@ -1,127 +1,15 @@
-"""The calibration pose the wizard expects, built on an engine skeleton.
-
-The static capture needs each segment's up direction *in the pose the subject really holds*
-(``SegmentSpec.expected_up``). An engine skeleton's zero pose is the obvious candidate but is the wrong one for
-the shipped CMU ASF skeleton (and Bandai after ``engine.mocap.rebase_to_tpose``): its zero pose is a T-pose, arms
-out along +-X and legs splayed 20 deg. The standard set-up therefore asks for a **reference N-pose**, defined on
-the skeleton itself (:func:`reference_npose`):
-
-* trunk, neck, head and feet exactly as in the zero pose (upright, facing +Z, feet flat);
-* each upper arm, forearm, thigh and shin pointing straight down (world -Y), reached from the zero pose by the
-  *smallest* rotation of each bone in turn (shoulder, elbow, hip, knee). From a T-pose that is a rotation about
-  the forward axis, so the arms hang straight along the body with the palms facing in, and the legs are straight
-  with the feet under the hip joints;
-* the ankles are counter-rotated so each foot keeps its zero-pose orientation (flat on the ground).
-
-A frame of a shipped clip is not used: frame 0 of 16_01 (the subject standing before walking) has the elbows bent
-~22 deg and the shins ~17 deg off vertical, i.e. it is not the pose the operator asks for.
-"""
+"""The calibration poses the wizard asks for: their geometry lives in the engine
+(`engine.mocap.calibration_poses`, which the evaluation also simulates); here, what the operator is told."""
 from __future__ import annotations
 
-from typing import Any
+from engine.mocap.calibration_poses import (POSES, pose_rotations, reference_bow, reference_long_sit,
+                                            reference_npose)
 
-import numpy as np
+__all__ = ["POSES", "POSE_INSTRUCTIONS", "pose_rotations", "reference_bow", "reference_long_sit", "reference_npose"]
 
-from gateway.calibration.alignment import UP, minimal_rotation
-
-POSES = ("npose", "tpose")
 POSE_INSTRUCTIONS = {
     "npose": "Stand upright facing forward, arms straight down along the body, palms in, legs straight, "
              "feet under the hips. Hold still: capture starts by itself.",
     "tpose": "Stand upright facing forward, arms straight out to the sides at shoulder height, palms down, legs "
              "straight. Hold still: capture starts by itself.",
 }
-# (joint role, distal role) of each bone that hangs straight down in the N-pose, parents before children
-_HANGING = tuple((f"{side}_{joint}", f"{side}_{distal}") for side in ("left", "right")
-                 for joint, distal in (("shoulder", "elbow"), ("elbow", "wrist"), ("hip", "knee"), ("knee", "ankle")))
-_MAX_TRUNK_TILT_DEG = 20.0
-
-
-def _fk(skeleton: Any, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """World positions (J, 3) and rotations (J, 3, 3) of local rotation matrices (J, 3, 3), root at the origin."""
-    glob = np.empty_like(local)
-    pos = np.zeros((skeleton.n_joints, 3))
-    glob[0] = local[0]
-    for j in range(1, skeleton.n_joints):
-        p = skeleton.parents[j]
-        glob[j] = glob[p] @ local[j]
-        pos[j] = pos[p] + glob[p] @ skeleton.offsets_m[j]
-    return pos, glob
-
-
-def reference_npose(skeleton: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The reference N-pose (module docstring) of an engine skeleton: ``(local, global)`` joint rotation
-    matrices, each (J, 3, 3); ``global`` is what ``segment_specs_from_placements(pose_rotations=)`` takes.
-
-    Refuses (ValueError) a skeleton whose zero pose is not upright (e.g. raw Bandai, lying along X: rebase it
-    with ``engine.mocap.rebase_to_tpose`` first), since "straight down" would then not be along the body."""
-    from engine.mocap import joint_roles
-
-    roles = joint_roles(skeleton)
-    local = np.tile(np.eye(3), (skeleton.n_joints, 1, 1))
-    pos, glob = _fk(skeleton, local)
-    spine = pos[roles["upper_back"]] - pos[roles["pelvis"]]
-    tilt = np.degrees(np.arccos(np.clip(spine @ UP / np.linalg.norm(spine), -1.0, 1.0)))
-    if tilt > _MAX_TRUNK_TILT_DEG:
-        raise ValueError(f"the skeleton's zero pose is not upright (spine {tilt:.0f} deg from vertical): "
-                         "re-base it to a T-pose (engine.mocap.rebase_to_tpose) before building the N-pose")
-    feet = {j: glob[j].copy() for j in (roles["left_ankle"], roles["right_ankle"])}
-    for joint_role, distal_role in _HANGING:
-        j, d = roles[joint_role], roles[distal_role]
-        bone = pos[d] - pos[j]
-        glob_j = minimal_rotation(bone, -UP) @ glob[j]
-        parent = skeleton.parents[j]
-        local[j] = glob[parent].T @ glob_j
-        pos, glob = _fk(skeleton, local)
-    for j, world in feet.items():  # keep the feet flat: undo the leg's swing at the ankle
-        local[j] = glob[skeleton.parents[j]].T @ world
-    return local, _fk(skeleton, local)[1]
-
-
-def reference_bow(skeleton: Any, bow_deg: float = 60.0) -> np.ndarray:
-    """Global joint rotations (J, 3, 3) of a forward bow: the reference N-pose with the trunk (and everything it
-    carries: head, arms) pitched ``bow_deg`` forward at the hips while the legs stay as they were. A second still
-    pose for `courtside calibrate`: it inclines the pelvis and chest, whose heading one upright pose and walking
-    cannot fix."""
-    from engine.mocap import joint_roles
-
-    roles = joint_roles(skeleton)
-    local, glob = reference_npose(skeleton)
-    c, s = np.cos(np.radians(bow_deg)), np.sin(np.radians(bow_deg))
-    pitch = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])  # about +X (left): up tips toward +Z (forward)
-    legs = {j: glob[j].copy() for j in (roles["left_hip"], roles["right_hip"])}
-    local = local.copy()
-    local[0] = pitch @ local[0]
-    bowed = _fk(skeleton, local)[1]
-    for j, world in legs.items():  # the thighs keep hanging straight down: flex the hips instead
-        local[j] = bowed[skeleton.parents[j]].T @ world
-    return _fk(skeleton, local)[1]
-
-
-def reference_long_sit(skeleton: Any) -> np.ndarray:
-    """Global joint rotations (J, 3, 3) of a long sit: the reference N-pose with the trunk upright and both legs
-    straight out in front, horizontal (hips flexed 90 deg), kneecaps and toes up. A second still pose for
-    `courtside calibrate`: it lays the shank horizontal, so gravity then shows the shank's rotation about its
-    own long axis, which is its heading while standing; walking sees it only through the leg's swing plane, which
-    follows the actor's toe-out (6-24 deg off on stylised gait)."""
-    from engine.mocap import joint_roles
-
-    roles = joint_roles(skeleton)
-    local, glob = reference_npose(skeleton)
-    c, s = np.cos(np.radians(-90.0)), np.sin(np.radians(-90.0))
-    pitch = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])  # about +X (left): down (-Y) -> forward (+Z)
-    local = local.copy()
-    for side in ("left", "right"):  # the whole leg turns as one: only the hip's local rotation changes
-        j = roles[f"{side}_hip"]
-        local[j] = glob[skeleton.parents[j]].T @ pitch @ glob[j]
-    return _fk(skeleton, local)[1]
-
-
-def pose_rotations(skeleton: Any, pose: str) -> np.ndarray:
-    """Global joint rotations (J, 3, 3) of the named calibration pose: ``"npose"`` (:func:`reference_npose`)
-    or ``"tpose"`` (the skeleton's zero pose, a T-pose for CMU ASF and re-based skeletons)."""
-    if pose == "npose":
-        return reference_npose(skeleton)[1]
-    if pose == "tpose":
-        return np.tile(np.eye(3), (skeleton.n_joints, 1, 1))
-    raise ValueError(f"unknown calibration pose {pose!r}; known: {', '.join(POSES)}")

@@ -15,13 +15,21 @@ import numpy as np
 from engine.array_checks import READ_ERRORS
 from engine.errors import MalformedFileError
 from engine.mocap import quaternions
-from engine.mocap.calibrated import SCHEMA, SCHEMA_VERSION, read_calibration_record  # the format, engine side
+# the format is the engine's (issue 19): one reader, one definition of the optional orientation fields
+from engine.mocap.calibrated import (ORIENTATION_MOUNT, ORIENTATION_YAW, SCHEMA, SCHEMA_VERSION, orientation_fields,
+                                     read_calibration_record, read_orientation_fields)
 from gateway.calibration.errors import CalibrationRecordError
+
+RAW_KINDS = ("t_s", "acc_g", "quat_wxyz")  # the raw samples of one sensor in one step, in tuple order (the last
+# only for a sensor that streamed its orientation)
 
 
 @dataclass
 class SensorCalibration:
-    """Result for one sensor. ``rotation`` (3, 3): sensor axes -> segment frame (engine ``SensorPlacement``)."""
+    """Result for one sensor. ``rotation`` (3, 3): sensor axes -> segment frame (engine ``SensorPlacement``).
+    ``orientation_yaw_rad`` / ``orientation_mount_wxyz`` (4,): for a sensor that streamed its orientation during
+    the still capture, its earth frame's yaw and its strapping (`engine.mocap.OrientationCalibration` of one
+    sensor); None for an accelerometer-only sensor (and in records written before them)."""
 
     sensor_id: str
     segment: str
@@ -33,26 +41,32 @@ class SensorCalibration:
     quality: float
     passed: bool
     reasons: list[str] = field(default_factory=list)
+    orientation_yaw_rad: float | None = None
+    orientation_mount_wxyz: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        out = asdict(self)
+        out = {k: v for k, v in asdict(self).items() if k not in (ORIENTATION_YAW, ORIENTATION_MOUNT)}
         out["rotation"] = np.asarray(self.rotation).tolist()
         q = quaternions.from_matrix(self.rotation)
         out["rotation_wxyz"] = (q if q[0] >= 0 else -q).tolist()  # w >= 0: one of the two equal quaternions
         out["gravity_sensor_g"] = np.asarray(self.gravity_sensor_g).tolist()
-        return out
+        return {**out, **orientation_fields(self.orientation_yaw_rad, self.orientation_mount_wxyz)}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "SensorCalibration":
-        fields = {k: data[k] for k in cls.__dataclass_fields__}
+        fields = {k: data[k] for k in cls.__dataclass_fields__ if k not in (ORIENTATION_YAW, ORIENTATION_MOUNT)}
         fields["rotation"] = np.asarray(fields["rotation"], float)
         fields["gravity_sensor_g"] = np.asarray(fields["gravity_sensor_g"], float)
+        orientation = read_orientation_fields(data)
+        if orientation is not None:
+            fields[ORIENTATION_YAW], fields[ORIENTATION_MOUNT] = orientation
         return cls(**fields)
 
 
 @dataclass
 class CalibrationRecord:
-    """A finished calibration. ``raw``: step -> sensor id -> ``(t_s (N,), acc_g (N, 3))``."""
+    """A finished calibration. ``raw``: step -> sensor id -> ``(t_s (N,), acc_g (N, 3))``, with a third array
+    ``quat_wxyz`` (N, 4) for a sensor whose orientations went into it."""
 
     sensors: dict[str, SensorCalibration]
     quality_score: float
@@ -63,7 +77,7 @@ class CalibrationRecord:
     take: str = ""
     created_utc: str = ""
     config: dict[str, Any] = field(default_factory=dict)
-    raw: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
+    raw: dict[str, dict[str, tuple[np.ndarray, ...]]] = field(default_factory=dict)
 
     def rotation(self, sensor_id: str) -> np.ndarray:
         """Sensor -> segment rotation (3, 3) for ``engine.mocap.SensorPlacement(..., rotation=...)``."""
@@ -75,9 +89,9 @@ class CalibrationRecord:
         npz_path = path.with_suffix(".npz")
         arrays = {}
         for step, per_sensor in self.raw.items():
-            for sensor_id, (t, acc) in per_sensor.items():
-                arrays[f"{step}/{sensor_id}/t_s"] = np.asarray(t)
-                arrays[f"{step}/{sensor_id}/acc_g"] = np.asarray(acc)
+            for sensor_id, samples in per_sensor.items():
+                for kind, values in zip(RAW_KINDS, samples):
+                    arrays[f"{step}/{sensor_id}/{kind}"] = np.asarray(values)
         np.savez_compressed(npz_path, **arrays)
         doc = {
             "schema": SCHEMA, "schema_version": SCHEMA_VERSION, "created_utc": self.created_utc,
@@ -101,7 +115,7 @@ class CalibrationRecord:
             sensors = {sid: SensorCalibration.from_dict(s) for sid, s in doc["sensors"].items()}
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationRecordError(path, f"bad sensor entry: {exc!r}") from None
-        raw: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
+        raw: dict[str, dict[str, tuple[np.ndarray, ...]]] = {}
         if with_raw:
             npz_path = path.parent / doc.get("raw_samples_file", path.with_suffix(".npz").name)
             try:
@@ -110,7 +124,9 @@ class CalibrationRecord:
                         step, rest = key.split("/", 1)  # sensor ids may contain "/" themselves
                         sensor_id, kind = rest.rsplit("/", 1)
                         if kind == "t_s":
-                            raw.setdefault(step, {})[sensor_id] = (data[key], data[f"{step}/{sensor_id}/acc_g"])
+                            raw.setdefault(step, {})[sensor_id] = tuple(
+                                data[f"{step}/{sensor_id}/{k}"] for k in RAW_KINDS
+                                if k != "quat_wxyz" or f"{step}/{sensor_id}/{k}" in data.files)
             except (*READ_ERRORS, KeyError) as exc:
                 raise CalibrationRecordError(npz_path, f"raw samples unreadable: {exc}") from None
         return cls(

@@ -1,7 +1,8 @@
 """Calibration hook for the gateway daemon: request actions -> :class:`CalibrationWizard`, samples in.
 
 Contract (docs/gateway.md "Hooks"): ``handle(action, args) -> result``, ``state() -> dict`` and
-``on_samples(station, sensor, t_host_s, acc_g)``. Sensor ids in the wizard are ``"<station>/<sensor>"``.
+``on_samples(station, sensor, t_host_s, acc_g, quat_wxyz=None)`` (orientations of a sensor that streams them).
+Sensor ids in the wizard are ``"<station>/<sensor>"``.
 Reader threads push samples while client threads send actions, so one lock serialises both.
 
 ``save`` writes ``<records_dir>/<name>.calibration.json`` (+ ``.npz``) and nothing else: the client names the
@@ -64,9 +65,10 @@ class CalibrationService:
         specs = segment_specs_from_placements(placements, pose_rotations=pose_rotations(skeleton, pose))
         return cls(specs, config, pose, records_dir)
 
-    def on_samples(self, station: str, sensor: int | str, t_host_s: np.ndarray, acc_g: np.ndarray) -> None:
+    def on_samples(self, station: str, sensor: int | str, t_host_s: np.ndarray, acc_g: np.ndarray,
+                   quat_wxyz: np.ndarray | None = None) -> None:
         with self._lock:
-            self.wizard.push(f"{station}/{sensor}", t_host_s, acc_g)
+            self.wizard.push(f"{station}/{sensor}", t_host_s, acc_g, quat_wxyz)
 
     def state(self) -> dict[str, Any]:
         with self._lock:

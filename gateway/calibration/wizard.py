@@ -7,8 +7,15 @@ sensor pass/fail) -> ``done``. Any step can be redone alone (:meth:`CalibrationW
 are kept and the wizard returns to the first unfinished step afterwards.
 
 Why time comes from the samples, not a wall clock: the same wizard then runs live, on a replayed take, and in
-tests, deterministically. Input: :meth:`push` (sensor id, times s, accelerations g). Output: :meth:`snapshot`, a
-JSON-ready dict for the console, and :meth:`record`, the versioned :class:`CalibrationRecord`.
+tests, deterministically. Input: :meth:`push` (sensor id, times s, accelerations g, and the orientation
+quaternions of a sensor that streams them). Output: :meth:`snapshot`, a JSON-ready dict for the console, and
+:meth:`record`, the versioned :class:`CalibrationRecord`.
+
+Orientation sensors (issue 18): a sensor that streamed its orientation (sensor -> its device's own earth frame,
+Z up, yaw arbitrary per sensor) throughout the still capture also gets its earth frame's yaw and its strapping,
+solved against the segment's nominal sensor orientation in the pose
+(`engine.mocap.orientation_calibration.OrientationCalibration.from_still_pose`), so the engine can pose each
+segment with its yaw relative to the pelvis. Accelerometer-only sensors are calibrated exactly as before.
 """
 from __future__ import annotations
 
@@ -18,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from engine.mocap import quaternions
+from engine.mocap.orientation_calibration import OrientationCalibration
 from gateway.calibration.alignment import (
     UP, norm_error_g, rotation_angle_deg, sensor_to_segment_rotation, tilt_deg,
 )
@@ -35,10 +44,14 @@ class SegmentSpec:
     """Where a sensor goes: ``nominal_rotation`` (3, 3) sensor -> segment as mounted by the book, and
     ``expected_up`` (3,), world up in segment coordinates in the calibration pose the subject holds. The default
     ``(0, 1, 0)`` means that the segment frame is world-aligned in that pose. That holds in an engine skeleton's
-    zero pose, which is a T-pose for CMU; the standard set-up's N-pose uses ``gateway.calibration.pose``."""
+    zero pose, which is a T-pose for CMU; the standard set-up's N-pose uses ``gateway.calibration.pose``.
+
+    ``pose_orientation_wxyz`` (4,): the nominally mounted sensor's orientation (sensor -> world, facing +Z) in that
+    pose, what an orientation sensor's reading is solved against; None: orientations are not calibrated."""
 
     nominal_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     expected_up: np.ndarray = field(default_factory=lambda: UP.copy())
+    pose_orientation_wxyz: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -63,11 +76,15 @@ def segment_specs_from_placements(placements: list[Any], pose_rotations: np.ndar
     up, i.e. the calibration pose is the skeleton's zero pose (a T-pose for the shipped CMU skeleton), unless
     ``pose_rotations`` (J, 3, 3), the joints' global rotations in the pose the subject really holds (e.g.
     ``gateway.calibration.pose.reference_npose(skeleton)[1]``, what ``CalibrationService.standard`` uses), is
-    given: then each segment's up is world up seen in that joint's frame, ``G_j^T (0, 1, 0)``."""
+    given: then each segment's up is world up seen in that joint's frame, ``G_j^T (0, 1, 0)``, and its nominal
+    sensor's orientation in the pose is ``G_j R``: the same pose for the accelerometer and the orientation, so both
+    halves of a record describe one strap."""
     specs = {}
     for p in placements:
-        up = UP.copy() if pose_rotations is None else np.asarray(pose_rotations, float)[p.joint].T @ UP
-        specs[p.name] = SegmentSpec(np.asarray(p.rotation, float), up)
+        world_from_segment = np.eye(3) if pose_rotations is None else np.asarray(pose_rotations, float)[p.joint]
+        rotation = np.asarray(p.rotation, float)
+        specs[p.name] = SegmentSpec(rotation, world_from_segment.T @ UP,
+                                    quaternions.from_matrix(world_from_segment @ rotation))
     return specs
 
 
@@ -164,10 +181,12 @@ class CalibrationWizard:
         self._say(f"redoing step {step!r}")
 
     # ------------------------------------------------------------------ data in
-    def push(self, sensor_id: str, t_s: float | np.ndarray, acc_g: np.ndarray) -> None:
-        """Samples of one sensor: times ``t_s`` (s, host clock; scalar or (N,)) and ``acc_g`` ((3,) or (N, 3))."""
+    def push(self, sensor_id: str, t_s: float | np.ndarray, acc_g: np.ndarray,
+             quat_wxyz: np.ndarray | None = None) -> None:
+        """Samples of one sensor: times ``t_s`` (s, host clock; scalar or (N,)), ``acc_g`` ((3,) or (N, 3)) and, if
+        it streams them, its orientations ``quat_wxyz`` ((4,) or (N, 4), sensor -> device earth; NaN rows: none)."""
         buffer = self._buffers.setdefault(sensor_id, SampleBuffer())
-        buffer.extend(t_s, acc_g)
+        buffer.extend(t_s, acc_g, quat_wxyz)
         self._now = max(self._now, buffer.last_t_s)
         self._advance()
         # Keep what the current step still needs: the tap search window, the capture window, or a few seconds.
@@ -223,9 +242,12 @@ class CalibrationWizard:
     def _finish_npose(self, t0: float, t1: float) -> None:
         cfg = self.config
         self._raw["npose"] = {}
+        oriented = 0
         for sid, segment in self.assignment.items():
             t, acc = self._buffers[sid].window(t0, t1)
-            self._raw["npose"][sid] = (t.copy(), acc.copy())
+            quat = self._buffers[sid].quat_window(t0, t1)
+            streamed = np.isfinite(quat).all(axis=1)
+            self._raw["npose"][sid] = (t.copy(), acc.copy()) + ((quat.copy(),) if streamed.any() else ())
             spec = self.segments[segment]
             mean = acc.mean(axis=0)
             rotation = sensor_to_segment_rotation(mean, spec.nominal_rotation, spec.expected_up)
@@ -242,10 +264,21 @@ class CalibrationWizard:
             quality = float(np.clip(min(1 - correction / cfg.max_correction_deg, 1 - abs(err) / cfg.norm_tolerance_g,
                                         1 - std / cfg.still_std_g), 0.0, 1.0))
             self.results[sid] = SensorCalibration(sid, segment, rotation, mean, err, std, correction, quality,
-                                                  not reasons, reasons)
+                                                  not reasons, reasons, *self._orientation(quat[streamed], spec))
+            oriented += self.results[sid].orientation_yaw_rad is not None
         self._capturing = False
-        self._say("N-pose captured")
+        self._say("N-pose captured" + (f" (orientation calibrated for {oriented} of {len(self.assignment)} sensors)"
+                                       if oriented else ""))
         self._leave("npose")
+
+    @staticmethod
+    def _orientation(quat_wxyz: np.ndarray, spec: SegmentSpec) -> tuple[float | None, np.ndarray | None]:
+        """(yaw rad, strapping (4,)) of a sensor from its orientations during the capture, or (None, None) when it
+        streamed none or its segment's pose orientation is not known."""
+        if not len(quat_wxyz) or spec.pose_orientation_wxyz is None:
+            return None, None
+        solved = OrientationCalibration.from_still_pose(quat_wxyz[:, None], spec.pose_orientation_wxyz[None])
+        return float(solved.yaw_rad[0]), solved.mount_wxyz[0]
 
     def _advance_tap(self) -> None:
         events: list[tuple[TapEvent, str]] = []
@@ -347,6 +380,8 @@ class CalibrationWizard:
                 "correction_deg": None if result is None else result.correction_deg,
                 "norm_error_g": None if result is None else result.norm_error_g,
                 "rotation_wxyz": None if result is None else result.to_dict()["rotation_wxyz"],
+                "orientation_yaw_deg": None if result is None or result.orientation_yaw_rad is None
+                else float(np.degrees(result.orientation_yaw_rad)),
             }
         countdown = None
         if self.step == "npose" and self._capturing:

@@ -11,9 +11,10 @@ Hook points for gateway/camera and gateway/calibration (duck-typed, see docs/gat
   with at least ``t_host_s``, ``position_m`` ``[x, y]`` (court frame) and ``heading_rad``.
   Code that runs its own loop can instead call `Gateway.publish_camera` directly.
 * ``calibration``: an object with ``handle(action, args) -> result`` and ``state() -> dict``; optionally
-  ``on_samples(station, sensor, t_host_s, acc_g)`` to see every sample, or (one wizard per athlete,
-  `gateway.calibration.athletes`) ``on_athlete_samples(athlete, station, sensor, t_host_s, acc_g)``. Its state is
-  published when it changes.
+  ``on_samples(station, sensor, t_host_s, acc_g, quat_wxyz)`` to see every sample (``quat_wxyz`` (N, 4) the
+  sensor's orientations, None when it streams none), or (one wizard per athlete, `gateway.calibration.athletes`)
+  ``on_athlete_samples(athlete, station, sensor, t_host_s, acc_g, quat_wxyz)``. Its state is published when it
+  changes.
 * ``athletes``: a `gateway.athletes.AthleteMap`; every samples message then carries ``athlete`` (who wears the
   sensor; absent for a sensor nobody wears). Without one every sample is the default athlete's ("player").
 """
@@ -205,9 +206,9 @@ class Gateway:
         per_athlete = getattr(self.calibration, "on_athlete_samples", None)
         on_samples = getattr(self.calibration, "on_samples", None)
         if per_athlete is not None:
-            per_athlete(athlete, block.station, block.sensor, block.t_host_s, block.acc_g)
+            per_athlete(athlete, block.station, block.sensor, block.t_host_s, block.acc_g, block.quat_wxyz)
         elif on_samples is not None:
-            on_samples(block.station, block.sensor, block.t_host_s, block.acc_g)
+            on_samples(block.station, block.sensor, block.t_host_s, block.acc_g, block.quat_wxyz)
         for sink in self.sample_sinks:
             sink(block)
 

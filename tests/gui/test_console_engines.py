@@ -76,6 +76,36 @@ def test_console_refuses_a_graph_for_other_placements_than_the_calibration_recor
     assert err.count("\n") == 1  # one line, no traceback
 
 
+@pytest.mark.parametrize("oriented", [True, False])
+def test_status_bar_says_whether_segments_are_posed_with_calibrated_yaw(live_gateway, qapp, tmp_path, wrist_graph,
+                                                                        caplog, oriented):
+    """`courtside console --calibration REC`: a record that calibrated every worn sensor's orientation (the
+    N-pose capture of orientation-capable stations) makes the motion graph pose the worn segments with their yaw
+    relative to the pelvis, and the engine label says so; an accelerometer-only record (an old one, or
+    accelerometer-only stations) poses by tilt only, said in the label and in a log line."""
+    import json
+
+    from engine.mocap.calibrated import orientation_fields
+    from engine.stream.poses_file import load_poses
+
+    gateway, _ = live_gateway(StillSource(4), 4)
+    names = ["left_wrist", "right_wrist", "left_ankle", "right_ankle"]
+    record = tmp_path / "take.calibration.json"
+    record.write_text(json.dumps({"schema": "courtside.sensor_calibration", "schema_version": 1, "sensors": {
+        f"st1/{i}": {"segment": seg, "rotation": np.eye(3).tolist(), "gravity_sensor_g": [0, 1, 0],
+                     "norm_error_g": 0.0, "correction_deg": 0.0, "passed": True,
+                     **(orientation_fields(0.3 * i, [1.0, 0.0, 0.0, 0.0]) if oriented else {})}
+        for i, seg in enumerate(names)}}))
+    host, port = gateway.address
+    with caplog.at_level(logging.INFO):
+        assert console_main(["--connect", f"{host}:{port}", "--graph", str(wrist_graph), "--calibration",
+                             str(record), "--duration", "2", "--save-poses", str(tmp_path / "p.npz")]) == 0
+    how = "calibrated yaw" if oriented else "tilt only"
+    assert f"(4 sensors @ 30 Hz, acc+orientation ({how}))" in caplog.text
+    assert ("no orientation calibration in the record" in caplog.text) is not oriented
+    assert load_poses(tmp_path / "p.npz").meta["engine_label"].endswith(f"acc+orientation ({how}))")
+
+
 def test_console_refuses_an_unreadable_graph(live_gateway, qapp, tmp_path, capsys):
     gateway, _ = live_gateway(StillSource(6), 6)
     host, port = gateway.address
@@ -137,7 +167,7 @@ def test_status_bar_names_engine_and_database(live_gateway, qtbot, wrist_graph):
             qtbot.waitUntil(lambda: window.worker.stats.frames_in > 0, timeout=10_000)
             window.tick()
             text = window.status_label.text()
-            assert f"motion-graph on {wrist_graph} (4 sensors @ 30 Hz, acc+orientation)" in text and "lag 0.50 s" in text
+            assert f"motion-graph on {wrist_graph} (4 sensors @ 30 Hz, acc+orientation (tilt only))" in text and "lag 0.50 s" in text
         finally:
             window.shutdown()
 

@@ -48,6 +48,7 @@ def test_console_process_receives_and_pushes_orientations(tmp_path):
     assert meta["frames_with_orientation"] == meta["frames_with_gyro"] == with_acc, meta
     # the motion graph's orientation term (camera-following preset) is what the engine says it uses
     assert list(meta["engine_inputs"]) == ["acc", "orientation"], meta
+    assert meta["engine_label"].endswith("acc+orientation (tilt only))"), meta  # no calibration record: no yaw
 
 
 def test_status_bar_names_the_engine_inputs_and_the_streamed_channels():
@@ -59,6 +60,9 @@ def test_status_bar_names_the_engine_inputs_and_the_streamed_channels():
     spec = EngineSpec("motion-graph", "g.npz", ("chest",), 30.0, np.zeros(1, int), lambda lag: None,
                       inputs=("acc", "orientation"))
     assert spec.label.endswith("acc+orientation)")  # what the engine uses, in the status bar's engine label
+    posed = EngineSpec("motion-graph", "g.npz", ("chest",), 30.0, np.zeros(1, int), lambda lag: None,
+                       inputs=("acc", "orientation"), inputs_note="calibrated yaw")
+    assert posed.label.endswith("acc+orientation (calibrated yaw))")  # and how: segments posed with their yaw
     assert streamed_summary(SimpleNamespace(frames_with_orientation=10, frames_with_gyro=10)) == \
         "streamed acc+orientation+gyro"
     assert streamed_summary(SimpleNamespace(frames_with_orientation=3, frames_with_gyro=0)) == \

@@ -124,3 +124,18 @@ def replace_orientation(weights: SearchWeights, value: float) -> SearchWeights:
     from dataclasses import replace
 
     return replace(weights, orientation=value)
+
+
+def test_a_calibration_gives_the_heading_part_from_the_first_sample(graph, take):
+    """Known yaw offsets (the N-pose calibration's): the readings are turned into the world and the heading part
+    is on from sample 0 with nothing to learn -- the features of the true orientations."""
+    from engine.mocap.orientation_calibration import OrientationCalibration
+
+    _, q_world, q_device = take
+    calibration = OrientationCalibration(YAWS, np.tile([1.0, 0.0, 0.0, 0.0], (6, 1)))
+    term = OrientationTerm(graph, list(range(6)), 1.0, 0.0, calibration=calibration, calibrated_heading_share=0.5)
+    assert term.reference == 4 and term.heading_share == 0.5
+    encoder = term.encoder()
+    got = np.stack([encoder.push(q) for q in q_device[:5]])
+    want = features(q_world[:5], 4, np.zeros(6), 0.5) * term.scale
+    assert np.allclose(got, want, atol=1e-9)

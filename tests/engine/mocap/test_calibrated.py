@@ -15,10 +15,12 @@ def _placements():
             SensorPlacement("b", 2, np.zeros(3), np.eye(3))]
 
 
-def _record(path, sensors, schema="courtside.sensor_calibration", version=1):
+def _record(path, sensors, schema="courtside.sensor_calibration", version=1, orientation=None):
+    """A record of ``sensors`` (id -> (segment, rotation, correction, passed)); ``orientation``: id -> the
+    optional per-sensor fields to add."""
     doc = {"schema": schema, "schema_version": version, "sensors": {
         sid: {"segment": seg, "rotation": np.asarray(rot).tolist(), "gravity_sensor_g": [0.0, 1.02, 0.0],
-              "norm_error_g": 0.02, "correction_deg": corr, "passed": passed}
+              "norm_error_g": 0.02, "correction_deg": corr, "passed": passed, **(orientation or {}).get(sid, {})}
         for sid, (seg, rot, corr, passed) in sensors.items()}}
     path.write_text(json.dumps(doc))
     return path
@@ -63,6 +65,11 @@ def test_record_reader_and_frame_check(tmp_path):
     (lambda p: _record(p, {"s": ("a", np.eye(3), 0.0, True), "t": ("a", np.eye(3), 0.0, True)}), "two sensors"),
     (lambda p: p.write_text(json.dumps({"schema": "courtside.sensor_calibration", "schema_version": 1,
                                         "sensors": {"s": {"segment": "a"}}})), "bad entry"),
+    (lambda p: _record(p, {"s": ("a", np.eye(3), 0.0, True)}, orientation={"s": {"orientation_yaw_rad": 0.3}}),
+     "go together"),
+    (lambda p: _record(p, {"s": ("a", np.eye(3), 0.0, True)},
+                       orientation={"s": {"orientation_yaw_rad": 0.3, "orientation_mount_wxyz": [2.0, 0, 0, 0]}}),
+     "not a unit quaternion"),
 ])
 def test_bad_records_name_the_file_and_problem(tmp_path, write, problem):
     path = tmp_path / "bad.calibration.json"
@@ -70,3 +77,40 @@ def test_bad_records_name_the_file_and_problem(tmp_path, write, problem):
     with pytest.raises(MalformedFileError, match=problem) as info:
         load_sensor_calibration(path)
     assert "bad.calibration.json" in str(info.value)
+
+
+YAWS = {"st0/1": 0.7, "st0/2": -2.9}
+MOUNTS = {"st0/1": quat.from_rotvec(np.array([0.05, 0.0, -0.03])), "st0/2": -quat.from_rotvec(np.array([0, 0.1, 0]))}
+
+
+def _oriented(ids) -> dict:
+    return {sid: {"orientation_yaw_rad": YAWS[sid], "orientation_mount_wxyz": MOUNTS[sid].tolist()} for sid in ids}
+
+
+def test_orientation_calibration_of_the_worn_sensors_in_their_order(tmp_path):
+    """The optional per-sensor pair becomes the engine's OrientationCalibration, ordered like the sensors asked
+    for; a strapping stored with either sign is the same rotation."""
+    sensors = {"st0/1": ("a", np.eye(3), 0.0, True), "st0/2": ("b", np.eye(3), 0.0, True)}
+    cal = load_sensor_calibration(_record(tmp_path / "r.json", sensors, orientation=_oriented(YAWS)))
+    solved = cal.orientation_calibration(["b", "a"])
+    np.testing.assert_array_equal(solved.yaw_rad, [YAWS["st0/2"], YAWS["st0/1"]])
+    np.testing.assert_array_equal(solved.mount_wxyz, [MOUNTS["st0/2"], MOUNTS["st0/1"]])
+    q = quat.normalize(np.random.default_rng(0).normal(size=(5, 2, 4)))  # the calibration maps readings alike
+    np.testing.assert_allclose(solved.world(q)[:, ::-1], cal.orientation_calibration(["a", "b"]).world(q[:, ::-1]),
+                               atol=1e-12)
+
+
+def test_records_without_orientations_or_with_a_worn_sensor_lacking_one_pose_by_tilt(tmp_path, caplog):
+    """An old (accelerometer-only) record loads as before with no orientation calibration; one where a worn
+    sensor streamed no orientation gives none either (the yaw posing needs every worn segment's), and a log line
+    names that sensor. A sensor that is not worn does not count."""
+    sensors = {"st0/1": ("a", np.eye(3), 0.0, True), "st0/2": ("b", np.eye(3), 0.0, True)}
+    caplog.set_level("INFO", logger="engine.mocap.calibrated")
+    old = load_sensor_calibration(_record(tmp_path / "old.json", sensors))
+    assert old.orientation == {} and old.orientation_calibration(["a", "b"]) is None
+    assert "no orientation calibration in the record" in caplog.text
+    caplog.clear()
+    mixed = load_sensor_calibration(_record(tmp_path / "mixed.json", sensors, orientation=_oriented(["st0/1"])))
+    assert mixed.orientation_calibration(["a", "b"]) is None
+    assert "no orientation calibration for b " in caplog.text and "tilt only" in caplog.text
+    assert mixed.orientation_calibration(["a"]).yaw_rad.tolist() == [YAWS["st0/1"]]

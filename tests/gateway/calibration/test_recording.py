@@ -192,3 +192,51 @@ def test_calibrate_reads_a_gateway_recording_and_names_the_live_sensors(tmp_path
         main([str(tmp_path / "rec.npz"), "-o", str(out), "--sensor-map", "nosuch/0=chest"])
     with pytest.raises(CourtsideError, match="'left_knee' is not a standard placement"):
         main([str(tmp_path / "rec.npz"), "-o", str(out), "--sensor-map", f"{keys[0]}=left_knee"])
+
+
+def test_calibrate_a_take_with_orientations_solves_each_sensor_s_yaw(tmp_path, capsys):
+    """`courtside calibrate` on an import-imu take whose sensors also report orientations through the emulators'
+    filter error model (random yaw per sensor, drift, walk, tilt noise), each strapped off nominal about an axis
+    that is horizontal in the N-pose (so one pose sees all of it), standing still in the N-pose before walking:
+    from the still windows, each sensor's yaw relative to the pelvis sensor is the emulated one within 1 deg,
+    and its strapping the true one within the filter's mean tilt error over the stretch + 1 deg (one still pose
+    cannot tell the two apart); the record keeps the orientations of the still windows."""
+    from dataclasses import replace
+
+    from engine.mocap import quaternions as quat
+    from engine.mocap.orientation import virtual_orientations
+    from gateway.calibration.offline_cli import main
+
+    from .conftest import FILTER, tilt_rotation
+
+    from engine.mocap.orientation_calibration import mean_orientation
+
+    motion = standing_then_walking(fps=FPS, seed=6, sway_deg=0.0)
+    poses = standard_segment_poses(NAMES)
+    rng = np.random.default_rng(6)
+    straps = {n: tilt_rotation(rng, quat.to_matrix(poses[n].orientation_wxyz).T @ [0.0, 1.0, 0.0], 20.0)
+              for n in NAMES}  # sensor frame
+    truth = [replace(p, rotation=p.rotation @ straps[p.name]) for p in standard_placements(motion.skeleton, NAMES)]
+    acc = virtual_accelerometers(motion, truth) + rng.normal(0.0, 0.01, (motion.n_frames, len(NAMES), 3))
+    errors = FILTER.draw(motion.n_frames, len(NAMES), FPS, rng)
+    quats = errors.apply(virtual_orientations(motion, truth))
+    np.savez(tmp_path / "take.npz", acc_g=acc, fps=FPS, sensor_names=np.array(NAMES), quat_wxyz=quats)
+    out = tmp_path / "take.calibration.json"
+    assert main([str(tmp_path / "take.npz"), "-o", str(out)]) == 0
+    record = CalibrationRecord.load(out)
+    yaw = np.array([record.sensors[n].orientation_yaw_rad for n in NAMES])
+    known = errors.yaw_rad[int(1.5 * FPS)]  # the middle of the standing stretch
+    pelvis = NAMES.index("lower_back")
+    error = np.degrees(np.angle(np.exp(1j * ((yaw - yaw[pelvis]) - (known - known[pelvis])))))
+    def angle_deg(a, b):
+        return np.degrees(2 * np.arccos(np.minimum(1.0, np.abs(np.sum(a * b, axis=-1)))))
+
+    strap_error = angle_deg(np.array([record.sensors[n].orientation_mount_wxyz for n in NAMES]),
+                            quat.from_matrix(np.array([straps[n] for n in NAMES])))
+    tilt = angle_deg(mean_orientation(errors.tilt_wxyz[: int(3.5 * FPS)]), quat.identity((len(NAMES),)))
+    print("yaw relative to the pelvis, solved - emulated (deg):", np.round(error, 2),
+          "strapping error (deg):", np.round(strap_error, 2), "the filter's mean tilt error (deg):", np.round(tilt, 2))
+    assert np.abs(error).max() < 1.0 and (strap_error < tilt + 1.0).all()
+    assert "orientation_yaw_deg" in capsys.readouterr().out
+    t_raw, acc_raw, quat_raw = record.raw["still"]["chest"]
+    assert quat_raw.shape == (len(t_raw), 4)

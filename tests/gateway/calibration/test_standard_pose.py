@@ -173,3 +173,28 @@ def test_the_zero_pose_setup_would_refuse_the_npose_subject(npose_world):
     print("T-pose set-up, subject in the N-pose, tilts (deg):", tilts)
     assert not accepted
     assert tilts["left_forearm"] == pytest.approx(90.0, abs=1.0) and tilts["left_shin"] == pytest.approx(20.0, abs=1.0)
+
+
+def test_the_wizard_s_orientation_template_is_its_pose_on_the_console_s_skeleton(skeleton):
+    """What an orientation sensor's reading is solved against (`SegmentSpec.pose_orientation_wxyz`, and `courtside
+    calibrate`'s `SegmentPose.orientation_wxyz`) is the nominal sensor's orientation in the reference N-pose built
+    on the shipped CMU skeleton, the pose whose `expected_up` the accelerometers are calibrated against (so both
+    halves of a record describe one strap). The evaluation's template (`pose_sensor_orientations`, the same pose
+    built on the T-pose re-based skeleton) is the same for limbs and pelvis; the chest differs by the CMU zero
+    pose's 2.7 deg trunk lean."""
+    from engine.mocap import quaternions
+    from engine.mocap.orientation_calibration import pose_sensor_orientations
+    from gateway.calibration.recording import standard_segment_poses
+
+    glob = reference_npose(skeleton)[1]
+    specs = CalibrationService.standard().wizard.segments
+    poses = standard_segment_poses(list(SEED000_SENSORS))
+    engine = pose_sensor_orientations(skeleton, SEED000_SENSORS)
+    for k, p in enumerate(standard_placements(skeleton, SEED000_SENSORS)):
+        want = quaternions.from_matrix(glob[p.joint] @ p.rotation)
+        for got in (specs[p.name].pose_orientation_wxyz, poses[p.name].orientation_wxyz):
+            assert abs(np.dot(got, want)) == pytest.approx(1.0, abs=1e-12), p.name
+        np.testing.assert_allclose(quaternions.to_matrix(want).T @ [0.0, 1.0, 0.0],
+                                   p.rotation.T @ specs[p.name].expected_up, atol=1e-12)  # up, as the accelerometer
+        off_deg = np.degrees(2 * np.arccos(min(1.0, abs(np.dot(want, engine[k])))))
+        assert off_deg == pytest.approx(2.7 if p.name == "chest" else 0.0, abs=0.05), (p.name, off_deg)

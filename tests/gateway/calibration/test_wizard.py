@@ -6,9 +6,11 @@ import json
 import numpy as np
 import pytest
 
+from engine.mocap import SEED000_SENSORS, load_sensor_calibration, quaternions
+from engine.mocap.orientation_calibration import mean_orientation
 from gateway.calibration import CalibrationRecord, CalibrationRecordError, rotation_angle_deg
 
-from .conftest import RATE_HZ, feed, tilt_rotation
+from .conftest import RATE_HZ, feed, tilt_rotation, with_orientation
 
 
 def spike(t_peak: float, height_g: float = 4.0, width_s: float = 0.03):
@@ -65,6 +67,83 @@ def test_still_subject_completes_and_recovers_rotations_and_bias(wizard, subject
         t_raw, acc_raw = loaded.raw["npose"][sid]
         assert len(t_raw) == pytest.approx(2.0 * RATE_HZ, abs=2) and acc_raw.shape == (len(t_raw), 3)
     assert set(loaded.raw["tap"]) == set(subject.segments)
+
+
+def _quat_angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.degrees(2 * np.arccos(np.clip(abs(np.dot(a, b)), 0.0, 1.0))))
+
+
+def test_orientation_sensors_get_their_yaw_offsets_and_strapping(wizard, subject, tmp_path):
+    """Sensors that stream orientations through the emulators' realistic filter error model: the still N-pose
+    also gives each sensor's earth-frame yaw -- relative to the pelvis sensor, the emulated offsets at the capture
+    within 1.5 deg (drift, random walk and tilt noise are what is left) -- and its strapping, the subject's true
+    mounting within the filter's tilt error during the capture (+ 0.5 deg: one still pose cannot tell the two
+    apart); the record carries both, and the engine reads them back as an OrientationCalibration."""
+    subject = with_orientation(subject, seed=7)
+    rng = np.random.default_rng(1)
+    t = run_to_npose(wizard, subject, rng)
+    while wizard.step == "npose" and t < 10:
+        t = feed(wizard, subject, t, t + 0.25, rng)
+    assert wizard.step == "tap"
+    assert "orientation calibrated for 6 of 6 sensors" in wizard.snapshot()["messages"][-1]
+    t_samples = wizard._raw["npose"]["st0/0"][0]
+    t_capture = float(np.mean(t_samples))
+    known, tilt = subject.yaw_offsets_rad(t_capture), subject.filter_tilt_deg(t_samples)
+    pelvis = next(sid for sid, seg in subject.segments.items() if seg == "lower_back")
+    solved = {sid: r.orientation_yaw_rad for sid, r in wizard.results.items()}
+    errors = {}
+    for sid, seg in subject.segments.items():
+        relative = (solved[sid] - solved[pelvis]) - (known[sid] - known[pelvis])
+        errors[seg] = float(np.degrees(np.angle(np.exp(1j * relative))))
+        nominal = wizard.segments[seg].nominal_rotation
+        strap = quaternions.from_matrix(nominal.T @ subject.true_rotation[sid])  # sensor axes -> nominal frame
+        assert _quat_angle_deg(wizard.results[sid].orientation_mount_wxyz, strap) < tilt[sid] + 0.5, (seg, tilt)
+    print("yaw relative to the pelvis, solved - emulated (deg):", {k: round(v, 2) for k, v in errors.items()})
+    assert max(abs(e) for e in errors.values()) < 1.5, errors
+    assert {s["segment"]: s["orientation_yaw_deg"] is not None for s in wizard.snapshot()["sensors"].values()} \
+        == dict.fromkeys(subject.segments.values(), True)
+    wizard.confirm()  # skip the tap
+    assert wizard.confirm() and wizard.step == "done"
+    path = tmp_path / "oriented.calibration.json"
+    wizard.record().save(path)
+    loaded = CalibrationRecord.load(path)
+    for sid, result in wizard.results.items():
+        again = loaded.sensors[sid]
+        assert again.orientation_yaw_rad == result.orientation_yaw_rad
+        mount = result.orientation_mount_wxyz
+        np.testing.assert_array_equal(again.orientation_mount_wxyz, mount if mount[0] >= 0 else -mount)
+        t_raw, acc_raw, quat_raw = loaded.raw["npose"][sid]
+        assert quat_raw.shape == (len(t_raw), 4) and np.isfinite(quat_raw).all()
+    by_segment = {seg: sid for sid, seg in subject.segments.items()}
+    engine_side = load_sensor_calibration(path).orientation_calibration(SEED000_SENSORS)
+    assert engine_side.yaw_rad.tolist() == [solved[by_segment[n]] for n in SEED000_SENSORS]
+    # what the engine gets out of it: over the capture, each segment's nominal sensor orientation in the pose
+    # (facing +Z, as the subject did), from the readings
+    world = engine_side.world(np.stack([subject.quats(by_segment[n], t_samples) for n in SEED000_SENSORS], axis=1))
+    for k, name in enumerate(SEED000_SENSORS):
+        off = _quat_angle_deg(mean_orientation(world)[k], wizard.segments[name].pose_orientation_wxyz)
+        assert off < 1.0, (name, off)
+
+
+def test_an_accelerometer_only_sensor_among_orientation_ones_keeps_the_old_record(wizard, subject, tmp_path):
+    """One sensor streams no orientation (NaN rows, as the gateway forwards an acc-only sensor on a v2
+    station): it is calibrated as before, without the orientation fields, the others get theirs; the engine then
+    poses by tilt only (it needs every worn segment's yaw)."""
+    subject = with_orientation(subject, seed=8)
+    subject.quat_device[:, 2] = np.nan
+    rng = np.random.default_rng(2)
+    t = run_to_npose(wizard, subject, rng)
+    while wizard.step == "npose" and t < 10:
+        t = feed(wizard, subject, t, t + 0.25, rng)
+    assert wizard.step == "tap" and wizard.results["st0/2"].passed
+    assert wizard.results["st0/2"].orientation_yaw_rad is None
+    assert all(r.orientation_yaw_rad is not None for sid, r in wizard.results.items() if sid != "st0/2")
+    path = tmp_path / "mixed.calibration.json"
+    wizard.record().save(path)
+    doc = json.loads(path.read_text())
+    assert "orientation_yaw_rad" not in doc["sensors"]["st0/2"] and "orientation_mount_wxyz" in doc["sensors"]["st0/1"]
+    assert len(CalibrationRecord.load(path).raw["npose"]["st0/2"]) == 2  # times and accelerations only
+    assert load_sensor_calibration(path).orientation_calibration(SEED000_SENSORS) is None
 
 
 def test_biased_sensor_fails_with_reason(wizard, subject):

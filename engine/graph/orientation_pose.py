@@ -1,0 +1,214 @@
+"""Posing the instrumented segments from their measured orientations (issue 18): the search plays database poses,
+the orientations then turn each worn segment onto what its sensor says.
+
+Why: a database-playing method cannot pass the database oracle (the nearest database pose per frame), and on
+motions the database lacks that floor is high (gestures left out: 7.4 cm root-relative against 12.5 for the mean
+pose). A forearm, shin, pelvis or chest sensor's orientation says where that segment points *now*, whether or not
+the database holds the pose: turning the segment's subtree (hand below the forearm, foot below the shin, the
+upper body below the chest) onto it moves the pose off the database toward the truth. Unworn segments (upper
+arms, thighs, neck) keep the played pose.
+
+Frames: a segment's orientation is its sensor's (sensor -> world) quaternion; the database side is
+`orientation_term.node_sensor_orientations` (the node's pose in its clip frame), the measured side the sensors'
+world orientations after calibration (`orientation_calibration`): each sensor's yaw relative to the pelvis sensor
+is what counts, so the measured orientations are turned about the vertical so the pelvis sensor's yaw equals the
+played pose's, and the pose is placed on the path as before. Without a pelvis sensor only the tilt of each segment
+(its swing away from the played pose's yaw) is applied."""
+from __future__ import annotations
+
+import numpy as np
+
+from engine.mocap import quaternions as quat
+from engine.mocap.orientation import from_device_earth, twist_yaw, yaw_about_up
+from engine.mocap.orientation_calibration import OrientationCalibration
+from engine.mocap.roles import joint_roles
+from engine.mocap.sensors import standard_placements
+
+from .graph import MotionGraph
+from .acc_tilt import TiltFromAccelerations
+from .orientation_term import REFERENCE_SENSOR, node_sensor_orientations, places_sensors
+from .poses import blended_joint_positions
+from .viterbi import SearchWeights
+
+
+def _descendants(parents: np.ndarray, joint: int) -> np.ndarray:
+    """(J,) bool: the joints below `joint` (not itself) in the skeleton's tree."""
+    below = np.zeros(len(parents), bool)
+    for j in range(len(parents)):  # parents come before children in every engine skeleton
+        p = parents[j]
+        below[j] = p >= 0 and (p == joint or below[p])
+    return below
+
+
+def _partial_turn(turn: np.ndarray, share: np.ndarray) -> np.ndarray:
+    """(..., 4) the rotations `turn` (..., 4) scaled to `share` (...,) of their angle about the same axis: the
+    short-arc slerp from the identity, in closed form (0 = identity, 1 = the turn itself)."""
+    turn = np.where(turn[..., :1] < 0, -turn, turn)  # the short arc
+    sin_half = np.linalg.norm(turn[..., 1:], axis=-1, keepdims=True)
+    half = np.arctan2(sin_half, turn[..., :1]) * share[..., None]
+    axis = turn[..., 1:] / np.maximum(sin_half, 1e-12)
+    return np.concatenate([np.cos(half), axis * np.sin(half)], axis=-1)
+
+
+class SegmentPoser:
+    """For one sensor selection of a graph: which joints each sensor's segment moves, in levels of the tree (a
+    level's segments lie in disjoint subtrees, so each level is turned in one vectorised step: live, one frame's
+    8 blended poses cost a handful of numpy calls per level, not per sensor)."""
+
+    def __init__(self, graph: MotionGraph, sensor_indices: list[int] | tuple[int, ...]) -> None:
+        names = [graph.config.sensor_names[i] for i in sensor_indices]
+        placements = standard_placements(graph.skeleton, names)
+        parents = np.asarray(graph.skeleton.parents)
+        self.graph = graph
+        self.sensor_indices = list(sensor_indices)
+        self.n_sensors = len(self.sensor_indices)
+        self.reference = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else None
+        self.joints = np.array([p.joint for p in placements])
+        roles = joint_roles(graph.skeleton)
+        self.left_hip, self.right_hip = roles["left_hip"], roles["right_hip"]
+        self.below = np.stack([_descendants(parents, j) for j in self.joints])  # (S, J)
+        # every node's sensor orientations (N, S, 4), computed here (FK of every node: seconds on a large graph)
+        # so that no live frame waits for it
+        self.node_orientations = node_sensor_orientations(graph)[:, self.sensor_indices]
+        carries = self.below[:, self.joints]  # (S, S): sensor k's segment lies below sensor i's
+        level = np.zeros(self.n_sensors, int)  # 1 + the deepest level among the sensors above it
+        for i in np.argsort([self._depth(parents, j) for j in self.joints], kind="stable"):
+            above = np.flatnonzero(carries[:, i])
+            level[i] = 1 + level[above].max() if len(above) else 0
+        self.levels = []  # per level: (its sensors, joint -> which of them turns it, sensor -> which carries it)
+        for lv in range(level.max() + 1 if self.n_sensors else 0):
+            members = np.flatnonzero(level == lv)
+            joint_owner = np.full(len(parents), -1)
+            carrier = np.full(self.n_sensors, -1)
+            for m, i in enumerate(members):
+                joint_owner[self.below[i]] = m
+                carrier[carries[i]] = m
+                carrier[i] = m
+            self.levels.append((members, joint_owner, carrier))
+
+    @staticmethod
+    def _depth(parents: np.ndarray, joint: int) -> int:
+        d = 0
+        while parents[joint] >= 0:
+            joint, d = parents[joint], d + 1
+        return d
+
+    def pose(self, nodes: np.ndarray, quat_world: np.ndarray, gain: float | np.ndarray = 1.0, use_yaw: bool = True
+             ) -> np.ndarray:
+        """(..., J, 3) clip-frame joint positions of `nodes` (...,) with each worn segment's subtree turned onto
+        the measured orientation `quat_world` (..., S, 4) (sensor -> world, calibrated; a frame whose
+        quaternions are not all finite keeps the played pose), by `gain` of the way (1 = all of it; a float, or
+        an array broadcasting to (..., S): per sample and sensor).
+
+        With `use_yaw` and a pelvis sensor, each segment takes its measured yaw relative to the pelvis (the
+        measured orientations turned about the vertical so the pelvis sensor's yaw is the node's: the yaw
+        offsets must be calibrated); otherwise each takes only its measured tilt, keeping the yaw the played
+        pose (after its parents' turns) gives it: no yaw calibration needed."""
+        nodes = np.asarray(nodes, dtype=np.intp)
+        pts = self.graph.node_positions_m[nodes].astype(float)
+        current = self.node_orientations[nodes]
+        q = np.broadcast_to(np.asarray(quat_world, float), current.shape)
+        ok = np.isfinite(q).all(axis=(-1, -2))
+        q = np.where(ok[..., None, None], q, quat.identity())
+        share = np.where(ok[..., None], np.broadcast_to(gain, current.shape[:-1]), 0.0)
+        relative = use_yaw and self.reference is not None
+        if relative:
+            turn = twist_yaw(current[..., self.reference, :]) - twist_yaw(q[..., self.reference, :])
+            q = quat.multiply(yaw_about_up(turn)[..., None, :], q)
+        for members, joint_owner, carrier in self.levels:
+            cur, meas = current[..., members, :], q[..., members, :]
+            target = meas if relative else quat.multiply(yaw_about_up(twist_yaw(cur) - twist_yaw(meas)), meas)
+            turn = _partial_turn(quat.multiply(target, quat.conjugate(cur)), share[..., members])
+            moved = joint_owner >= 0
+            owner = joint_owner[moved]
+            pivot = pts[..., self.joints[members][owner], :]
+            pts[..., moved, :] = quat.rotate(turn[..., owner, :], pts[..., moved, :] - pivot) + pivot
+            held = carrier >= 0
+            current[..., held, :] = quat.multiply(turn[..., carrier[held], :], current[..., held, :])
+        return self._keep_heading(self.graph.node_positions_m[nodes], pts)
+
+    def _keep_heading(self, played: np.ndarray, posed: np.ndarray) -> np.ndarray:
+        """`posed` turned about the vertical through the root so its hips heading is the played pose's: the
+        path (camera, root fusion) decides where the body faces, the sensors only how it is posed around it."""
+        def heading(p: np.ndarray) -> np.ndarray:
+            lateral = p[..., self.left_hip, :] - p[..., self.right_hip, :]
+            return np.arctan2(-lateral[..., 2], lateral[..., 0])
+
+        turn = yaw_about_up(heading(played) - heading(posed))[..., None, :]
+        root = posed[..., :1, :]
+        return quat.rotate(turn, posed - root) + root
+
+
+class SegmentPosing:
+    """The output side of the worn sensors, shared by the batch search and the fixed-lag decoder (same input, same
+    output): the decided (blended) poses with each worn segment turned onto what its sensor says. With
+    orientations and a `calibration` (the N-pose capture's yaw offsets and strapping) segments take their yaw
+    relative to the pelvis too; with orientations alone, their tilt; with accelerations alone (and
+    `tilt_time_constant_s` > 0), their tilt from the low-passed accelerations (acc_tilt.py), each sensor's share
+    falling while it accelerates. Stateful (the low-pass): feed every sample in order through `sample`."""
+
+    def __init__(self, poser: SegmentPoser, gain: float, calibration: OrientationCalibration | None = None,
+                 tilt_time_constant_s: float = 0.0) -> None:
+        self.poser, self.gain, self.calibration = poser, gain, calibration
+        self._acc_tilt = TiltFromAccelerations(poser.graph.config.fps, tilt_time_constant_s) \
+            if tilt_time_constant_s > 0 and calibration is None else None  # calibrated: posed with yaw, never by acc
+
+    @classmethod
+    def for_search(cls, graph: MotionGraph, sensor_indices: tuple[int, ...] | None, weights: SearchWeights,
+                   calibration: OrientationCalibration | None = None) -> "SegmentPosing | None":
+        """None where there is nothing to pose: `weights.segment_pose` 0, no sensors, or a graph without joint
+        rotations."""
+        if weights.segment_pose <= 0 or not sensor_indices or not places_sensors(graph):
+            return None
+        return cls(SegmentPoser(graph, sensor_indices), weights.segment_pose, calibration, weights.tilt_from_acc_s)
+
+    def world_orientations(self, quat_device: np.ndarray) -> np.ndarray:
+        """(..., S, 4) device-earth readings -> sensor orientations in the world (each still turned by its
+        unknown yaw without a calibration; the tilt-only posing does not read it)."""
+        if self.calibration is not None:
+            return self.calibration.world(quat_device)
+        return from_device_earth(np.asarray(quat_device, float))
+
+    def sample(self, acc_g: np.ndarray | None, quat_device: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """One sample's posing inputs: (sensor orientations in the world (S, 4), shares (S,) of the turn); the
+        orientations when the sample has them all, else the tilt from the accelerations, else nothing (share 0)."""
+        n = self.poser.n_sensors
+        tilt = None if self._acc_tilt is None or acc_g is None else self._acc_tilt.push(acc_g)
+        if quat_device is not None and np.isfinite(quat_device).all():
+            return self.world_orientations(quat_device), np.full(n, self.gain)
+        if tilt is not None:
+            return tilt[0], self.gain * tilt[1]
+        return np.tile(quat.identity(), (n, 1)), np.zeros(n)
+
+    def over_take(self, acc_g: np.ndarray | None, quat_device: np.ndarray | None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """`sample` over a whole take ((T, S, 3) g and/or (T, S, 4) device-earth): ((T, S, 4), (T, S)). A sample
+        with a missing acceleration (a dropout: NaN) has none, as the live push loop (`engine.stream.drive_frames`)
+        gives the decoder none, so the low-pass sees the same samples batch and live."""
+        n_samples = len(acc_g) if acc_g is not None else len(quat_device)
+        out = [self.sample(None if acc_g is None or not np.isfinite(acc_g[t]).all() else acc_g[t],
+                           None if quat_device is None else quat_device[t]) for t in range(n_samples)]
+        return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
+
+    def joint_positions(self, blend_nodes: np.ndarray, ground_m: np.ndarray, heading_rad: np.ndarray,
+                        world: np.ndarray, share: np.ndarray) -> np.ndarray:
+        """(T, J, 3) world joints: the mean of the poses of `blend_nodes` (T, k), each posed by its sample's
+        (`sample`) orientations (T, S, 4) and shares (T, S), placed at (ground, heading). Nothing to pose (every
+        share 0): exactly the played blend."""
+        if not np.any(share):
+            return blended_joint_positions(self.poser.graph, blend_nodes, ground_m, heading_rad)
+        pts = self.poser.pose(blend_nodes, world[:, None], share[:, None, :], use_yaw=self.calibration is not None)
+        return blended_joint_positions(self.poser.graph, blend_nodes, ground_m, heading_rad, pts)
+
+
+def decided_joint_positions(graph: MotionGraph, nodes: np.ndarray, blend_nodes: np.ndarray | None,
+                            ground_m: np.ndarray, heading_rad: np.ndarray, posing: SegmentPosing | None = None,
+                            acc_g: np.ndarray | None = None, quat_device: np.ndarray | None = None) -> np.ndarray:
+    """(T, J, 3) world joints of a batch search's decisions -- `nodes` (T,), or the blend of the best paths
+    `blend_nodes` (T, k), at (ground, heading) -- with the worn segments posed by the take's samples (`acc_g`
+    (T, S, 3), `quat_device` (T, S, 4), `SegmentPosing.over_take`) when there is a `posing`: what the fixed-lag
+    decoder emits for the same decisions."""
+    blend = np.asarray(nodes)[:, None] if blend_nodes is None else blend_nodes
+    if posing is None or (acc_g is None and quat_device is None):
+        return blended_joint_positions(graph, blend, ground_m, heading_rad)
+    return posing.joint_positions(blend, ground_m, heading_rad, *posing.over_take(acc_g, quat_device))
