@@ -10,6 +10,7 @@ console's status bar. Offline runs do not use this: their results must not depen
 """
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -52,14 +53,18 @@ class KeepUp:
         return self.levels[self.level]
 
     def record(self, seconds: float) -> bool:
-        """One frame's wall time; True when the level changed (the caller applies `effort`). Decides only on a
-        full window of frames measured at the current level."""
+        """One frame's wall time; True when the level changed (the caller applies `effort`). Decides on a full
+        window of frames measured at the current level -- or, when frames cost more than twice the budget, after a
+        fifth of one, dropping as many levels as halvings it needs: on a slow machine the first level can cost 4x
+        its budget, and a full window of such frames puts the stream seconds behind before the first step."""
         self._times.append(seconds)
-        if len(self._times) < self._times.maxlen:
+        n = len(self._times)
+        mean = sum(self._times) / n
+        early = n >= max(1, self._times.maxlen // 5) and mean > 2 * self.budget_s
+        if n < self._times.maxlen and not early:
             return False
-        mean = sum(self._times) / len(self._times)
         if mean > self.budget_s and self.level + 1 < len(self.levels):
-            step = 1
+            step = min(len(self.levels) - 1 - self.level, max(1, math.ceil(math.log2(mean / self.budget_s))))
         elif mean < self.budget_s / 3 and self.level > 0:
             step = -1
         else:

@@ -24,3 +24,10 @@ def test_steps_down_when_slow_and_back_up_when_fast() -> None:
     for _ in range(100):
         keep.record(1.0)
     assert keep.effort == Effort(256, 16)
+
+
+def test_far_over_budget_it_drops_as_many_levels_as_halvings_after_a_fifth_of_a_window() -> None:
+    keep = KeepUp(effort_levels(4096, 256), frame_period_s=0.04, window=50)   # budget 20 ms
+    changes = [keep.record(0.093) for _ in range(10)]   # 4.65x the budget: log2 -> 3 halvings
+    assert changes == [False] * 9 + [True] and keep.effort == Effort(512, 32)
+    assert "93 ms/frame" in keep.status
