@@ -7,7 +7,7 @@ as the batch search does -- the two are the same computation.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -212,7 +212,10 @@ def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Obse
     """The batch search of a forgetting search (`ViterbiSearch.run` with `weights.forgets`): the fixed-lag decoder
     over the whole take with lag `weights.decision_frames`, so offline and live decide every sample the same way
     (bit for bit: both step through `viterbi.step_arguments`)."""
-    syn = FixedLagSynthesizer(graph, weights.decision_frames / graph.config.fps, weights, obs.sensor_indices,
+    # the batch caller keeps only the decisions and poses them once over the take (orientation_pose.
+    # decided_joint_positions): no posing of the emitted joints here, which would be thrown away
+    syn = FixedLagSynthesizer(graph, weights.decision_frames / graph.config.fps, replace(weights, segment_pose=0.0),
+                              obs.sensor_indices,
                               prune_every, kernel, warp, confidence_reference=float("nan"), reanchor_ratio=0.0,
                               orientation_calibration=obs.orientation_calibration)
     lat = syn.lattice
