@@ -6,7 +6,7 @@ named, documented knob that benches and tests can sweep instead of a literal bur
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 
 @dataclass(frozen=True)
@@ -29,6 +29,17 @@ class NeighbourhoodGraphConfig:
                                   # swept 0.5-3 (docs)
     yaw_min_frames: int = 10      # frames of offset samples before the yaw term may act (0.4 s at 25 Hz; 50 left
                                   # half of a 4 s gesture clip without it)
+
+    def sized_for(self, n_frames: int) -> NeighbourhoodGraphConfig:
+        """K and I for a knowledge base of ``n_frames``: K at most the largest power of two within a quarter of
+        the database (at least 64), I at most K / 16 (at least 16). WHY: the paper's K 4096 / I 256 belong to a
+        500k-frame database; on the shipped clips (633 frames) K 4096 takes every frame as a neighbour and the
+        hypotheses blur. Leave-one-out over the 9 shipped clips, joint cm acc / acc+orientation+gyro: K 4096 /
+        I 256 7.75 / 7.02, K 512 / I 32 4.56 / 4.18, K 256 / I 16 4.25 / 3.83, K 128 / I 16 4.11 / 3.78, K 64 /
+        I 4 4.05 / 4.05 (docs/engine-olng-hmm.md). A database of 16k frames or more keeps the configured values."""
+        k_cap = max(64, 1 << max(0, int(n_frames // 4).bit_length() - 1))
+        k = min(self.k_neighbours, k_cap)
+        return replace(self, k_neighbours=k, i_best=min(self.i_best, max(16, k // 16)))
 
 
 @dataclass(frozen=True)

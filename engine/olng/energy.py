@@ -23,7 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from engine.olng.config import EnergyConfig
-from engine.olng.pose import Rig, fk_root_frame, root_matrices
+from engine.olng.pose import Rig, fk_local, local_matrices
 
 _UP = np.array([0.0, 1.0, 0.0])
 
@@ -105,7 +105,6 @@ class KernelEnergy:
         self.tips = np.asarray(tips)
         self.sensor_frames = sensor_frames
         self.config = config
-        self.last_terms: dict[str, float] = {}
         self.last_dims = 0
 
     def _blocks(self, problem: FrameProblem) -> list[tuple[str, float, np.ndarray]]:
@@ -123,11 +122,12 @@ class KernelEnergy:
 
     def features(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """Batched f(q) for each term: pose vector itself, all joint positions (cm), sensor-tip positions (cm)."""
-        pos, rot = fk_root_frame(self.rig, q)
+        local = local_matrices(self.rig, q)
+        pos, rot = fk_local(self.rig, local)
         out = {"pose": q / self.config.angle_unit_rad}
         if self.sensor_frames is not None:
             bone, local_rot = self.sensor_frames
-            root_tilt = root_matrices(self.rig, q)                                     # (B, 3, 3) world <- root
+            root_tilt = local[:, 0]                                                    # (B, 3, 3) world <- root
             up_root = np.einsum("bji,j->bi", root_tilt, _UP)                           # up in the root frame
             up = np.einsum("sji,bskj,bk->bsi", local_rot, rot[:, bone], up_root)       # up in each sensor's axes
             out["tilt"] = up.reshape(len(q), -1) * (self.config.tilt_lever_m / self.config.length_unit_m)
@@ -176,8 +176,10 @@ class KernelEnergy:
 
         return residuals
 
-    def solve(self, problem: FrameProblem) -> np.ndarray:
-        """argmin_q E(q) in the weighted-PCA subspace of the hypotheses; returns the pose vector (D,)."""
+    def solve(self, problem: FrameProblem, max_iterations: int | None = None) -> np.ndarray:
+        """argmin_q E(q) in the weighted-PCA subspace of the hypotheses; returns the pose vector (D,).
+        ``max_iterations``: this frame's majorise-minimise budget instead of the configured one (a live engine
+        short of time, `engine.olng.keep_up`); the other solvers keep theirs."""
         mean, basis = weighted_pca(problem.pose_targets, problem.weights, self.config.variance_kept, self.config.min_components)
         self.last_dims = basis.shape[1]
         residuals = self._residual_fn(problem)
@@ -194,19 +196,18 @@ class KernelEnergy:
         if self.config.solver == "trf":
             z = least_squares(fun, z0, jac=lambda z: fun_and_jac(z)[1], method="trf", max_nfev=self.config.max_nfev).x
         elif self.config.kernel == "sqrt":
-            z = self._irls(problem, mean, basis, z0)
+            z = self._irls(problem, mean, basis, z0, max_iterations)
         else:
             z = levenberg_marquardt(fun, fun_and_jac, z0, self.config.max_iterations)
-        q = mean + basis @ z
-        self.last_terms = self.term_values(problem, q)
-        return q
+        return mean + basis @ z
 
     def _kernel_energy(self, blocks, weights: np.ndarray, feats: dict[str, np.ndarray]) -> float:
         eps2 = self.config.epsilon**2
         return sum(omega * float(weights @ (((targets - feats[name][0]) ** 2).sum(axis=1) + eps2) ** 0.25)
                    for name, omega, targets in blocks)
 
-    def _irls(self, problem: FrameProblem, mean: np.ndarray, basis: np.ndarray, z0: np.ndarray) -> np.ndarray:
+    def _irls(self, problem: FrameProblem, mean: np.ndarray, basis: np.ndarray, z0: np.ndarray,
+              max_iterations: int | None = None) -> np.ndarray:
         """Majorise-minimise for the square-root kernels.
 
         (s + eps^2)^(1/4) is concave in s = |r|^2, so around the current pose it lies below its tangent
@@ -217,11 +218,16 @@ class KernelEnergy:
         blocks = self._blocks(problem)
         w = problem.weights
         eps2 = self.config.epsilon**2
+        iterations = self.config.max_iterations if max_iterations is None else max_iterations
+
+        def probe(z: np.ndarray, with_jacobian: bool) -> dict[str, np.ndarray]:
+            q = mean + basis @ z
+            return self.features(np.vstack([q, q + _FD_STEP * basis.T]) if with_jacobian else q[None])
+
         z = z0.copy()
-        q = mean + basis @ z
-        for _ in range(self.config.max_iterations):
-            feats = self.features(np.vstack([q, q + _FD_STEP * basis.T]))
-            energy = self._kernel_energy(blocks, w, feats)
+        feats = probe(z, True)
+        energy = self._kernel_energy(blocks, w, feats)
+        for iteration in range(iterations):
             res, jac = [], []
             for name, omega, targets in blocks:
                 f0 = feats[name][0]
@@ -233,23 +239,20 @@ class KernelEnergy:
             r, j = np.concatenate(res), np.vstack(jac)
             hess = j.T @ j
             step = np.linalg.solve(hess + 1e-6 * (np.diag(np.diag(hess)) + np.trace(hess) / len(hess) * np.eye(len(hess))), -(j.T @ r))
-            for _ in range(8):
-                q_new = mean + basis @ (z + step)
-                new_energy = self._kernel_energy(blocks, w, self.features(q_new[None]))
+            # the first trial also brings the next iteration's Jacobian (it is usually accepted); the last
+            # iteration and the backtracking trials need only the energy
+            for trial in range(8):
+                new_feats = probe(z + step, trial == 0 and iteration + 1 < iterations)
+                new_energy = self._kernel_energy(blocks, w, new_feats)
                 if new_energy < energy:
                     break
                 step = 0.5 * step
             else:
                 break
-            z, q = z + step, q_new
-            if energy - new_energy <= 1e-6 * energy:
+            z = z + step
+            if energy - new_energy <= 1e-6 * energy or iteration + 1 == iterations:
                 break
+            if len(new_feats["pose"]) == 1:
+                new_feats = probe(z, True)
+            feats, energy = new_feats, new_energy
         return z
-
-    def term_values(self, problem: FrameProblem, q: np.ndarray) -> dict[str, float]:
-        """Each term's unweighted kernel energy sum_i w_i sqrt|r_i| at q (for logging the balance, spec A2.8)."""
-        feats = self.features(q[None])
-        return {
-            name: float(problem.weights @ np.sqrt(np.linalg.norm(targets - feats[name][0], axis=1)))
-            for name, _, targets in self._blocks(problem)
-        }

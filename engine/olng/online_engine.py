@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -19,20 +20,25 @@ class OLNGEngine:
     orientation (tilt, relative yaw) and angular rate too when the first frame brings them and the knowledge base
     holds them (`engine.olng.channels`; `channels` says which it uses).
 
-    ``keep_up`` (live use only: the console): the engine times itself and steps down to fewer neighbours and
-    hypotheses when a frame costs more than half a frame period (`engine.olng.keep_up`); `status` then says so.
-    Offline runs keep it off, so their results do not depend on the machine."""
+    K and I are sized to the knowledge base (`NeighbourhoodGraphConfig.sized_for`: the paper's K 4096 is for
+    500k frames). ``keep_up`` (live use only: the console): the engine times itself and steps down to fewer
+    neighbours, hypotheses and energy iterations when a frame costs more than half a frame period
+    (`engine.olng.keep_up`); `status` then says so. Offline runs keep it off, so their results do not depend on
+    the machine."""
 
     def __init__(self, kb: Any, keep_up: bool = False) -> None:
-        from .keep_up import KeepUp, effort_levels
+        from .config import OLNGConfig
+        from .keep_up import Effort, KeepUp, effort_levels
         from .reconstructor import OLNGReconstructor
 
-        self.rec = OLNGReconstructor(kb)
+        config = OLNGConfig()
+        config = replace(config, graph=config.graph.sized_for(kb.size))
+        self.rec = OLNGReconstructor(kb, config)
         self.n_sensors = kb.alpha_g.shape[1] // 3
         self.t = -1
         self.started = False
-        graph = self.rec.config.graph
-        self.keep_up = KeepUp(effort_levels(graph.k_neighbours, graph.i_best), 1.0 / kb.fps) if keep_up else None
+        start = Effort(config.graph.k_neighbours, config.graph.i_best, config.energy.max_iterations)
+        self.keep_up = KeepUp(effort_levels(start), 1.0 / kb.fps) if keep_up else None
 
     @property
     def channels(self) -> tuple[str, ...] | None:
@@ -54,7 +60,8 @@ class OLNGEngine:
         t0 = time.perf_counter()
         pose = self.rec.push(reading, pos_m, heading_rad, quat_wxyz=quat_wxyz, gyro_rps=gyro_rps)
         if self.keep_up is not None and self.keep_up.record(time.perf_counter() - t0):
-            self.rec.set_effort(self.keep_up.effort.k_neighbours, self.keep_up.effort.i_best)
+            effort = self.keep_up.effort
+            self.rec.set_effort(effort.k_neighbours, effort.i_best, effort.iterations)
         return [EnginePose(self.t, pose.joints_world_m)]
 
     def flush(self) -> list[EnginePose]:

@@ -12,7 +12,6 @@ Joint positions x are in the root frame: x = R_root^T (p_j - p_root), metres.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -131,13 +130,6 @@ def local_matrices(rig: Rig, q: np.ndarray) -> np.ndarray:
     return local if rig.ref_quats is None else _ref_matrices(rig) @ local
 
 
-def root_matrices(rig: Rig, q: np.ndarray) -> np.ndarray:
-    """Pose vectors (B, J*3) -> the root's rotation (B, 3, 3) (its tilt: the heading is not in q), without the
-    other joints' matrices."""
-    root = rotvec_to_matrix(q[:, None, :3])[:, 0]
-    return root if rig.ref_quats is None else _ref_matrices(rig)[0] @ root
-
-
 def _ref_matrices(rig: Rig) -> np.ndarray:
     """quat_to_matrix(rig.ref_quats), cached on the rig (FK runs ~1000 times per second)."""
     cached = rig.__dict__.get("_ref_matrices")
@@ -147,33 +139,40 @@ def _ref_matrices(rig: Rig) -> np.ndarray:
     return cached
 
 
-@lru_cache(maxsize=32)
-def _depth_levels(parents: tuple[int, ...]) -> tuple[np.ndarray, ...]:
-    """Joints grouped by depth below the root (root excluded): FK can then process a whole level at once."""
-    depth = np.zeros(len(parents), dtype=int)
-    for j in range(1, len(parents)):
-        depth[j] = depth[parents[j]] + 1
-    return tuple(np.flatnonzero(depth == d) for d in range(1, depth.max() + 1))
+def _fk_levels(rig: Rig) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+    """Joints grouped by depth below the root (root excluded), as (joints, their parents, their offsets (n, 3, 1)
+    in metres): FK then processes a whole level at once. Cached on the rig (FK runs ~1000 times per second)."""
+    cached = rig.__dict__.get("_fk_levels")
+    if cached is None:
+        parents = np.asarray(rig.parents)
+        depth = np.zeros(len(parents), dtype=int)
+        for j in range(1, len(parents)):
+            depth[j] = depth[parents[j]] + 1
+        levels = (np.flatnonzero(depth == d) for d in range(1, depth.max() + 1))
+        cached = tuple((level, parents[level], np.asarray(rig.offsets_m, float)[level, :, None]) for level in levels)
+        object.__setattr__(rig, "_fk_levels", cached)
+    return cached
 
 
 def fk_root_frame(rig: Rig, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Batched FK in the root frame: pose vectors (B, J*3) -> (positions (B, J, 3) m relative to the root in the
     root's own frame, joint rotations (B, J, 3, 3) relative to the root frame).
 
-    The root's rotation is replaced by the identity, which is exactly what R_root^T (p - p_root) means.
-    Joints are processed a depth level at a time (about 10 levels for a 38-joint CMU skeleton), because the
-    energy calls this ~10^3 times per second."""
-    parents = np.asarray(rig.parents)
-    joints = len(parents)
-    local = local_matrices(rig, q)
-    batch = q.shape[0]
+    The root's rotation is replaced by the identity, which is exactly what R_root^T (p - p_root) means."""
+    return fk_local(rig, local_matrices(rig, q))
+
+
+def fk_local(rig: Rig, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`fk_root_frame` from local rotation matrices (B, J, 3, 3) (`local_matrices`: a caller that also needs the
+    root's tilt, local[:, 0], converts the rotation vectors once). Joints are processed a depth level at a time
+    (about 10 levels for a 38-joint CMU skeleton), because the energy calls this ~10^3 times per second."""
+    batch, joints = local.shape[:2]
     rot = np.empty((batch, joints, 3, 3))
     pos = np.empty((batch, joints, 3))
     rot[:, 0] = np.eye(3)
     pos[:, 0] = 0.0
-    for level in _depth_levels(tuple(int(p) for p in parents)):
-        par = parents[level]
+    for level, par, offsets in _fk_levels(rig):
         parent_rot = rot[:, par]
         rot[:, level] = parent_rot @ local[:, level]
-        pos[:, level] = pos[:, par] + np.einsum("bjik,jk->bji", parent_rot, rig.offsets_m[level])
+        pos[:, level] = pos[:, par] + (parent_rot @ offsets)[..., 0]
     return pos, rot

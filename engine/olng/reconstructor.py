@@ -76,6 +76,7 @@ class OLNGReconstructor:
         self.timings = StepTimings()
         self._k = config.graph.k_neighbours
         self._i_best = config.graph.i_best
+        self._iterations = config.energy.max_iterations
         self._scale = 1.0 / config.energy.length_unit_m
         self._x_hist: list[np.ndarray] = []   # last two outputs' root-frame positions (energy units)
         self._q_prev: np.ndarray | None = None
@@ -85,10 +86,13 @@ class OLNGReconstructor:
         self._heading = 0.0
         self._one_thread = single_blas_thread()
 
-    def set_effort(self, k_neighbours: int, i_best: int) -> None:
-        """Search K neighbours and keep I hypotheses from the next frame on (a live engine that cannot keep up
-        trades accuracy for time: `engine.olng.keep_up`); the graph takes columns of any width."""
+    def set_effort(self, k_neighbours: int, i_best: int, iterations: int | None = None) -> None:
+        """Search K neighbours, keep I hypotheses and give the energy ``iterations`` majorise-minimise steps
+        (None: as configured) from the next frame on (a live engine that cannot keep up trades accuracy for
+        time: `engine.olng.keep_up`); the graph takes columns of any width."""
         self._k, self._i_best = int(k_neighbours), int(i_best)
+        if iterations is not None:
+            self._iterations = int(iterations)
 
     def reset_root(self, root_pos_m: np.ndarray, heading_rad: float) -> None:
         """Place the (unsensed) root, e.g. at the camera's position estimate."""
@@ -203,7 +207,7 @@ class OLNGReconstructor:
             self._yaw.update(nodes, weights)
         t2 = time.perf_counter()
         problem = self._problem(nodes, weights, alpha.reshape(-1, 3))
-        q = problem.start_pose if not self._x_hist else self.energy.solve(problem)
+        q = problem.start_pose if not self._x_hist else self.energy.solve(problem, self._iterations)
         t3 = time.perf_counter()
         self.timings.search_s += t1 - t0
         self.timings.graph_s += t2 - t1

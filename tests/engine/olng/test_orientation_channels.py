@@ -138,7 +138,7 @@ def test_online_engine_uses_the_streamed_channels_and_live_keeps_up(kb, take) ->
     """The registry adapter: the spec names the channels the knowledge base can search on, a session searches on
     what its first frame brings; only the live engine times itself, and when frames cost more than its budget
     it narrows the search and says so (budget forced tiny here, so the step down is certain)."""
-    from engine.olng.keep_up import KeepUp, effort_levels
+    from engine.olng.keep_up import Effort, KeepUp, effort_levels
     from engine.olng.online_engine import olng_spec
 
     acc, q_world, gyro = take
@@ -148,13 +148,13 @@ def test_online_engine_uses_the_streamed_channels_and_live_keeps_up(kb, take) ->
     offline.push(acc[0], quat_wxyz=to_device_earth(q_world[0], 0.4), gyro_rps=gyro[0])
     assert offline.channels == ("acc", "orientation", "gyro") and offline.keep_up is None and offline.status == ""
     live = spec.live(0.0)
-    live.keep_up = KeepUp(effort_levels(4096, 256), frame_period_s=1e-6, window=5)
+    live.keep_up = KeepUp(effort_levels(Effort(4096, 256, 5)), frame_period_s=1e-6, window=5)
     for a in acc[:12]:
         assert np.isfinite(live.push(a)[0].joint_positions_m).all()
     assert live.channels == ("acc",)
     # far over its (tiny) budget it drops as many levels as halvings at once: straight to the floor
-    assert live.keep_up.level == 4 and live.rec._k == 256 and live.rec._i_best == 16
-    assert live.status.startswith("olng cheaper setting to keep up: K 256 / I 16 instead of K 4096 / I 256")
+    assert live.keep_up.level == 6 and (live.rec._k, live.rec._i_best, live.rec._iterations) == (256, 16, 1)
+    assert live.status.startswith("olng cheaper setting to keep up: K 256 / I 16 / 1 it instead of K 4096 / I 256")
 
 
 def test_energy_tilt_of_a_database_pose_is_the_database_tilt(kb) -> None:
