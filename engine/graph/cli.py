@@ -171,6 +171,10 @@ def add_search_args(p: argparse.ArgumentParser) -> None:
                    help="takes with quat_wxyz: how far each worn segment is turned from the played database pose "
                         "onto its measured orientation (engine/graph/orientation_pose.py; default 1 = all the way, "
                         "0 = play database poses as they are)")
+    p.add_argument("--hinge-share", type=float, default=None, metavar="SHARE",
+                   help="takes with quat_wxyz: share of a worn forearm's / shin's turn that the unworn upper arm / "
+                        "thigh takes about the shoulder / hip, keeping the played elbow / knee angle "
+                        "(engine/graph/orientation_pose.py; 0 = only the worn segment turns)")
     p.add_argument("--gravity-weight", type=float, default=None, metavar="W",
                    help="accelerations only: weight of the tilt from low-passed accelerations "
                         "(engine/graph/gravity_term.py) relative to the accelerations' (default 0 = off)")
@@ -199,10 +203,12 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
     if args.orientation_heading is not None:
         check_non_negative("--orientation-heading", [args.orientation_heading])
         weights = replace(weights, orientation_heading=args.orientation_heading)
-    if args.segment_pose is not None:
-        if not (np.isfinite(args.segment_pose) and 0 <= args.segment_pose <= 1):
-            raise CourtsideError(f"--segment-pose {args.segment_pose!r}: must be in [0, 1]")
-        weights = replace(weights, segment_pose=args.segment_pose)
+    for option, field in (("--segment-pose", "segment_pose"), ("--hinge-share", "hinge_share")):
+        value = getattr(args, field)
+        if value is not None:
+            if not (np.isfinite(value) and 0 <= value <= 1):
+                raise CourtsideError(f"{option} {value!r}: must be in [0, 1]")
+            weights = replace(weights, **{field: value})
     if args.gravity_weight is not None:
         check_non_negative("--gravity-weight", [args.gravity_weight])
         weights = replace(weights, gravity=args.gravity_weight)

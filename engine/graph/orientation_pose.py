@@ -5,8 +5,10 @@ Why: a database-playing method cannot pass the database oracle (the nearest data
 motions the database lacks that floor is high (gestures left out: 7.4 cm root-relative against 12.5 for the mean
 pose). A forearm, shin, pelvis or chest sensor's orientation says where that segment points *now*, whether or not
 the database holds the pose: turning the segment's subtree (hand below the forearm, foot below the shin, the
-upper body below the chest) onto it moves the pose off the database toward the truth. Unworn segments (upper
-arms, thighs, neck) keep the played pose.
+upper body below the chest) onto it moves the pose off the database toward the truth. An unworn upper arm or
+thigh above a worn forearm or shin takes ``hinge_share`` of that turn about the shoulder / hip (the played
+elbow / knee angle is kept for that share: the limb moves as a whole), the forearm / shin the rest about its own
+joint; other unworn segments (neck, head) keep the played pose.
 
 Frames: a segment's orientation is its sensor's (sensor -> world) quaternion; the database side is
 `orientation_term.node_sensor_orientations` (the node's pose in its clip frame), the measured side the sensors'
@@ -55,7 +57,8 @@ class SegmentPoser:
     level's segments lie in disjoint subtrees, so each level is turned in one vectorised step: live, one frame's
     8 blended poses cost a handful of numpy calls per level, not per sensor)."""
 
-    def __init__(self, graph: MotionGraph, sensor_indices: list[int] | tuple[int, ...]) -> None:
+    def __init__(self, graph: MotionGraph, sensor_indices: list[int] | tuple[int, ...], hinge_share: float = 0.0
+                 ) -> None:
         names = [graph.config.sensor_names[i] for i in sensor_indices]
         placements = standard_placements(graph.skeleton, names)
         parents = np.asarray(graph.skeleton.parents)
@@ -67,6 +70,8 @@ class SegmentPoser:
         roles = joint_roles(graph.skeleton)
         self.left_hip, self.right_hip = roles["left_hip"], roles["right_hip"]
         self.below = np.stack([_descendants(parents, j) for j in self.joints])  # (S, J)
+        self.hinge_share = float(hinge_share)
+        self.hinge_pivot = self._hinge_pivots(roles, parents) if hinge_share > 0 else np.full(self.n_sensors, -1)
         # every node's sensor orientations (N, S, 4), computed here (FK of every node: seconds on a large graph)
         # so that no live frame waits for it
         self.node_orientations = node_sensor_orientations(graph)[:, self.sensor_indices]
@@ -79,12 +84,35 @@ class SegmentPoser:
         for lv in range(level.max() + 1 if self.n_sensors else 0):
             members = np.flatnonzero(level == lv)
             joint_owner = np.full(len(parents), -1)
+            hinge_owner = np.full(len(parents), -1)   # joint -> which member's limb turns it about the pivot
             carrier = np.full(self.n_sensors, -1)
             for m, i in enumerate(members):
                 joint_owner[self.below[i]] = m
+                if self.hinge_pivot[i] >= 0:
+                    hinge_owner[_descendants(parents, self.hinge_pivot[i])] = m
                 carrier[carries[i]] = m
                 carrier[i] = m
-            self.levels.append((members, joint_owner, carrier))
+            self.levels.append((members, joint_owner, hinge_owner, carrier))
+
+    def _hinge_pivots(self, roles: dict[str, int], parents: np.ndarray) -> np.ndarray:
+        """(S,) the shoulder / hip joint above each forearm / shin sensor whose upper arm / thigh carries no
+        sensor (the limb's hinge: elbow, knee), else -1."""
+        role_of = {joint: role for role, joint in roles.items()}
+        sensor_joints = set(int(j) for j in self.joints)
+        pivots = np.full(self.n_sensors, -1)
+        for i, joint in enumerate(self.joints):
+            side, _, part = role_of.get(int(joint), "").partition("_")
+            root = {"elbow": "shoulder", "knee": "hip"}.get(part)
+            if root is None:
+                continue
+            pivot = roles[f"{side}_{root}"]
+            between, j = set(), int(parents[joint])
+            while j >= 0 and j != pivot:
+                between.add(j)
+                j = int(parents[j])
+            if j == pivot and not (between | {pivot}) & sensor_joints:
+                pivots[i] = pivot
+        return pivots
 
     @staticmethod
     def _depth(parents: np.ndarray, joint: int) -> int:
@@ -115,17 +143,32 @@ class SegmentPoser:
         if relative:
             turn = twist_yaw(current[..., self.reference, :]) - twist_yaw(q[..., self.reference, :])
             q = quat.multiply(yaw_about_up(turn)[..., None, :], q)
-        for members, joint_owner, carrier in self.levels:
+        for members, joint_owner, hinge_owner, carrier in self.levels:
             cur, meas = current[..., members, :], q[..., members, :]
             target = meas if relative else quat.multiply(yaw_about_up(twist_yaw(cur) - twist_yaw(meas)), meas)
             turn = _partial_turn(quat.multiply(target, quat.conjugate(cur)), share[..., members])
-            moved = joint_owner >= 0
-            owner = joint_owner[moved]
-            pivot = pts[..., self.joints[members][owner], :]
-            pts[..., moved, :] = quat.rotate(turn[..., owner, :], pts[..., moved, :] - pivot) + pivot
+            segment_turn = turn
+            if np.any(hinge_owner >= 0):
+                # the limb first turns as a whole about the shoulder / hip by hinge_share of the turn, the
+                # segment then the rest about its own joint (same axis: the two parts compose to the turn)
+                hinged = self.hinge_pivot[members] >= 0
+                limb_turn = _partial_turn(turn, np.where(hinged, self.hinge_share, 0.0) * np.ones(turn.shape[:-1]))
+                self._turn_joints(pts, limb_turn, hinge_owner, self.hinge_pivot[members])
+                segment_turn = _partial_turn(turn, np.where(hinged, 1.0 - self.hinge_share, 1.0)
+                                             * np.ones(turn.shape[:-1]))
+            self._turn_joints(pts, segment_turn, joint_owner, self.joints[members])
             held = carrier >= 0
             current[..., held, :] = quat.multiply(turn[..., carrier[held], :], current[..., held, :])
         return self._keep_heading(self.graph.node_positions_m[nodes], pts)
+
+    @staticmethod
+    def _turn_joints(pts: np.ndarray, turn: np.ndarray, owner_of: np.ndarray, pivots: np.ndarray) -> None:
+        """Turn, in place, each joint of `pts` (..., J, 3) owned by a member (`owner_of` (J,): member index or
+        -1) by that member's `turn` (..., M, 4) about its pivot joint (`pivots` (M,))."""
+        moved = owner_of >= 0
+        owner = owner_of[moved]
+        pivot = pts[..., pivots[owner], :]
+        pts[..., moved, :] = quat.rotate(turn[..., owner, :], pts[..., moved, :] - pivot) + pivot
 
     def _keep_heading(self, played: np.ndarray, posed: np.ndarray) -> np.ndarray:
         """`posed` turned about the vertical through the root so its hips heading is the played pose's: the
@@ -160,7 +203,7 @@ class SegmentPosing:
         rotations."""
         if weights.segment_pose <= 0 or not sensor_indices or not places_sensors(graph):
             return None
-        return cls(SegmentPoser(graph, sensor_indices), weights.segment_pose, calibration, weights.tilt_from_acc_s)
+        return cls(SegmentPoser(graph, sensor_indices, weights.hinge_share), weights.segment_pose, calibration, weights.tilt_from_acc_s)
 
     def world_orientations(self, quat_device: np.ndarray) -> np.ndarray:
         """(..., S, 4) device-earth readings -> sensor orientations in the world (each still turned by its

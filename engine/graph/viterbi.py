@@ -85,6 +85,9 @@ class SearchWeights:
     # orientation term is off; 0 = off (docs/engine-evaluation.md, "Accelerations that listen")
     segment_pose: float = 1.0  # with orientations: how far each worn segment is turned from the played pose onto
     # its measured orientation (orientation_pose.py; 1 = all the way, 0 = play database poses as they are)
+    hinge_share: float = 0.5  # share of a worn forearm's / shin's turn that the unworn upper arm / thigh takes about
+    # the shoulder / hip (the played elbow / knee angle kept for that share; orientation_pose.py); 0 = only the
+    # worn segment turns
     tilt_from_acc_s: float = 0.2  # without orientations: the time constant (s) of the low-pass that gives each
     # worn segment's tilt from its accelerations for the posing (acc_tilt.py); 0 = play database poses as they are
     sensor_weighting: float = 0.0  # power of the per-sensor C_A weights from how much each sensor tells about

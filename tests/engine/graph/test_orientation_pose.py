@@ -65,6 +65,31 @@ def test_a_turned_forearm_turns_the_hand_about_the_elbow_and_nothing_else(graph,
     assert np.linalg.norm(posed[roles["right_hand"]] - played[roles["right_hand"]]) > 0.05
 
 
+@pytest.mark.parametrize("share", [1.0, 0.4])
+def test_a_hinged_limb_turns_about_the_shoulder_keeping_the_elbow_angle(graph, share):
+    """hinge_share 1: the unworn upper arm turns with the worn forearm about the shoulder (the played elbow angle
+    kept: every joint of the arm turns rigidly); a share s splits the turn: s about the shoulder, the rest about
+    the (moved) elbow. The forearm ends at its measured orientation either way."""
+    roles = joint_roles(graph.skeleton)
+    poser = SegmentPoser(graph, list(range(6)), hinge_share=share)
+    shoulder, elbow = roles["right_shoulder"], roles["right_elbow"]
+    assert poser.hinge_pivot[1] == shoulder and poser.hinge_pivot[4] == -1   # forearm hinged, lower back not
+    node = 40
+    measured = _own(graph, np.array([node]))[0].copy()
+    angle = np.radians(30.0)
+    measured[1] = quat.multiply(quat.from_rotvec(np.array([0.0, 0.0, angle])), measured[1])  # right forearm
+    posed = poser.pose(np.array([node]), measured[None])[0]
+    played = graph.node_positions_m[node].astype(float)
+    arm = poser.below[1] | (np.arange(len(played)) == elbow)
+    limb = quat.from_rotvec(np.array([0.0, 0.0, share * angle]))
+    rest = quat.from_rotvec(np.array([0.0, 0.0, (1 - share) * angle]))
+    step = quat.rotate(limb, played[arm] - played[shoulder]) + played[shoulder]
+    new_elbow = step[np.flatnonzero(arm) == elbow][0]
+    want = quat.rotate(rest, step - new_elbow) + new_elbow
+    assert np.allclose(posed[arm], want, atol=1e-5)
+    assert np.allclose(posed[~arm], played[~arm], atol=1e-5)
+
+
 def test_tilt_posing_ignores_every_sensor_s_yaw_and_relative_posing_a_shared_one(graph, poser, sample_motions):
     """A clip's true orientations, once as measured and once turned by per-sensor yaws (tilt posing must not
     see them) or by one yaw for all (relative posing must not see it: only yaw relative to the pelvis counts)."""
