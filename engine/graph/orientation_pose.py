@@ -76,8 +76,9 @@ class SegmentPoser:
         roles = joint_roles(graph.skeleton)
         self.left_hip, self.right_hip = roles["left_hip"], roles["right_hip"]
         self.below = np.stack([_descendants(parents, j) for j in self.joints])  # (S, J)
-        self.hinge_share = float(hinge_share)
         self.hinge_pivot = self._hinge_pivots(roles, parents) if hinge_share > 0 else np.full(self.n_sensors, -1)
+        # (S,) each sensor's share of its turn taken about its hinge pivot (0: no hinge)
+        self.hinge_shares = np.where(self.hinge_pivot >= 0, float(hinge_share), 0.0)
         # every node's sensor orientations (N, S, 4), computed here (FK of every node: seconds on a large graph)
         # so that no live frame waits for it
         self.node_orientations = node_sensor_orientations(graph)[:, self.sensor_indices]
@@ -156,11 +157,10 @@ class SegmentPoser:
             if np.any(hinge_owner >= 0):
                 # the limb first turns as a whole about the shoulder / hip by hinge_share of the turn, the
                 # segment then the rest about its own joint (same axis: the two parts compose to the turn)
-                hinged = self.hinge_pivot[members] >= 0
-                limb_turn = _partial_turn(turn, np.where(hinged, self.hinge_share, 0.0) * np.ones(turn.shape[:-1]))
+                limb_share = self.hinge_shares[members] * np.ones(turn.shape[:-1])
+                limb_turn = _partial_turn(turn, limb_share)
                 self._turn_joints(pts, limb_turn, hinge_owner, self.hinge_pivot[members])
-                segment_turn = _partial_turn(turn, np.where(hinged, 1.0 - self.hinge_share, 1.0)
-                                             * np.ones(turn.shape[:-1]))
+                segment_turn = _partial_turn(turn, 1.0 - limb_share)
             self._turn_joints(pts, segment_turn, joint_owner, self.joints[members])
             held = carrier >= 0
             current[..., held, :] = quat.multiply(turn[..., carrier[held], :], current[..., held, :])
