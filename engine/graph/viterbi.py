@@ -88,6 +88,9 @@ class SearchWeights:
     hinge_share: float = 0.5  # share of a worn forearm's / shin's turn that the unworn upper arm / thigh takes about
     # the shoulder / hip (the played elbow / knee angle kept for that share; orientation_pose.py); 0 = only the
     # worn segment turns
+    strap_refine_s: float = 20.0  # with orientations and an N-pose calibration: time constant (s) of the running
+    # estimate of each sensor's strapping error (the athlete's posing error in the capture) from its measured-
+    # against-played rotation (orientation_pose.SegmentPosing); 0 = trust the capture as it is
     tilt_from_acc_s: float = 0.2  # without orientations: the time constant (s) of the low-pass that gives each
     # worn segment's tilt from its accelerations for the posing (acc_tilt.py); 0 = play database poses as they are
     sensor_weighting: float = 0.0  # power of the per-sensor C_A weights from how much each sensor tells about

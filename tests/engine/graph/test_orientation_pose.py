@@ -228,3 +228,27 @@ def test_synthesize_with_an_orientation_calibration_poses_with_yaw_live_as_offli
     console = drive_take(spec.make(1.0), frames.obs.acc_g, frames.obs, int(frames.frame[0]), spec.rate_hz)
     assert np.array_equal(np.stack([p.joint_positions_m for p in console]), fused)
     assert load_spec(graph_path).label.endswith("acc+orientation (tilt only))")
+
+
+def test_strap_refinement_learns_a_constant_strapping_error(graph, poser):
+    """Every sensor strapped 8 degrees off what the calibration assumed (a posing error in the N-pose capture): the
+    measured orientations are the played ones times that constant rotation in each segment's frame. Without the
+    refinement the posed joints move off the played pose; with it (time constant 1 s) they come back part of the
+    way (the pelvis yaw alignment mixes the pelvis sensor's own error into every misfit)."""
+    from engine.graph.poses import blended_joint_positions
+
+    nodes = (np.arange(400) * 7) % graph.n_nodes
+    error = quat.from_rotvec(np.array([[np.radians(8.0), 0.0, 0.0], [0.0, np.radians(8.0), 0.0]] * 3))
+    world = quat.multiply(_own(graph, nodes), error)
+    share = np.ones((len(nodes), 6))
+    ground, heading = np.zeros((len(nodes), 2)), np.zeros(len(nodes))
+    played = blended_joint_positions(graph, nodes[:, None], ground, heading)
+    calibration = OrientationCalibration(np.zeros(6), np.tile(quat.identity(), (6, 1)))
+
+    def worst_cm(strap_s: float) -> float:
+        posing = SegmentPosing(poser, 1.0, calibration, strap_time_constant_s=strap_s)
+        out = posing.joint_positions(nodes[:, None], ground, heading, world, share)
+        return 100 * np.abs(out - played)[-50:].max()
+
+    unrefined, refined = worst_cm(0.0), worst_cm(1.0)
+    assert unrefined > 5.0 and refined < 0.7 * unrefined   # measured 7.2 -> 4.4 cm (docstring of `_refined`)
