@@ -15,7 +15,7 @@ from engine.mocap.orientation_calibration import OrientationCalibration
 
 from .graph import MotionGraph
 from .orientation_pose import SegmentPosing
-from .poses import blended_joint_positions, world_joint_positions
+from .poses import blended_joint_positions
 from .viterbi import (DEFAULT_KERNEL, PRUNE_EVERY, Constraint, Observations, SearchResult, SearchWeights,
                       ViterbiLattice, step_arguments)
 from .confidence import CostHistory, CostWindow, confidence, reference_cost_per_sample
@@ -195,10 +195,8 @@ class FixedLagSynthesizer:
         if self._posing is not None:
             joints = self._posing.joint_positions(blend, out_ground, out_heading, np.stack([i[0] for i in inputs]),
                                                   np.stack([i[1] for i in inputs]))
-        elif out[0][4] is not None:
+        else:  # a single path is a blend of one (the mean of one pose is that pose)
             joints = blended_joint_positions(self.graph, blend, out_ground, out_heading)
-        else:
-            joints = world_joint_positions(self.graph, nodes, out_ground, out_heading)
         self.next_emit = last + 1
         conf = [confidence(self._history.per_sample_around(first + i), self.confidence_reference) for i in range(k)]
         self._history.drop_before(self.next_emit)

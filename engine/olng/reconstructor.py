@@ -80,6 +80,7 @@ class OLNGReconstructor:
         self._scale = 1.0 / config.energy.length_unit_m
         self._x_hist: list[np.ndarray] = []   # last two outputs' root-frame positions (energy units)
         self._q_prev: np.ndarray | None = None
+        self._frames_prev: tuple[np.ndarray, np.ndarray] | None = None  # the last output's sensor frames and tilt
         self._alpha_prev: np.ndarray | None = None
         self.dropped_readings = 0   # non-finite input axes replaced by the previous reading
         self._root = np.zeros(3)
@@ -99,12 +100,10 @@ class OLNGReconstructor:
         self._root = np.asarray(root_pos_m, dtype=float).copy()
         self._heading = float(heading_rad)
 
-    def _sensor_accel_root(self, q_prev: np.ndarray, alpha_g: np.ndarray) -> np.ndarray:
+    def _sensor_accel_root(self, alpha_g: np.ndarray) -> np.ndarray:
         """Reading rotated into the root frame with the previous output's sensor frames, gravity removed
         (spec A2.6: root acceleration and fictitious forces ignored on purpose). (S, 3) in m/s^2."""
-        _, rot = fk_root_frame(self.kb.rig, q_prev[None])
-        sensor_rot = rot[0, self.kb.sensors.bone] @ self.kb.sensors.local_rot      # (S, 3, 3) root <- sensor
-        tilt = quat_to_matrix(pose_quats(self.kb.rig, q_prev)[0])
+        sensor_rot, tilt = self._frames_prev   # (S, 3, 3) root <- sensor, (3, 3) root tilt: kept by `_emit`
         gravity_root = G_MPS2 * tilt.T @ UP
         return np.einsum("sij,sj->si", sensor_rot, alpha_g * G_MPS2) - gravity_root
 
@@ -121,7 +120,7 @@ class OLNGReconstructor:
         before = np.where(kb.clip_id[before] == kb.clip_id[nodes], before, nodes)
         vel_prev = kb.v_mps[before] * scale                                         # (I, J, 3)
         reading = self._alpha_prev if self.config.energy.control_reading == "previous" else alpha_g
-        accel_root = self._sensor_accel_root(self._q_prev, reading) * scale         # (S, 3)
+        accel_root = self._sensor_accel_root(reading) * scale         # (S, 3)
         tips = kb.sensors.tip
         control = (x_t.reshape(-1, 3)[tips][None] + vel_prev[:, tips] * dt + 0.5 * accel_root[None] * dt**2).reshape(len(nodes), -1)
         motion = smooth = None
@@ -253,7 +252,7 @@ class OLNGReconstructor:
     def _emit(self, q: np.ndarray, nodes: np.ndarray, weights: np.ndarray, camera_position_m=None,
               camera_heading_rad=None) -> ReconstructedPose:
         kb, dt = self.kb, self.kb.dt_s
-        pos, _ = fk_root_frame(kb.rig, q[None])
+        pos, rot = fk_root_frame(kb.rig, q[None])
         joints_root = pos[0]
         self._x_hist = (self._x_hist + [joints_root.reshape(-1) * self._scale])[-2:]
         self._q_prev = q
@@ -264,7 +263,10 @@ class OLNGReconstructor:
         self._root[1] = float(weights @ kb.root_height_m[nodes])
         self._heading += dt * float(weights @ kb.yaw_rate_rps[nodes])
         quats = pose_quats(kb.rig, q)
-        self._follow_camera(joints_root @ quat_to_matrix(quats[0]).T, camera_position_m, camera_heading_rad)
+        tilt = quat_to_matrix(quats[0])
+        # the next frame's control term reads this output's sensor frames (one FK per frame, not two)
+        self._frames_prev = (rot[0, kb.sensors.bone] @ kb.sensors.local_rot, tilt)
+        self._follow_camera(joints_root @ tilt.T, camera_position_m, camera_heading_rad)
         quats[0] = quaternions.multiply(yaw_quat(np.array(self._heading)), quats[0])
         world = self._root + joints_root @ quat_to_matrix(quats[0]).T
         return ReconstructedPose(q=q, local_quats=quats, root_pos_m=self._root.copy(), heading_rad=self._heading,
