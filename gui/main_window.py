@@ -17,8 +17,10 @@ from gui.bridge import GatewayBridge, SensorKey, gateway_clock_offset_s
 from gui.control import RequestRunner
 from gui.health import Alarm, Sync, status_alarms
 from gui.playback import Playback
+from gui.pose_pacing import PosePacer
 from gui.ringbuffer import TraceStore
-from gui.synthesis import SynthesisSetup, SynthesisWorker
+from gui.synthesis import SynthesisSetup
+from gui.synthesis_process import Synthesizer, start_synthesis
 from gui.widgets import VIEWER_ONLY
 from gui.widgets.alarms import AlarmBar
 from gui.widgets.camera_pane import CameraPane
@@ -27,12 +29,12 @@ from gui.widgets.recording import PlaybackBar, RecordingPanel
 from gui.widgets.skeleton_view import SkeletonView
 from gui.widgets.traces import TracePanel
 
-# Refresh timing (docs/console.md "Refresh timing"). The timer runs at 60 Hz so that a late tick costs one
-# sixtieth of a second, not a frame: with a 33 ms timer even a bare event loop tops out at 1000/33 = 30.3 ticks/s
-# and every late tick drops the rate below 30. Each tick does the cheap work (drain, panes) and at most ONE heavy
+# Refresh timing (docs/console.md "Refresh timing"). The timer runs at 100 Hz so that a late tick costs a
+# hundredth of a second, not a frame: with a 33 ms timer even a bare event loop tops out at 1000/33 = 30.3 ticks/s
+# and every late tick drops the rate below 30; with 60 Hz, traces and skeleton at 30/s each needed every tick. Each tick does the cheap work (drain, panes) and at most ONE heavy
 # redraw -- the traces (at most TRACE_HZ) or the skeleton (when a new pose came) -- whichever waited longer, so no
 # tick carries both and the event loop (paint, input, the gateway link) gets a turn between them.
-REFRESH_HZ = 60.0
+REFRESH_HZ = 100.0
 TICK_MS = int(1000 / REFRESH_HZ)
 TRACE_HZ = 30.0
 RECONNECT_INTERVAL_MS = 1000
@@ -193,11 +195,11 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                          athlete: str | None, more_athletes: dict[str, SynthesisSetup] | None) -> None:
         """The synthesis worker of each athlete fed by the bridge (their lag on the toolbar), or the truth skeleton
         alone."""
-        self.worker: SynthesisWorker | None = None
+        self.worker: Synthesizer | None = None
         self.synthesis = synthesis
         if synthesis is not None:
             self.skeleton.set_skeleton(synthesis.parents)
-            self.worker = SynthesisWorker(synthesis, keep_poses=keep_poses)
+            self.worker = start_synthesis(synthesis, keep_poses=keep_poses)
             self.bridge.sample_sinks.append(self.worker.add_samples)
             if more_athletes and athlete is not None:  # only its own track: the other athlete's would drag it
                 self.bridge.athlete_camera_sinks.setdefault(athlete, []).append(self.worker.add_camera)
@@ -207,21 +209,25 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.lag_spin.setValue(synthesis.lag_s)
             self.lag_spin.valueChanged.connect(self.worker.set_lag)
             self.lag_spin.setEnabled(synthesis.engine.lag_applies)
-            self.worker.start()
         else:
             self.lag_spin.setEnabled(False)
         self.athlete = athlete
         self.skeleton.athlete = athlete
         self.more_athletes = dict(more_athletes or {}) if synthesis is not None else {}
-        self.other_workers: dict[str, SynthesisWorker] = {}
+        self.other_workers: dict[str, Synthesizer] = {}
         for name, setup in self.more_athletes.items():
-            other = SynthesisWorker(setup, keep_poses=keep_poses)
+            other = start_synthesis(setup, keep_poses=keep_poses)
             self.bridge.sample_sinks.append(other.add_samples)
             self.bridge.athlete_camera_sinks.setdefault(name, []).append(other.add_camera)
             self.bridge.recording_sinks.append(other.recording_started)
             self.lag_spin.valueChanged.connect(other.set_lag)
-            other.start()
             self.other_workers[name] = other
+        # each athlete's poses paced for the 3-D view: "" the first athlete's (`worker`), then the others by name
+        self._pacers: dict[str, PosePacer] = {}
+        if self.worker is not None:
+            self._pacers[""] = PosePacer(self.worker, synthesis.engine.rate_hz)
+        for name, other in self.other_workers.items():
+            self._pacers[name] = PosePacer(other, self.more_athletes[name].engine.rate_hz)
         if truth_parents is not None and synthesis is None:
             self.skeleton.set_skeleton(truth_parents)
 
@@ -287,6 +293,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         """Every athlete's synthesis starts afresh (a reconnect, a playback seek, back to live)."""
         for worker in ([self.worker] if self.worker is not None else []) + list(self.other_workers.values()):
             worker.reset()
+        for pacer in self._pacers.values():
+            pacer.reset()
 
     # -- clock ----------------------------------------------------------------------------------------------
     def gateway_now_s(self) -> float:
@@ -325,10 +333,11 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self._update_statusbar()
 
     def _redraw_one(self, t: float) -> None:
-        """The tick's one heavy redraw: traces when due (TRACE_HZ, half a tick early counts, so 60 Hz ticks give
-        30 redraws/s rather than 20), the skeleton when a new pose waits; both due -> the one drawn longer ago."""
+        """The tick's one heavy redraw: traces when due (TRACE_HZ, a tick early counts, so the traces keep 30/s
+        on the 10 ms tick grid even when some ticks run late), the skeleton when a new pose waits; both due -> the
+        one drawn longer ago."""
         traces_due = (self.tabs.currentWidget() is self.traces
-                      and t - self._drawn_s["traces"] >= 1.0 / TRACE_HZ - 0.5 / REFRESH_HZ)
+                      and t - self._drawn_s["traces"] >= 1.0 / TRACE_HZ - 1.0 / REFRESH_HZ)
         skeleton_due = self.skeleton.pending()
         if traces_due and (not skeleton_due or self._drawn_s["traces"] <= self._drawn_s["skeleton"]):
             self.traces.refresh()
@@ -367,7 +376,14 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.traces.set_groups(groups)
 
     def _update_poses(self) -> None:
-        pose = self.worker.latest_pose() if self.worker is not None else None
+        """Hand the 3-D view each athlete's next pose (gui.pose_pacing: every pose, at the synthesis rate), and
+        nothing when no athlete has a new one: the same pose again would render the same frame again, taking a
+        tick from the traces."""
+        moved = [pacer.advance(time.monotonic()) for pacer in self._pacers.values()]
+        pose = self._pacers[""].current if "" in self._pacers else None
+        if pose is not None and not any(moved):
+            return
+        latest = {name: self._pacers[name].current for name in self.other_workers}
         estimate = pose.joint_positions_m if pose is not None else None
         self.skeleton.set_confidence(pose.confidence if pose is not None else None)
         t_pose = pose.t_s if pose is not None else self.store.latest_time()
@@ -375,7 +391,6 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         if estimate is not None or truth is not None:
             self.skeleton.set_poses(estimate, truth)
         if self.other_workers:
-            latest = {name: w.latest_pose() for name, w in self.other_workers.items()}
             self.skeleton.set_other_athletes({name: (None, None) if p is None else (p.joint_positions_m, p.confidence)
                                               for name, p in latest.items()})
 
@@ -522,7 +537,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self._save_worker_poses(path.with_name(f"{path.stem}.{name}{path.suffix or '.npz'}"), worker, name)
         return self._save_worker_poses(path, self.worker, self.athlete)
 
-    def _save_worker_poses(self, path: Path, worker: SynthesisWorker, athlete: str | None) -> Path:
+    def _save_worker_poses(self, path: Path, worker: Synthesizer, athlete: str | None) -> Path:
         from engine.stream.poses_file import save_poses
 
         start, poses = worker.poses()

@@ -9,6 +9,7 @@ same code. A recording start restarts the engine at the take's defined first fra
 gives; a lag change restarts it at the next frame; a reset (playback seek) starts a fresh session."""
 from __future__ import annotations
 
+import collections
 import logging
 import queue
 import threading
@@ -23,6 +24,7 @@ from engine.stream import EngineSpec, FramePose, StreamSynthesis, take_start_s
 
 SensorKey = tuple[str, int]  # (station id, sensor index), as the gateway names streams
 log = logging.getLogger("courtside.console")
+RECENT_POSES = 64  # poses a reader can still fetch after they were decided (`recent_poses`): 2 s at 30 Hz
 BEHIND_WARN_S = 2.0  # synthesis this much beyond its lag behind the stream is reported as falling behind
 _RESET = object()
 
@@ -87,14 +89,23 @@ class SynthesisWorker(threading.Thread):
         self._lock = threading.Lock()
         self._pose: FramePose | None = None
         self._poses: list[FramePose] = []
+        self._poses_epoch = 0  # +1 whenever the kept poses start over (restart, reset): see `kept_poses_since`
+        # the newest poses, numbered from 1 over the worker's life (never restarted), for a display that shows
+        # every pose rather than the newest at each look (gui.pose_pacing)
+        self._recent: collections.deque[tuple[int, FramePose]] = collections.deque(maxlen=RECENT_POSES)
+        self._n_poses = 0
         self._lag_s = setup.lag_s
         self.stats = SynthesisStats(lag_s=setup.lag_s)
+        self._worn = frozenset(setup.sensors)
         self._behind_logged = False
 
     # -- inputs (any thread) -----------------------------------------------------------------------------------
     def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray, quat_wxyz: np.ndarray | None = None,
                     gyro_rps: np.ndarray | None = None) -> None:
-        """Signature matches `gui.bridge.SampleSink`, so the bridge can feed the worker directly."""
+        """Signature matches `gui.bridge.SampleSink`, so the bridge can feed the worker directly; sensors the
+        engine does not read are dropped here (the resampler would ignore them)."""
+        if sensor not in self._worn:
+            return
         self._inbox.put(("samples", sensor, np.asarray(t_s, float), np.asarray(acc_g, float), _floats(quat_wxyz),
                          _floats(gyro_rps)))
 
@@ -129,6 +140,20 @@ class SynthesisWorker(threading.Thread):
         with self._lock:
             return self.stats.start_frame, list(self._poses)
 
+    def recent_poses(self, after: int) -> list[tuple[int, FramePose]]:
+        """(number, pose) of the recent poses numbered after `after` (at most the last RECENT_POSES)."""
+        with self._lock:
+            return [(n, pose) for n, pose in self._recent if n > after]
+
+    def kept_poses_since(self, epoch: int, n_seen: int) -> tuple[int, int | None, list[FramePose]]:
+        """(epoch, first frame of the session, the kept poses a reader has not seen): those after its `n_seen`
+        while the kept list is still the one of its `epoch`, else all of them under the new epoch (the list
+        started over). Lets a reader follow a long capture without copying the whole list each time."""
+        with self._lock:
+            if epoch != self._poses_epoch:
+                n_seen = 0
+            return self._poses_epoch, self.stats.start_frame, self._poses[n_seen:]
+
     # -- thread ------------------------------------------------------------------------------------------------
     def _new_session(self) -> StreamSynthesis | None:
         setup = self.setup
@@ -148,12 +173,14 @@ class SynthesisWorker(threading.Thread):
         self.stats.lag_s, self.stats.error = self._lag_s, ""
         with self._lock:
             self._poses = []
+            self._poses_epoch += 1
             self._pose = None
 
     def _handle(self, session: StreamSynthesis | None, entry: Any) -> StreamSynthesis | None:
         if entry is _RESET:
             with self._lock:
                 self._poses = []
+                self._poses_epoch += 1
             return self._new_session()
         if session is None or entry is None:
             return session
@@ -217,6 +244,8 @@ class SynthesisWorker(threading.Thread):
             if poses:
                 with self._lock:
                     self._pose = poses[-1]
+                    self._recent.extend(enumerate(poses, self._n_poses + 1))
+                    self._n_poses += len(poses)
                     if self.keep_poses:
                         self._poses.extend(poses)
             now = time.monotonic()

@@ -6,7 +6,11 @@ north) or angular rate x/y/z and |w| (rad/s).
 Data never touches Qt from the network thread: ``TraceStore.put`` is called from any thread and only
 enqueues; the GUI thread's refresh tick calls ``drain`` (bounded work) then ``TracePanel.refresh`` which
 min-max decimates each visible curve to about the plot's pixel width, so the draw cost does not depend on
-the data rate (24 sensors x 100 Hz or 1 kHz alike)."""
+the data rate (24 sensors x 100 Hz or 1 kHz alike).
+
+The plots scroll like an oscilloscope: the x axis is fixed at seconds before the newest sample (-window .. 0)
+and the data move, not the view. A view that follows the clock re-ranges six linked view boxes and regenerates
+the time axis's ticks on every redraw (profiled: a third of a trace redraw); a fixed view does neither."""
 from __future__ import annotations
 
 from collections.abc import Hashable, Sequence
@@ -16,8 +20,10 @@ import pyqtgraph as pg
 from PySide6 import QtWidgets
 
 from gui.ringbuffer import TraceStore, minmax_decimate
+from gui.widgets.path_curve import PathCurve
 
 RANGE_PRESETS_G = (2.0, 6.0, 12.0)
+LEFT_AXIS_PX = 56
 CHANNEL_PENS = (("x", (230, 80, 80)), ("y", (90, 200, 90)), ("z", (90, 140, 250)), ("|a|", (235, 235, 235)))
 # what the panel shows: label -> (ring channel, y range or None = the range box's g)
 VIEWS = {"acceleration (g)": ("acc_g", None), "orientation (deg)": ("quat_wxyz", 180.0),
@@ -57,7 +63,8 @@ class TracePanel(QtWidgets.QWidget):
         self.paused = False
         self.groups: dict[str, list[Hashable]] = {}
         self._plots: dict[Hashable, pg.PlotItem] = {}
-        self._curves: dict[Hashable, list[pg.PlotCurveItem]] = {}
+        self._curves: dict[Hashable, list[PathCurve]] = {}
+        self._t_end_drawn = 0.0  # gateway time (s) of x = 0 in the drawn curves (the newest sample then)
         self._event_lines: dict[int, list[tuple[pg.PlotItem, pg.InfiniteLine]]] = {}  # event seq -> lines
 
         self.group_box = QtWidgets.QComboBox()
@@ -91,7 +98,7 @@ class TracePanel(QtWidgets.QWidget):
         self.range_box.currentIndexChanged.connect(lambda _: self._apply_range())
         self.view_box.currentTextChanged.connect(lambda _: self._apply_range())
         self.pause_button.toggled.connect(self.set_paused)
-        self.window_box.currentIndexChanged.connect(lambda _: setattr(self, "window_s", self.window_box.currentData()))
+        self.window_box.currentIndexChanged.connect(lambda _: self.set_window_s(self.window_box.currentData()))
 
     # -- configuration -----------------------------------------------------------------------------------
     def set_groups(self, groups: dict[str, Sequence[Hashable]]) -> None:
@@ -116,27 +123,30 @@ class TracePanel(QtWidgets.QWidget):
         for row, sensor in enumerate(sensors):
             plot = self.graphics.addPlot(row=row, col=0)
             plot.setLabel("left", sensor_label(sensor))  # values in g (the range box says so); short labels fit
+            # one left-axis width for all: linked x views of equal width show the same seconds exactly
+            plot.getAxis("left").setWidth(LEFT_AXIS_PX)
             if row < len(sensors) - 1:
                 plot.hideAxis("bottom")  # one shared time axis at the bottom saves vertical space
             else:
-                plot.setLabel("bottom", "gateway time", units="s")
+                plot.setLabel("bottom", "seconds before the newest sample")
                 plot.getAxis("bottom").enableAutoSIPrefix(False)
             # no grid: pyqtgraph draws it inside the axis QPicture, replayed on every paint (7 ms per axis)
             plot.setMenuEnabled(False)
             plot.disableAutoRange()  # ranges are set explicitly; auto-ranging re-scans every curve per frame
             if first is None:
                 first = plot
-                plot.addLegend(offset=(-5, 1), colCount=4, labelTextSize="7pt")
+                legend = plot.addLegend(offset=(-5, 1), colCount=4, labelTextSize="7pt")
+                for name, colour in CHANNEL_PENS:
+                    legend.addItem(pg.PlotDataItem(pen=pg.mkPen(colour, width=1)), name)
             else:
-                plot.setXLink(first)
-            # bare PlotCurveItems: PlotDataItem's symbol/downsampling layers cost ~3x more per setData
-            curves = [pg.PlotCurveItem(pen=pg.mkPen(c, width=1), name=n, skipFiniteCheck=True)
-                      for n, c in CHANNEL_PENS]
+                plot.setXLink(first)  # pan / zoom together while paused
+            curves = [PathCurve(pg.mkPen(c, width=1)) for _, c in CHANNEL_PENS]
             for curve in curves:
                 plot.addItem(curve)
             self._curves[sensor] = curves
             self._plots[sensor] = plot
         self._apply_range()
+        self._apply_window()
 
     def _apply_range(self) -> None:
         fixed = VIEWS[self.view_box.currentText()][1]
@@ -144,6 +154,15 @@ class TracePanel(QtWidgets.QWidget):
         self.range_box.setEnabled(fixed is None)
         for plot in self._plots.values():
             plot.setYRange(-limit, limit, padding=0.02)
+
+    def set_window_s(self, window_s: float) -> None:
+        """Show the last `window_s` seconds."""
+        self.window_s = float(window_s)
+        self._apply_window()
+
+    def _apply_window(self) -> None:
+        if self._plots:
+            next(iter(self._plots.values())).setXRange(-self.window_s, 0.0, padding=0)
 
     def set_view(self, label: str) -> None:
         """Show accelerations, orientation or angular rate (a `VIEWS` label)."""
@@ -153,12 +172,15 @@ class TracePanel(QtWidgets.QWidget):
         self.range_box.setCurrentIndex(RANGE_PRESETS_G.index(g))
 
     def set_paused(self, paused: bool) -> None:
-        """Paused: curves freeze and the x axis is free to zoom/pan; data keeps buffering underneath."""
+        """Paused: curves freeze and the x axis is free to zoom/pan; data keeps buffering underneath. Resuming
+        puts the view back on the last `window_s` seconds."""
         self.paused = paused
         self.pause_button.setChecked(paused)
         self.pause_button.setText("Resume" if paused else "Pause")
         for plot in self._plots.values():
             plot.setMouseEnabled(x=paused, y=False)
+        if not paused:
+            self._apply_window()
 
     # -- drawing ------------------------------------------------------------------------------------------
     def visible_sensors(self) -> list[Hashable]:
@@ -172,6 +194,7 @@ class TracePanel(QtWidgets.QWidget):
         t_end = self.store.latest_time()
         if t_end is None:
             return
+        self._t_end_drawn = t_end
         t0 = t_end - self.window_s
         width_px = max(200, self.graphics.width())
         channel = VIEWS[self.view_box.currentText()][0]
@@ -187,13 +210,11 @@ class TracePanel(QtWidgets.QWidget):
             vals = _view_values(channel, values[i0:])
             td, vd = minmax_decimate(t[i0:], vals, 2 * width_px)
             for k, curve in enumerate(curves):
-                finite = np.isfinite(vd[:, k])  # skipFiniteCheck: NaN must not reach the curve
-                curve.setData(td[finite], vd[finite, k])
-        if self._plots:
-            next(iter(self._plots.values())).setXRange(t0, t_end, padding=0)
-            # apply the new view transforms now: pyqtgraph defers them to the start of the paint, where changing
-            # them schedules a second full repaint of every plot (measured: ~2 paints per redraw without this)
-            self.graphics.scene().prepareForPaint()
+                finite = np.isfinite(vd[:, k])  # NaN must not reach the path
+                curve.setData(td[finite] - t_end, vd[finite, k])
+        for lines in self._event_lines.values():
+            for _, line in lines:
+                line.setValue(line.t_s - t_end)
 
     def _draw_events(self) -> None:
         """Vertical marker lines for events (taps, calibration steps, gateway events) on every visible plot;
@@ -207,14 +228,15 @@ class TracePanel(QtWidgets.QWidget):
                 continue
             lines = []
             for plot in self._plots.values():
-                line = pg.InfiniteLine(pos=t_s, angle=90, pen=pg.mkPen((250, 200, 60), width=1), label=label,
+                line = pg.InfiniteLine(pos=t_s - self._t_end_drawn, angle=90, pen=pg.mkPen((250, 200, 60), width=1), label=label,
                                        labelOpts={"position": 0.9, "color": (250, 200, 60)})
+                line.t_s = t_s  # gateway time: `refresh` moves the line as the newest sample moves
                 plot.addItem(line)
                 lines.append((plot, line))
             self._event_lines[seq] = lines
 
     def curve_data(self, sensor: Hashable, channel: int) -> tuple[np.ndarray, np.ndarray]:
-        """What is currently drawn for ``sensor`` curve 0..3 (x, y, z, |a| / roll, pitch, yaw / x, y, z, |w|):
-        for tests and screenshots."""
+        """What is currently drawn for ``sensor`` curve 0..3 (x, y, z, |a| / roll, pitch, yaw / x, y, z, |w|),
+        x on the gateway clock (s): for tests and screenshots."""
         curve = self._curves[sensor][channel]
-        return curve.xData if curve.xData is not None else np.zeros(0), curve.yData if curve.yData is not None else np.zeros(0)
+        return curve.xData + self._t_end_drawn, curve.yData

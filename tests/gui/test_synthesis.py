@@ -1,5 +1,5 @@
-"""Live synthesis in the console's worker thread: live-rate batches in, the engine's poses out — and exactly the
-poses offline synthesis of the same recorded streams gives.
+"""Live synthesis in the console's worker thread, and in the child process the console runs it in: live-rate
+batches in, the engine's poses out — and exactly the poses offline synthesis of the same recorded streams gives.
 
 Ground truth: a shipped clip that is in the graph, streamed noise-free as virtual accelerometers at 100 Hz.
 The fixed-lag Viterbi must then recover that clip's own poses, so joint heights match the clip's FK."""
@@ -17,6 +17,7 @@ from engine.graph.online_engine import load_or_build_graph, motion_graph_spec
 from engine.stream.databases import GRAPH_FPS
 from gui.engine_link import synthesis_setup
 from gui.synthesis import SynthesisWorker
+from gui.synthesis_process import SynthesisProcess
 
 LIVE_HZ = 100.0
 
@@ -28,6 +29,12 @@ def graph_and_clip(tmp_path_factory):
     acc = virtual_accelerometers(motion, standard_placements(motion.skeleton, SEED000_SENSORS))
     truth, _ = forward_kinematics(motion)
     return motion_graph_spec(graph, "shipped clips", skeleton), acc, truth
+
+
+@pytest.fixture(params=[SynthesisWorker, SynthesisProcess], ids=["thread", "process"])
+def runner(request):
+    """The console's two ways to run a synthesizer (same interface, same worker code)."""
+    return request.param
 
 
 def live_streams(acc30: np.ndarray, t0: float, sensors) -> dict:
@@ -62,10 +69,10 @@ def run_worker(worker: SynthesisWorker, streams: dict, camera: list, batch_s: fl
         time.sleep(0.01)
 
 
-def test_worker_recovers_clip_poses_from_live_batches(graph_and_clip):
+def test_worker_recovers_clip_poses_from_live_batches(graph_and_clip, runner):
     spec, acc30, truth = graph_and_clip
     sensors = [("st0", k) for k in range(len(spec.sensor_names))]
-    worker = SynthesisWorker(synthesis_setup(spec, sensors, lag_s=0.5), keep_poses=True)
+    worker = runner(synthesis_setup(spec, sensors, lag_s=0.5), keep_poses=True)
     worker.start()
     t0 = 100.0
     try:
@@ -75,7 +82,7 @@ def test_worker_recovers_clip_poses_from_live_batches(graph_and_clip):
         worker.join(timeout=5)
     assert worker.stats.error == ""
     start, poses = worker.poses()
-    assert len(poses) > 20 and worker.latest_pose() is poses[-1]
+    assert len(poses) > 20 and worker.latest_pose().frame == poses[-1].frame
     errors = []
     for pose in poses:
         frame = int(round((pose.t_s - t0) * GRAPH_FPS))
@@ -84,7 +91,7 @@ def test_worker_recovers_clip_poses_from_live_batches(graph_and_clip):
     assert np.median(errors) < 0.03, np.median(errors)  # metres: the clip's own poses are found
 
 
-def test_live_worker_equals_offline_synthesis_of_the_take_bit_for_bit(graph_and_clip):
+def test_live_worker_equals_offline_synthesis_of_the_take_bit_for_bit(graph_and_clip, runner):
     """A take starts mid-stream (the notice reaching the worker 0.9 s late, after frames past the take's first were pushed: the worker rewinds), the camera sees the player at 12 fps
     with a 0.4 s tracking loss and a sensor drops out for 0.4 s. The worker, fed in 100 ms slices, must give exactly
     the poses of one offline pass over the same recorded samples and fixes (same frames, same floats)."""
@@ -98,7 +105,7 @@ def test_live_worker_equals_offline_synthesis_of_the_take_bit_for_bit(graph_and_
     tc = np.arange(t0, t0 + len(acc30) / GRAPH_FPS, 1 / 12)
     camera = [(float(x), None if 1.5 < x - t0 < 1.9 else [0.3 * (x - t0), -2.0], 0.1) for x in tc]
     started = t0 + 0.8
-    worker = SynthesisWorker(replace(synthesis_setup(spec, sensors, lag_s=0.5)), keep_poses=True)
+    worker = runner(replace(synthesis_setup(spec, sensors, lag_s=0.5)), keep_poses=True)
     worker.start()
     try:
         run_worker(worker, streams, camera, started_s=started)

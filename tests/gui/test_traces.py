@@ -67,7 +67,8 @@ def test_old_event_markers_are_dropped_with_the_history(qtbot):
     assert [label for _, _, label in store.events] == ["late"]
     assert len(panel._event_lines) == 1
     lines = next(iter(panel._event_lines.values()))
-    assert all(line.value() == 7.5 for _, line in lines)
+    # the line sits at the event's time on the scrolling axis (seconds before the newest sample, 7.99 s)
+    assert all(abs(line.value() - (7.5 - 7.99)) < 1e-12 for _, line in lines)
     assert all(line in plot.items for plot, line in lines)
 
 
@@ -171,3 +172,34 @@ def test_orientation_and_angular_rate_views(qtbot):
     panel.set_view("acceleration (g)")
     panel.refresh()
     assert len(panel.curve_data("acc-only", 0)[1]) > 100 and panel.range_box.isEnabled()
+
+
+def test_the_view_stays_on_the_last_window_and_the_data_scroll(qtbot):
+    """Oscilloscope scrolling: the x range is fixed at -window .. 0 s (before the newest sample) whatever the
+    clock says, a new window size re-ranges it, and an event line sits at its time before the newest sample."""
+    store = TraceStore(history_s=30.0)
+    panel = TracePanel(store, window_s=5.0)
+    qtbot.addWidget(panel)
+    panel.resize(800, 500)
+    panel.show()
+    panel.set_groups({"a": ["s0", "s1"]})
+    qtbot.wait(100)   # the layout settles (linked views compare widths)
+    feed(store, ["s0", "s1"], 8.0)
+    store.put_event(6.5, "tap")
+    store.drain()
+    panel.refresh()
+    for plot in panel._plots.values():
+        lo, hi = plot.viewRange()[0]
+        assert abs(lo + 5.0) < 1e-9 and abs(hi) < 1e-9
+    curve = panel._curves["s0"][0]
+    assert curve.xData[-1] == 0.0 and curve.xData[0] >= -5.0   # drawn relative to the newest sample (7.99 s)
+    line = panel._event_lines[next(iter(panel._event_lines))][0][1]
+    assert abs(line.value() - (6.5 - 7.99)) < 1e-12
+    t = np.arange(800, 900) / RATE_HZ   # one more second: the data move, the view does not
+    store.put("s0", t, known_signal(t, 0))
+    store.drain()
+    panel.refresh()
+    assert abs(line.value() - (6.5 - 8.99)) < 1e-12
+    assert panel._plots["s1"].viewRange()[0] == panel._plots["s0"].viewRange()[0]
+    panel.window_box.setCurrentIndex(panel.window_box.findData(30.0))
+    assert abs(panel._plots["s1"].viewRange()[0][0] + 30.0) < 1e-9

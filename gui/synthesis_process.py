@@ -1,0 +1,236 @@
+"""Live synthesis in a child process: `SynthesisWorker`'s interface, its thread running in a forked child.
+
+Why a process: Python runs one thread at a time per interpreter. With the engine in a thread of the console's
+process, every engine step holds the GUI thread off the interpreter lock, so on a 2-core laptop the console
+process never got past one core, the traces and the 3-D view waited on the engine (measured with
+`bench/bench_console.py`: GUI tick p95 60 ms with two synthesizers) and the redraw rate fell with each athlete.
+In a child the engine has its own interpreter and core; the console process keeps the GUI, the network reader
+and a small receiver thread.
+
+Why fork (not spawn): the child starts with the engine already loaded (a database, its kd-trees, the posing
+tables: seconds to rebuild, and closures that do not pickle), shared copy-on-write. It touches no Qt object, runs
+only `SynthesisWorker` and this module's loop, and ends with the console (end of its command pipe). The same
+worker code runs in both cases, so live and offline still agree bit for bit. Where fork does not exist
+(Windows, macOS's default), `start_synthesis` falls back to the thread.
+
+Wire: the console sends ``(method, args)`` of the worker's inputs (`add_samples`, `add_camera`,
+`recording_started`, `set_lag`, `reset`) down one pipe, and the child sends back, when anything changed,
+``(stats, whether the newest pose changed, that pose, the recent poses not sent yet, kept-poses epoch, first
+frame, new kept poses)`` up another."""
+from __future__ import annotations
+
+import collections
+import multiprocessing
+import signal
+import threading
+from collections.abc import Hashable
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+
+from engine.stream import FramePose
+
+from gui.synthesis import RECENT_POSES, SynthesisSetup, SynthesisStats, SynthesisWorker
+
+PUBLISH_S = 0.01  # the child looks for a new pose this often (s): the display's added latency at most
+MAX_INPUTS_PER_PUBLISH = 256  # inputs handled between two looks, so a flood of samples never starves the poses
+
+
+def _serve(setup: SynthesisSetup, keep_poses: bool, inputs: Connection, updates: Connection,
+           console_ends: tuple[Connection, ...]) -> None:
+    """The child: a `SynthesisWorker` fed from `inputs`, its outputs published on `updates` until `inputs` ends
+    (a None, or the console gone)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C in the console's terminal is the console's to handle
+    for end in console_ends:  # the fork copied the console's ends: held here they would hide its exit
+        end.close()
+    worker = SynthesisWorker(setup, keep_poses=keep_poses)
+    worker.start()
+    publisher = _Publisher(worker, updates)
+    try:
+        while _take_inputs(worker, inputs):
+            publisher.publish()
+    except (EOFError, OSError):  # the console is gone
+        return
+    finally:
+        worker.stop()
+        worker.join(timeout=2)
+    publisher.publish()  # what the worker decided up to its stop (a stopped console's --save-poses)
+
+
+def _take_inputs(worker: SynthesisWorker, inputs: Connection) -> bool:
+    """Hand what arrived (waiting up to PUBLISH_S for the first) to the worker; False once told to stop."""
+    for k in range(MAX_INPUTS_PER_PUBLISH):
+        if not inputs.poll(PUBLISH_S if k == 0 else 0):
+            break
+        message = inputs.recv()
+        if message is None:
+            return False
+        method, args = message
+        getattr(worker, method)(*args)
+    return True
+
+
+class _Publisher:
+    """Sends the worker's outputs up the pipe when they changed: stats, newest pose, and the kept poses the
+    console has not seen yet (`SynthesisWorker.kept_poses_since`)."""
+
+    def __init__(self, worker: SynthesisWorker, updates: Connection) -> None:
+        self.worker, self.updates = worker, updates
+        self.stats: SynthesisStats | None = None
+        self.pose: FramePose | None = None
+        self.epoch, self.n_sent = -1, 0
+        self.last_recent = 0  # number of the last recent pose sent
+
+    def publish(self) -> None:
+        worker = self.worker
+        if worker.keep_poses:
+            epoch, start, new = worker.kept_poses_since(self.epoch, self.n_sent)
+        else:
+            epoch, start, new = self.epoch, worker.stats.start_frame, []
+        self.n_sent = len(new) + (self.n_sent if epoch == self.epoch else 0)
+        pose = worker.latest_pose()
+        pose_changed = pose is not self.pose
+        recent = worker.recent_poses(self.last_recent)
+        if new or recent or epoch != self.epoch or pose_changed or worker.stats != self.stats:
+            self.stats, self.pose = SynthesisStats(**vars(worker.stats)), pose
+            # an unchanged pose is not sent again: the console keeps its object, so it knows nothing new came
+            self.updates.send((self.stats, pose_changed, pose if pose_changed else None, recent, epoch, start, new))
+            self.last_recent = recent[-1][0] if recent else self.last_recent
+        self.epoch = epoch
+
+
+class SynthesisProcess:
+    """`SynthesisWorker`'s interface (inputs from any thread, newest pose / kept poses / stats out) with the
+    worker in a forked child process (module doc)."""
+
+    def __init__(self, setup: SynthesisSetup, keep_poses: bool = False) -> None:
+        self.setup = setup
+        self.keep_poses = keep_poses
+        self.stats = SynthesisStats(lag_s=setup.lag_s)
+        self._worn = frozenset(setup.sensors)
+        self._lock = threading.Lock()      # the outputs, written by the receiver thread
+        self._send_lock = threading.Lock()  # the input pipe: the network reader and the GUI thread both send
+        self._pose: FramePose | None = None
+        self._poses: list[FramePose] = []
+        self._recent: collections.deque[tuple[int, FramePose]] = collections.deque(maxlen=RECENT_POSES)
+        self._epoch = -1
+        self._start_frame: int | None = None
+        self._process: multiprocessing.process.BaseProcess | None = None
+        self._receiver: threading.Thread | None = None
+        self._inputs: Connection | None = None
+
+    def start(self) -> None:
+        context = multiprocessing.get_context("fork")
+        child_inputs, self._inputs = context.Pipe(duplex=False)
+        self._updates, child_updates = context.Pipe(duplex=False)
+        self._process = context.Process(target=_serve, name="courtside-synthesis", daemon=True,
+                                        args=(self.setup, self.keep_poses, child_inputs, child_updates,
+                                              (self._inputs, self._updates)))
+        self._process.start()
+        child_inputs.close()   # the child's ends: only the child holds them now, so an end is seen when it exits
+        child_updates.close()
+        self._receiver = threading.Thread(target=self._receive, name="console-synthesis-receiver", daemon=True)
+        self._receiver.start()
+
+    # -- inputs (any thread) -----------------------------------------------------------------------------------
+    def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray, quat_wxyz: np.ndarray | None = None,
+                    gyro_rps: np.ndarray | None = None) -> None:
+        """Only the sensors the engine reads cross the pipe (the bridge offers every sensor of the court)."""
+        if sensor in self._worn:
+            self._send("add_samples", sensor, t_s, acc_g, quat_wxyz, gyro_rps)
+
+    def add_camera(self, t_s: float, position_m: Any, heading_rad: float | None) -> None:
+        self._send("add_camera", t_s, position_m, heading_rad)
+
+    def recording_started(self, started_t_host_s: float) -> None:
+        self._send("recording_started", started_t_host_s)
+
+    def set_lag(self, lag_s: float) -> None:
+        self._send("set_lag", lag_s)
+
+    def reset(self) -> None:
+        with self._lock:
+            self._pose = None
+        self._send("reset")
+
+    def _send(self, method: str, *args: Any) -> None:
+        with self._send_lock:
+            if self._inputs is None:
+                return
+            try:
+                self._inputs.send((method, args))
+            except (BrokenPipeError, OSError):  # the child died: say so where the status bar looks
+                self.stats.error = self.stats.error or "synthesis process ended"
+
+    def stop(self) -> None:
+        with self._send_lock:
+            if self._inputs is not None:
+                try:
+                    self._inputs.send(None)
+                except (BrokenPipeError, OSError):
+                    pass
+
+    def join(self, timeout: float | None = None) -> None:
+        if self._process is not None:
+            self._process.join(timeout)
+            if self._process.is_alive():
+                self._process.kill()
+                self._process.join(1.0)
+        if self._receiver is not None:
+            self._receiver.join(timeout)
+        with self._send_lock:
+            if self._inputs is not None:
+                self._inputs.close()
+                self._inputs = None
+
+    @property
+    def pid(self) -> int | None:
+        """The child's process id (None before `start`): for CPU accounting and tests."""
+        return None if self._process is None else self._process.pid
+
+    def is_alive(self) -> bool:
+        return self._process is not None and self._process.is_alive()
+
+    # -- outputs (any thread) ----------------------------------------------------------------------------------
+    def latest_pose(self) -> FramePose | None:
+        with self._lock:
+            return self._pose
+
+    def poses(self) -> tuple[int | None, list[FramePose]]:
+        """(first frame of the current session, every pose since) — with ``keep_poses`` only."""
+        with self._lock:
+            return self._start_frame, list(self._poses)
+
+    def recent_poses(self, after: int) -> list[tuple[int, FramePose]]:
+        """(number, pose) of the recent poses numbered after `after` (`SynthesisWorker.recent_poses`)."""
+        with self._lock:
+            return [(n, pose) for n, pose in self._recent if n > after]
+
+    def _receive(self) -> None:
+        while True:
+            try:
+                stats, pose_changed, pose, recent, epoch, start, new = self._updates.recv()
+            except (EOFError, OSError):
+                self._updates.close()
+                return
+            with self._lock:
+                self.stats, self._start_frame = stats, start
+                if pose_changed:
+                    self._pose = pose
+                self._recent.extend(recent)
+                if epoch != self._epoch:
+                    self._poses, self._epoch = list(new), epoch
+                else:
+                    self._poses.extend(new)
+
+
+Synthesizer = SynthesisWorker | SynthesisProcess  # the same interface: inputs, latest_pose / poses / stats
+
+
+def start_synthesis(setup: SynthesisSetup, keep_poses: bool = False) -> Synthesizer:
+    """The console's synthesizer, started: in a child process where fork exists (module doc), else a thread."""
+    runner: Synthesizer = SynthesisProcess(setup, keep_poses) \
+        if "fork" in multiprocessing.get_all_start_methods() else SynthesisWorker(setup, keep_poses)
+    runner.start()
+    return runner

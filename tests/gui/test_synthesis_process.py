@@ -1,0 +1,86 @@
+"""The console's synthesizer in a child process: the controls reach the child's worker, and the child never
+outlives the console (the live = offline bit-for-bit checks run on both runners in test_synthesis.py)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+
+from engine.stream.registry import adapter
+from gui.engine_link import synthesis_setup
+from gui.synthesis_process import SynthesisProcess
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def wait_for(condition, timeout_s: float = 20.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+def test_lag_and_reset_reach_the_child_and_come_back_in_its_stats_and_poses():
+    spec = adapter("motion-graph").shipped_spec()
+    sensors = [("st0", k) for k in range(len(spec.sensor_names))]
+    synth = SynthesisProcess(synthesis_setup(spec, sensors, lag_s=0.3), keep_poses=True)
+    synth.start()
+    try:
+        t0 = 50.0
+        t = t0 + np.arange(300) / 100.0   # 3 s of a sensor at rest (1 g up) on every sensor
+        for key in sensors:
+            synth.add_samples(key, t, np.tile([0.0, 1.0, 0.0], (len(t), 1)))
+        assert wait_for(lambda: len(synth.poses()[1]) > 30), synth.stats
+        assert synth.latest_pose() is not None and synth.stats.lag_s == 0.3
+        synth.set_lag(1.0)
+        assert wait_for(lambda: synth.stats.lag_s == 1.0), synth.stats
+        synth.reset()   # a playback seek: the kept poses start over, nothing shown until new frames decide
+        assert synth.latest_pose() is None
+        assert wait_for(lambda: synth.poses()[1] == []), len(synth.poses()[1])
+        assert synth.stats.error == ""
+    finally:
+        synth.stop()
+        synth.join(timeout=5)
+    assert not synth.is_alive()
+
+
+CONSOLE = textwrap.dedent("""
+    import sys, time
+    from engine.stream.registry import adapter
+    from gui.engine_link import synthesis_setup
+    from gui.synthesis_process import SynthesisProcess
+    spec = adapter("motion-graph").shipped_spec()
+    synth = SynthesisProcess(synthesis_setup(spec, [("st0", k) for k in range(len(spec.sensor_names))]))
+    synth.start()
+    print(synth.pid, flush=True)
+    time.sleep(600)
+""")
+
+
+def test_the_child_ends_when_the_console_is_killed():
+    """A console killed outright (SIGKILL: no shutdown) must not leave its synthesizer running: the child sees
+    its command pipe end and exits."""
+    console = subprocess.Popen([sys.executable, "-c", CONSOLE], cwd=REPO, stdout=subprocess.PIPE, text=True)
+    try:
+        child = int(console.stdout.readline())
+        assert Path(f"/proc/{child}").exists()
+        console.kill()
+        console.wait(10)
+        assert wait_for(lambda: not _running(child), 10.0), f"synthesis child {child} outlived its console"
+    finally:
+        console.kill()
+
+
+def _running(pid: int) -> bool:
+    """The pid exists and is not a zombie (a reaped-late child of init counts as gone)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    return state != "Z"
