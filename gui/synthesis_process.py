@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import collections
 import multiprocessing
+import os
 import signal
+import stat
 import threading
 from collections.abc import Hashable
 from multiprocessing.connection import Connection
@@ -44,6 +46,7 @@ def _serve(setup: SynthesisSetup, keep_poses: bool, inputs: Connection, updates:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C in the console's terminal is the console's to handle
     for end in console_ends:  # the fork copied the console's ends: held here they would hide its exit
         end.close()
+    _close_inherited_sockets()
     worker = SynthesisWorker(setup, keep_poses=keep_poses)
     worker.start()
     publisher = _Publisher(worker, updates)
@@ -56,6 +59,19 @@ def _serve(setup: SynthesisSetup, keep_poses: bool, inputs: Connection, updates:
         worker.stop()
         worker.join(timeout=2)
     publisher.publish()  # what the worker decided up to its stop (a stopped console's --save-poses)
+
+
+def _close_inherited_sockets() -> None:
+    """Close every socket the fork copied (the gateway connection, a listening server in the same process, the
+    BVH / VMC streams): held open here they would keep a connection the console closed alive, or a port busy for
+    a gateway restarting on it. The child talks to the console over pipes only."""
+    for name in os.listdir("/proc/self/fd") if os.path.isdir("/proc/self/fd") else ():
+        fd = int(name)
+        try:
+            if stat.S_ISSOCK(os.fstat(fd).st_mode):
+                os.close(fd)
+        except OSError:  # the directory's own fd, gone already
+            pass
 
 
 def _take_inputs(worker: SynthesisWorker, inputs: Connection) -> bool:

@@ -35,7 +35,7 @@ from pathlib import Path
 from .link import EmulatorLink
 
 _CHUNK = 4096
-_IDLE_POLL_MS = 5
+_IDLE_POLL_MS = 2
 UNPLUG_DRAIN_S = 0.5                  # how long a host gets to read what is already in its tty at an unplug
 _RECENT_BYTES = 1 << 16               # written bytes kept for locating holes (a pty holds < 16 KiB unread)
 

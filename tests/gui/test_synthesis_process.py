@@ -84,3 +84,37 @@ def _running(pid: int) -> bool:
     except (FileNotFoundError, ProcessLookupError):
         return False
     return state != "Z"
+
+
+def test_the_child_holds_no_socket_of_the_console():
+    """A gateway running in the console's process (tests, the demo) must be able to restart on its port while a
+    synthesizer runs: the fork's copy of the listening socket is closed in the child."""
+    import socket
+
+    server = socket.socket()
+    server.bind(("127.0.0.9", 0))
+    server.listen()
+    address = server.getsockname()
+    spec = adapter("motion-graph").shipped_spec()
+    synth = SynthesisProcess(synthesis_setup(spec, [("st0", k) for k in range(len(spec.sensor_names))]))
+    synth.start()
+    try:
+        assert wait_for(lambda: synth.stats.lag_s == 0.5 and _sockets_of(synth.pid) == 0, 10.0), _sockets_of(synth.pid)
+        server.close()
+        again = socket.socket()
+        again.bind(address)   # "address already in use" if the child still held the listener
+        again.close()
+    finally:
+        synth.stop()
+        synth.join(timeout=5)
+
+
+def _sockets_of(pid: int) -> int:
+    """Open sockets of a process (an fd closed while we look is skipped)."""
+    count = 0
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            count += "socket:" in str(fd.readlink())
+        except FileNotFoundError:
+            pass
+    return count
