@@ -245,8 +245,11 @@ Synthesizer = SynthesisWorker | SynthesisProcess  # the same interface: inputs, 
 
 
 def start_synthesis(setup: SynthesisSetup, keep_poses: bool = False) -> Synthesizer:
-    """The console's synthesizer, started: in a child process where fork exists (module doc), else a thread."""
-    runner: Synthesizer = SynthesisProcess(setup, keep_poses) \
-        if "fork" in multiprocessing.get_all_start_methods() else SynthesisWorker(setup, keep_poses)
+    """The console's synthesizer, started: in a child process where fork exists (module doc), else a thread; also
+    a thread for an engine that streams its poses out (`EngineSpec.in_process`: its server thread and sockets
+    belong to this process, and the child closes the sockets it inherits)."""
+    forks = "fork" in multiprocessing.get_all_start_methods()
+    runner: Synthesizer = SynthesisProcess(setup, keep_poses) if forks and not setup.engine.in_process \
+        else SynthesisWorker(setup, keep_poses)
     runner.start()
     return runner

@@ -27,4 +27,5 @@ def streaming_engine(spec: EngineSpec, bvh: str | None = None, vmc: str | None =
     if vmc:
         outputs.append(open_vmc(vmc, spec.skeleton, "console"))
     streamer = PoseStreamer(spec.graph, spec.skeleton, outputs, realtime=False)
-    return replace(spec, make=lambda lag_s: StreamingSynthesizer(spec.make(lag_s), streamer))
+    # the BVH server's accept thread and the sockets live in this process: the console keeps this engine here
+    return replace(spec, make=lambda lag_s: StreamingSynthesizer(spec.make(lag_s), streamer), in_process=True)

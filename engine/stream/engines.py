@@ -66,6 +66,8 @@ class EngineSpec:
                                     # it poses segments with their yaw relative to the pelvis, else "tilt only")
     make_live: Callable[[float], OnlineEngine] | None = None  # a real-time caller's engine (the console): may trade
                                     # accuracy for time and say so in its `status`; None = `make`
+    in_process: bool = False        # its engines use this process's sockets and threads (pose streaming out):
+                                    # a caller must not run them in a forked child process
 
     def live(self, lag_s: float) -> OnlineEngine:
         """A fresh engine for a live stream (`make_live`, else `make`)."""

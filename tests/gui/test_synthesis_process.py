@@ -118,3 +118,27 @@ def _sockets_of(pid: int) -> int:
         except FileNotFoundError:
             pass
     return count
+
+
+def test_an_engine_that_streams_its_poses_out_stays_in_the_console_process():
+    """`--stream-bvh` / `--stream-vmc` engines own a server thread and sockets of the console's process, which a
+    forked child would not have (the child closes what it inherits): they run as a thread; plain engines fork."""
+    import socket
+
+    from engine.livestream.console import streaming_engine
+    from gui.synthesis import SynthesisWorker
+    from gui.synthesis_process import start_synthesis
+
+    spec = adapter("motion-graph").shipped_spec()
+    sensors = [("st0", k) for k in range(len(spec.sensor_names))]
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as receiver:
+        receiver.bind(("127.0.0.1", 0))
+        streaming = streaming_engine(spec, vmc=f"127.0.0.1:{receiver.getsockname()[1]}")
+        runners = [start_synthesis(synthesis_setup(s, sensors)) for s in (streaming, spec)]
+        try:
+            assert isinstance(runners[0], SynthesisWorker) and isinstance(runners[1], SynthesisProcess)
+            assert runners[1].is_alive()
+        finally:
+            for runner in runners:
+                runner.stop()
+                runner.join(timeout=5)
