@@ -31,9 +31,10 @@ from gui.widgets.traces import TracePanel
 
 # Refresh timing (docs/console.md "Refresh timing"). The timer runs at 100 Hz so that a late tick costs a
 # hundredth of a second, not a frame: with a 33 ms timer even a bare event loop tops out at 1000/33 = 30.3 ticks/s
-# and every late tick drops the rate below 30; with 60 Hz, traces and skeleton at 30/s each needed every tick. Each tick does the cheap work (drain, panes) and at most ONE heavy
-# redraw -- the traces (at most TRACE_HZ) or the skeleton (when a new pose came) -- whichever waited longer, so no
-# tick carries both and the event loop (paint, input, the gateway link) gets a turn between them.
+# and every late tick drops the rate below 30; at 60 Hz, traces and skeleton at 30/s each needed every tick. Each
+# tick does the cheap work (drain, panes) and at most ONE heavy redraw -- the traces (about TRACE_HZ) or the
+# skeleton (when the pose pacer has the next pose) -- whichever waited longer, so no tick carries both and the
+# event loop (paint, input, the gateway link) gets a turn between them.
 REFRESH_HZ = 100.0
 TICK_MS = int(1000 / REFRESH_HZ)
 TRACE_HZ = 30.0

@@ -26,6 +26,7 @@ import signal
 import stat
 import threading
 from collections.abc import Hashable
+from dataclasses import replace
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -109,7 +110,7 @@ class _Publisher:
         pose_changed = pose is not self.pose
         recent = worker.recent_poses(self.last_recent)
         if new or recent or epoch != self.epoch or pose_changed or worker.stats != self.stats:
-            self.stats, self.pose = SynthesisStats(**vars(worker.stats)), pose
+            self.stats, self.pose = replace(worker.stats), pose  # a copy: the worker goes on updating its own
             # an unchanged pose is not sent again: the console keeps its object, so it knows nothing new came
             self.updates.send((self.stats, pose_changed, pose if pose_changed else None, recent, epoch, start, new))
             self.last_recent = recent[-1][0] if recent else self.last_recent

@@ -25,14 +25,20 @@ def feed(store: TraceStore, sensors: list[str], seconds: float) -> None:
             store.put(s, t, known_signal(t, k))
 
 
-def test_traces_receive_data_from_another_thread(qtbot):
-    sensors = [f"st1/s{k}" for k in range(6)]
+def shown_panel(qtbot, groups: dict[str, list[str]]) -> tuple[TraceStore, TracePanel]:
+    """A 5 s window panel on screen (offscreen Qt, 800x600) over a 30 s store, showing `groups`' first group."""
     store = TraceStore(history_s=30.0)
     panel = TracePanel(store, window_s=5.0)
     qtbot.addWidget(panel)
     panel.resize(800, 600)
     panel.show()
-    panel.set_groups({"station 1": sensors})
+    panel.set_groups(groups)
+    return store, panel
+
+
+def test_traces_receive_data_from_another_thread(qtbot):
+    sensors = [f"st1/s{k}" for k in range(6)]
+    store, panel = shown_panel(qtbot, {"station 1": sensors})
     worker = threading.Thread(target=feed, args=(store, sensors, 12.0))
     worker.start()
     worker.join()
@@ -137,12 +143,7 @@ def test_a_sensor_silent_for_longer_than_the_window_clears_its_curve_and_the_oth
 def test_orientation_and_angular_rate_views(qtbot):
     """A sensor turning about the earth's vertical at 0.5 rad/s with a fixed 30 degree roll: the orientation view
     draws roll 30, pitch 0 and the yaw ramp; the rate view the rate; a sensor without them draws nothing."""
-    store = TraceStore(history_s=30.0)
-    panel = TracePanel(store, window_s=5.0)
-    qtbot.addWidget(panel)
-    panel.resize(800, 600)
-    panel.show()
-    panel.set_groups({"station 1": ["imu", "acc-only"]})
+    store, panel = shown_panel(qtbot, {"station 1": ["imu", "acc-only"]})
     t = np.arange(0, 400) / RATE_HZ
     yaw, roll = 0.5 * t, np.radians(30.0)
     q_yaw = np.c_[np.cos(yaw / 2), np.zeros((len(t), 2)), np.sin(yaw / 2)]
@@ -177,12 +178,7 @@ def test_orientation_and_angular_rate_views(qtbot):
 def test_the_view_stays_on_the_last_window_and_the_data_scroll(qtbot):
     """Oscilloscope scrolling: the x range is fixed at -window .. 0 s (before the newest sample) whatever the
     clock says, a new window size re-ranges it, and an event line sits at its time before the newest sample."""
-    store = TraceStore(history_s=30.0)
-    panel = TracePanel(store, window_s=5.0)
-    qtbot.addWidget(panel)
-    panel.resize(800, 500)
-    panel.show()
-    panel.set_groups({"a": ["s0", "s1"]})
+    store, panel = shown_panel(qtbot, {"a": ["s0", "s1"]})
     qtbot.wait(100)   # the layout settles (linked views compare widths)
     feed(store, ["s0", "s1"], 8.0)
     store.put_event(6.5, "tap")
