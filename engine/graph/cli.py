@@ -175,6 +175,10 @@ def add_search_args(p: argparse.ArgumentParser) -> None:
                    help="takes with quat_wxyz: share of a worn forearm's / shin's turn that the unworn upper arm / "
                         "thigh takes about the shoulder / hip, keeping the played elbow / knee angle "
                         "(engine/graph/orientation_pose.py; 0 = only the worn segment turns)")
+    p.add_argument("--limb-prior", type=int, default=None, metavar="K",
+                   help="takes with quat_wxyz and an orientation calibration: the unworn upper arm / thigh points "
+                        "where the K database poses nearest in the worn forearm's / shin's orientation relative to "
+                        "the chest / pelvis have it (engine/graph/limb_prior.py; 0 = the hinge share instead)")
     p.add_argument("--strap-refine", type=float, default=None, metavar="SECONDS",
                    help="takes with quat_wxyz and an orientation calibration: time constant of the running estimate "
                         "of each sensor's strapping error from the played poses (default 20; 0 = trust the N-pose "
@@ -213,6 +217,9 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
             if not (np.isfinite(value) and 0 <= value <= 1):
                 raise CourtsideError(f"{option} {value!r}: must be in [0, 1]")
             weights = replace(weights, **{field: value})
+    if args.limb_prior is not None:
+        check_non_negative("--limb-prior", [args.limb_prior])
+        weights = replace(weights, limb_prior_k=args.limb_prior)
     if args.strap_refine is not None:
         check_non_negative("--strap-refine", [args.strap_refine])
         weights = replace(weights, strap_refine_s=args.strap_refine)

@@ -27,6 +27,7 @@ from engine.mocap.roles import joint_roles
 from engine.mocap.sensors import standard_placements
 
 from .graph import MotionGraph
+from .limb_prior import LimbPrior, rotation_between
 from .acc_tilt import TiltFromAccelerations
 from .orientation_term import REFERENCE_SENSOR, node_sensor_orientations, places_sensors
 from .poses import blended_joint_positions
@@ -37,6 +38,11 @@ from .viterbi import SearchWeights
 # (chest turning partly about the lower back) was tried: gestures left out 7.6 cm either way, so it is not here.
 HINGES = {"left_elbow": "left_shoulder", "right_elbow": "right_shoulder", "left_knee": "left_hip",
           "right_knee": "right_hip"}
+
+# worn segments whose unworn parent segment takes the limb prior's direction (limb_prior.py). Not the shins: on
+# held-out gestures the thigh looked up from the shin's orientation relative to the pelvis moved the knees from
+# 6.8 to 10.1 cm (the played thigh of a standing pose is better); the hinge share serves them.
+PRIOR_LIMBS = ("left_elbow", "right_elbow")
 
 
 def _descendants(parents: np.ndarray, joint: int) -> np.ndarray:
@@ -63,8 +69,8 @@ class SegmentPoser:
     level's segments lie in disjoint subtrees, so each level is turned in one vectorised step: live, one frame's
     8 blended poses cost a handful of numpy calls per level, not per sensor)."""
 
-    def __init__(self, graph: MotionGraph, sensor_indices: list[int] | tuple[int, ...], hinge_share: float = 0.0
-                 ) -> None:
+    def __init__(self, graph: MotionGraph, sensor_indices: list[int] | tuple[int, ...], hinge_share: float = 0.0,
+                 limb_prior_k: int = 0) -> None:
         names = [graph.config.sensor_names[i] for i in sensor_indices]
         placements = standard_placements(graph.skeleton, names)
         parents = np.asarray(graph.skeleton.parents)
@@ -74,15 +80,19 @@ class SegmentPoser:
         self.reference = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else None
         self.joints = np.array([p.joint for p in placements])
         roles = joint_roles(graph.skeleton)
+        self.joint_role = {joint: role for role, joint in roles.items()}
         self.left_hip, self.right_hip = roles["left_hip"], roles["right_hip"]
         self.below = np.stack([_descendants(parents, j) for j in self.joints])  # (S, J)
-        self.hinge_pivot = self._hinge_pivots(roles, parents) if hinge_share > 0 else np.full(self.n_sensors, -1)
+        self.hinge_pivot = self._hinge_pivots(roles, parents) if hinge_share > 0 or limb_prior_k > 0 \
+            else np.full(self.n_sensors, -1)
         # (S,) each sensor's share of its turn taken about its hinge pivot (0: no hinge)
         self.hinge_shares = np.where(self.hinge_pivot >= 0, float(hinge_share), 0.0)
         # every node's sensor orientations (N, S, 4), computed here (FK of every node: seconds on a large graph)
         # so that no live frame waits for it
         self.node_orientations = node_sensor_orientations(graph)[:, self.sensor_indices]
         carries = self.below[:, self.joints]  # (S, S): sensor k's segment lies below sensor i's
+        self.prior_limb = np.full(self.n_sensors, -1)  # sensor -> its limb in `limb_prior` (-1: none)
+        self.limb_prior = self._limb_prior(carries, parents, limb_prior_k) if limb_prior_k > 0 else None
         level = np.zeros(self.n_sensors, int)  # 1 + the deepest level among the sensors above it
         for i in np.argsort([self._depth(parents, j) for j in self.joints], kind="stable"):
             above = np.flatnonzero(carries[:, i])
@@ -119,6 +129,23 @@ class SegmentPoser:
             if j == pivot and not (between | {pivot}) & sensor_joints:
                 pivots[i] = pivot
         return pivots
+
+    def _limb_prior(self, carries: np.ndarray, parents: np.ndarray, k: int) -> LimbPrior | None:
+        """The database lookup of the unworn upper limbs (limb_prior.py) for every hinge sensor with a worn
+        anchor above it (the deepest sensor carrying it: the chest above a forearm, the pelvis above a shin)."""
+        segments, anchors = [], []
+        for i in np.flatnonzero(self.hinge_pivot >= 0):
+            if self.joint_role[self.joints[i]] not in PRIOR_LIMBS:
+                continue
+            above = np.flatnonzero(carries[:, i])
+            if len(above):
+                segments.append(i)
+                anchors.append(above[np.argmax([self._depth(parents, self.joints[a]) for a in above])])
+        if not segments:
+            return None
+        self.prior_limb[segments] = np.arange(len(segments))
+        return LimbPrior(self.node_orientations, self.graph.node_positions_m, np.array(segments),
+                         np.array(anchors), self.hinge_pivot[segments], self.joints[segments], k)
 
     @staticmethod
     def _depth(parents: np.ndarray, joint: int) -> int:
@@ -159,12 +186,42 @@ class SegmentPoser:
                 # segment then the rest about its own joint (same axis: the two parts compose to the turn)
                 limb_share = self.hinge_shares[members] * np.ones(turn.shape[:-1])
                 limb_turn = _partial_turn(turn, limb_share)
-                self._turn_joints(pts, limb_turn, hinge_owner, self.hinge_pivot[members])
                 segment_turn = _partial_turn(turn, 1.0 - limb_share)
+                if self.limb_prior is not None:
+                    limb_turn, segment_turn, turn = self._prior_turns(
+                        pts, current, members, target, share[..., members], limb_turn, segment_turn, turn,
+                        not relative)
+                self._turn_joints(pts, limb_turn, hinge_owner, self.hinge_pivot[members])
             self._turn_joints(pts, segment_turn, joint_owner, self.joints[members])
             held = carrier >= 0
             current[..., held, :] = quat.multiply(turn[..., carrier[held], :], current[..., held, :])
         return self._keep_heading(self.graph.node_positions_m[nodes], pts)
+
+    def _prior_turns(self, pts: np.ndarray, current: np.ndarray, members: np.ndarray, target: np.ndarray,
+                     share: np.ndarray, limb_turn: np.ndarray, segment_turn: np.ndarray, turn: np.ndarray,
+                     tilt_only: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(limb, segment, whole) turns of a level's members (..., M, 4) with the limb prior: a member with a
+        looked-up upper limb turns it about the shoulder / hip onto the looked-up direction (in its anchor's
+        posed frame), then its segment about the moved elbow / knee onto the measured orientation; the others
+        keep the hinge-share turns given."""
+        prior = self.prior_limb[members]
+        has = prior >= 0
+        if not has.any():
+            return limb_turn, segment_turn, turn
+        m, h = np.flatnonzero(has), prior[has]
+        anchors = self.limb_prior.anchors[h]
+        ends, pivots = self.joints[members[m]], self.hinge_pivot[members[m]]
+        limb = pts[..., ends, :] - pts[..., pivots, :]
+        played = limb / np.maximum(np.linalg.norm(limb, axis=-1, keepdims=True), 1e-12)
+        wanted = quat.rotate(current[..., anchors, :], self.limb_prior.directions(
+            current[..., anchors, :], target[..., m, :], h, tilt_only))
+        limb_turn, segment_turn, turn = limb_turn.copy(), segment_turn.copy(), turn.copy()
+        limb_turn[..., m, :] = _partial_turn(rotation_between(played, wanted), share[..., m])
+        moved = quat.multiply(limb_turn[..., m, :], current[..., members[m], :])
+        segment_turn[..., m, :] = _partial_turn(quat.multiply(target[..., m, :], quat.conjugate(moved)),
+                                                share[..., m])
+        turn[..., m, :] = quat.multiply(segment_turn[..., m, :], limb_turn[..., m, :])
+        return limb_turn, segment_turn, turn
 
     @staticmethod
     def _turn_joints(pts: np.ndarray, turn: np.ndarray, owner_of: np.ndarray, pivots: np.ndarray) -> None:
@@ -219,7 +276,8 @@ class SegmentPosing:
         rotations."""
         if weights.segment_pose <= 0 or not sensor_indices or not places_sensors(graph):
             return None
-        return cls(SegmentPoser(graph, sensor_indices, weights.hinge_share), weights.segment_pose, calibration,
+        return cls(SegmentPoser(graph, sensor_indices, weights.hinge_share, weights.limb_prior_k),
+                   weights.segment_pose, calibration,
                    weights.tilt_from_acc_s, weights.strap_refine_s)
 
     def world_orientations(self, quat_device: np.ndarray) -> np.ndarray:
