@@ -63,7 +63,7 @@ def test_posing_a_node_onto_another_s_sensors_rebuilds_that_node_s_arm(graph):
     q = node_sensor_orientations(graph)
     a_nodes = np.arange(5, graph.n_nodes // 2, 41)
     b_nodes = a_nodes + graph.n_nodes // 2
-    with_prior = SegmentPoser(graph, list(range(6)), hinge_share=0.5, limb_prior_k=1)
+    with_prior = SegmentPoser(graph, list(range(6)), hinge_share=0.5, limb_prior_k=1, prior_misfit_rad=1e-9)
     assert list(with_prior.prior_limb) == [0, 1, -1, -1, -1, -1]  # the forearms; the shins keep the hinge share
     posed = with_prior.pose(a_nodes, q[b_nodes], use_yaw=True)
     # posing keeps the played pose's hips heading, so compare in the posed chest's frame: B's chest orientation
@@ -92,6 +92,27 @@ def _chest_heading_turn(graph, a_nodes, b_nodes, posed):
     turn = yaw_about_up(heading(graph.node_positions_m[b_nodes].astype(float)) - heading(posed))
     chest = node_sensor_orientations(graph)[b_nodes, CHEST]
     return quat.multiply(quat.conjugate(chest), quat.multiply(turn, chest))
+
+
+@pytest.mark.parametrize("use_yaw", [True, False])
+def test_a_played_forearm_that_fits_keeps_its_upper_arm(graph, use_yaw):
+    """The lookup's share grows with the played forearm's misfit: a node posed onto its own orientations is
+    played as it is (no misfit), and one posed onto a forearm 5 degrees off keeps (nearly) the hinge share's
+    elbow where the lookup always on would move it."""
+    q = node_sensor_orientations(graph)
+    nodes = np.arange(0, graph.n_nodes, 37)
+    poser = SegmentPoser(graph, list(range(6)), hinge_share=0.5, limb_prior_k=8)
+    assert np.allclose(poser.pose(nodes, q[nodes], use_yaw=use_yaw), graph.node_positions_m[nodes], atol=1e-5)
+    off = q[nodes].copy()
+    off[:, RIGHT_FOREARM] = quat.multiply(quat.from_rotvec(np.array([0.0, 0.0, np.radians(5.0)])),
+                                          off[:, RIGHT_FOREARM])
+    always = SegmentPoser(graph, list(range(6)), hinge_share=0.5, limb_prior_k=8, prior_misfit_rad=1e-9)
+    hinge_only = SegmentPoser(graph, list(range(6)), hinge_share=0.5)
+    elbow = joint_roles(graph.skeleton)["right_elbow"]
+    hinged = hinge_only.pose(nodes, off, use_yaw=use_yaw)[:, elbow]
+    apart = np.linalg.norm(poser.pose(nodes, off, use_yaw=use_yaw)[:, elbow] - hinged, axis=-1).mean()
+    apart_always = np.linalg.norm(always.pose(nodes, off, use_yaw=use_yaw)[:, elbow] - hinged, axis=-1).mean()
+    assert apart < 0.05 * apart_always  # 5 deg of misfit: the lookup's share 1 - exp(-(5/40)^2) = 0.016
 
 
 def test_the_tilt_only_lookup_does_not_see_the_sensors_yaws(graph):
