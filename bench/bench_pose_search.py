@@ -8,6 +8,7 @@ needs >= 30 samples/s; issue 18 asks >= 100 with the orientation term on the Ban
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 from engine.graph.budget import LIVE_RATE_HZ, online_rate
 from engine.graph.graph import MotionGraph
@@ -23,6 +24,8 @@ def main() -> None:
     graph = MotionGraph.load(args.graph)
     configs = {"exact Viterbi 0.5/10/3 (before)": (SearchWeights(0.5, 10.0, 3.0), False),
                "forgetting 0.9 + blend 8 (camera_following)": (SearchWeights.camera_following(), False),
+               "camera_following + orientations, hinge share only": (
+                   replace(SearchWeights.camera_following(), limb_prior_k=0), True),
                "camera_following + orientations (issue 18)": (SearchWeights.camera_following(), True)}
     print(f"graph {args.graph}: {graph.n_nodes} nodes, {graph.n_edges} edges; {args.samples} samples, best of "
           f"{args.repeats}")
