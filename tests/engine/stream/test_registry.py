@@ -74,10 +74,11 @@ def test_toy_engine_runs_through_the_console_path(toy):
     worker.start()
     try:
         t = 50.0 + np.arange(300) / 100.0
-        for k, key in enumerate(sensors):
-            worker.add_samples(key, t, np.tile([0.25 + k, 0.0, 1.0], (len(t), 1)))
+        # the camera's fixes first: a frame decided before any fix has arrived has none (a race CI caught)
         for tc in np.arange(50.0, 53.0, 1 / 12):
             worker.add_camera(float(tc), [1.0, -2.0], None)
+        for k, key in enumerate(sensors):
+            worker.add_samples(key, t, np.tile([0.25 + k, 0.0, 1.0], (len(t), 1)))
         deadline = time.monotonic() + 20
         while worker.stats.frames_in < 60 and time.monotonic() < deadline:
             time.sleep(0.02)
