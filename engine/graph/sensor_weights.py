@@ -6,7 +6,7 @@ match. Over the database: for every `STRIDE`-th original node, its nearest pose 
 (root-relative: the non-root joints' local rotations); per sensor, the within-pose spread = the mean squared
 acceleration difference over those pairs, the between-pose spread = twice the sensor's total variance. The weight
 is (between / within) ** `power`, normalised to mean 1 over the selected sensors (so C_A's scale is kept).
-Off by default (`SearchWeights.sensor_weighting` = 0): docs/engine-evaluation.md, "Accelerations that listen".
+On in the live preset at power -4 (`SearchWeights.camera_following`; 0 elsewhere): docs/engine-evaluation.md.
 """
 from __future__ import annotations
 

@@ -77,9 +77,20 @@ def test_batch_equals_fixed_lag(graph, acc, kernel, option):
     assert plain.cost != batch.cost  # the option changes the search
 
 
-def test_off_by_default():
+def test_the_live_preset_weighs_sensors_and_leaves_the_gravity_term_off():
     w = SearchWeights.camera_following()
-    assert w.gravity == 0.0 and w.sensor_weighting == 0.0
+    assert w.gravity == 0.0 and w.sensor_weighting == -4.0
+    assert SearchWeights(1.0, 0.0, 0.0).sensor_weighting == 0.0  # seed 000's search: every sensor alike
+
+
+def test_a_graph_without_joint_rotations_weighs_every_sensor_alike(graph):
+    """A graph built from bare clip arrays has no poses to compare: the preset's weighting is skipped, so the
+    lattice equals the unweighted one (not an error: such graphs search on accelerations alone)."""
+    bare = replace(graph, node_rotations=None)
+    weighted = ViterbiLattice(bare, replace(BASE, sensor_weighting=-4.0), kernel="numpy")
+    plain = ViterbiLattice(bare, BASE, kernel="numpy")
+    assert weighted._acc_scale is None
+    assert np.array_equal(weighted._meta_acc_t, plain._meta_acc_t)
 
 
 def test_flags_set_the_weights_and_reject_bad_values():
