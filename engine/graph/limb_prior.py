@@ -12,9 +12,10 @@ forearm, pelvis above a shin) is nearest the measured one vote for the upper lim
 frame: the mean of their unit directions. The whole-pose search cannot do this: it must match all six sensors
 with one database frame at once.
 
-Only with calibrated orientations (yaw relative to the anchor is known): a tilt alone leaves the forearm's
-direction about the vertical open. Distances are chordal (the 3x3 rotation matrices' Frobenius distance,
-monotone in the relative angle), so a kd-tree over the 9 matrix entries finds the nearest rotations exactly."""
+With calibrated orientations (yaw relative to the anchor known) the key is the segment's rotation relative to
+its anchor; distances are chordal (the 3x3 rotation matrices' Frobenius distance, monotone in the relative
+angle), so a kd-tree over the 9 matrix entries finds the nearest rotations exactly. Without a calibration, or
+with tilts from accelerations, the relative yaw is unknown and the key is the two sensors' up axes alone."""
 from __future__ import annotations
 
 import numpy as np
@@ -22,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from engine.mocap import quaternions as quat
 
-UP = np.array([0.0, 1.0, 0.0])
+from .orientation_term import UP
 
 
 class LimbPrior:
@@ -41,9 +42,8 @@ class LimbPrior:
         limb = node_positions_m[:, ends] - node_positions_m[:, pivots]
         limb_local = quat.rotate(anchor_q, limb / np.linalg.norm(limb, axis=-1, keepdims=True))
         self._trees = [cKDTree(_matrix_features(relative[:, h])) for h in range(len(self.segments))]
-        ups = quat.rotate(quat.conjugate(node_orientations), UP)  # (N, S, 3) each sensor's up axis in its frame
-        self._tilt_trees = [cKDTree(np.concatenate([ups[:, s], ups[:, a]], axis=-1))
-                            for s, a in zip(self.segments, self.anchors)]
+        tilts = _tilt_features(node_orientations[:, self.anchors], node_orientations[:, self.segments])
+        self._tilt_trees = [cKDTree(tilts[:, h]) for h in range(len(self.segments))]
         self._directions = [limb_local[:, h] for h in range(len(self.segments))]  # (N, 3) unit, anchor frame
 
     def directions(self, anchor_q: np.ndarray, segment_q: np.ndarray, limbs: np.ndarray, tilt_only: bool
@@ -53,12 +53,9 @@ class LimbPrior:
         `tilt_only`: their yaws are not known (no calibration, or tilts from accelerations), so the lookup reads
         each one's up axis alone (segment and anchor: 6 numbers, no relative yaw)."""
         if tilt_only:
-            feats = np.concatenate([quat.rotate(quat.conjugate(segment_q), UP),
-                                    quat.rotate(quat.conjugate(anchor_q), UP)], axis=-1)
-            trees = self._tilt_trees
+            feats, trees = _tilt_features(anchor_q, segment_q), self._tilt_trees
         else:
-            relative = quat.multiply(quat.conjugate(anchor_q), segment_q)
-            feats = quat.to_matrix(relative).reshape(relative.shape[:-1] + (9,))
+            feats = _matrix_features(quat.multiply(quat.conjugate(anchor_q), segment_q))
             trees = self._trees
         out = np.empty(feats.shape[:-1] + (3,))
         for column, h in enumerate(limbs):
@@ -71,8 +68,14 @@ class LimbPrior:
 
 
 def _matrix_features(q: np.ndarray) -> np.ndarray:
-    """(n, 9) rotation-matrix entries of quaternions (n, 4): Euclidean distance = chordal rotation distance."""
-    return quat.to_matrix(q).reshape(len(q), 9)
+    """(..., 9) rotation-matrix entries of quaternions (..., 4): Euclidean distance = chordal rotation distance."""
+    return quat.to_matrix(q).reshape(q.shape[:-1] + (9,))
+
+
+def _tilt_features(anchor_q: np.ndarray, segment_q: np.ndarray) -> np.ndarray:
+    """(..., 6) the yaw-free key: the segment's then the anchor's up axis in its own frame ((..., 4) each)."""
+    return np.concatenate([quat.rotate(quat.conjugate(segment_q), UP),
+                           quat.rotate(quat.conjugate(anchor_q), UP)], axis=-1)
 
 
 def rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -119,11 +119,10 @@ class SegmentPoser:
     def _hinge_pivots(self, roles: dict[str, int], parents: np.ndarray) -> np.ndarray:
         """(S,) the joint a worn segment's limb turns about (`HINGES`: shoulder above a forearm, hip above a
         shin) when the segment between carries no sensor, else -1."""
-        role_of = {joint: role for role, joint in roles.items()}
         sensor_joints = set(int(j) for j in self.joints)
         pivots = np.full(self.n_sensors, -1)
         for i, joint in enumerate(self.joints):
-            pivot_role = HINGES.get(role_of.get(int(joint), ""))
+            pivot_role = HINGES.get(self.joint_role.get(int(joint), ""))
             if pivot_role is None:
                 continue
             pivot = roles[pivot_role]
