@@ -57,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--groups", default="walk-left,walk-right", help="loco/loso: contents (styles) to leave out")
     p.add_argument("--test-clips", type=int, default=5, help="loco/loso: clips scored per group (0 = all); "
                                                              "loo: as in the leave-one-out")
+    p.add_argument("--session", action="store_true",
+                   help="loco/loso: each group's scored clips chained into one take (one calibration capture: a "
+                        "session of that content) instead of one take per clip")
     add_search_args(p)
     p.add_argument("--root-warp", nargs=2, type=float, default=[0.5, 0.25], metavar=("GAIN_P", "GAIN_O"),
                    help="root warping towards the camera for all engines (0 0 = off; engine/graph/warp.py)")
@@ -236,9 +239,10 @@ def main(argv: list[str] | None = None) -> int:
     else:
         key = "content" if args.protocol == "loco" else "style"
         groups = [g for g in args.groups.split(",") if g]
-        per_group = protocols.group_out(db, key, groups, args.test_clips, cfg)
+        per_group = protocols.group_out(db, key, groups, args.test_clips, cfg, session=args.session)
         print(f"leave one {key} out: every clip of the {key} removed from every database; "
-              f"up to {args.test_clips or 'all'} of its clips scored, each as its own take")
+              f"up to {args.test_clips or 'all'} of its clips scored, "
+              + ("chained into one take per group" if args.session else "each as its own take"))
         print(table.HEADER)
         print("-" * len(table.HEADER))
         for g, results in per_group.items():

@@ -287,10 +287,12 @@ def chained_takes(db: Database, takes: list[list[int]], cfg: EvalConfig, max_cli
     return results, built
 
 
-def group_out(db: Database, key: str, groups: list[str], test_clips: int, cfg: EvalConfig
+def group_out(db: Database, key: str, groups: list[str], test_clips: int, cfg: EvalConfig, session: bool = False
               ) -> dict[str, dict[Row, RowScores]]:
     """Leave-one-group-out: per group (a content or a style, `key`), every clip of it removed from the
-    database; `test_clips` of them (spread over the group; 0 = all) scored, each as its own take."""
+    database; `test_clips` of them (spread over the group; 0 = all) scored, each as its own take, or with
+    `session` chained into one take (one calibration capture, as an athlete repeating that motion for a while:
+    what the strap refinement needs, and what a 4-s clip cannot show)."""
     out = {}
     values = [getattr(lab, key) for lab in db.labels]
     for g in groups:
@@ -301,9 +303,10 @@ def group_out(db: Database, key: str, groups: list[str], test_clips: int, cfg: E
                                                  sorted(set(np.linspace(0, len(members) - 1, test_clips).astype(int)))]
         held = db.held_out(members)
         results: dict[Row, RowScores] = {}
-        for ci in progress.bar(tests, desc=f"{key} {g}", unit="clip"):
-            evaluate_take(chain_clips(db.motions, [ci], [lab.content for lab in db.labels]), held, cfg,
-                          [cfg.seed, ci], results)
+        takes = [tests] if session else [[ci] for ci in tests]
+        for ids in progress.bar(takes, desc=f"{key} {g}", unit="take"):
+            evaluate_take(chain_clips(db.motions, ids, [lab.content for lab in db.labels]), held, cfg,
+                          [cfg.seed, *ids], results)
         out[g] = results
     return out
 

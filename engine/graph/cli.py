@@ -176,10 +176,10 @@ def add_search_args(p: argparse.ArgumentParser) -> None:
                         "thigh takes about the shoulder / hip, keeping the played elbow / knee angle "
                         "(engine/graph/orientation_pose.py; 0 = only the worn segment turns)")
     p.add_argument("--limb-prior", type=int, default=None, metavar="K",
-                   help="when posing: the unworn upper arm points where the K database poses nearest in the worn "
-                        "forearm's orientation relative to the chest (tilts alone without a calibration) have it, "
-                        "as the played forearm misfits (engine/graph/limb_prior.py; default 64, 0 = the hinge "
-                        "share instead)")
+                   help="when posing: the unworn upper arm / thigh points where the K database poses nearest in "
+                        "the worn forearm's / shin's orientation relative to the chest / pelvis (tilts alone without "
+                        "a calibration) have it, as the played forearm / shin misfits (engine/graph/limb_prior.py; "
+                        "default 64, 0 = the hinge share instead)")
     p.add_argument("--strap-refine", type=float, default=None, metavar="SECONDS",
                    help="takes with quat_wxyz and an orientation calibration: time constant of the running estimate "
                         "of each sensor's strapping error from the played poses (default 20; 0 = trust the N-pose "

@@ -39,14 +39,18 @@ from .viterbi import SearchWeights
 HINGES = {"left_elbow": "left_shoulder", "right_elbow": "right_shoulder", "left_knee": "left_hip",
           "right_knee": "right_hip"}
 
-# worn segments whose unworn parent segment takes the limb prior's direction (limb_prior.py). Not the shins: on
-# held-out gestures the thigh looked up from the shin's orientation relative to the pelvis moved the knees from
-# 6.8 to 10.1 cm (the played thigh of a standing pose is better); the hinge share serves them.
-PRIOR_LIMBS = ("left_elbow", "right_elbow")
-# the played forearm's misfit (angle to its measured orientation) at which the looked-up upper arm has taken
-# 1 - 1/e of the turn from the hinge share's: on held-out gestures 20 / 40 deg / always -> 5.76 / 5.80 / 5.81 cm,
-# turning walks 4.56 / 4.29 / 5.0 (the hinge share alone: 6.45 and 4.25)
+# the played worn segment's misfit (angle to its measured orientation) at which the looked-up upper arm / thigh
+# has taken 1 - 1/e of the turn from the hinge share's: arms on held-out gestures 20 / 40 deg / always -> 5.76 /
+# 5.80 / 5.81 cm, turning walks 4.56 / 4.29 / 5.0 (the hinge share alone: 6.45 and 4.25). The thighs too since
+# then: gesture knees 7.4 / 6.8 -> 6.9 / 6.0 cm, walks unchanged (ungated, a thigh lookup had moved the gesture
+# knees from 6.8 to 10.1 cm: the played thigh of a standing pose that fits is better)
 PRIOR_MISFIT_RAD = np.radians(40.0)
+# the strap refinement's gate: a frame informs a sensor's strapping estimate only while its played segment is
+# within this angle of the measured one. A posing error is a few degrees; a motion the database lacks misfits by
+# tens, constantly over a clip, and counting it taught the estimate the database's misfit instead (gesture
+# contents chained into ~50-s takes, held N-pose: 5.19 cm unrefined, 5.74 refined ungated, 4.90 gated at 15 deg;
+# with the 8-deg posing error 6.40 / 6.16 / 5.66). A posing error beyond it is not refined.
+STRAP_GATE_RAD = np.radians(15.0)
 
 
 def _descendants(parents: np.ndarray, joint: int) -> np.ndarray:
@@ -139,8 +143,6 @@ class SegmentPoser:
         anchor above it (the deepest sensor carrying it: the chest above a forearm, the pelvis above a shin)."""
         segments, anchors = [], []
         for i in np.flatnonzero(self.hinge_pivot >= 0):
-            if self.joint_role[self.joints[i]] not in PRIOR_LIMBS:
-                continue
             above = np.flatnonzero(carries[:, i])
             if len(above):
                 segments.append(i)
@@ -267,7 +269,8 @@ class SegmentPosing:
     into every later orientation as a constant rotation in the segment's frame, while the played poses' own
     misfits change from motion to motion. So a slow running mean (exponential, that time constant) of each
     segment's measured-against-played rotation, in its own frame, estimates the constant part, and the measured
-    orientations are turned back by it. Stateful too: the decided frames go through `joint_positions` in order
+    orientations are turned back by it; only frames whose misfit the estimate leaves within `STRAP_GATE_RAD` count
+    (a motion the database lacks misfits by far more, for seconds at a time). Stateful too: the decided frames go through `joint_positions` in order
     (batch and live alike)."""
 
     def __init__(self, poser: SegmentPoser, gain: float, calibration: OrientationCalibration | None = None,
@@ -333,11 +336,11 @@ class SegmentPosing:
 
     def _refined(self, nodes: np.ndarray, world: np.ndarray, share: np.ndarray) -> np.ndarray:
         """(T, S, 4) `world` turned back by the running strap correction (class doc), updated frame by frame with
-        each frame's measured-against-played rotation of every sensor that has a reading (share > 0); the
-        played orientations are those of `nodes` (T,) (each frame's best path), the measured ones turned about
-        the vertical so the pelvis sensors' yaws agree (only yaw relative to the pelvis is calibrated). That
-        turn takes the pelvis sensor's own error into every misfit, so the estimate recovers a constant
-        strapping error only in part (the unit test: 7.2 -> 4.4 cm)."""
+        each frame's measured-against-played rotation of every sensor that has a reading (share > 0) and that
+        the estimate so far explains within `STRAP_GATE_RAD`; the played orientations are those of `nodes` (T,)
+        (each frame's best path), the measured ones turned about the vertical so the pelvis sensors' yaws agree
+        (only yaw relative to the pelvis is calibrated). That turn takes the pelvis sensor's own error into every
+        misfit, so the estimate recovers a constant strapping error only in part (the unit test: 7.2 -> 4.4 cm)."""
         played = self.poser.node_orientations[nodes]
         ref = self.poser.reference
         aligned = quat.multiply(yaw_about_up(twist_yaw(played[:, ref]) - twist_yaw(world[:, ref]))[:, None], world)
@@ -345,7 +348,9 @@ class SegmentPosing:
         out = np.empty_like(world)
         for t in range(len(world)):
             r = np.where(np.sum(misfit[t] * self._strap, axis=-1, keepdims=True) < 0, -misfit[t], misfit[t])
-            rate = np.where(share[t] > 0, self._strap_rate, 0.0)[:, None]
+            left = np.abs(np.sum(r * self._strap, axis=-1))  # cos(half the misfit the estimate leaves)
+            fits = 2 * np.arccos(np.clip(left, 0.0, 1.0)) < STRAP_GATE_RAD
+            rate = np.where((share[t] > 0) & fits, self._strap_rate, 0.0)[:, None]
             self._strap = quat.normalize((1.0 - rate) * self._strap + rate * r)
             out[t] = quat.multiply(world[t], quat.conjugate(self._strap))
         return out

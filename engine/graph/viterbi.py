@@ -88,9 +88,9 @@ class SearchWeights:
     hinge_share: float = 0.5  # share of a worn forearm's / shin's turn that the unworn upper arm / thigh takes about
     # the shoulder / hip (the played elbow / knee angle kept for that share; orientation_pose.py); 0 = only the
     # worn segment turns
-    limb_prior_k: int = 64  # when posing: an unworn upper arm points where the k database poses nearest in the
-    # worn forearm's orientation relative to the chest (tilts alone without a calibration) have it
-    # (limb_prior.py); 0 = the hinge share for the arms too
+    limb_prior_k: int = 64  # when posing: an unworn upper arm / thigh points where the k database poses nearest
+    # in the worn forearm's / shin's orientation relative to the chest / pelvis (tilts alone without a
+    # calibration) have it (limb_prior.py); 0 = the hinge share alone
     strap_refine_s: float = 20.0  # with orientations and an N-pose calibration: time constant (s) of the running
     # estimate of each sensor's strapping error (the athlete's posing error in the capture) from its measured-
     # against-played rotation (orientation_pose.SegmentPosing); 0 = trust the capture as it is

@@ -115,3 +115,22 @@ def test_bad_arguments_are_one_line_errors(capsys):
 def test_old_leave_one_out_still_runs(capsys):
     assert courtside(["evaluate", "--sample", "--variants", "plain", "--test-clips", "1"]) == 0
     assert "acc 6 + pos+head" in capsys.readouterr().out
+
+
+def test_a_session_chains_a_group_s_clips_into_one_take():
+    """--session: the group's scored clips are one take (one calibration capture) of all their frames, where
+    without it each clip is a take of its own."""
+    from dataclasses import replace
+
+    from engine.evaluation import protocols
+    from engine.evaluation.cli import _config, _database, build_parser
+
+    args = build_parser().parse_args(["--protocol", "loco", "--sample", "--engines", "baselines",
+                                      "--sensor-sets", "6"])
+    db, cfg = _database(args), _config(args)
+    db.labels = [replace(lab, content="pair") if i < 2 else lab for i, lab in enumerate(db.labels)]  # the sample: one clip per content
+    per_clip = protocols.group_out(db, "content", ["pair"], 2, cfg)["pair"]
+    session = protocols.group_out(db, "content", ["pair"], 2, cfg, session=True)["pair"]
+    row = next(r for r in per_clip if r.engine == "database oracle")
+    assert len(per_clip[row].errors) == 2 and len(session[row].errors) == 1
+    assert len(session[row].errors[0].root_relative_cm) == sum(len(e.root_relative_cm) for e in per_clip[row].errors)

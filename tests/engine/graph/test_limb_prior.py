@@ -1,7 +1,8 @@
-"""The unworn upper arm looked up from the worn forearm (engine/graph/limb_prior.py, issue 18), against answers
-known by construction: a lookup of a database pose's own forearm gives that pose's upper arm, posing one node
-onto another node's sensors (k = 1) rebuilds the other node's arm about the shoulder, the tilt-only lookup does
-not see any sensor's yaw, and the shortest rotation between two directions is exact."""
+"""The unworn upper arm / thigh looked up from the worn forearm / shin (engine/graph/limb_prior.py, issue 18),
+against answers known by construction: a lookup of a database pose's own forearm gives that pose's upper arm,
+posing one node onto another node's sensors (k = 1) rebuilds the other node's arm about the shoulder and leg
+about the hip, the tilt-only lookup does not see any sensor's yaw, and the shortest rotation between two
+directions is exact."""
 from __future__ import annotations
 
 import numpy as np
@@ -17,7 +18,7 @@ from engine.mocap import quaternions as quat
 from engine.mocap import standard_placements
 from engine.mocap.orientation import yaw_about_up
 
-RIGHT_FOREARM, CHEST = 1, 5  # standard sensor order: forearms, shins, lower back, chest
+RIGHT_FOREARM, PELVIS, CHEST = 1, 4, 5  # standard sensor order: forearms, shins, lower back, chest
 YAWS = np.array([2.0, -1.3, 0.4, 3.0, -2.5, 1.1])  # per-sensor yaws (rad) a tilt-only lookup must not see
 
 
@@ -26,14 +27,19 @@ def graph(sample_motions):
     return MotionGraph.build(sample_motions, standard_placements(sample_motions[0].skeleton), GraphConfig())
 
 
-def _arm_in_chest_frame(graph, nodes, pts):
-    """(n, 3, 3) shoulder -> elbow, elbow -> wrist and wrist -> hand of the right arm in the chest sensor's frame
-    of each node's *played* orientation (the posing keeps the chest where it was)."""
+ARM = (CHEST, ("right_shoulder", "right_elbow", "right_wrist", "right_hand"))
+LEG = (PELVIS, ("right_hip", "right_knee", "right_ankle", "right_toe"))
+
+
+def _limb_in_anchor_frame(graph, nodes, pts, limb):
+    """(n, 3, 3) the limb's three bones (upper arm / thigh first, then forearm / shin, hand / foot) in its anchor
+    sensor's frame (chest / pelvis) of each node's *played* orientation (the posing keeps the anchor where it
+    was)."""
+    anchor, chain_roles = limb
     roles = joint_roles(graph.skeleton)
-    chain = [roles[r] for r in ("right_shoulder", "right_elbow", "right_wrist", "right_hand")]
+    chain = [roles[r] for r in chain_roles]
     bones = np.stack([pts[:, b] - pts[:, a] for a, b in zip(chain, chain[1:])], axis=1)
-    chest = node_sensor_orientations(graph)[nodes, CHEST]
-    return quat.rotate(quat.conjugate(chest)[:, None], bones)
+    return quat.rotate(quat.conjugate(node_sensor_orientations(graph)[nodes, anchor])[:, None], bones)
 
 
 def test_a_database_pose_s_own_forearm_looks_up_its_own_upper_arm(graph):
@@ -55,34 +61,35 @@ def test_a_database_pose_s_own_forearm_looks_up_its_own_upper_arm(graph):
     assert np.allclose(mean, all_dirs.mean(0) / np.linalg.norm(all_dirs.mean(0)), atol=1e-9)
 
 
-def test_posing_a_node_onto_another_s_sensors_rebuilds_that_node_s_arm(graph):
-    """k = 1, relative (calibrated) lookup: node A played, node B's orientations measured. The chest turns onto
-    B's chest, the upper arm onto B's (looked up: B is its own nearest forearm), the forearm onto B's forearm,
-    so in the chest's frame the right arm's upper arm and forearm bones are B's -- where the hinge share alone
-    keeps A's elbow angle."""
+@pytest.mark.parametrize("limb", [ARM, LEG], ids=["arm", "leg"])
+def test_posing_a_node_onto_another_s_sensors_rebuilds_that_node_s_limb(graph, limb):
+    """k = 1, relative (calibrated) lookup: node A played, node B's orientations measured. The anchor (chest /
+    pelvis) turns onto B's, the upper arm / thigh onto B's (looked up: B is its own nearest forearm / shin), the
+    forearm / shin onto B's, so in the anchor's frame the limb's two upper bones are B's -- where the hinge
+    share alone keeps A's elbow / knee angle."""
     q = node_sensor_orientations(graph)
     a_nodes = np.arange(5, graph.n_nodes // 2, 41)
     b_nodes = a_nodes + graph.n_nodes // 2
     with_prior = SegmentPoser(graph, list(range(6)), hinge_share=0.5, limb_prior_k=1, prior_misfit_rad=1e-9)
-    assert list(with_prior.prior_limb) == [0, 1, -1, -1, -1, -1]  # the forearms; the shins keep the hinge share
+    assert list(with_prior.prior_limb) == [0, 1, 2, 3, -1, -1]  # forearms and shins
     posed = with_prior.pose(a_nodes, q[b_nodes], use_yaw=True)
-    # posing keeps the played pose's hips heading, so compare in the posed chest's frame: B's chest orientation
-    # turned by that heading keep; the bones' directions relative to the chest do not depend on it
-    got = _arm_in_chest_frame(graph, b_nodes, posed)
-    want = _arm_in_chest_frame(graph, b_nodes, graph.node_positions_m[b_nodes].astype(float))
-    upper_arm_and_forearm = slice(0, 2)
-    heading_keep = _chest_heading_turn(graph, a_nodes, b_nodes, posed)
-    got = quat.rotate(heading_keep[:, None], got)
-    assert np.abs(got[:, upper_arm_and_forearm] - want[:, upper_arm_and_forearm]).max() < 1e-4
+    # posing keeps the played pose's hips heading, so compare in the posed anchor's frame: B's anchor
+    # orientation turned by that heading keep; the bones' directions relative to the anchor do not depend on it
+    anchor = limb[0]
+    want = _limb_in_anchor_frame(graph, b_nodes, graph.node_positions_m[b_nodes].astype(float), limb)
+    got = quat.rotate(_heading_turn(graph, a_nodes, b_nodes, posed, anchor)[:, None],
+                      _limb_in_anchor_frame(graph, b_nodes, posed, limb))
+    upper_two_bones = slice(0, 2)
+    assert np.abs(got[:, upper_two_bones] - want[:, upper_two_bones]).max() < 1e-4
     hinge_only = SegmentPoser(graph, list(range(6)), hinge_share=0.5).pose(a_nodes, q[b_nodes], use_yaw=True)
-    hinged = quat.rotate(_chest_heading_turn(graph, a_nodes, b_nodes, hinge_only)[:, None],
-                         _arm_in_chest_frame(graph, b_nodes, hinge_only))
-    assert np.abs(hinged[:, 0] - want[:, 0]).max() > 0.05  # the played elbow: centimetres off
+    hinged = quat.rotate(_heading_turn(graph, a_nodes, b_nodes, hinge_only, anchor)[:, None],
+                         _limb_in_anchor_frame(graph, b_nodes, hinge_only, limb))
+    assert np.abs(hinged[:, 0] - want[:, 0]).max() > 0.05  # the played elbow / knee: centimetres off
 
 
-def _chest_heading_turn(graph, a_nodes, b_nodes, posed):
+def _heading_turn(graph, a_nodes, b_nodes, posed, anchor):
     """(n, 4) the yaw that undoes the posing's heading keep (it turns the posed body so its hips face as the
-    played node A's do): B's hips heading minus the posed hips heading, as a turn in B's chest frame."""
+    played node A's do): B's hips heading minus the posed hips heading, as a turn in B's `anchor` sensor frame."""
     roles = joint_roles(graph.skeleton)
 
     def heading(p):
@@ -90,8 +97,8 @@ def _chest_heading_turn(graph, a_nodes, b_nodes, posed):
         return np.arctan2(-lateral[:, 2], lateral[:, 0])
 
     turn = yaw_about_up(heading(graph.node_positions_m[b_nodes].astype(float)) - heading(posed))
-    chest = node_sensor_orientations(graph)[b_nodes, CHEST]
-    return quat.multiply(quat.conjugate(chest), quat.multiply(turn, chest))
+    frame = node_sensor_orientations(graph)[b_nodes, anchor]
+    return quat.multiply(quat.conjugate(frame), quat.multiply(turn, frame))
 
 
 @pytest.mark.parametrize("use_yaw", [True, False])
