@@ -45,12 +45,13 @@ HINGES = {"left_elbow": "left_shoulder", "right_elbow": "right_shoulder", "left_
 # then: gesture knees 7.4 / 6.8 -> 6.9 / 6.0 cm, walks unchanged (ungated, a thigh lookup had moved the gesture
 # knees from 6.8 to 10.1 cm: the played thigh of a standing pose that fits is better)
 PRIOR_MISFIT_RAD = np.radians(40.0)
-# the strap refinement's gate: a frame informs a sensor's strapping estimate only while its played segment is
-# within this angle of the measured one. A posing error is a few degrees; a motion the database lacks misfits by
-# tens, constantly over a clip, and counting it taught the estimate the database's misfit instead (gesture
-# contents chained into ~50-s takes, held N-pose: 5.19 cm unrefined, 5.74 refined ungated, 4.90 gated at 15 deg;
-# with the 8-deg posing error 6.40 / 6.16 / 5.66). A posing error beyond it is not refined.
-STRAP_GATE_RAD = np.radians(15.0)
+# the strap refinement's misfit scale: a frame's weight in a sensor's strapping estimate falls as
+# exp(-(θ / scale)²), θ the misfit the estimate leaves. A posing error is a few degrees; a motion the database
+# lacks misfits by tens, for seconds, and counting it alike taught the estimate the database's misfit instead.
+# Gesture sessions (`courtside evaluate --session`, 63 clips, 6 takes), held N-pose / 8-deg posing error:
+# unweighted 5.7 / 6.1 cm, a hard 15-deg gate 5.0 / 6.1, this weight at 20 deg 5.1 / 5.9 (chained takes 5.8 /
+# 6.0 / 5.9); a hard gate also never learns a posing error beyond it.
+STRAP_MISFIT_SCALE_RAD = np.radians(20.0)
 
 
 def _descendants(parents: np.ndarray, joint: int) -> np.ndarray:
@@ -269,8 +270,8 @@ class SegmentPosing:
     into every later orientation as a constant rotation in the segment's frame, while the played poses' own
     misfits change from motion to motion. So a slow running mean (exponential, that time constant) of each
     segment's measured-against-played rotation, in its own frame, estimates the constant part, and the measured
-    orientations are turned back by it; only frames whose misfit the estimate leaves within `STRAP_GATE_RAD` count
-    (a motion the database lacks misfits by far more, for seconds at a time). Stateful too: the decided frames go through `joint_positions` in order
+    orientations are turned back by it; a frame counts less the more misfit the estimate leaves
+    (`STRAP_MISFIT_SCALE_RAD`: a motion the database lacks misfits by far more, for seconds at a time). Stateful too: the decided frames go through `joint_positions` in order
     (batch and live alike)."""
 
     def __init__(self, poser: SegmentPoser, gain: float, calibration: OrientationCalibration | None = None,
@@ -336,8 +337,8 @@ class SegmentPosing:
 
     def _refined(self, nodes: np.ndarray, world: np.ndarray, share: np.ndarray) -> np.ndarray:
         """(T, S, 4) `world` turned back by the running strap correction (class doc), updated frame by frame with
-        each frame's measured-against-played rotation of every sensor that has a reading (share > 0) and that
-        the estimate so far explains within `STRAP_GATE_RAD`; the played orientations are those of `nodes` (T,)
+        each frame's measured-against-played rotation of every sensor that has a reading (share > 0), weighted
+        by how well the estimate so far explains it (`STRAP_MISFIT_SCALE_RAD`); the played orientations are those of `nodes` (T,)
         (each frame's best path), the measured ones turned about the vertical so the pelvis sensors' yaws agree
         (only yaw relative to the pelvis is calibrated). That turn takes the pelvis sensor's own error into every
         misfit, so the estimate recovers a constant strapping error only in part (the unit test: 7.2 -> 4.4 cm)."""
@@ -349,8 +350,8 @@ class SegmentPosing:
         for t in range(len(world)):
             r = np.where(np.sum(misfit[t] * self._strap, axis=-1, keepdims=True) < 0, -misfit[t], misfit[t])
             left = np.abs(np.sum(r * self._strap, axis=-1))  # cos(half the misfit the estimate leaves)
-            fits = 2 * np.arccos(np.clip(left, 0.0, 1.0)) < STRAP_GATE_RAD
-            rate = np.where((share[t] > 0) & fits, self._strap_rate, 0.0)[:, None]
+            weight = np.exp(-(2 * np.arccos(np.clip(left, 0.0, 1.0)) / STRAP_MISFIT_SCALE_RAD) ** 2)
+            rate = np.where(share[t] > 0, self._strap_rate * weight, 0.0)[:, None]
             self._strap = quat.normalize((1.0 - rate) * self._strap + rate * r)
             out[t] = quat.multiply(world[t], quat.conjugate(self._strap))
         return out

@@ -254,19 +254,21 @@ def test_strap_refinement_learns_a_constant_strapping_error(graph, poser):
     assert unrefined > 5.0 and refined < 0.7 * unrefined   # measured 7.2 -> 4.4 cm (docstring of `_refined`)
 
 
-def test_strap_refinement_ignores_a_segment_the_played_poses_do_not_fit(graph, poser):
+def test_strap_refinement_learns_little_from_a_segment_the_played_poses_do_not_fit(graph, poser):
     """A segment 30 degrees off every played pose (a motion the database lacks, not a posing error of a few
-    degrees) is past the gate (STRAP_GATE_RAD, 15 degrees): its strapping estimate stays the identity while the
-    others, 8 degrees off, learn theirs."""
-    nodes = (np.arange(400) * 7) % graph.n_nodes
+    degrees) weighs little in its strapping estimate (STRAP_MISFIT_SCALE_RAD, 20 degrees): over two time
+    constants it learns a far smaller share of its misfit than the segments 8 degrees off learn of theirs."""
+    nodes = (np.arange(2 * int(graph.config.fps)) * 7) % graph.n_nodes
     angles = np.full(6, np.radians(8.0))
     angles[1] = np.radians(30.0)  # the right forearm
+    angles[4] = 0.0  # the pelvis sensor exact: its error would mix into every misfit (`_refined`)
     error = quat.from_rotvec(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] * 3) * angles[:, None])
     world = quat.multiply(_own(graph, nodes), error)
     posing = SegmentPosing(poser, 1.0, OrientationCalibration(np.zeros(6), np.tile(quat.identity(), (6, 1))),
                            strap_time_constant_s=1.0)
     posing.joint_positions(nodes[:, None], np.zeros((len(nodes), 2)), np.zeros(len(nodes)), world,
                            np.ones((len(nodes), 6)))
-    learnt_deg = np.degrees(2 * np.arccos(np.clip(np.abs(posing._strap[:, 0]), 0.0, 1.0)))
-    assert learnt_deg[1] == 0.0
-    assert np.all(learnt_deg[[0, 2, 3]] > 3.0)
+    limbs = [0, 1, 2, 3]
+    learnt_share = 2 * np.arccos(np.clip(np.abs(posing._strap[limbs, 0]), 0.0, 1.0)) / angles[limbs]
+    assert np.all(learnt_share[[0, 2, 3]] > 0.7)  # measured 0.86: the 8-deg misfits weigh 0.85
+    assert learnt_share[1] < 0.5 * learnt_share[[0, 2, 3]].min()  # unweighted: the same share (measured 0.32)
