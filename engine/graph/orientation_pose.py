@@ -271,8 +271,8 @@ class SegmentPosing:
     misfits change from motion to motion. So a slow running mean (exponential, that time constant) of each
     segment's measured-against-played rotation, in its own frame, estimates the constant part, and the measured
     orientations are turned back by it; a frame counts less the more misfit the estimate leaves
-    (`STRAP_MISFIT_SCALE_RAD`: a motion the database lacks misfits by far more, for seconds at a time). Stateful too: the decided frames go through `joint_positions` in order
-    (batch and live alike)."""
+    (`STRAP_MISFIT_SCALE_RAD`: a motion the database lacks misfits by far more, for seconds at a time). Stateful
+    too: the decided frames go through `joint_positions` in order (batch and live alike)."""
 
     def __init__(self, poser: SegmentPoser, gain: float, calibration: OrientationCalibration | None = None,
                  tilt_time_constant_s: float = 0.0, strap_time_constant_s: float = 0.0) -> None:
@@ -338,19 +338,20 @@ class SegmentPosing:
     def _refined(self, nodes: np.ndarray, world: np.ndarray, share: np.ndarray) -> np.ndarray:
         """(T, S, 4) `world` turned back by the running strap correction (class doc), updated frame by frame with
         each frame's measured-against-played rotation of every sensor that has a reading (share > 0), weighted
-        by how well the estimate so far explains it (`STRAP_MISFIT_SCALE_RAD`); the played orientations are those of `nodes` (T,)
-        (each frame's best path), the measured ones turned about the vertical so the pelvis sensors' yaws agree
-        (only yaw relative to the pelvis is calibrated). That turn takes the pelvis sensor's own error into every
-        misfit, so the estimate recovers a constant strapping error only in part (the unit test: 7.2 -> 4.4 cm)."""
+        by how well the estimate so far explains it (`STRAP_MISFIT_SCALE_RAD`); the played orientations are those
+        of `nodes` (T,) (each frame's best path), the measured ones turned about the vertical so the pelvis
+        sensors' yaws agree (only yaw relative to the pelvis is calibrated). That turn takes the pelvis sensor's
+        own error into every misfit, so the estimate recovers a constant strapping error only in part (the unit
+        test: 7.2 -> 4.4 cm)."""
         played = self.poser.node_orientations[nodes]
         ref = self.poser.reference
         aligned = quat.multiply(yaw_about_up(twist_yaw(played[:, ref]) - twist_yaw(world[:, ref]))[:, None], world)
         misfit = quat.multiply(quat.conjugate(played), aligned)   # (T, S, 4) in each segment's frame
         out = np.empty_like(world)
         for t in range(len(world)):
-            r = np.where(np.sum(misfit[t] * self._strap, axis=-1, keepdims=True) < 0, -misfit[t], misfit[t])
-            left = np.abs(np.sum(r * self._strap, axis=-1))  # cos(half the misfit the estimate leaves)
-            weight = np.exp(-(2 * np.arccos(np.clip(left, 0.0, 1.0)) / STRAP_MISFIT_SCALE_RAD) ** 2)
+            dot = np.sum(misfit[t] * self._strap, axis=-1)  # ± cos(half the misfit the estimate leaves)
+            r = np.where(dot[:, None] < 0, -misfit[t], misfit[t])
+            weight = np.exp(-(2 * np.arccos(np.clip(np.abs(dot), 0.0, 1.0)) / STRAP_MISFIT_SCALE_RAD) ** 2)
             rate = np.where(share[t] > 0, self._strap_rate * weight, 0.0)[:, None]
             self._strap = quat.normalize((1.0 - rate) * self._strap + rate * r)
             out[t] = quat.multiply(world[t], quat.conjugate(self._strap))

@@ -128,9 +128,11 @@ def test_a_session_chains_a_group_s_clips_into_one_take():
     args = build_parser().parse_args(["--protocol", "loco", "--sample", "--engines", "baselines",
                                       "--sensor-sets", "6"])
     db, cfg = _database(args), _config(args)
-    db.labels = [replace(lab, content="pair") if i < 2 else lab for i, lab in enumerate(db.labels)]  # the sample: one clip per content
+    # the sample holds one clip per content: give two of them one content
+    db.labels = [replace(lab, content="pair") if i < 2 else lab for i, lab in enumerate(db.labels)]
     per_clip = protocols.group_out(db, "content", ["pair"], 2, cfg)["pair"]
     session = protocols.group_out(db, "content", ["pair"], 2, cfg, session=True)["pair"]
     row = next(r for r in per_clip if r.engine == "database oracle")
     assert len(per_clip[row].errors) == 2 and len(session[row].errors) == 1
-    assert len(session[row].errors[0].root_relative_cm) == sum(len(e.root_relative_cm) for e in per_clip[row].errors)
+    frames = [len(e.root_relative_cm) for e in per_clip[row].errors]
+    assert len(session[row].errors[0].root_relative_cm) == sum(frames)
