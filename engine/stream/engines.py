@@ -83,11 +83,17 @@ class EngineSpec:
 
 @dataclass(frozen=True)
 class EnginePose:
-    """A decided pose in the `OnlineEngine` protocol: push index, joints, optional confidence."""
+    """A decided pose in the `OnlineEngine` protocol: push index, joints, optional confidence and, for an engine
+    whose poses are rotations of `EngineSpec.skeleton`, the pose itself: ``root_m`` (3,) world root position and
+    ``local_rotations`` (J, 4) local joint rotations (w, x, y, z). Then ``joint_positions_m`` is their forward
+    kinematics (`engine.stream.decided.decided_pose`), so every sink (skeleton view, poses file, BVH file and
+    streams, evaluation) shows the same pose."""
 
     t: int
     joint_positions_m: np.ndarray
     confidence: float | None = None
+    root_m: np.ndarray | None = None
+    local_rotations: np.ndarray | None = None
 
 
 def default_engine(n_worn: int) -> str:

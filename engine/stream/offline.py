@@ -34,9 +34,7 @@ def drive_take(engine: OnlineEngine, acc_g: np.ndarray | None, obs: Any, first_f
     order = np.argsort(obs.sensor_indices) if obs.sensor_indices is not None else slice(None)
     channels = {name: None if getattr(obs, name, None) is None else getattr(obs, name)[:, order]
                 for name in ("quat_wxyz", "gyro_rps")}
-    return [FramePose(first_frame + q.t, (first_frame + q.t) / rate_hz, q.joint_positions_m,
-                      getattr(q, "confidence", None), q)
-            for q in drive_frames(engine, acc_g, obs.position_m, obs.heading_rad, **channels)]
+    return [FramePose.of(first_frame + q.t, rate_hz, q) for q in drive_frames(engine, acc_g, obs.position_m, obs.heading_rad, **channels)]
 
 
 def synthesize_take(spec: EngineSpec, path: str | Path, lag_s: float, *, sensor_map: dict[str, str] | None = None,

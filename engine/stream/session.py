@@ -38,6 +38,16 @@ class FramePose:
     joint_positions_m: np.ndarray  # (J, 3) world frame (x, y up, z) m
     confidence: float | None = None  # the engine's per-frame confidence in [0, 1], when it reports one
     source: Any = field(default=None, compare=False, repr=False)  # the engine's own pose object (node, path...)
+    root_m: np.ndarray | None = None  # (3,) m and (J, 4) local rotations (w, x, y, z): the decided pose the joint
+    local_rotations: np.ndarray | None = None  # positions come from (engine.stream.decided), when it has one
+
+    @classmethod
+    def of(cls, frame: int, rate_hz: float, emitted: Any) -> "FramePose":
+        """Frame ``frame``'s pose from an engine's emitted pose (`EnginePose` or the engine's own type)."""
+        conf = getattr(emitted, "confidence", None)
+        return cls(frame, frame / rate_hz, np.asarray(emitted.joint_positions_m, float),
+                   None if conf is None else float(conf), emitted, getattr(emitted, "root_m", None),
+                   getattr(emitted, "local_rotations", None))
 
 
 @dataclass
@@ -159,10 +169,7 @@ class StreamSynthesis:
     def _poses(self, emitted: list[Any]) -> list[FramePose]:
         out = []
         for e in emitted:
-            frame = self.first_frame + int(e.t)
-            conf = getattr(e, "confidence", None)
-            out.append(FramePose(frame, frame / self.rate_hz, np.asarray(e.joint_positions_m, float),
-                                 None if conf is None else float(conf), e))
+            out.append(FramePose.of(self.first_frame + int(e.t), self.rate_hz, e))
         self.stats.poses_out += len(out)
         return out
 
