@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from engine.atomic_write import refuse_overwriting_inputs
 from engine.errors import ArgumentParser, CourtsideError
 from engine.progress import add_quiet_argument
 from engine.imu_import.csv_generic import GYRO_UNITS_RPS, TIME_UNITS_S, read_generic_csv
@@ -58,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    refuse_overwriting_inputs([args.output], [args.file])
     sensor_map = _pairs(args.sensor_map, "--sensor-map") or None
     ignored: list[str] = []
     if args.format == "csv":
@@ -74,6 +76,9 @@ def main(argv: list[str] | None = None) -> int:
     take.save(args.output)
     if ignored:
         print(f"import-imu: not mapped to a placement, left out: {', '.join(ignored)}", file=sys.stderr)
+    if take.report.get("no_orientation"):
+        print(f"import-imu: no orientation from {', '.join(take.report['no_orientation'])} (NaN in quat_wxyz; the "
+              "other sensors keep theirs)", file=sys.stderr)
     print(json.dumps({"output": args.output, "fps": take.fps, "samples": int(len(take.t_s)),
                       "sensors": dict(zip(take.source_labels, take.sensor_names)),
                       "units": {k: v["units"] for k, v in take.report["sensors"].items()}}))

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.imu_import.origin import Origin
 
 COMMENT_PREFIXES = ("//", "#")
 _DELIMITERS = ("\t", ",", ";")
@@ -19,13 +20,18 @@ _DELIMITERS = ("\t", ",", ";")
 @dataclass(frozen=True)
 class Table:
     """``header`` (C,) column names, ``values`` (N, C) floats (NaN where a field is empty), the ``preamble``
-    comment lines and the 1-based file line of the header (for messages)."""
+    comment lines, the 1-based file line of the header and of each data row (for messages)."""
 
     path: Path
     header: list[str]
     values: np.ndarray
     preamble: list[str]
     header_line: int
+    lines: np.ndarray
+
+    def origin(self) -> Origin:
+        """Where each row came from (file and line), for the sample checks' messages."""
+        return Origin(self.path, self.lines)
 
     def column(self, name_or_index: str) -> int:
         """Index of a column given by its exact name, or by a 0-based index written as digits."""
@@ -62,7 +68,8 @@ def read_table(path: str | Path, delimiter: str | None = None) -> Table:
         raise MalformedFileError(path, None, "no header row (the file is empty or only comments)")
     delim = delimiter or sniff_delimiter(lines[start])
     header = [h.strip() for h in lines[start].split(delim)]
-    rows = [ln for ln in lines[start + 1:] if ln.strip()]
+    row_lines = [i + 1 for i in range(start + 1, len(lines)) if lines[i].strip()]
+    rows = [lines[i - 1] for i in row_lines]
     if not rows:
         raise MalformedFileError(path, start + 1, "a header but no data rows")
     fields = [r.split(delim) for r in rows]
@@ -70,8 +77,7 @@ def read_table(path: str | Path, delimiter: str | None = None) -> Table:
     bad = np.flatnonzero(widths != len(header))
     if len(bad):
         k = int(bad[0])
-        raise MalformedFileError(path, _line_of(lines, start, k),
-                                 f"{widths[k]} fields, the header has {len(header)}")
+        raise MalformedFileError(path, row_lines[k], f"{widths[k]} fields, the header has {len(header)}")
     cells = np.array(fields, dtype=object)
     cells[cells == ""] = "nan"
     try:
@@ -82,18 +88,8 @@ def read_table(path: str | Path, delimiter: str | None = None) -> Table:
                 try:
                     float(cell or "nan")
                 except ValueError:
-                    raise MalformedFileError(path, _line_of(lines, start, k),
-                                             f"column {name!r}: {cell!r} is not a number") from None
+                    raise MalformedFileError(path, row_lines[k], f"column {name!r}: {cell!r} is not a number") \
+                        from None
         raise
-    return Table(path, header, values, preamble, start + 1)
+    return Table(path, header, values, preamble, start + 1, np.array(row_lines))
 
-
-def _line_of(lines: list[str], header_index: int, row: int) -> int:
-    """1-based file line of the ``row``-th non-empty data row after the header."""
-    seen = -1
-    for i in range(header_index + 1, len(lines)):
-        if lines[i].strip():
-            seen += 1
-            if seen == row:
-                return i + 1
-    return len(lines)

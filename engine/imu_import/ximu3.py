@@ -21,8 +21,10 @@ import numpy as np
 
 from engine import progress
 from engine.errors import CourtsideError, MalformedFileError
+from engine.imu_import.orientations import orientation_rows
 from engine.imu_import.table import read_table
 from engine.imu_import.take import SensorStream
+from engine.imu_import.timing import bridge_quaternions, check_times
 from engine.mocap import STANDARD_SENSORS
 
 INERTIAL = "Inertial.csv"
@@ -35,7 +37,9 @@ _FOLDER = re.compile(r"^(?P<name>.+?) (?P<serial>[0-9A-Fa-f]{8}) \((?P<interface
 
 def device_folders(path: str | Path) -> list[Path]:
     """The device folders of a recording: ``path`` is the recording folder, one device folder, or an
-    ``Inertial.csv``."""
+    ``Inertial.csv``. A recording folder's device folders are those with an ``Inertial.csv`` and those named as
+    the logger names devices (``"<name> <serial> (<interface>)"``), so that a mapped device that logged no
+    inertial data is reported rather than silently missing."""
     path = Path(path)
     if path.is_file():
         if path.name != INERTIAL:
@@ -43,8 +47,9 @@ def device_folders(path: str | Path) -> list[Path]:
         return [path.parent]
     if (path / INERTIAL).is_file():
         return [path]
-    found = sorted(p for p in path.iterdir() if (p / INERTIAL).is_file()) if path.is_dir() else []
-    if not found:
+    found = sorted(p for p in path.iterdir() if p.is_dir() and ((p / INERTIAL).is_file() or _FOLDER.match(p.name))) \
+        if path.is_dir() else []
+    if not any((p / INERTIAL).is_file() for p in found):
         raise MalformedFileError(path, None, f"no x-IMU3 device folder with an {INERTIAL} in it")
     return found
 
@@ -63,7 +68,9 @@ def _labels(folder: Path) -> set[str]:
 
 def read_ximu3(path: str | Path, sensor_map: dict[str, str] | None = None) -> tuple[list[SensorStream], list[str]]:
     """Streams of the mapped devices (``sensor_map``: folder name, device name or serial -> placement name;
-    default: devices named after a placement) and the labels of the devices left out."""
+    default: devices named after a placement) and the labels of the devices left out. A mapped device without
+    ``Inertial.csv`` is refused; one without ``Quaternion.csv`` has no orientation (NaN in the take, the other
+    devices keep theirs)."""
     streams, ignored = [], []
     for folder in progress.bar(device_folders(path), desc="reading devices", unit="device"):
         name = next((sensor_map[k] for k in _labels(folder) if sensor_map and k in sensor_map), None)
@@ -71,27 +78,40 @@ def read_ximu3(path: str | Path, sensor_map: dict[str, str] | None = None) -> tu
         if name is None:
             ignored.append(folder.name)
             continue
+        if not (folder / INERTIAL).is_file():
+            raise MalformedFileError(folder, None, f"mapped to {name!r} but holds no {INERTIAL}: the device logged "
+                                                   "no inertial data (leave it out of --sensor-map)")
         inertial = read_table(folder / INERTIAL, ",")
         _require(inertial.header, INERTIAL_COLUMNS, folder / INERTIAL)
         t_us = inertial.get(INERTIAL_COLUMNS[:1])[:, 0]
         gyro = np.radians(inertial.get(INERTIAL_COLUMNS[1:4]))
         acc = inertial.get(INERTIAL_COLUMNS[4:7])
-        quat = None
-        if (folder / QUATERNION).is_file():
-            qt = read_table(folder / QUATERNION, ",")
-            _require(qt.header, QUATERNION_COLUMNS, folder / QUATERNION)
-            tq = qt.get(QUATERNION_COLUMNS[:1])[:, 0]
-            q = qt.get(QUATERNION_COLUMNS[1:])
-            flip = np.cumprod(np.r_[1.0, np.where(np.sum(q[1:] * q[:-1], axis=1) < 0, -1.0, 1.0)])
-            q = q * flip[:, None]
-            quat = np.stack([np.interp(t_us, tq, q[:, k]) for k in range(4)], axis=1)
-            quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+        quat = _orientation_at(folder, t_us) if (folder / QUATERNION).is_file() else None
         t_s = (t_us - t_us[0]) * 1e-6
-        streams.append(SensorStream(folder.name, name, t_s, acc, quat, gyro, ("wxyz", True) if quat is not None else None))
+        streams.append(SensorStream(folder.name, name, t_s, acc, quat, gyro, ("wxyz", True) if quat is not None else None,
+                                    inertial.origin()))
     if not streams:
         raise CourtsideError(f"{path}: no device is mapped to a sensor placement (devices: "
                              f"{', '.join(ignored)}); give --sensor-map DEVICE=PLACEMENT")
     return streams, ignored
+
+
+def _orientation_at(folder: Path, t_us: np.ndarray) -> np.ndarray:
+    """The device's ``Quaternion.csv`` (its own, usually slower, message rate) at the ``Inertial.csv`` times
+    ``t_us``: NaN where it has no orientation within `MAX_GAP_S`. Refused when it has no rows, a clock reset, a
+    bad quaternion (`orientations`), or no time in common with the inertial data (another clock)."""
+    table = read_table(folder / QUATERNION, ",")
+    _require(table.header, QUATERNION_COLUMNS, folder / QUATERNION)
+    tq_us = table.get(QUATERNION_COLUMNS[:1])[:, 0]
+    check_times(tq_us * 1e-6, table.origin(), folder.name)
+    q = bridge_quaternions(np.asarray(t_us, float) * 1e-6, tq_us * 1e-6,
+                           orientation_rows(table.get(QUATERNION_COLUMNS[1:]), table.origin(), folder.name))
+    if not np.isfinite(q).any():
+        raise MalformedFileError(folder / QUATERNION, None, f"its {len(tq_us)} orientation(s) at {tq_us[0]:.0f}.."
+                                                            f"{tq_us[-1]:.0f} us do not overlap {INERTIAL}'s "
+                                                            f"{np.nanmin(t_us):.0f}..{np.nanmax(t_us):.0f} us: not the "
+                                                            "same device clock")
+    return q
 
 
 def _require(header: list[str], columns: list[str], path: Path) -> None:

@@ -24,10 +24,13 @@ import numpy as np
 
 from engine import progress
 from engine.errors import CourtsideError, MalformedFileError
+from engine.imu_import.orientations import orientation_rows
+from engine.imu_import.origin import Origin
 from engine.imu_import.table import Table, read_table
 from engine.imu_import.take import SensorStream
 from engine.mocap import quaternions as quat
 from engine.mocap.sensors import GRAVITY_MPS2
+from engine.recording_limits import rate_problem
 
 MVNX_NS = "http://www.xsens.com/mvn/mvnx"
 # MVN sensor labels -> standard placements (MVN's hand/upper-arm/thigh sensors have no standard placement)
@@ -41,18 +44,56 @@ _UP_Z = np.array([0.0, 0.0, 1.0])
 
 def specific_force_from_free(free_mps2: np.ndarray, q_wxyz: np.ndarray) -> np.ndarray:
     """Sensor-frame specific force (m/s²) from global free acceleration and sensor -> global quaternions
-    (global Z up): ``R_sᵀ (a_free + g ẑ)``."""
+    (global Z up): ``R_sᵀ (a_free + g ẑ)``. NaN where the orientation is missing (NaN): there is no frame to
+    rebuild it in (`quaternions.to_matrix` would take a NaN quaternion as the identity)."""
+    q = np.asarray(q_wxyz, float)
     world = np.asarray(free_mps2, float) + GRAVITY_MPS2 * _UP_Z
-    return np.einsum("...ji,...j->...i", quat.to_matrix(q_wxyz), world)
+    force = np.einsum("...ji,...j->...i", quat.to_matrix(q), world)
+    return np.where(np.isfinite(q).all(axis=-1, keepdims=True), force, np.nan)
 
 
 def _tag(name: str) -> str:
     return f"{{{MVNX_NS}}}{name}"
 
 
+def _refuse_declarations(path: Path) -> None:
+    """Refuse a DOCTYPE (and so any entity declaration) before parsing: MVN never writes one, and entities
+    let a 3 MB file expand, within the XML parser's own amplification limit, into gigabytes of numbers
+    (issue 30). A DOCTYPE must come before the root element, so the head of the file is enough to look at."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(64 * 1024)
+    except OSError as exc:
+        raise MalformedFileError(path, None, f"cannot read: {exc.strerror}") from None
+    root = head.find(b"<mvnx")
+    if b"<!DOCTYPE" in (head if root < 0 else head[:root]).upper():
+        raise MalformedFileError(path, None, "a DOCTYPE/entity declaration: not an MVNX export (MVN writes none)")
+
+
+def _numbers(path: Path, frame: ET.Element, child: str, n_sensors: int, per_sensor: int) -> np.ndarray:
+    """The ``per_sensor`` numbers of each sensor in one frame's ``child`` element; a missing, empty or short one
+    is refused naming the frame (MVN writes every sensor's values in every normal frame)."""
+    count = n_sensors * per_sensor
+    elem = frame.find(_tag(child))
+    text = "" if elem is None or elem.text is None else elem.text
+    try:
+        values = np.array(text.split(), float)
+    except ValueError:
+        raise MalformedFileError(path, None, f"frame {frame.attrib.get('index')!r}: {child} holds a non-number") \
+            from None
+    if len(values) != count:
+        raise MalformedFileError(path, None, f"frame {frame.attrib.get('index')!r}: {child} holds {len(values)} "
+                                             f"numbers, expected {count} ({per_sensor} for each of the {n_sensors} "
+                                             "sensors)")
+    return values
+
+
 def read_mvnx(path: str | Path, sensor_map: dict[str, str] | None = None) -> tuple[list[SensorStream], list[str]]:
-    """Streams of the mapped MVN sensors (default ``MVN_DEFAULT_MAP``) and the labels left out."""
+    """Streams of the mapped MVN sensors (default ``MVN_DEFAULT_MAP``) and the labels left out. A sensor's
+    missing orientations (`orientations.orientation_rows`) leave its rebuilt acceleration missing there too: free
+    acceleration is in the global frame and cannot be turned into the sensor's without one."""
     path = Path(path)
+    _refuse_declarations(path)
     mapping = sensor_map or MVN_DEFAULT_MAP
     labels: list[str] = []
     times, orient, free = [], [], []
@@ -63,38 +104,32 @@ def read_mvnx(path: str | Path, sensor_map: dict[str, str] | None = None) -> tup
                 labels.append(elem.attrib["label"])
             elif tag == "frame":
                 if elem.attrib.get("type", "normal") == "normal":
-                    o = elem.find(_tag("sensorOrientation"))
-                    f = elem.find(_tag("sensorFreeAcceleration"))
-                    if o is None or f is None or "time" not in elem.attrib:
-                        raise MalformedFileError(path, None, f"frame {elem.attrib.get('index')!r} lacks time, "
-                                                 "sensorOrientation or sensorFreeAcceleration")
-                    times.append(float(elem.attrib["time"]))
-                    orient.append(np.array(o.text.split(), float))
-                    free.append(np.array(f.text.split(), float))
+                    if not labels or "time" not in elem.attrib:
+                        raise MalformedFileError(path, None, f"frame {elem.attrib.get('index')!r} lacks a time, or "
+                                                             "comes before the sensor list")
+                    times.append(_frame_time_ms(path, elem))
+                    orient.append(_numbers(path, elem, "sensorOrientation", len(labels), 4))
+                    free.append(_numbers(path, elem, "sensorFreeAcceleration", len(labels), 3))
                 elem.clear()
     except ET.ParseError as exc:
         raise MalformedFileError(path, exc.position[0], f"not well-formed MVNX XML ({exc})") from None
-    except ValueError as exc:
-        raise MalformedFileError(path, None, f"a frame holds a non-number ({exc})") from None
     except OSError as exc:
         raise MalformedFileError(path, None, f"cannot read: {exc.strerror}") from None
     if not labels or not times:
         raise MalformedFileError(path, None, "no sensors or no normal frames: not an MVNX export with sensor data")
     n_s = len(labels)
-    try:
-        q = np.stack(orient).reshape(len(times), n_s, 4)
-        a = np.stack(free).reshape(len(times), n_s, 3)
-    except ValueError:
-        raise MalformedFileError(path, None, f"frames do not hold 4 + 3 numbers for each of the {n_s} sensors") from None
+    q = np.stack(orient).reshape(len(times), n_s, 4)
+    a = np.stack(free).reshape(len(times), n_s, 3)
     t_s = np.array(times) * 1e-3
+    origin = Origin(path)
     streams, ignored = [], []
     for k, label in enumerate(labels):
         if label not in mapping:
             ignored.append(label)
             continue
-        qn = quat.normalize(q[:, k])
+        qn = orientation_rows(q[:, k], origin, label)
         streams.append(SensorStream(label, mapping[label], t_s, specific_force_from_free(a[:, k], qn), qn, None,
-                                    ("wxyz", True)))
+                                    ("wxyz", True), origin))
     unknown = sorted(set(mapping) - set(labels))
     if sensor_map and unknown:
         raise CourtsideError(f"{path}: no MVN sensor(s) {unknown}; the file has {', '.join(labels)}")
@@ -103,12 +138,41 @@ def read_mvnx(path: str | Path, sensor_map: dict[str, str] | None = None) -> tup
     return streams, ignored
 
 
-def _preamble_value(table: Table, key: str) -> str | None:
-    for line in table.preamble:
+def _frame_time_ms(path: Path, frame: ET.Element) -> float:
+    try:
+        return float(frame.attrib["time"])
+    except ValueError:
+        raise MalformedFileError(path, None, f"frame {frame.attrib.get('index')!r}: time "
+                                             f"{frame.attrib['time'][:40]!r} is not a number") from None
+
+
+def _preamble_entry(table: Table, key: str) -> tuple[int, str] | None:
+    """(1-based line, value) of a ``// key: value`` preamble line, or None."""
+    for i, line in enumerate(table.preamble):
         m = re.match(rf"^\s*//\s*{re.escape(key)}\s*:\s*(.*?)\s*$", line)
         if m:
-            return m.group(1)
+            return i + 1, m.group(1)
     return None
+
+
+def _preamble_value(table: Table, key: str) -> str | None:
+    entry = _preamble_entry(table, key)
+    return None if entry is None else entry[1]
+
+
+def _update_rate_hz(table: Table) -> float | None:
+    """The preamble's ``Update Rate: 100.0Hz`` (None when absent); anything that is not one number of Hz in the
+    plausible range is refused naming the line (``fast`` and ``1.0.0Hz`` are not rates)."""
+    entry = _preamble_entry(table, "Update Rate")
+    if entry is None:
+        return None
+    line, text = entry
+    m = re.fullmatch(r"([0-9]+(?:\.[0-9]*)?)\s*(?:Hz)?", text, flags=re.IGNORECASE)
+    problem = rate_problem(float(m.group(1))) if m else None
+    if m is None or problem:
+        raise MalformedFileError(table.path, line, f"Update Rate {text!r} is not a sample rate"
+                                                   f"{f' ({problem})' if problem else ''}; give --rate")
+    return float(m.group(1))
 
 
 def _time_s(table: Table, rate_hz: float | None) -> np.ndarray:
@@ -117,8 +181,7 @@ def _time_s(table: Table, rate_hz: float | None) -> np.ndarray:
         if np.all(np.isfinite(ticks)):
             wraps = np.cumsum(np.r_[0.0, np.diff(ticks) < -_WRAP_32 / 2])
             return (ticks + wraps * _WRAP_32) / SAMPLE_TIME_FINE_HZ
-    update = _preamble_value(table, "Update Rate")
-    rate = rate_hz or (float(re.sub(r"[^0-9.]", "", update)) if update else None)
+    rate = rate_hz or _update_rate_hz(table)
     if "PacketCounter" in table.header and rate:
         counter = table.get(["PacketCounter"])[:, 0]
         wraps = np.cumsum(np.r_[0.0, np.diff(counter) < -32768])
@@ -139,6 +202,8 @@ def device_id(table: Table) -> str:
 def read_mt_text(paths: list[Path], sensor_map: dict[str, str] | None,
                  rate_hz: float | None = None) -> tuple[list[SensorStream], list[str]]:
     """Streams of MT Manager / Xsens DOT text exports (one file per device), mapped by device id (or file stem)."""
+    if rate_hz is not None and rate_problem(rate_hz):
+        raise CourtsideError(f"--rate {rate_problem(rate_hz)}")
     streams, ignored = [], []
     for path in progress.bar(paths, desc="reading devices", unit="file"):
         table = read_table(path)
@@ -150,7 +215,7 @@ def read_mt_text(paths: list[Path], sensor_map: dict[str, str] | None,
         t = _time_s(table, rate_hz)
         quat_cols = next((c for c in (["Quat_q0", "Quat_q1", "Quat_q2", "Quat_q3"], ["Quat_W", "Quat_X", "Quat_Y", "Quat_Z"])
                           if all(x in table.header for x in c)), None)
-        q = quat.normalize(table.get(quat_cols)) if quat_cols else None
+        q = orientation_rows(table.get(quat_cols), table.origin(), label) if quat_cols else None
         if all(c in table.header for c in ("Acc_X", "Acc_Y", "Acc_Z")):
             acc = table.get(["Acc_X", "Acc_Y", "Acc_Z"])
         elif all(c in table.header for c in ("FreeAcc_X", "FreeAcc_Y", "FreeAcc_Z")) and q is not None:
@@ -159,7 +224,8 @@ def read_mt_text(paths: list[Path], sensor_map: dict[str, str] | None,
             raise MalformedFileError(path, table.header_line, "no Acc_X/Acc_Y/Acc_Z columns (nor FreeAcc_* with a "
                                      "quaternion): export the calibrated acceleration")
         gyro = table.get(["Gyr_X", "Gyr_Y", "Gyr_Z"]) if all(c in table.header for c in ("Gyr_X", "Gyr_Y", "Gyr_Z")) else None
-        streams.append(SensorStream(label, name, t, acc, q, gyro, ("wxyz", True) if q is not None else None))
+        streams.append(SensorStream(label, name, t, acc, q, gyro, ("wxyz", True) if q is not None else None,
+                                    table.origin()))
     if not streams:
         raise CourtsideError(f"no device is mapped to a sensor placement (devices: {', '.join(ignored)}); "
                              "give --sensor-map DEVICEID=PLACEMENT")

@@ -49,8 +49,9 @@ def test_metres_per_second_squared_is_never_taken_as_g(tmp_path, walk_truth):
 def test_wrong_quaternion_columns_and_stated_order_are_refused(tmp_path, walk_truth):
     cols = write_generic_csv(tmp_path / "take.csv", walk_truth, "g", "xyzw")
     acc = {n: c[0] for n, c in cols.items()}
-    not_quat = {n: [c[0][0], c[0][1], c[0][2], c[1][0]] for n, c in cols.items()}
-    with pytest.raises(DetectionError, match="not a unit quaternion"):
+    first, (_, q_cols) = next(iter(cols.items()))
+    not_quat = {first: [*q_cols[:3], "time"]}  # three of the four, and the time
+    with pytest.raises(MalformedFileError, match=r"take.csv, line 2: .* is not a unit quaternion"):
         assemble(read_generic_csv(tmp_path / "take.csv", acc, not_quat, time_column="time", time_unit="ms"), "csv")
     streams = read_generic_csv(tmp_path / "take.csv", acc, {n: c[1] for n, c in cols.items()}, time_column="time",
                                time_unit="ms")
