@@ -13,16 +13,19 @@ from typing import Any
 import numpy as np
 from PySide6 import QtCore, QtWidgets
 
+from gui.athlete_status import athlete_status
 from gui.bridge import GatewayBridge, SensorKey, gateway_clock_offset_s
 from gui.control import RequestRunner
 from gui.health import Alarm, Sync, status_alarms
 from gui.playback import Playback
 from gui.pose_pacing import PosePacer
+from gui.render.placement import track_spot
 from gui.ringbuffer import TraceStore
 from gui.synthesis import SynthesisSetup
 from gui.synthesis_process import Synthesizer, start_synthesis
 from gui.widgets import VIEWER_ONLY
 from gui.widgets.alarms import AlarmBar
+from gui.widgets.athlete_status import AthleteStatusPanel
 from gui.widgets.camera_pane import CameraPane
 from gui.widgets.device_panel import DevicePanel
 from gui.widgets.recording import PlaybackBar, RecordingPanel
@@ -134,6 +137,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
     def _make_panes(self, sensor_segments: dict[SensorKey, str]) -> None:
         """The panes and controls, wired to this window's actions."""
         self.alarms = AlarmBar()
+        self.athlete_status = AthleteStatusPanel()
         self.skeleton = SkeletonView()
         self.camera = CameraPane()
         self.traces = TracePanel(self.store)
@@ -187,6 +191,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         layout.setContentsMargins(4, 4, 4, 4)
         layout.addLayout(toolbar)
         layout.addWidget(self.alarms)
+        layout.addWidget(self.athlete_status)
         layout.addWidget(split, 1)
         self.setCentralWidget(central)
         self.status_label = QtWidgets.QLabel()
@@ -231,6 +236,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self._pacers[name] = PosePacer(other, self.more_athletes[name].engine.rate_hz)
         if truth_parents is not None and synthesis is None:
             self.skeleton.set_skeleton(truth_parents)
+        self.athlete_status.name_colours = self.skeleton.athlete_colours(list(self.workers()))
 
     def _start_timers(self) -> None:
         """The display tick and the link check (reconnects)."""
@@ -247,6 +253,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.client = client
         self._clock_offset_s = clock_offset_s
         hello = getattr(client, "server_hello", {}) or {}
+        self.skeleton.sides = {str(a.get("name")): a.get("side") for a in hello.get("athletes") or []}
         viewer = getattr(client, "role", "operator") == "viewer"
         self.connection.setText(f"gateway {hello.get('gateway', '')} {client.host}:{client.port}"
                                 + (" (viewer: watch only)" if viewer else ""))
@@ -292,7 +299,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
 
     def _reset_workers(self) -> None:
         """Every athlete's synthesis starts afresh (a reconnect, a playback seek, back to live)."""
-        for worker in ([self.worker] if self.worker is not None else []) + list(self.other_workers.values()):
+        for worker in self.workers().values():
             worker.reset()
         for pacer in self._pacers.values():
             pacer.reset()
@@ -389,13 +396,26 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.skeleton.set_confidence(pose.confidence if pose is not None else None)
         t_pose = pose.t_s if pose is not None else self.store.latest_time()
         truth = self.truth(t_pose) if (self.truth is not None and t_pose is not None) else None
+        self.skeleton.set_court_spots(self._court_spots(t_pose, latest))
         if estimate is not None or truth is not None:
             self.skeleton.set_poses(estimate, truth)
         if self.other_workers:
             self.skeleton.set_other_athletes({name: (None, None) if p is None else (p.joint_positions_m, p.confidence)
                                               for name, p in latest.items()})
 
+    def _court_spots(self, t_first: float | None, others: dict[str, Any]) -> dict[str, np.ndarray | None]:
+        """Each athlete's court (x, y) from its camera track at its pose's time (`gui.render.placement`); one
+        athlete whose camera names nobody: the camera's one track."""
+        tracks = self.bridge.athlete_tracks()
+        first = self.athlete or ""
+        first_trail = tracks[first][1] if first in tracks else (self.bridge.camera_frame()[2] if not tracks else None)
+        spots = {first: None if first_trail is None else track_spot(first_trail, t_first)}
+        for name, pose in others.items():
+            spots[name] = track_spot(tracks[name][1], None if pose is None else pose.t_s) if name in tracks else None
+        return spots
+
     def _update_statusbar(self) -> None:
+        """The gateway's figures on the status bar; each athlete's synthesis in its own block (`athlete_status`)."""
         latest = self.store.latest_time()
         age = (self.gateway_now_s() - latest) * 1e3 if latest is not None else float("nan")
         parts = [f"gateway t {self.gateway_now_s():.2f} s", f"samples {self.bridge.samples_received}"
@@ -403,28 +423,15 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                     if self.bridge.dropped_total else ""),
                  f"newest sample age {age:.0f} ms",
                  f"GUI {self.stats.fps:.0f} fps, tick {self.stats.tick_ms:.1f} ms (max {self.stats.max_tick_ms:.0f})"]
-        workers = ({self.athlete or "": self.worker} if self.worker is not None else {}) | self.other_workers
-        for name, worker in workers.items():
-            s = worker.stats
-            pose = worker.latest_pose()
-            engine = worker.setup.engine
-            who = f"{name} " if self.other_workers else ""
-            conf = "" if pose is None or pose.confidence is None else f", confidence {pose.confidence:.2f}"
-            lag = f"lag {s.lag_s:.2f} s, " if engine.lag_applies else ""
-            parts.append(f"{who}{engine.label}: {lag}{s.frames_per_s:.0f} frames/s, "
-                         f"{streamed_summary(s)}, "
-                         f"{s.push_ms:.1f} ms/frame{conf}"
-                         + (f", {s.engine_status}" if s.engine_status else "")
-                         + (f", {s.frames_invalid} frames without a sensor" if s.frames_invalid else "")
-                         + (f", {s.late_samples} samples / {s.late_fixes} camera fixes came after their frames"
-                            if s.late_samples or s.late_fixes else "")
-                         + (f" ERROR {s.error}" if s.error else ""))
-            behind = s.falling_behind(engine.rate_hz)
-            if behind:
-                parts.insert(0, who + behind)  # first: the status line is cut at the window's width
         if self.playback is not None:
             parts.insert(0, f"PLAYBACK {self.playback.path.name}")
         self.status_label.setText("  |  ".join(parts))
+        self.athlete_status.show_status([athlete_status(name, worker) for name, worker in self.workers().items()])
+
+    def workers(self) -> dict[str, Synthesizer]:
+        """Every athlete's synthesizer by name, the first athlete first ("" when the console names none)."""
+        first = {self.athlete or "": self.worker} if self.worker is not None else {}
+        return first | self.other_workers
 
     # -- control actions ----------------------------------------------------------------------------------------
     def _identify(self, station: str, sensor: int) -> None:
@@ -570,7 +577,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
     def shutdown(self) -> None:
         self.timer.stop()
         self.link_timer.stop()
-        for worker in ([self.worker] if self.worker is not None else []) + list(self.other_workers.values()):
+        for worker in self.workers().values():
             worker.stop()
             worker.join(timeout=2)
         self.bridge.detach()
@@ -578,11 +585,3 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         if self._owns_client and self.client is not None:
             self.client.close()
 
-
-def streamed_summary(stats: Any) -> str:
-    """The channels the frames pushed so far carried, e.g. ``streamed acc+orientation+gyro``; beside the engine
-    label, which ends with the channels the engine uses (`EngineSpec.label`), an operator sees at once that
-    orientations arrive and whether this engine listens to them."""
-    streamed = ["acc"] + [name for name, frames in (("orientation", stats.frames_with_orientation),
-                                                     ("gyro", stats.frames_with_gyro)) if frames]
-    return f"streamed {'+'.join(streamed)}"

@@ -96,6 +96,7 @@ class SynthesisWorker(threading.Thread):
         self._n_poses = 0
         self._lag_s = setup.lag_s
         self.stats = SynthesisStats(lag_s=setup.lag_s)
+        self.fault = ""  # the interface of `gui.synthesis_process.SynthesisProcess`: a thread is never restarted
         self._worn = frozenset(setup.sensors)
         self._behind_logged = False
 
@@ -160,7 +161,7 @@ class SynthesisWorker(threading.Thread):
         try:
             return StreamSynthesis(lambda: setup.engine.live(self._lag_s), setup.sensors, setup.engine.rate_hz,
                                    use_camera_heading=setup.use_camera_heading)
-        except Exception as exc:  # a bad lag or database must show in the status bar, not kill the thread
+        except Exception as exc:  # a bad lag or database must show in the athlete status, not kill the thread
             self.stats.error = f"{type(exc).__name__}: {exc}"
             return None
 
@@ -256,7 +257,7 @@ class SynthesisWorker(threading.Thread):
                 self._log_falling_behind()
 
     def _note_engine_status(self, status: str) -> None:
-        """Keep the engine's own status line for the status bar, and log each change (unattended runs)."""
+        """Keep the engine's own status line for the athlete status, and log each change (unattended runs)."""
         if status != self.stats.engine_status:
             log.info("synthesis (%s): %s", self.setup.engine.label, status or "engine back to its full setting")
         self.stats.engine_status = status

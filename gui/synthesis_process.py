@@ -16,15 +16,22 @@ worker code runs in both cases, so live and offline still agree bit for bit. Whe
 Wire: the console sends ``(method, args)`` of the worker's inputs (`add_samples`, `add_camera`,
 `recording_started`, `set_lag`, `reset`) down one pipe, and the child sends back, when anything changed,
 ``(stats, whether the newest pose changed, that pose, the recent poses not sent yet, kept-poses epoch, first
-frame, new kept poses)`` up another."""
+frame, new kept poses)`` up another.
+
+A child that dies (SIGKILL, the OOM killer) is reaped at once and restarted from the same setup, a bounded number
+of times (`gui.restart_budget`); each restart and the giving up are logged and kept in `SynthesisProcess.fault`
+for the console's athlete status, and the dead child's figures (frames/s, confidence) are dropped, not shown
+as if it still ran."""
 from __future__ import annotations
 
 import collections
+import logging
 import multiprocessing
 import os
 import signal
 import stat
 import threading
+import time
 from collections.abc import Hashable
 from dataclasses import replace
 from multiprocessing.connection import Connection
@@ -34,8 +41,13 @@ import numpy as np
 
 from engine.stream import FramePose
 
+from gui.restart_budget import RestartBudget
 from gui.synthesis import RECENT_POSES, SynthesisSetup, SynthesisStats, SynthesisWorker
 
+log = logging.getLogger("courtside.console")
+# One fork at a time in this process: a child forked between another's `Process.start` and the closing of that
+# child's pipe ends in the console would hold those ends open, and the other child's death would go unseen.
+_FORK_LOCK = threading.Lock()
 PUBLISH_S = 0.01  # the child looks for a new pose this often (s): the display's added latency at most
 MAX_INPUTS_PER_PUBLISH = 256  # inputs handled between two looks, so a flood of samples never starves the poses
 
@@ -125,30 +137,44 @@ class SynthesisProcess:
         self.setup = setup
         self.keep_poses = keep_poses
         self.stats = SynthesisStats(lag_s=setup.lag_s)
+        self.fault = ""  # the child's crashes, restarts or giving up, for the operator; "" while none happened
         self._worn = frozenset(setup.sensors)
+        self._lag_s = setup.lag_s  # the newest lag asked for: a restarted child starts with it
         self._lock = threading.Lock()      # the outputs, written by the receiver thread
         self._send_lock = threading.Lock()  # the input pipe: the network reader and the GUI thread both send
         self._pose: FramePose | None = None
         self._poses: list[FramePose] = []
         self._recent: collections.deque[tuple[int, FramePose]] = collections.deque(maxlen=RECENT_POSES)
+        self._recent_base = 0  # added to a child's recent-pose numbers: they go on rising across restarts
         self._epoch = -1
         self._start_frame: int | None = None
         self._process: multiprocessing.process.BaseProcess | None = None
         self._receiver: threading.Thread | None = None
         self._inputs: Connection | None = None
+        self._updates: Connection | None = None
+        self._stopping = False
+        self._budget = RestartBudget()
 
     def start(self) -> None:
-        context = multiprocessing.get_context("fork")
-        child_inputs, self._inputs = context.Pipe(duplex=False)
-        self._updates, child_updates = context.Pipe(duplex=False)
-        self._process = context.Process(target=_serve, name="courtside-synthesis", daemon=True,
-                                        args=(self.setup, self.keep_poses, child_inputs, child_updates,
-                                              (self._inputs, self._updates)))
-        self._process.start()
-        child_inputs.close()   # the child's ends: only the child holds them now, so an end is seen when it exits
-        child_updates.close()
+        self._spawn()
         self._receiver = threading.Thread(target=self._receive, name="console-synthesis-receiver", daemon=True)
         self._receiver.start()
+
+    def _spawn(self) -> None:
+        """Fork a child running the setup at the newest lag; its pipes and process replace the previous ones."""
+        context = multiprocessing.get_context("fork")
+        with _FORK_LOCK:
+            child_inputs, inputs = context.Pipe(duplex=False)
+            updates, child_updates = context.Pipe(duplex=False)
+            process = context.Process(target=_serve, name="courtside-synthesis", daemon=True,
+                                      args=(replace(self.setup, lag_s=self._lag_s), self.keep_poses, child_inputs,
+                                            child_updates, (inputs, updates)))
+            process.start()
+            child_inputs.close()   # the child's ends: only the child holds them now, so its exit is seen here
+            child_updates.close()
+        if self._inputs is not None:
+            self._inputs.close()  # the dead child's input end
+        self._inputs, self._updates, self._process = inputs, updates, process
 
     # -- inputs (any thread) -----------------------------------------------------------------------------------
     def add_samples(self, sensor: Hashable, t_s: np.ndarray, acc_g: np.ndarray, quat_wxyz: np.ndarray | None = None,
@@ -164,6 +190,7 @@ class SynthesisProcess:
         self._send("recording_started", started_t_host_s)
 
     def set_lag(self, lag_s: float) -> None:
+        self._lag_s = lag_s
         self._send("set_lag", lag_s)
 
     def reset(self) -> None:
@@ -177,11 +204,12 @@ class SynthesisProcess:
                 return
             try:
                 self._inputs.send((method, args))
-            except (BrokenPipeError, OSError):  # the child died: say so where the status bar looks
-                self.stats.error = self.stats.error or "synthesis process ended"
+            except (BrokenPipeError, OSError):  # the child died: the receiver sees its pipe end and restarts it
+                pass
 
     def stop(self) -> None:
         with self._send_lock:
+            self._stopping = True  # the child's end from now on is the one asked for: no restart
             if self._inputs is not None:
                 try:
                     self._inputs.send(None)
@@ -225,21 +253,58 @@ class SynthesisProcess:
             return [(n, pose) for n, pose in self._recent if n > after]
 
     def _receive(self) -> None:
+        """Receiver thread: the child's updates into the output slots; a child that ends unasked is reaped and
+        restarted (`_child_ended`)."""
         while True:
             try:
-                stats, pose_changed, pose, recent, epoch, start, new = self._updates.recv()
+                message = self._updates.recv()
             except (EOFError, OSError):
                 self._updates.close()
+                if self._child_ended():
+                    continue
                 return
-            with self._lock:
-                self.stats, self._start_frame = stats, start
-                if pose_changed:
-                    self._pose = pose
-                self._recent.extend(recent)
-                if epoch != self._epoch:
-                    self._poses, self._epoch = list(new), epoch
-                else:
-                    self._poses.extend(new)
+            self._take(message)
+
+    def _take(self, message: tuple) -> None:
+        stats, pose_changed, pose, recent, epoch, start, new = message
+        with self._lock:
+            self.stats, self._start_frame = stats, start
+            if pose_changed:
+                self._pose = pose
+            self._recent.extend((n + self._recent_base, p) for n, p in recent)
+            if epoch != self._epoch:
+                self._poses, self._epoch = list(new), epoch
+            else:
+                self._poses.extend(new)
+
+    def _child_ended(self) -> bool:
+        """The child's update pipe ended: reap the child (no zombie), then, unless the console stopped it, drop
+        its figures and restart it while the budget allows. True when a new child runs."""
+        process = self._process
+        process.join(5.0)
+        if self._stopping:
+            return False
+        code = process.exitcode
+        cause = f"killed by signal {-code}" if code is not None and code < 0 else f"ended with exit code {code}"
+        with self._lock:
+            self._pose = None  # neither the dead child's pose nor its frames/s and confidence stay on show
+            self.stats = SynthesisStats(lag_s=self._lag_s)
+            self._recent_base = self._recent[-1][0] if self._recent else self._recent_base
+            self._epoch = -1  # the new child's kept poses start over, as after an engine restart
+        label = self.setup.engine.name
+        if not self._budget.take(time.monotonic()):
+            self.fault = (f"synthesis stopped: its process crashed {self._budget.max_restarts + 1} times within "
+                          f"{self._budget.window_s:.0f} s (last {cause}); restart the console")
+            log.error("synthesis (%s): process %d %s; %s", label, process.pid, cause, self.fault)
+            return False
+        self.fault = f"synthesis restarted after crash ({self._budget.used}/{self._budget.max_restarts}): {cause}"
+        log.warning("synthesis (%s): process %d %s; restarting (%d/%d)", label, process.pid, cause,
+                    self._budget.used, self._budget.max_restarts)
+        with self._send_lock:
+            if self._stopping:
+                return False
+            self._spawn()
+        return True
 
 
 Synthesizer = SynthesisWorker | SynthesisProcess  # the same interface: inputs, latest_pose / poses / stats

@@ -10,6 +10,8 @@ from enum import Enum
 
 import numpy as np
 
+from gui.render.placement import FOLLOW_DISTANCE_M, framing_distance_m
+
 
 def perspective(fovy_rad: float, aspect: float, near_m: float, far_m: float) -> np.ndarray:
     """OpenGL perspective projection (right-handed eye space, looking down -Z, depth to [-1, 1])."""
@@ -60,16 +62,18 @@ class CameraMode(str, Enum):
 class OrbitCamera:
     """Orbit camera around a target: yaw about +Y (0 = looking along +Z), pitch above the ground, distance.
 
-    In FOLLOW mode the target eases towards the player's root each frame (``follow``) so the view does not
-    jitter with every step; in STATIC mode the target is the court centre."""
+    In FOLLOW mode the target eases towards the players' roots each frame (``follow``) so the view does not
+    jitter with every step, and with several players the distance eases to one that frames them all; in STATIC
+    mode the target is the court centre. The wheel's zoom scales either distance (``zoom_factor``)."""
 
     mode: CameraMode = CameraMode.FOLLOW
     yaw_rad: float = math.radians(-30.0)
     pitch_rad: float = math.radians(20.0)
-    distance_m: float = 6.0
+    distance_m: float = FOLLOW_DISTANCE_M
     fovy_rad: float = math.radians(45.0)
     target_m: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, -11.0]))
     follow_gain: float = 0.2  # fraction of the remaining gap closed per frame
+    zoom_factor: float = 1.0  # the operator's zoom on top of the follow distance
 
     STATIC_TARGET_M = np.array([0.0, 0.0, 0.0])
     STATIC_DISTANCE_M = 30.0
@@ -83,19 +87,30 @@ class OrbitCamera:
             self.pitch_rad = self.STATIC_PITCH_RAD
             self.yaw_rad = 0.0
         else:
-            self.distance_m = 6.0
+            self.distance_m = FOLLOW_DISTANCE_M
             self.pitch_rad = math.radians(20.0)
+        self.zoom_factor = 1.0
 
-    def follow(self, root_m: np.ndarray | None) -> None:
-        """Ease the orbit target towards the player's root (ground projection + 1 m) in FOLLOW mode."""
-        if self.mode is not CameraMode.FOLLOW or root_m is None:
+    def follow(self, roots_m: np.ndarray | None) -> None:
+        """Ease the orbit target towards the players' roots (3,) or (N, 3) — their centre on the ground + 1 m —
+        and the distance towards one framing them all (`gui.render.placement.framing_distance_m`), in FOLLOW
+        mode."""
+        if self.mode is not CameraMode.FOLLOW or roots_m is None:
             return
-        goal = np.array([root_m[0], 1.0, root_m[2]])
-        self.target_m = self.target_m + self.follow_gain * (goal - self.target_m)
+        goal_target, goal_distance = self._framing(roots_m)
+        self.target_m = self.target_m + self.follow_gain * (goal_target - self.target_m)
+        self.distance_m += self.follow_gain * (goal_distance - self.distance_m)
 
-    def snap_to(self, root_m: np.ndarray) -> None:
-        """Jump straight to the player (first frame, or after a scrub) instead of easing."""
-        self.target_m = np.array([root_m[0], 1.0, root_m[2]])
+    def snap_to(self, roots_m: np.ndarray) -> None:
+        """Jump straight to the players (3,) or (N, 3) (first frame, or after a scrub) instead of easing."""
+        self.target_m, distance = self._framing(roots_m)
+        if self.mode is CameraMode.FOLLOW:
+            self.distance_m = distance
+
+    def _framing(self, roots_m: np.ndarray) -> tuple[np.ndarray, float]:
+        roots = np.asarray(roots_m, float).reshape(-1, 3)
+        centre = roots.mean(axis=0)
+        return np.array([centre[0], 1.0, centre[2]]), framing_distance_m(roots, self.fovy_rad) * self.zoom_factor
 
     def orbit(self, dyaw_rad: float, dpitch_rad: float) -> None:
         self.yaw_rad += dyaw_rad
@@ -103,6 +118,7 @@ class OrbitCamera:
 
     def zoom(self, factor: float) -> None:
         self.distance_m = float(np.clip(self.distance_m * factor, 1.0, 80.0))
+        self.zoom_factor = float(np.clip(self.zoom_factor * factor, 0.05, 10.0))
 
     def eye_m(self) -> np.ndarray:
         cp = math.cos(self.pitch_rad)

@@ -2,7 +2,9 @@
 
 The renderer draws offscreen (EGL) and hands back pixels; this widget only blits them, so it behaves the
 same on a real display, Xvfb and the offscreen Qt platform. Drag to orbit, wheel to zoom, combo for
-follow/static camera. The estimate and the ground truth (when the take has one) are drawn side by side."""
+follow/static camera. Each athlete stands where the court says (`gui.render.placement`: its camera track, else
+its half's default spot, named in the legend); the ground truth, when the take has one, beside the estimate, the
+legend saying how far."""
 from __future__ import annotations
 
 import math
@@ -12,13 +14,12 @@ import numpy as np
 from PySide6 import QtCore, QtGui, QtWidgets
 
 from gui.render.camera import CameraMode, OrbitCamera
+from gui.render.placement import default_spot, place
 from gui.render.skeleton_renderer import ESTIMATE_STYLE, TRUTH_STYLE, SkeletonRenderer, SkeletonStyle
 
 TRUTH_OFFSET_M = np.array([1.5, 0.0, 0.0])  # ground truth drawn beside the estimate, not on top of it
-# More athletes (issue 20): athlete k (k >= 1) is drawn k x this beside the first athlete, on the other side from
-# the ground truth, each in its own colour. Why fixed offsets rather than court positions: an engine's root is in
-# its own world (not anchored to the court), so two athletes' roots can coincide; side by side stays readable.
-ATHLETE_OFFSET_M = np.array([-1.5, 0.0, 0.0])
+# more athletes (issue 20): each in its own colour, at its own court spot
+ESTIMATE_CSS = "#ff9a2a"
 ATHLETE_STYLES = (SkeletonStyle(bone_rgb=(0.3, 0.85, 0.3), joint_rgb=(0.6, 1.0, 0.5)),
                   SkeletonStyle(bone_rgb=(0.85, 0.35, 0.85), joint_rgb=(1.0, 0.6, 1.0)))
 ATHLETE_CSS = ("#4dd94d", "#d959d9")
@@ -63,6 +64,8 @@ class SkeletonView(QtWidgets.QWidget):
         self.confidence_level: float | None = None
         self.athlete: str | None = None  # the estimate's athlete (named in the legend when there are several)
         self.others: dict[str, tuple[np.ndarray, SkeletonStyle]] = {}  # more athletes: name -> (pose, style)
+        self.sides: dict[str, str | None] = {}  # athlete -> "near" / "far" (the gateway's hello), for default spots
+        self.court_spots: dict[str, np.ndarray] = {}  # athlete -> court (x, y) from its camera track, when it has one
         self._image: QtGui.QImage | None = None
         self._pixels: np.ndarray | None = None
         self._dirty = True
@@ -88,11 +91,6 @@ class SkeletonView(QtWidgets.QWidget):
         """Joint positions (J,3) m, world frame. Either may be None (not available yet)."""
         self.estimate_m = None if estimate_m is None else np.asarray(estimate_m, float)
         self.truth_m = None if truth_m is None else np.asarray(truth_m, float)
-        root = self.estimate_m[0] if self.estimate_m is not None else (self.truth_m[0] if self.truth_m is not None else None)
-        if root is not None and not self._snapped:
-            self.camera.snap_to(root)
-            self._snapped = True
-        self.camera.follow(root)
         self._update_legend()
         self._dirty = True
 
@@ -105,16 +103,50 @@ class SkeletonView(QtWidgets.QWidget):
             style = ATHLETE_STYLES[k % len(ATHLETE_STYLES)]
             if confidence is not None and np.isfinite(confidence):
                 style = confidence_style(style, round(float(np.clip(confidence, 0, 1)), 1))
+            self._snapped = self._snapped and name in self.others  # an athlete appears: frame them all at once
             self.others[name] = (np.asarray(pose, float), style)
         self._update_legend()
         self._dirty = True
 
+    def set_court_spots(self, spots: dict[str, np.ndarray | None]) -> None:
+        """Each athlete's court (x, y) m from its camera track (None: no track, its default spot is used)."""
+        spots = {name: np.asarray(xy, float) for name, xy in spots.items() if xy is not None}
+        if spots.keys() == self.court_spots.keys() and all(np.array_equal(xy, self.court_spots[name])
+                                                           for name, xy in spots.items()):
+            return  # unchanged: no re-render (a console without synthesis calls this every tick)
+        self.court_spots = spots
+        self._update_legend()
+        self._dirty = True
+
+    def athlete_colours(self, names: list[str]) -> dict[str, str]:
+        """CSS colour of each athlete's skeleton, first athlete first (for the per-athlete status)."""
+        return {name: ESTIMATE_CSS if k == 0 else ATHLETE_CSS[(k - 1) % len(ATHLETE_CSS)]
+                for k, name in enumerate(names)}
+
+    def _first_name(self) -> str:
+        return self.athlete or ""
+
+    def _spot(self, name: str, index: int) -> np.ndarray:
+        spot = self.court_spots.get(name)
+        return spot if spot is not None else default_spot(self.sides.get(name), index)
+
+    def _where(self, name: str, index: int) -> str:
+        """The legend's note on an athlete drawn without a camera track."""
+        if name in self.court_spots:
+            return ""
+        side = self.sides.get(name) or ("far" if index % 2 else "near")
+        return f" (no camera: at the {side} baseline)"
+
     def _update_legend(self) -> None:
+        first = self._first_name()
         name = f" {self.athlete}" if self.athlete and self.others else ""
-        text = (f"<span style='color:#ff9a2a'>■ estimate{name}</span>  " if self.estimate_m is not None else "")
-        text += "".join(f"<span style='color:{ATHLETE_CSS[k % len(ATHLETE_CSS)]}'>■ {other}</span>  "
-                        for k, other in enumerate(self.others))
-        text += "<span style='color:#4fd8e6'>■ ground truth</span>" if self.truth_m is not None else ""
+        text = (f"<span style='color:{ESTIMATE_CSS}'>■ estimate{name}{self._where(first, 0)}</span>  "
+                if self.estimate_m is not None else "")
+        text += "".join(f"<span style='color:{ATHLETE_CSS[k % len(ATHLETE_CSS)]}'>■ {other}"
+                        f"{self._where(other, k + 1)}</span>  " for k, other in enumerate(self.others))
+        if self.truth_m is not None:
+            beside = f" (drawn {TRUTH_OFFSET_M[0]:g} m beside the estimate)" if self.estimate_m is not None else ""
+            text += f"<span style='color:#4fd8e6'>■ ground truth{beside}</span>"
         self.legend.setText(text)
         self.legend.adjustSize()
 
@@ -155,17 +187,12 @@ class SkeletonView(QtWidgets.QWidget):
         w, h = self.width() * self.devicePixelRatioF(), self.height() * self.devicePixelRatioF()
         scale = min(1.0, (MAX_RENDER_PIXELS / max(1.0, w * h)) ** 0.5)
         self.renderer.resize(int(w * scale), int(h * scale))
-        skeletons = []
-        if self.parents is not None:
-            if self.estimate_m is not None:
-                skeletons.append((self.estimate_m, self.parents, self.estimate_style))
-            if self.truth_m is not None:
-                offset = self.truth_offset_m if self.estimate_m is not None else 0.0
-                skeletons.append((self.truth_m + offset, self.parents, TRUTH_STYLE))
-            anchor = self.estimate_m[0] if self.estimate_m is not None else None
-            for k, (pose, style) in enumerate(self.others.values(), 1):
-                shift = (anchor - pose[0]) * [1, 0, 1] if anchor is not None else 0.0  # beside the first one
-                skeletons.append((pose + shift + k * ATHLETE_OFFSET_M, self.parents, style))
+        skeletons = self._placed_skeletons()
+        roots = np.array([pose[0] for pose, _, _ in skeletons]) if skeletons else None
+        if roots is not None and not self._snapped:
+            self.camera.snap_to(roots)
+            self._snapped = True
+        self.camera.follow(roots)
         self._pixels = np.ascontiguousarray(self.renderer.render(self.camera, skeletons))
         h, w = self._pixels.shape[:2]
         self._image = rgba_to_qimage(self._pixels)
@@ -173,6 +200,22 @@ class SkeletonView(QtWidgets.QWidget):
         self.frames_rendered += 1
         self.update()
         return True
+
+    def _placed_skeletons(self) -> list[tuple[np.ndarray, np.ndarray, SkeletonStyle]]:
+        """(joints, parents, style) of every figure to draw, each athlete over its court spot (module doc), the
+        truth beside the estimate (or on the first athlete's spot when there is no estimate)."""
+        if self.parents is None:
+            return []
+        skeletons = []
+        first = self._spot(self._first_name(), 0)
+        if self.estimate_m is not None:
+            skeletons.append((place(self.estimate_m, first), self.parents, self.estimate_style))
+        if self.truth_m is not None:
+            offset = TRUTH_OFFSET_M if self.estimate_m is not None else 0.0
+            skeletons.append((place(self.truth_m, first) + offset, self.parents, TRUTH_STYLE))
+        for k, (name, (pose, style)) in enumerate(self.others.items(), 1):
+            skeletons.append((place(pose, self._spot(name, k)), self.parents, style))
+        return skeletons
 
     def last_pixels(self) -> np.ndarray | None:
         """The last rendered RGBA frame (H, W, 4), row 0 at the top."""

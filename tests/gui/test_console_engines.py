@@ -150,7 +150,7 @@ def test_one_worn_sensor_defaults_to_the_accelerometer_only_hmm_and_it_runs_live
     assert len(saved.t_s) > 10 and np.isfinite(saved.joint_positions_m).all()
 
 
-def test_status_bar_names_engine_and_database(live_gateway, qtbot, wrist_graph):
+def test_athlete_status_names_engine_and_database(live_gateway, qtbot, wrist_graph):
     from gateway.client import GatewayClient
     from engine.graph.graph import MotionGraph
     from engine.graph.online_engine import motion_graph_spec
@@ -166,7 +166,7 @@ def test_status_bar_names_engine_and_database(live_gateway, qtbot, wrist_graph):
         try:
             qtbot.waitUntil(lambda: window.worker.stats.frames_in > 0, timeout=10_000)
             window.tick()
-            text = window.status_label.text()
+            text = window.athlete_status.text("")
             assert f"motion-graph on {wrist_graph} (4 sensors @ 30 Hz, acc+orientation (tilt only))" in text and "lag 0.50 s" in text
         finally:
             window.shutdown()

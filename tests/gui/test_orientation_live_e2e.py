@@ -55,7 +55,7 @@ def test_status_bar_names_the_engine_inputs_and_the_streamed_channels():
     from types import SimpleNamespace
 
     from engine.stream.engines import EngineSpec
-    from gui.main_window import streamed_summary
+    from gui.athlete_status import streamed_summary
 
     spec = EngineSpec("motion-graph", "g.npz", ("chest",), 30.0, np.zeros(1, int), lambda lag: None,
                       inputs=("acc", "orientation"))

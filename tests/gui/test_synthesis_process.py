@@ -142,3 +142,50 @@ def test_an_engine_that_streams_its_poses_out_stays_in_the_console_process():
             for runner in runners:
                 runner.stop()
                 runner.join(timeout=5)
+
+
+def test_restart_budget_allows_a_bounded_number_within_its_window():
+    from gui.restart_budget import RestartBudget
+
+    budget = RestartBudget(max_restarts=3, window_s=60.0)
+    assert [budget.take(t) for t in (0.0, 10.0, 20.0, 30.0)] == [True, True, True, False]
+    assert budget.used == 3
+    assert budget.take(60.5) and budget.used == 3  # the first restart left the window: one more is allowed
+
+
+def test_a_killed_child_is_reaped_and_restarted_until_the_budget_is_spent(caplog):
+    """SIGKILL of the child: it is reaped (no zombie), a new child runs with the lag asked for last and decides
+    poses again, the fault says so and is logged; after the budget a dead child stays dead and says that."""
+    import logging
+    import os
+    import signal
+
+    spec = adapter("motion-graph").shipped_spec()
+    sensors = [("st0", k) for k in range(len(spec.sensor_names))]
+    synth = SynthesisProcess(synthesis_setup(spec, sensors, lag_s=0.3))
+    synth.start()
+    try:
+        synth.set_lag(0.4)
+        assert wait_for(lambda: synth.stats.lag_s == 0.4), synth.stats
+        with caplog.at_level(logging.WARNING, logger="courtside.console"):
+            for n in (1, 2, 3):
+                dead = synth.pid
+                os.kill(dead, signal.SIGKILL)
+                assert wait_for(lambda: synth.pid != dead and synth.is_alive(), 10.0)
+                assert not _running(dead) and not Path(f"/proc/{dead}").exists()  # reaped, not a zombie
+                assert synth.fault == f"synthesis restarted after crash ({n}/3): killed by signal 9"
+            t = 50.0 + np.arange(200) / 100.0
+            for key in sensors:
+                synth.add_samples(key, t, np.tile([0.0, 1.0, 0.0], (len(t), 1)))
+            assert wait_for(lambda: synth.latest_pose() is not None), synth.stats
+            assert synth.stats.lag_s == 0.4  # the restarted child kept the operator's lag
+            assert [n for n, _ in synth.recent_poses(0)] == sorted({n for n, _ in synth.recent_poses(0)})
+            dead = synth.pid
+            os.kill(dead, signal.SIGKILL)
+            assert wait_for(lambda: synth.fault.startswith("synthesis stopped"), 10.0), synth.fault
+            assert not synth.is_alive() and not Path(f"/proc/{dead}").exists()
+            assert synth.latest_pose() is None and synth.stats.frames_per_s == 0.0
+        assert caplog.text.count("restarting") == 3 and "crashed 4 times within 60 s" in caplog.text
+    finally:
+        synth.stop()
+        synth.join(timeout=5)

@@ -1,5 +1,5 @@
-"""The console's two-athlete pieces (issue 20) with real widgets offscreen and real EGL: the second skeleton is
-drawn in its own colour beside the first, camera fixes reach only their own athlete's synthesis, traces and the
+"""The console's two-athlete pieces (issue 20) with real widgets offscreen and real EGL: each skeleton is drawn
+in its own colour at its court spot, camera fixes reach only their own athlete's synthesis, traces and the
 device panel group sensors per athlete, and the minimap/overlay get both tracks."""
 from __future__ import annotations
 
@@ -18,7 +18,11 @@ def is_second_athlete_colour(img: np.ndarray) -> np.ndarray:
     return (g > 150) & (r < 130) & (b < 130)
 
 
-def test_second_athlete_drawn_in_its_own_colour_beside_the_first(qtbot):
+def test_each_athlete_drawn_at_its_court_spot_and_the_view_frames_both(qtbot):
+    """Issue 30: the opponent stood 1.5 m beside the player while the minimap put it 21 m away. Each athlete is
+    drawn over its camera track's spot (whatever its engine's own root), the follow view frames both, and an
+    athlete without a track stands at its side's baseline, the legend saying so."""
+    from gui.render.camera import project_to_pixels
     from gui.widgets.skeleton_view import SkeletonView
 
     view = SkeletonView()
@@ -29,18 +33,40 @@ def test_second_athlete_drawn_in_its_own_colour_beside_the_first(qtbot):
     view.show()
     view.set_poses(POSE, POSE)
     assert view.refresh() and is_second_athlete_colour(view.last_pixels()).sum() == 0
-    far_away = POSE + [0.0, 0.0, 20.0]  # the engine's own world: drawn beside the first athlete anyway
-    view.set_other_athletes({"bob": (far_away, None)})
+    engine_world = POSE + [30.0, 0.0, 40.0]  # an engine's root far off the court: the court decides
+    view.set_other_athletes({"bob": (engine_world, None)})
+    view.set_court_spots({"alice": np.array([2.0, -9.0]), "bob": np.array([-3.0, 9.0])})
     assert view.refresh()
     img = view.last_pixels()
     green, orange, cyan = is_second_athlete_colour(img), is_estimate_colour(img), is_truth_colour(img)
-    assert green.sum() > 30 and orange.sum() > 30 and cyan.sum() > 30
-    column = lambda mask: np.nonzero(mask)[1].mean()  # noqa: E731
-    # beside the first athlete, on the other side from the ground truth
-    assert (column(green) - column(orange)) * (column(cyan) - column(orange)) < 0
-    assert "alice" in view.legend.text() and "bob" in view.legend.text()
+    assert green.sum() > 10 and orange.sum() > 10 and cyan.sum() > 10
+    h, w = img.shape[:2]
+    view_proj = view.camera.view_proj(w / h)
+    for mask, (x, y) in ((green, (-3.0, 9.0)), (orange, (2.0, -9.0))):
+        (col, row), = project_to_pixels(np.array([[x, 1.0, y]]), view_proj, w, h)  # the pelvis over the spot
+        assert 0 <= col < w and 0 <= row < h  # in view: both athletes framed
+        rows, cols = np.nonzero(mask)
+        assert np.hypot(rows.mean() - row, cols.mean() - col) < 25, (rows.mean(), cols.mean(), row, col)
+    assert "alice" in view.legend.text() and "bob" in view.legend.text() and "no camera" not in view.legend.text()
+    assert "drawn 1.5 m beside the estimate" in view.legend.text()
+    view.set_court_spots({"alice": np.array([2.0, -9.0]), "bob": None})  # bob's track gone: his side's spot
+    assert "bob (no camera: at the far baseline)" in view.legend.text()
     view.set_other_athletes({"bob": (None, None)})  # no new pose: the last one stays
     assert "bob" in view.others
+
+
+def test_athletes_without_a_camera_stand_at_their_sides_default_spots():
+    from gui.render.placement import BASELINE_SPOT_FROM_NET_M, default_spot, place, track_spot
+
+    assert default_spot("far", 0)[1] == BASELINE_SPOT_FROM_NET_M and default_spot("near", 1)[1] < 0
+    assert default_spot(None, 0)[1] < 0 < default_spot(None, 1)[1]  # no sides: first near, second far
+    placed = place(POSE + [0.0, 0.0, 40.0], np.array([1.0, 2.0]))
+    np.testing.assert_allclose(placed[0], [1.0, POSE[0, 1], 2.0])
+    np.testing.assert_allclose(placed - placed[0], POSE - POSE[0])
+    trail = np.array([[0.0, 0.0, -10.0], [1.0, 2.0, -8.0]])
+    np.testing.assert_allclose(track_spot(trail, 0.5), [1.0, -9.0])
+    np.testing.assert_allclose(track_spot(trail, 5.0), [2.0, -8.0])  # after the newest fix: the last spot
+    assert track_spot(np.zeros((0, 3)), 1.0) is None
 
 
 def camera(athlete: str, t: float, frame: int, x: float, y: float) -> Message:
