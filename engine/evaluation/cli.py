@@ -160,6 +160,7 @@ def _report(per_group: dict[str, dict[protocols.Row, protocols.RowScores]], fps:
         out["groups"][group] = [{"engine": r.engine, "sensors": r.sensors, "camera": r.camera,
                                  **summary(s.errors), "clips_used": s.clips_used, "longest_run_s": s.longest_run_s,
                                  "seconds": s.seconds, "per_second": protocols.traces(s, fps),
+                                 **({"exported_bvh": summary(s.exported)} if s.exported else {}),
                                  **({"confidence": vars(_confidence(s, fps))} if s.confidence else {})}
                                 for r, s in results.items()]
     return out

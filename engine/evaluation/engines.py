@@ -1,5 +1,6 @@
 """The engines run on a take's simulated inputs, each returning world joint positions on the take's
-frame grid, so one scorer (metrics.frame_errors) judges them all.
+frame grid, so one scorer (metrics.frame_errors) judges them all; the motion graph also returns its exported
+BVH read back, scored beside its shown poses (one decided pose: they agree to the file's precision).
 
 Start state: every engine starts from the camera's first fix (root ground position and heading); without a
 camera that is all it gets. With the camera on, all three pull their root onto the camera track with the bounded
@@ -17,14 +18,15 @@ from engine.graph.confidence import reference_cost_per_sample
 from engine.graph.graph import MotionGraph
 from engine.graph.online import FixedLagSynthesizer
 from engine.graph.geometry import rotate_ground
-from engine.graph.orientation_pose import SegmentPosing, decided_joint_positions
+from engine.graph.orientation_pose import SegmentPosing, decided_path_poses
 from engine.graph.root_fusion import RootFusion, fuse_track
 from engine.graph.viterbi import Observations, SearchWeights
 from engine.graph.search import ViterbiSearch
 from engine.graph.warp import RootWarp
-from engine.mocap import SensorErrorModel, Skeleton, forward_kinematics, quaternions
+from engine.mocap import Motion, SensorErrorModel, Skeleton, forward_kinematics, quaternions
 from engine.mocap.orientation_calibration import OrientationCalibration
 from engine.stream import EngineSpec, drive_frames
+from engine.stream.decided import exported_joint_positions, has_rotations, poses_to_motion
 
 from .metrics import hips_heading
 from .simulate import SimulatedCameraTrack
@@ -40,6 +42,8 @@ class Prediction:
     joints_m: np.ndarray
     source_clip: np.ndarray | None = None
     confidence: np.ndarray | None = None  # (T,) the online decoder's per-frame confidence
+    exported_m: np.ndarray | None = None  # (T, J, 3) the BVH written from the decided poses, read back (engines
+    # that decide rotations: the file a user exports, scored beside the poses shown)
 
 
 def start_state(take: Take, camera_position_m: np.ndarray, camera_heading_rad: np.ndarray
@@ -79,8 +83,10 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
             Observations(acc, pos, head, sensors, quats, orientation_calibration=calibration))
         ground, heading = fuse_track(fusion, graph.config.fps, pos, head, res.ground_m, res.heading_rad)
         posing = SegmentPosing.for_search(graph, sensors, weights, calibration)
-        joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, acc, quats)
-        return Prediction(joints, graph.node_clip[res.nodes].astype(int))
+        decided = decided_path_poses(graph, res.nodes, res.blend_nodes, ground, heading, posing, acc, quats)
+        exported = None if decided.local_rotations is None else exported_joint_positions(
+            Motion(graph.skeleton, graph.config.fps, decided.root_m, decided.local_rotations))
+        return Prediction(decided.joint_positions_m, graph.node_clip[res.nodes].astype(int), exported_m=exported)
     reference = reference_cost_per_sample(graph, weights, warp, sensors, error_model=error_model,
                                           camera_noise_m=fusion.position_noise_m,
                                           camera_noise_rad=fusion.heading_noise_rad)
@@ -89,7 +95,9 @@ def motion_graph(graph: MotionGraph, acc_g: np.ndarray | None, sensor_indices: t
     poses = drive_frames(syn, acc, pos, head, quat_wxyz=quats)
     return Prediction(np.stack([p.joint_positions_m for p in poses]),
                       graph.node_clip[np.array([p.node for p in poses])].astype(int),
-                      np.array([p.confidence for p in poses]))
+                      np.array([p.confidence for p in poses]),
+                      exported_joint_positions(poses_to_motion(graph.skeleton, graph.config.fps, poses))
+                      if has_rotations(poses) else None)
 
 
 def fused_joints(joints_m: np.ndarray, take: Take, camera: SimulatedCameraTrack, fusion: RootFusion) -> np.ndarray:

@@ -69,6 +69,7 @@ class RowScores:
     longest_run_s: list[float] = field(default_factory=list)  # longest stretch played from one clip
     seconds: float = 0.0  # compute time
     confidence: list[np.ndarray] = field(default_factory=list)  # per take, per frame (online motion graph only)
+    exported: list[FrameErrors] = field(default_factory=list)  # the exported BVH's errors (engines deciding rotations)
 
 
 @dataclass
@@ -185,6 +186,8 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
         scores = results.setdefault(row, RowScores())
         scores.seconds += time.perf_counter() - t0
         scores.errors.append(frame_errors(pred.joints_m, take.joints_m, skeleton))
+        if pred.exported_m is not None:
+            scores.exported.append(frame_errors(pred.exported_m, take.joints_m, skeleton))
         if pred.confidence is not None:
             scores.confidence.append(pred.confidence)
         used, longest = _clip_stats(pred.source_clip, take.fps)

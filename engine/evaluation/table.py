@@ -7,7 +7,7 @@ from .metrics import per_second, summary
 from .protocols import CAMERA_ON, Row, RowScores
 
 HEADER = (f"{'engine':<34}{'sensors':>7} {'camera':<10}{'global cm':>10}{'root-rel cm':>12}{'skill':>7}"
-          f"{'pos cm':>8}{'head deg':>9}{'worst s cm':>11}{'clips':>6}{'1-clip s':>9}{'run s':>7}")
+          f"{'pos cm':>8}{'head deg':>9}{'worst s cm':>11}{'clips':>6}{'1-clip s':>9}{'run s':>7}{'BVH rr cm':>10}")
 
 
 def skill_reference(results: dict[Row, RowScores]) -> float:
@@ -19,7 +19,9 @@ def skill_reference(results: dict[Row, RowScores]) -> float:
 
 
 def format_rows(results: dict[Row, RowScores], fps: float, prefix: str = "") -> list[str]:
-    """Lines of the table body. skill = 1 - root-relative error / the mean pose's; worst s = the worst
+    """Lines of the table body. BVH rr = the root-relative error of the BVH written from the same decided poses
+    and read back (engines that decide rotations; '-' for the others); skill = 1 - root-relative error / the mean
+    pose's; worst s = the worst
     one-second global joint error of any take; clips / 1-clip s = distinct database clips played and the
     longest stretch from one clip (mean over takes), for engines that play database frames."""
     ref = skill_reference(results)
@@ -31,9 +33,10 @@ def format_rows(results: dict[Row, RowScores], fps: float, prefix: str = "") -> 
         longest = np.nanmean(scores.longest_run_s) if any(scores.clips_used) else float("nan")
         clips = f"{used:6.1f}" if np.isfinite(used) else f"{'-':>6}"
         run = f"{longest:9.1f}" if np.isfinite(longest) else f"{'-':>9}"
+        bvh = f"{summary(scores.exported)['root_relative_cm']:10.2f}" if scores.exported else f"{'-':>10}"
         lines.append(f"{prefix + row.engine:<34}{row.sensors:>7} {row.camera:<10}{s['global_cm']:10.1f}"
-                     f"{s['root_relative_cm']:12.1f}{1 - s['root_relative_cm'] / ref:7.2f}{s['position_cm']:8.1f}"
-                     f"{s['heading_deg']:9.1f}{worst:11.1f}{clips}{run}{scores.seconds:7.1f}")
+                     f"{s['root_relative_cm']:12.2f}{1 - s['root_relative_cm'] / ref:7.2f}{s['position_cm']:8.1f}"
+                     f"{s['heading_deg']:9.1f}{worst:11.1f}{clips}{run}{scores.seconds:7.1f}{bvh}")
     return lines
 
 

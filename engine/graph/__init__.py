@@ -4,15 +4,15 @@ Offline: `MotionGraph.build(motions, placements, config)` (or `build_from_clips`
 whose nodes are database poses at 30 Hz and whose edges carry heading/position offsets and virtual
 accelerations; `.save(path)` / `MotionGraph.load(path)`.
 Online: `ViterbiSearch(graph, weights).run(Observations(...), constraints)` for a whole take, or
-`FixedLagSynthesizer(graph, lag_s).push(acc_g, pos_m, heading_rad)` sample by sample; `path_to_motion` turns a
-result into a blended, foot-skate-cleaned engine.mocap Motion for `write_bvh`.
+`FixedLagSynthesizer(graph, lag_s).push(acc_g, pos_m, heading_rad)` sample by sample, each emitted pose a decided
+pose (root + local rotations, joints their forward kinematics: engine.graph.decided), which
+`engine.stream.decided.poses_to_motion` turns into the engine.mocap Motion `write_bvh` writes.
 """
 from .clips import ClipData
 from .config import GraphConfig
 from .graph import MotionGraph, build_from_clips
 from .online import EmittedPose, FixedLagSynthesizer
 from .poses import world_joint_positions
-from .postprocess import path_to_motion
 from .viterbi import Constraint, Observations, SearchResult, SearchWeights, ViterbiLattice
 from .search import ViterbiSearch
 
@@ -25,5 +25,5 @@ def label_constraint(graph: MotionGraph, label: str, frame: int, tolerance_frame
 __all__ = [
     "ClipData", "Constraint", "EmittedPose", "FixedLagSynthesizer", "GraphConfig", "MotionGraph", "Observations",
     "SearchResult", "SearchWeights", "ViterbiLattice", "ViterbiSearch", "build_from_clips", "label_constraint",
-    "path_to_motion", "world_joint_positions",
+    "world_joint_positions",
 ]

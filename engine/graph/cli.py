@@ -241,13 +241,15 @@ def _synthesize_parser() -> ArgumentParser:
     p = ArgumentParser(prog="courtside synthesize", description="Synthesise motion from a recorded take.")
     p.add_argument("--engine", choices=engine_names(), default="motion-graph",
                    help="synthesis engine (engine.stream.registry); every engine but the motion graph runs online "
-                        "(as the console) and writes joint positions: -o OUT.npz, the --save-poses format")
+                        "(as the console) and writes its decided poses: -o OUT.bvh, or OUT.npz (the --save-poses "
+                        "format)")
     p.add_argument("--graph", help="graph .npz from build-graph (the motion-graph engine; required for it)")
     p.add_argument("--database", default=None, metavar="FILE",
                    help="--engine other than motion-graph: its database file (OLNG: a knowledge base from "
                         "`courtside reconstruct --save-kb`); default: built from the shipped clips")
     p.add_argument("--input", required=True, help="take .npz (synthesis input format or a gateway export)")
-    p.add_argument("-o", "--output", required=True, help="output .bvh (motion graph) or .npz (other engines)")
+    p.add_argument("-o", "--output", required=True,
+                   help="output .bvh (any engine) or .npz (poses; engines other than the motion graph)")
     add_search_args(p)
     p.add_argument("--root-warp", nargs=2, type=float, default=[RootWarp().position_gain, RootWarp().heading_gain],
                    metavar=("GAIN_P", "GAIN_O"),
@@ -274,8 +276,6 @@ def _synthesize_parser() -> ArgumentParser:
     p.add_argument("--require", nargs="*", default=[], metavar="LABEL@SECONDS",
                    help="human constraints (eq. 8): be on a clip labelled LABEL around this time of the take")
     p.add_argument("--require-tolerance", type=int, default=10, help="+- frames around each required time")
-    p.add_argument("--no-blend", action="store_true")
-    p.add_argument("--no-ik", action="store_true")
     p.add_argument("--calibration", metavar="RECORD", help="sensor-calibration record (`courtside calibrate` or the "
                    "wizard): readings are rotated from the measured into the graph's nominal sensor mountings, and "
                    "when it calibrated every worn sensor's orientation (a take with quat_wxyz) the worn segments are "
@@ -292,14 +292,10 @@ def _synthesize_parser() -> ArgumentParser:
 
 @dataclass
 class DecodedPath:
-    """What a motion-graph search decided for a take: the poses (frame clock) and the path behind them."""
+    """What a motion-graph search decided for a take: the decided poses (frame clock; root, rotations and joints,
+    engine.stream.decided) and what the summary line reports."""
 
     poses: list            # engine.stream.FramePose per frame
-    nodes: np.ndarray
-    edges: np.ndarray
-    ground_m: np.ndarray
-    heading_rad: np.ndarray
-    blend_nodes: np.ndarray | None
     broken_constraints: int = 0
     counts: dict = field(default_factory=dict)  # the live path's statistics (online decoding)
 
@@ -438,7 +434,7 @@ def _batch_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sear
     """The whole take searched at once; the output root fused from the camera over the whole take."""
     from engine.stream import FramePose
 
-    from .orientation_pose import SegmentPosing, decided_joint_positions
+    from .orientation_pose import SegmentPosing, decided_path_poses
     from .root_fusion import fuse_track
     from .search import ViterbiSearch
 
@@ -448,10 +444,11 @@ def _batch_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sear
     res = ViterbiSearch(graph, search.weights, warp=search.warp).run(obs, search.constraints)
     ground, heading = fuse_track(search.fusion, fps, obs.position_m, obs.heading_rad, res.ground_m, res.heading_rad)
     posing = SegmentPosing.for_search(graph, indices, search.weights, calibration)
-    joints = decided_joint_positions(graph, res.nodes, res.blend_nodes, ground, heading, posing, obs.acc_g,
-                                     obs.quat_wxyz)
-    poses = [FramePose(int(f), int(f) / fps, joints[i]) for i, f in enumerate(take.frame)]
-    return DecodedPath(poses, res.nodes, res.edges, ground, heading, res.blend_nodes, res.broken_constraints)
+    decided = decided_path_poses(graph, res.nodes, res.blend_nodes, ground, heading, posing, obs.acc_g,
+                                 obs.quat_wxyz)
+    poses = [FramePose(int(f), int(f) / fps, decided.joint_positions_m[i], root_m=decided.root_m[i],
+                       local_rotations=decided.local_rotations[i]) for i, f in enumerate(take.frame)]
+    return DecodedPath(poses, res.broken_constraints)
 
 
 def _online_path(args: argparse.Namespace, graph: MotionGraph, take, search: Search, outputs: list) -> DecodedPath:
@@ -475,7 +472,7 @@ def _online_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sea
         if outputs:  # each pose goes out as the decoder commits to it, at the take's rate
             from engine.livestream.poses import PoseStreamer, StreamingSynthesizer
 
-            syn = StreamingSynthesizer(syn, PoseStreamer(graph, graph.skeleton, outputs, realtime=True))
+            syn = StreamingSynthesizer(syn, PoseStreamer(graph.skeleton, graph.config.fps, outputs, realtime=True))
         made.append(syn)
         return syn
 
@@ -488,18 +485,7 @@ def _online_path(args: argparse.Namespace, graph: MotionGraph, take, search: Sea
         poses = drive_take(make(), acc, obs, int(take.frame[0]), fps)
     counts.update(confidence_mean=round(float(np.mean([q.confidence for q in poses])), 3) if poses else None,
                   reanchors=len(made[-1].reanchors))
-    emitted = [q.source for q in poses]
-    nodes = np.array([q.node for q in emitted])
-    blend_nodes = None if not emitted or emitted[0].blend_nodes is None else \
-        np.stack([q.blend_nodes for q in emitted])
-    edges = np.full(len(nodes), -1)
-    for t in range(1, len(nodes)):
-        try:
-            edges[t] = graph.edge_index(nodes[t - 1:t], nodes[t:t + 1])[0]
-        except KeyError:
-            edges[t] = -1  # the decoder changed its mind: blended like a transition
-    return DecodedPath(poses, nodes, edges, np.array([q.ground_m for q in emitted]),
-                       np.array([q.heading_rad for q in emitted]), blend_nodes, counts=counts)
+    return DecodedPath(poses, counts=counts)
 
 
 def _columns(graph: MotionGraph, obs) -> tuple[int, ...]:
@@ -508,14 +494,12 @@ def _columns(graph: MotionGraph, obs) -> tuple[int, ...]:
 
 
 def _write_outputs(args: argparse.Namespace, graph: MotionGraph, take, path: DecodedPath, outputs: list) -> None:
-    """The BVH (blended, foot-skate cleaned), the batch search's frames to the pose outputs, --save-poses."""
+    """The BVH of the decided poses (the poses the console shows and --save-poses keeps: one pose everywhere),
+    the batch search's frames to the pose outputs, --save-poses."""
+    from engine.stream.decided import poses_to_motion
     from engine.stream.poses_file import save_poses
 
-    from .postprocess import path_to_motion
-
-    motion = path_to_motion(graph, graph.skeleton, path.nodes, path.edges, path.ground_m, path.heading_rad,
-                            blend=not args.no_blend, foot_ik=not args.no_ik, name=Path(args.input).stem,
-                            blend_nodes=path.blend_nodes)
+    motion = poses_to_motion(graph.skeleton, graph.config.fps, path.poses, name=Path(args.input).stem)
     write_bvh(args.output, motion)
     if outputs and args.lag is None:  # the batch search decides the whole path at once: stream the written frames
         from engine.livestream.stream_cli import stream_motion
@@ -531,13 +515,16 @@ def _write_outputs(args: argparse.Namespace, graph: MotionGraph, take, path: Dec
 
 def _synthesize_online(args: argparse.Namespace) -> int:
     """`courtside synthesize --engine NAME` for an engine other than the motion graph: its spec from the registry
-    (a --database file, else the shipped clips), the take through the live path, the poses saved to -o."""
+    (a --database file, else the shipped clips), the take through the live path, the decided poses written to -o:
+    a BVH of their rotations (whose forward kinematics are the saved joints), or the poses file."""
+    from engine.stream.decided import has_rotations, poses_to_motion
     from engine.stream.offline import synthesize_take
     from engine.stream.poses_file import save_poses
     from engine.stream.registry import adapter
 
-    if not args.output.lower().endswith(".npz"):
-        raise CourtsideError(f"-o {args.output}: --engine {args.engine} writes joint positions; give -o OUT.npz")
+    to_bvh = args.output.lower().endswith(".bvh")
+    if not to_bvh and not args.output.lower().endswith(".npz"):
+        raise CourtsideError(f"-o {args.output}: --engine {args.engine} writes OUT.bvh or its poses as OUT.npz")
     check_output_dir(args.output)
     module = adapter(args.engine)
     if args.database is not None and module.load_spec is None:
@@ -552,7 +539,13 @@ def _synthesize_online(args: argparse.Namespace) -> int:
     meta = {"engine": spec.name, "database": spec.database, "lag_s": lag, "rate_hz": spec.rate_hz,
             "start_frame": int(poses[0].frame) if poses else None, "input": str(args.input),
             "use_camera_heading": args.camera_heading}
-    save_poses(args.output, poses, spec.parents, meta)
+    if to_bvh and not has_rotations(poses):
+        raise CourtsideError(f"-o {args.output}: the {spec.name} engine decided no poses with joint rotations for "
+                             "this take; give -o OUT.npz")
+    if to_bvh:
+        write_bvh(args.output, poses_to_motion(spec.skeleton, spec.rate_hz, poses, Path(args.input).stem))
+    else:
+        save_poses(args.output, poses, spec.parents, meta)
     if args.save_poses:
         save_poses(args.save_poses, poses, spec.parents, meta)
     print(json.dumps({"engine": spec.name, "frames": len(poses), "search_s": round(elapsed, 3),

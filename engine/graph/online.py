@@ -15,7 +15,7 @@ from engine.mocap.orientation_calibration import OrientationCalibration
 
 from .graph import MotionGraph
 from .orientation_pose import SegmentPosing
-from .poses import blended_joint_positions
+from .decided import decided_poses
 from .viterbi import (DEFAULT_KERNEL, PRUNE_EVERY, Constraint, Observations, SearchResult, SearchWeights,
                       ViterbiLattice, step_arguments)
 from .confidence import CostHistory, CostWindow, confidence, reference_cost_per_sample
@@ -25,7 +25,8 @@ from .warp import RootWarp
 
 @dataclass(frozen=True)
 class EmittedPose:
-    """The decided pose of sample `t`: graph node, joint positions (J, 3) m in the world frame, the output root's
+    """The decided pose of sample `t`: graph node, joint positions (J, 3) m in the world frame (the forward
+    kinematics of `root_m` and `local_rotations` when the graph stores rotations), the output root's
     ground position (x, z) m and heading rad (the camera's smoothed track with root fusion, else the path's), and `confidence` in [0, 1] (confidence.py: 1 = the search costs
     what the database's own clips cost; towards 0 = the engine is lost)."""
 
@@ -38,6 +39,8 @@ class EmittedPose:
     edge: int = -1  # graph edge from the previous emitted node into `node`; -1: first sample, or the decoder
     # changed its mind (the previous emitted node is not this edge's source)
     blend_nodes: np.ndarray | None = None  # (k,) nodes whose mean pose `joint_positions_m` is (blend_paths > 1)
+    root_m: np.ndarray | None = None  # (3,) m and (J, 4) local rotations (w, x, y, z): the decided pose, whose
+    local_rotations: np.ndarray | None = None  # forward kinematics `joint_positions_m` is (decided.py)
 
 
 class FixedLagSynthesizer:
@@ -193,15 +196,18 @@ class FixedLagSynthesizer:
         blend = np.stack([d[4] for d in out]) if out[0][4] is not None else nodes[:, None]
         inputs, self._pose_inputs = self._pose_inputs[:k], self._pose_inputs[k:]
         if self._posing is not None:
-            joints = self._posing.joint_positions(blend, out_ground, out_heading, np.stack([i[0] for i in inputs]),
-                                                  np.stack([i[1] for i in inputs]))
+            decided = self._posing.decide(blend, out_ground, out_heading, np.stack([i[0] for i in inputs]),
+                                          np.stack([i[1] for i in inputs]))
         else:  # a single path is a blend of one (the mean of one pose is that pose)
-            joints = blended_joint_positions(self.graph, blend, out_ground, out_heading)
+            decided = decided_poses(self.graph, blend, out_ground, out_heading)
         self.next_emit = last + 1
         conf = [confidence(self._history.per_sample_around(first + i), self.confidence_reference) for i in range(k)]
         self._history.drop_before(self.next_emit)
-        return [EmittedPose(first + i, int(nodes[i]), joints[i], out_ground[i], float(out_heading[i]), conf[i],
-                            out[i][1], out[i][4]) for i in range(k)]
+        roots, rots = decided.root_m, decided.local_rotations
+        return [EmittedPose(first + i, int(nodes[i]), decided.joint_positions_m[i], out_ground[i],
+                            float(out_heading[i]), conf[i], out[i][1], out[i][4],
+                            None if roots is None else roots[i], None if rots is None else rots[i])
+                for i in range(k)]
 
 
 def decide_with_forgetting(graph: MotionGraph, weights: SearchWeights, obs: Observations,

@@ -30,7 +30,8 @@ from .graph import MotionGraph
 from .limb_prior import LimbPrior, rotation_between
 from .acc_tilt import TiltFromAccelerations
 from .orientation_term import REFERENCE_SENSOR, node_sensor_orientations, places_sensors
-from .poses import blended_joint_positions
+from .decided import DecidedPoses, decided_poses
+from .poses import node_global_rotations
 from .viterbi import SearchWeights
 
 
@@ -163,8 +164,15 @@ class SegmentPoser:
 
     def pose(self, nodes: np.ndarray, quat_world: np.ndarray, gain: float | np.ndarray = 1.0, use_yaw: bool = True
              ) -> np.ndarray:
-        """(..., J, 3) clip-frame joint positions of `nodes` (...,) with each worn segment's subtree turned onto
-        the measured orientation `quat_world` (..., S, 4) (sensor -> world, calibrated; a frame whose
+        """(..., J, 3) the clip-frame joint positions of `posed`."""
+        return self.posed(nodes, quat_world, gain, use_yaw)[0]
+
+    def posed(self, nodes: np.ndarray, quat_world: np.ndarray, gain: float | np.ndarray = 1.0, use_yaw: bool = True
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """(clip-frame joint positions (..., J, 3), clip-frame joint rotations (..., J, 4)) of `nodes` (...,) with
+        each worn segment's subtree turned onto the measured orientation `quat_world` (..., S, 4) (sensor ->
+        world, calibrated; every turn is applied to the joints' rotations and positions alike, so the positions
+        are the forward kinematics of the rotations; a frame whose
         quaternions are not all finite keeps the played pose), by `gain` of the way (1 = all of it; a float, or
         an array broadcasting to (..., S): per sample and sensor).
 
@@ -174,6 +182,7 @@ class SegmentPoser:
         pose (after its parents' turns) gives it: no yaw calibration needed."""
         nodes = np.asarray(nodes, dtype=np.intp)
         pts = self.graph.node_positions_m[nodes].astype(float)
+        glob = node_global_rotations(self.graph, nodes)
         current = self.node_orientations[nodes]
         q = np.broadcast_to(np.asarray(quat_world, float), current.shape)
         ok = np.isfinite(q).all(axis=(-1, -2))
@@ -198,11 +207,11 @@ class SegmentPoser:
                     limb_turn, segment_turn, turn = self._prior_turns(
                         pts, current, members, target, share[..., members], limb_turn, segment_turn, turn,
                         not relative)
-                self._turn_joints(pts, limb_turn, hinge_owner, self.hinge_pivot[members])
-            self._turn_joints(pts, segment_turn, joint_owner, self.joints[members])
+                self._turn_joints(pts, glob, limb_turn, hinge_owner, self.hinge_pivot[members])
+            self._turn_joints(pts, glob, segment_turn, joint_owner, self.joints[members])
             held = carrier >= 0
             current[..., held, :] = quat.multiply(turn[..., carrier[held], :], current[..., held, :])
-        return self._keep_heading(self.graph.node_positions_m[nodes], pts)
+        return self._keep_heading(self.graph.node_positions_m[nodes], pts, glob)
 
     def _prior_turns(self, pts: np.ndarray, current: np.ndarray, members: np.ndarray, target: np.ndarray,
                      share: np.ndarray, limb_turn: np.ndarray, segment_turn: np.ndarray, turn: np.ndarray,
@@ -237,24 +246,33 @@ class SegmentPoser:
         return limb_turn, segment_turn, turn
 
     @staticmethod
-    def _turn_joints(pts: np.ndarray, turn: np.ndarray, owner_of: np.ndarray, pivots: np.ndarray) -> None:
+    def _turn_joints(pts: np.ndarray, glob: np.ndarray, turn: np.ndarray, owner_of: np.ndarray,
+                     pivots: np.ndarray) -> None:
         """Turn, in place, each joint of `pts` (..., J, 3) owned by a member (`owner_of` (J,): member index or
-        -1) by that member's `turn` (..., M, 4) about its pivot joint (`pivots` (M,))."""
+        -1) by that member's `turn` (..., M, 4) about its pivot joint (`pivots` (M,), -1: the member turns
+        nothing), and the rotations `glob` (..., J, 4) of those joints and of the pivots alike (turning the
+        points below a joint about it is turning that joint's segment)."""
         moved = owner_of >= 0
         owner = owner_of[moved]
         pivot = pts[..., pivots[owner], :]
         pts[..., moved, :] = quat.rotate(turn[..., owner, :], pts[..., moved, :] - pivot) + pivot
+        members = np.flatnonzero(pivots >= 0)
+        joints = np.concatenate([np.flatnonzero(moved), pivots[members]])
+        by = np.concatenate([owner, members])
+        glob[..., joints, :] = quat.multiply(turn[..., by, :], glob[..., joints, :])
 
-    def _keep_heading(self, played: np.ndarray, posed: np.ndarray) -> np.ndarray:
-        """`posed` turned about the vertical through the root so its hips heading is the played pose's: the
-        path (camera, root fusion) decides where the body faces, the sensors only how it is posed around it."""
+    def _keep_heading(self, played: np.ndarray, posed: np.ndarray, glob: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """(`posed`, `glob`) turned about the vertical through the root so the hips heading is the played pose's:
+        the path (camera, root fusion) decides where the body faces, the sensors only how it is posed around
+        it."""
         def heading(p: np.ndarray) -> np.ndarray:
             lateral = p[..., self.left_hip, :] - p[..., self.right_hip, :]
             return np.arctan2(-lateral[..., 2], lateral[..., 0])
 
         turn = yaw_about_up(heading(played) - heading(posed))[..., None, :]
         root = posed[..., :1, :]
-        return quat.rotate(turn, posed - root) + root
+        return quat.rotate(turn, posed - root) + root, quat.multiply(turn, glob)
 
 
 class SegmentPosing:
@@ -322,18 +340,17 @@ class SegmentPosing:
                            None if quat_device is None else quat_device[t]) for t in range(n_samples)]
         return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
 
-    def joint_positions(self, blend_nodes: np.ndarray, ground_m: np.ndarray, heading_rad: np.ndarray,
-                        world: np.ndarray, share: np.ndarray) -> np.ndarray:
-        """(T, J, 3) world joints: the mean of the poses of `blend_nodes` (T, k), each posed by its sample's
-        (`sample`) orientations (T, S, 4) and shares (T, S), placed at (ground, heading). Nothing to pose (every
-        share 0): exactly the played blend."""
+    def decide(self, blend_nodes: np.ndarray, ground_m: np.ndarray, heading_rad: np.ndarray, world: np.ndarray,
+               share: np.ndarray) -> DecidedPoses:
+        """The decided poses (decided.py) of `blend_nodes` (T, k), each column posed by its sample's (`sample`)
+        orientations (T, S, 4) and shares (T, S), blended as rotations and placed at (ground, heading). Nothing
+        to pose (every share 0): exactly the played blend."""
         if not np.any(share):
-            return blended_joint_positions(self.poser.graph, blend_nodes, ground_m, heading_rad)
+            return decided_poses(self.poser.graph, blend_nodes, ground_m, heading_rad)
         if self._strap_rate > 0:
             world = self._refined(blend_nodes[:, 0], world, share)
-        pts = self.poser.pose(blend_nodes, world[:, None], share[:, None, :], use_yaw=self.calibration is not None)
-        return blended_joint_positions(self.poser.graph, blend_nodes, ground_m, heading_rad, pts)
-
+        _, glob = self.poser.posed(blend_nodes, world[:, None], share[:, None, :], use_yaw=self.calibration is not None)
+        return decided_poses(self.poser.graph, blend_nodes, ground_m, heading_rad, glob)
 
     def _refined(self, nodes: np.ndarray, world: np.ndarray, share: np.ndarray) -> np.ndarray:
         """(T, S, 4) `world` turned back by the running strap correction (class doc), updated frame by frame with
@@ -358,14 +375,14 @@ class SegmentPosing:
         return out
 
 
-def decided_joint_positions(graph: MotionGraph, nodes: np.ndarray, blend_nodes: np.ndarray | None,
-                            ground_m: np.ndarray, heading_rad: np.ndarray, posing: SegmentPosing | None = None,
-                            acc_g: np.ndarray | None = None, quat_device: np.ndarray | None = None) -> np.ndarray:
-    """(T, J, 3) world joints of a batch search's decisions -- `nodes` (T,), or the blend of the best paths
+def decided_path_poses(graph: MotionGraph, nodes: np.ndarray, blend_nodes: np.ndarray | None,
+                       ground_m: np.ndarray, heading_rad: np.ndarray, posing: SegmentPosing | None = None,
+                       acc_g: np.ndarray | None = None, quat_device: np.ndarray | None = None) -> DecidedPoses:
+    """The decided poses of a batch search's decisions -- `nodes` (T,), or the blend of the best paths
     `blend_nodes` (T, k), at (ground, heading) -- with the worn segments posed by the take's samples (`acc_g`
     (T, S, 3), `quat_device` (T, S, 4), `SegmentPosing.over_take`) when there is a `posing`: what the fixed-lag
     decoder emits for the same decisions."""
     blend = np.asarray(nodes)[:, None] if blend_nodes is None else blend_nodes
     if posing is None or (acc_g is None and quat_device is None):
-        return blended_joint_positions(graph, blend, ground_m, heading_rad)
-    return posing.joint_positions(blend, ground_m, heading_rad, *posing.over_take(acc_g, quat_device))
+        return decided_poses(graph, blend, ground_m, heading_rad)
+    return posing.decide(blend, ground_m, heading_rad, *posing.over_take(acc_g, quat_device))

@@ -6,6 +6,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from engine.mocap import quaternions as quat
+
 from .geometry import rotate_ground
 
 if TYPE_CHECKING:  # annotations only: the graph build (graph.py -> interpolate.py) imports this module
@@ -54,3 +56,23 @@ def blended_joint_positions(graph: MotionGraph, blend_nodes: np.ndarray, ground_
     pts = graph.node_positions_m[flat] if node_points is None else np.asarray(node_points).reshape(t * k, -1, 3)
     placed = place_node_points(graph, flat, pts, np.repeat(ground_m, k, axis=0), np.repeat(heading_rad, k))
     return placed.reshape(t, k, -1, 3).mean(axis=1)
+
+
+def node_global_rotations(graph: MotionGraph, nodes: np.ndarray) -> np.ndarray:
+    """(..., J, 4) each joint's rotation in the clip frame (the product of the local rotations from the root down)
+    of the poses of `nodes` (...,): what segment posing turns (orientation_pose), so the posed pose stays
+    rotations."""
+    local = graph.node_rotations[np.asarray(nodes, dtype=np.intp)].astype(float)
+    glob = np.empty_like(local)
+    glob[..., 0, :] = local[..., 0, :]
+    for j, p in enumerate(graph.skeleton.parents[1:], start=1):  # parents come before children
+        glob[..., j, :] = quat.multiply(glob[..., p, :], local[..., j, :])
+    return glob
+
+
+def local_from_global(parents: np.ndarray, glob: np.ndarray) -> np.ndarray:
+    """(..., J, 4) local joint rotations of global ones (..., J, 4): local_j = global_parent⁻¹ global_j."""
+    parents = np.asarray(parents)
+    local = np.array(glob, float, copy=True)
+    local[..., 1:, :] = quat.multiply(quat.conjugate(glob[..., parents[1:], :]), glob[..., 1:, :])
+    return local

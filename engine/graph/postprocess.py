@@ -1,34 +1,34 @@
-"""From a graph path to a clean Motion: place each pose on the path, blend across transitions, fix foot skate.
+"""Graph poses as rotations: place a path's poses (or the blend of the best paths', re-posed or not) on the output
+root path, and pin feet in contact with two-bone IK.
 
-Blending (seed 000 uses Park et al.'s Bernstein-weighted quaternion blending over w = 0.7 s): at every
-transition t-1 -> t the jump between the pose the old clip would have shown at t and the new pose is split in
-two, and each half is faded out over w/2 on its side with a C1 smoothstep (a cubic Bernstein combination),
-applied as a rotation displacement on every local joint rotation (the slerp of the jump scaled by the weight).
-The root height is faded the same way with w = 0.7 s, or 0.1 s when both feet are off the ground (so a flight
-phase keeps its ballistic height). Ground position and heading need no blending: the search integrates them
-continuously along the path.
+`place_path` / `place_blend` give the decided pose's root and local rotations (engine.graph.decided): the blend
+averages each joint's rotation (chordal mean). Seed 000's Bernstein transition blending and the post-hoc foot
+IK no longer shape the written BVH: they needed poses not yet decided, so the file differed from what the
+console showed (issue 29); the 8-path blend smooths transitions in the decided pose itself. `fix_foot_skate`
+stays for the HMM's evaluation, which cleans its own whole-take output.
 
-Foot skate: on every run of frames where the path's node has a foot in contact, the ankle is pinned to where
-it was on the run's first frame, with an analytic two-bone IK (knee angle by the law of cosines, then a hip
-rotation that swings the leg onto the target).
+Foot skate: on every run of frames where a foot is in contact, the ankle is pinned to where it was on the run's
+first frame, with an analytic two-bone IK (knee angle by the law of cosines, then a hip rotation that swings the
+leg onto the target).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from engine.mocap import Motion, Skeleton, forward_kinematics, joint_roles
+from engine.mocap import Motion, forward_kinematics, joint_roles
 from engine.mocap import quaternions as quat
 
 from .graph import MotionGraph
-from .parts import EDGE_INTERP, EDGE_TRANSITION, NODE_ORIGINAL
 
 UP = np.array([0.0, 1.0, 0.0])
 
 
 
 def place_path(graph: MotionGraph, nodes: np.ndarray, ground_m: np.ndarray,
-               heading_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(root positions (T, 3) m, local rotations (T, J, 4)) of the path's poses in the world frame."""
+               heading_rad: np.ndarray, local_rotations: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(root positions (T, 3) m, local rotations (T, J, 4)) of the path's poses in the world frame;
+    `local_rotations` (T, J, 4): the nodes' poses re-posed in their clip frames (orientation_pose), else their
+    own (posing turns joints about joints, never the root joint's position)."""
     if graph.node_rotations is None or graph.node_root_m is None:
         raise ValueError("this graph stores no joint rotations (built from plain arrays): cannot make a Motion")
     nodes = np.asarray(nodes, dtype=np.intp)
@@ -38,70 +38,27 @@ def place_path(graph: MotionGraph, nodes: np.ndarray, ground_m: np.ndarray,
     c, s = np.cos(yaw), np.sin(yaw)
     root[:, 0] = ground_m[:, 0] + rel[:, 0] * c + rel[:, 1] * s
     root[:, 2] = ground_m[:, 1] - rel[:, 0] * s + rel[:, 1] * c
-    rots = graph.node_rotations[nodes].astype(float).copy()
+    rots = np.array(graph.node_rotations[nodes] if local_rotations is None else local_rotations, float, copy=True)
     rots[:, 0] = quat.multiply(quat.from_rotvec(yaw[:, None] * UP), rots[:, 0])
     return root, rots
 
 
 def place_blend(graph: MotionGraph, blend_nodes: np.ndarray, ground_m: np.ndarray,
-                heading_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                heading_rad: np.ndarray, local_rotations: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """`place_path` of the mean pose of `blend_nodes` (T, k) (SearchWeights.blend_paths): each column placed on
     the path, root positions averaged, every joint's rotations averaged as quaternions (each turned into the
     first column's hemisphere, summed, normalised -- the chordal mean, close to the rotation mean for the
-    nearby poses a blend averages)."""
+    nearby poses a blend averages). `local_rotations` (T, k, J, 4): the columns re-posed (`place_path`)."""
     blend_nodes = np.asarray(blend_nodes, dtype=np.intp)
-    placed = [place_path(graph, blend_nodes[:, i], ground_m, heading_rad) for i in range(blend_nodes.shape[1])]
+    placed = [place_path(graph, blend_nodes[:, i], ground_m, heading_rad,
+                         None if local_rotations is None else local_rotations[:, i])
+              for i in range(blend_nodes.shape[1])]
     root = np.mean([r for r, _ in placed], axis=0)
     first = placed[0][1]
     total = np.zeros_like(first)
     for _, q in placed:
         total += np.where(np.sum(q * first, axis=-1, keepdims=True) < 0, -q, q)
     return root, quat.normalize(total)
-
-
-def transition_times(graph: MotionGraph, edges: np.ndarray) -> np.ndarray:
-    """Samples t whose arriving edge jumps between clips (transitions, entries/exits of interpolated clips;
-    edge -1 after the first sample = no edge at all, as when a fixed-lag decoder changed its mind)."""
-    e = np.asarray(edges)
-    kinds = np.where(e >= 0, graph.edge_kind[np.maximum(e, 0)], -1)
-    jump = (kinds == EDGE_TRANSITION) | (kinds == EDGE_INTERP) | (e < 0)
-    jump[:1] = False
-    return np.flatnonzero(jump)
-
-
-def _fade(n_frames: int, t: int, half_width: float) -> np.ndarray:
-    """Weight 0..0.5 per frame peaking at the transition midpoint t - 0.5, smoothstep over `half_width`
-    frames on each side; frames before t get +w, frames from t on get -w (signed, so one call serves both)."""
-    s = np.arange(n_frames)
-    x = np.clip(1.0 - np.abs(s - (t - 0.5)) / max(half_width, 0.5), 0.0, 1.0)
-    w = 0.5 * x * x * (3.0 - 2.0 * x)
-    return np.where(s < t, w, -w)
-
-
-def blend_transitions(graph: MotionGraph, nodes: np.ndarray, edges: np.ndarray, root: np.ndarray,
-                      rots: np.ndarray, heading_rad: np.ndarray, fps: float, window_s: float = 0.7,
-                      airborne_root_window_s: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
-    """Smooth every transition of a placed path (see module docstring); returns new (root, rotations)."""
-    root = root.copy()
-    rots = rots.copy()
-    n = len(nodes)
-    for t in transition_times(graph, edges):
-        prev = int(nodes[t - 1])
-        cont = prev + 1 if (prev + 1 < graph.n_nodes and graph.node_kind[prev] == NODE_ORIGINAL
-                            and graph.node_kind[prev + 1] == NODE_ORIGINAL
-                            and graph.node_clip[prev + 1] == graph.node_clip[prev]) else prev
-        yaw_prev = heading_rad[t - 1] - graph.node_heading_rad[prev]
-        old = graph.node_rotations[cont].astype(float).copy()
-        old[0] = quat.multiply(quat.from_rotvec(yaw_prev * UP), old[0])
-        jump = quat.to_rotvec(quat.multiply(quat.conjugate(old), rots[t]))  # (J, 3): old -> new, joint frame
-        w = _fade(n, t, 0.5 * window_s * fps)
-        active = np.flatnonzero(w != 0)
-        rots[active] = quat.multiply(rots[active], quat.from_rotvec(w[active, None, None] * jump[None]))
-        airborne = not graph.node_contacts[[prev, int(nodes[t])]].any()
-        root_w = _fade(n, t, 0.5 * (airborne_root_window_s if airborne else window_s) * fps)
-        dy = root[t, 1] - graph.node_root_m[cont, 1]
-        root[:, 1] += root_w * dy
-    return root, quat.canonical_sign(rots)
 
 
 def _contact_runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -169,18 +126,3 @@ def fix_foot_skate(motion: Motion, contacts: np.ndarray, ease_frames: int = 3) -
         new_c = b + quat.rotate(knee_q, v)
         _local_update(rots, glob, frames, hip, _swing(new_c - a, target - a))
     return Motion(motion.skeleton, motion.fps, motion.root_positions_m, quat.canonical_sign(rots), motion.name)
-
-
-def path_to_motion(graph: MotionGraph, skeleton: Skeleton, nodes: np.ndarray, edges: np.ndarray,
-                   ground_m: np.ndarray, heading_rad: np.ndarray, blend: bool = True,
-                   foot_ik: bool = True, name: str = "synthesised",
-                   blend_nodes: np.ndarray | None = None) -> Motion:
-    """The synthesised Motion for a search result (write it with engine.mocap.write_bvh); `blend_nodes` (T, k):
-    the search's blended pose (`place_blend`) instead of the path's own nodes."""
-    fps = graph.config.fps
-    root, rots = place_path(graph, nodes, ground_m, heading_rad) if blend_nodes is None else \
-        place_blend(graph, blend_nodes, ground_m, heading_rad)
-    if blend:
-        root, rots = blend_transitions(graph, nodes, edges, root, rots, heading_rad, fps)
-    motion = Motion(skeleton, fps, root, rots, name)
-    return fix_foot_skate(motion, graph.node_contacts[nodes]) if foot_ik else motion

@@ -16,16 +16,17 @@ from engine.stream.engines import EngineSpec
 
 def streaming_engine(spec: EngineSpec, bvh: str | None = None, vmc: str | None = None) -> EngineSpec:
     """``spec`` whose engines also stream their poses as BVH over TCP on ``bvh`` and/or as VMC over OSC/UDP to
-    ``vmc`` (``[HOST:]PORT`` each); live samples already arrive in real time, so no pacing. Poses are placed on
-    the motion graph's path, so only that engine streams."""
+    ``vmc`` (``[HOST:]PORT`` each); live samples already arrive in real time, so no pacing. The streams carry
+    the decided poses themselves (root + local rotations of ``spec.skeleton``), so an engine needs a skeleton."""
     flags = " / ".join(flag for flag, address in (("--stream-bvh", bvh), ("--stream-vmc", vmc)) if address)
-    if spec.graph is None or spec.skeleton is None:
-        raise CourtsideError(f"{flags} streams the motion graph's poses; the {spec.name} engine has none")
+    if spec.skeleton is None:
+        raise CourtsideError(f"{flags} streams an engine's decided rotations; the {spec.name} engine names no "
+                             "skeleton for them")
     outputs: list[Any] = []
     if bvh:
         outputs.append(open_stream(bvh, 0.0, "console"))
     if vmc:
         outputs.append(open_vmc(vmc, spec.skeleton, "console"))
-    streamer = PoseStreamer(spec.graph, spec.skeleton, outputs, realtime=False)
+    streamer = PoseStreamer(spec.skeleton, spec.rate_hz, outputs, realtime=False)
     # the BVH server's accept thread and the sockets live in this process: the console keeps this engine here
     return replace(spec, make=lambda lag_s: StreamingSynthesizer(spec.make(lag_s), streamer), in_process=True)

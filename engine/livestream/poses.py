@@ -1,29 +1,26 @@
-"""Poses as they leave the fixed-lag synthesizer -> BVH frames on a live stream.
+"""Decided poses -> BVH frames on a live stream.
 
-Why the raw node pose: the written BVH blends transitions and fixes foot skate over the whole path, which needs
-poses that have not been emitted yet; a live tool wants each pose the moment the decoder commits to it. So the
-stream carries the graph node's pose placed at its ground position and heading (`engine.graph.postprocess.
-place_path`), the same pose the console's skeleton view draws."""
+Each pose the decoder emits carries its root and local joint rotations (engine.stream.decided): the stream sends
+exactly that pose, the one the console's skeleton view draws and the BVH file holds, the moment the decoder
+commits to it."""
 from __future__ import annotations
 
 import time
 from typing import Any
 
-import numpy as np
-
-from engine.graph.postprocess import place_blend, place_path
-from engine.mocap import Motion
+from engine.stream.decided import poses_to_motion
 
 
 class PoseStreamer:
-    """Sends emitted poses (``EmittedPose``: node, ground_m, heading_rad) of ``graph`` as frames of ``skeleton``
-    (the graph's) to every output (anything with ``send_motion(motion)``: `BvhBroadcastServer`,
-    `engine.livestream.vmc.VmcSender`), optionally paced at the graph rate (a recorded take shown live)."""
+    """Sends decided poses (anything with ``root_m`` and ``local_rotations``: `EmittedPose`, `EnginePose`) as
+    frames of ``skeleton`` at ``fps`` to every output (anything with ``send_motion(motion)``:
+    `BvhBroadcastServer`, `engine.livestream.vmc.VmcSender`), optionally paced at that rate (a recorded take shown
+    live)."""
 
-    def __init__(self, graph: Any, skeleton: Any, outputs: Any, realtime: bool = False) -> None:
-        self.graph, self.skeleton = graph, skeleton
+    def __init__(self, skeleton: Any, fps: float, outputs: Any, realtime: bool = False) -> None:
+        self.skeleton = skeleton
         self.outputs = list(outputs) if isinstance(outputs, (list, tuple)) else [outputs]
-        self.fps = float(graph.config.fps)
+        self.fps = float(fps)
         self.realtime = realtime
         self._start: float | None = None
         self._sent = 0
@@ -36,13 +33,7 @@ class PoseStreamer:
     def send(self, poses: list) -> None:
         if not poses:
             return
-        nodes = np.array([p.node for p in poses])
-        ground = np.array([p.ground_m for p in poses])
-        heading = np.array([p.heading_rad for p in poses])
-        blend = [p.blend_nodes for p in poses]
-        root, rots = place_path(self.graph, nodes, ground, heading) if blend[0] is None else \
-            place_blend(self.graph, np.stack(blend), ground, heading)  # the search's blended pose (blend_paths)
-        motion = Motion(self.skeleton, self.fps, root, rots)
+        motion = poses_to_motion(self.skeleton, self.fps, poses)
         for f in range(motion.n_frames):
             if self.realtime:
                 self._start = time.monotonic() if self._start is None else self._start

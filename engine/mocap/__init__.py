@@ -20,7 +20,7 @@ from engine.mocap.sensors import (GRAVITY_MPS2, SEED000_SENSORS, SEED003_SENSORS
                                   STANDARD_SENSORS, SensorErrorModel, SensorPlacement, mean_squared_error_g2,
                                   standard_placements, virtual_accelerometers, virtual_gyroscopes)
 from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
-from engine.mocap.skeleton import Motion, Skeleton, forward_kinematics
+from engine.mocap.skeleton import Motion, Skeleton, forward_kinematics, pose_joint_positions
 from engine.mocap.transform import mirror, resample
 
 __all__ = [
@@ -29,7 +29,7 @@ __all__ = [
     "SEED004_SENSORS", "STANDARD_SENSORS", "SensorCalibrationData", "SensorErrorModel", "SensorPlacement",
     "Skeleton", "calibrated_placements", "load_sensor_calibration", "placements_from_calibration",
     "reading_corrections",
-    "SEED_HEADING_SPEED_MPS", "default_cache_dir", "error_joint_indices", "foot_contacts", "forward_kinematics", "ground_positions", "seed_heading_rule",
+    "SEED_HEADING_SPEED_MPS", "default_cache_dir", "error_joint_indices", "foot_contacts", "forward_kinematics", "pose_joint_positions", "ground_positions", "seed_heading_rule",
     "heading_from_positions", "joint_roles", "left_right_pairs", "load_clip", "load_database",
     "mean_squared_error_g2", "mirror", "read_amc", "read_asf", "read_bvh", "read_c3d", "rebase_to_tpose", "resample",
     "root_heading", "sample_clips", "standard_placements", "tpose_bases", "tpose_skeleton",

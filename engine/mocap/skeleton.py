@@ -119,3 +119,13 @@ def forward_kinematics(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         glob[:, j] = glob[:, p] @ local[:, j]
         pos[:, j] = pos[:, p] + glob[:, p] @ skel.offsets_m[j]
     return pos, glob
+
+
+def pose_joint_positions(skeleton: Skeleton, root_m: np.ndarray, local_rotations: np.ndarray) -> np.ndarray:
+    """(..., J, 3) world joint positions m of poses given as root positions (..., 3) m and local rotations
+    (..., J, 4): `forward_kinematics` for any leading shape (one pose, a run of poses, a blend's columns)."""
+    root = np.asarray(root_m, float)
+    rots = np.asarray(local_rotations, float)
+    lead = rots.shape[:-2]
+    flat = Motion(skeleton, 1.0, root.reshape(-1, 3), rots.reshape(-1, *rots.shape[-2:]))
+    return forward_kinematics(flat)[0].reshape(*lead, -1, 3)

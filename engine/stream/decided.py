@@ -7,26 +7,20 @@ exported was not what the engine knew. With one pose, the BVH written from the r
 joint positions (a test checks 1 mm), live and offline.
 
 `decided_pose` builds an `EnginePose` from rotations; `poses_to_motion` turns a run of decided poses into the
-`engine.mocap.Motion` that the BVH file and the BVH / VMC streams write."""
+`engine.mocap.Motion` that the BVH file and the BVH / VMC streams write; `exported_joint_positions` writes that
+BVH and reads it back (what a user's tool would see), so evaluation scores the file beside the shown poses."""
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from engine.mocap import Motion, Skeleton, forward_kinematics
+from engine.mocap import Motion, Skeleton, forward_kinematics, pose_joint_positions, read_bvh, write_bvh
 
 from .engines import EnginePose
-
-
-def joint_positions(skeleton: Skeleton, root_m: np.ndarray, local_rotations: np.ndarray) -> np.ndarray:
-    """(..., J, 3) world joint positions m of poses given as root (..., 3) m and local rotations (..., J, 4)."""
-    root = np.asarray(root_m, float)
-    rots = np.asarray(local_rotations, float)
-    lead = rots.shape[:-2]
-    flat = Motion(skeleton, 1.0, root.reshape(-1, 3), rots.reshape(-1, *rots.shape[-2:]))
-    return forward_kinematics(flat)[0].reshape(*lead, -1, 3)
 
 
 def decided_pose(skeleton: Skeleton, t: int, root_m: np.ndarray, local_rotations: np.ndarray,
@@ -34,7 +28,7 @@ def decided_pose(skeleton: Skeleton, t: int, root_m: np.ndarray, local_rotations
     """The `EnginePose` of push index ``t`` whose joints are the forward kinematics of the rotations."""
     root = np.asarray(root_m, float)
     rots = np.asarray(local_rotations, float)
-    return EnginePose(t, joint_positions(skeleton, root, rots), confidence, root, rots)
+    return EnginePose(t, pose_joint_positions(skeleton, root, rots), confidence, root, rots)
 
 
 def has_rotations(poses: Sequence[Any]) -> bool:
@@ -50,3 +44,12 @@ def poses_to_motion(skeleton: Skeleton, fps: float, poses: Sequence[Any], name: 
     root = np.stack([np.asarray(p.root_m, float) for p in poses])
     rots = np.stack([np.asarray(p.local_rotations, float) for p in poses])
     return Motion(skeleton, float(fps), root, rots, name)
+
+
+def exported_joint_positions(motion: Motion) -> np.ndarray:
+    """(T, J, 3) world joints m of ``motion`` after a round trip through a BVH file (`write_bvh`, then
+    `read_bvh`): the Euler angles and the printed digits are what any tool reading the file gets."""
+    with tempfile.TemporaryDirectory(prefix="courtside-bvh-") as folder:
+        path = Path(folder) / "exported.bvh"
+        write_bvh(path, motion, units="cm")
+        return forward_kinematics(read_bvh(path, scale="cm"))[0]

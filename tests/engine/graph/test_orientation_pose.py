@@ -138,16 +138,16 @@ def test_live_equals_batch_with_posing(graph, sample_motions):
     batch = ViterbiSearch(graph, WEIGHTS).run(Observations(acc, quat_wxyz=q_device,
                                                            orientation_calibration=calibration))
     posing = SegmentPosing.for_search(graph, tuple(range(6)), WEIGHTS, calibration)
-    want = posing.joint_positions(batch.blend_nodes, batch.ground_m, batch.heading_rad,
-                                  *posing.over_take(acc, q_device))
+    want = posing.decide(batch.blend_nodes, batch.ground_m, batch.heading_rad,
+                         *posing.over_take(acc, q_device)).joint_positions_m
     syn = FixedLagSynthesizer(graph, 2.0, WEIGHTS, confidence_reference=1.0, orientation_calibration=calibration)
     out = []
     for t in range(len(acc)):
         out += syn.push(acc[t], quat_wxyz=q_device[t])
     out += syn.flush()
     assert np.array_equal(np.stack([p.joint_positions_m for p in out]), want)
-    played = posing.joint_positions(batch.blend_nodes, batch.ground_m, batch.heading_rad,
-                                    *posing.over_take(None, np.full_like(q_device, np.nan)))
+    played = posing.decide(batch.blend_nodes, batch.ground_m, batch.heading_rad,
+                           *posing.over_take(None, np.full_like(q_device, np.nan))).joint_positions_m
     assert not np.allclose(want, played, atol=1e-3)
 
 
@@ -247,7 +247,7 @@ def test_strap_refinement_learns_a_constant_strapping_error(graph, poser):
 
     def worst_cm(strap_s: float) -> float:
         posing = SegmentPosing(poser, 1.0, calibration, strap_time_constant_s=strap_s)
-        out = posing.joint_positions(nodes[:, None], ground, heading, world, share)
+        out = posing.decide(nodes[:, None], ground, heading, world, share).joint_positions_m
         return 100 * np.abs(out - played)[-50:].max()
 
     unrefined, refined = worst_cm(0.0), worst_cm(1.0)
@@ -266,8 +266,7 @@ def test_strap_refinement_learns_little_from_a_segment_the_played_poses_do_not_f
     world = quat.multiply(_own(graph, nodes), error)
     posing = SegmentPosing(poser, 1.0, OrientationCalibration(np.zeros(6), np.tile(quat.identity(), (6, 1))),
                            strap_time_constant_s=1.0)
-    posing.joint_positions(nodes[:, None], np.zeros((len(nodes), 2)), np.zeros(len(nodes)), world,
-                           np.ones((len(nodes), 6)))
+    posing.decide(nodes[:, None], np.zeros((len(nodes), 2)), np.zeros(len(nodes)), world, np.ones((len(nodes), 6)))
     limbs = [0, 1, 2, 3]
     learnt_share = 2 * np.arccos(np.clip(np.abs(posing._strap[limbs, 0]), 0.0, 1.0)) / angles[limbs]
     assert np.all(learnt_share[[0, 2, 3]] > 0.7)  # measured 0.86: the 8-deg misfits weigh 0.85

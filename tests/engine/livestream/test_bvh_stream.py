@@ -160,14 +160,14 @@ def test_console_setup_streams_what_its_synthesizer_emits(tmp_path):
     synth._streamer.server.close()
 
 
-def test_console_stream_flags_refuse_an_engine_without_poses_on_a_graph():
+def test_console_stream_flags_refuse_an_engine_without_a_skeleton():
     from engine.errors import CourtsideError
     from engine.livestream.console import streaming_engine
     from engine.stream.engines import EngineSpec
 
     spec = EngineSpec(name="olng", database="kb.npz", sensor_names=("left_wrist",), rate_hz=30.0,
                       parents=np.array([-1]), make=lambda lag_s: None)
-    with pytest.raises(CourtsideError, match="--stream-vmc streams the motion graph's poses; the olng engine"):
+    with pytest.raises(CourtsideError, match="--stream-vmc streams an engine.s decided rotations; the olng engine names no skeleton"):
         streaming_engine(spec, vmc="39539")
 
 
