@@ -67,46 +67,46 @@ def _olng_knowledge_base(args: argparse.Namespace):
 
 def _reconstruct_olng(args: argparse.Namespace) -> dict:
     from engine.graph.inputs import load_take
-    from engine.mocap import SEED003_SENSORS, Motion, write_bvh
-    from engine.olng.mocap_bridge import skeleton_from_rig
-    from engine.olng.reconstructor import OLNGReconstructor
+    from engine.mocap import SEED003_SENSORS
+    from engine.olng.online_engine import OLNGEngine
 
     kb = _olng_knowledge_base(args)
     obs = load_take(args.input, list(SEED003_SENSORS), kb.fps)
     acc = acc_in_sensor_order(args.input, obs, len(SEED003_SENSORS),
                               f"the OLNG needs all four sensors {list(SEED003_SENSORS)}")
-    rec = OLNGReconstructor(kb, _olng_config(args))
-    t0 = time.perf_counter()
-    cam_pos, cam_head = _camera(obs, len(acc))
-    poses = [rec.push(a, cam_pos[t], cam_head[t])
-             for t, a in enumerate(progress.bar(acc, desc="olng", unit="frame"))]
-    elapsed = time.perf_counter() - t0
-    motion = Motion(skeleton_from_rig(kb.rig), kb.fps, np.stack([p.root_pos_m for p in poses]),
-                    np.stack([p.local_quats for p in poses]), Path(args.input).stem)
-    write_bvh(args.output, motion)
-    return {"frames": len(poses), "seconds": round(elapsed, 3), "fps": round(len(poses) / max(elapsed, 1e-9), 1)}
+    engine = OLNGEngine(kb, config=_olng_config(args))
+    return _write_decided(args, engine, engine.skeleton, kb.fps, acc, obs)
 
 
 def _reconstruct_hmm(args: argparse.Namespace) -> dict:
+    """The paper's acc + gyro model trained on the clips, run as the live engine runs it (`HMMEngine`)."""
     from engine.graph.inputs import read_take
-    from engine.hmm.evaluation import reconstruct, to_motion, train_model
-    from engine.mocap import resample, write_bvh
+    from engine.hmm.evaluation import train_model
+    from engine.hmm.online_engine import HMMEngine
 
     motions = _load_motions(args)
     model = train_model(motions, imu_names=tuple(args.imus))
     take = read_take(args.input, list(args.imus), model.fps)
-    obs = take.obs
-    acc = acc_in_sensor_order(args.input, obs, len(args.imus), f"the HMM needs the IMUs {args.imus}")
+    acc = acc_in_sensor_order(args.input, take.obs, len(args.imus), f"the HMM needs the IMUs {args.imus}")
     gyro = _take_gyro(args.input, take.frame, model.fps, list(args.imus))
-    skeleton = motions[0].skeleton
-    start = resample(motions[0], model.fps)
-    t0 = time.perf_counter()
+    engine = HMMEngine({model.config.imu_channels: model}, motions[0].skeleton)
+    return _write_decided(args, engine, engine.skeleton, model.fps, acc, take.obs, gyro)
+
+
+def _write_decided(args: argparse.Namespace, engine, skeleton, fps: float, acc: np.ndarray, obs,
+                   gyro_rps: np.ndarray | None = None) -> dict:
+    """Push the take through ``engine`` (`drive_frames`, the loop every driver uses) and write its decided poses
+    as the BVH: the file is the poses the console and `--save-poses` show (issue 29), nothing applied after."""
+    from engine.mocap import write_bvh
+    from engine.stream.decided import poses_to_motion
+    from engine.stream.engines import drive_frames
+
     cam_pos, cam_head = _camera(obs, len(acc))
-    root, quats, frames = reconstruct(model, acc, gyro, skeleton.n_joints, np.r_[0.0, start.root_positions_m[0, 1], 0.0],
-                                      np.array([1.0, 0.0, 0.0, 0.0]), cam_pos, cam_head, skeleton)
+    t0 = time.perf_counter()
+    poses = drive_frames(engine, acc, cam_pos, cam_head, gyro_rps=gyro_rps)
     elapsed = time.perf_counter() - t0
-    write_bvh(args.output, to_motion(skeleton, model.fps, root, quats, not args.no_ik, Path(args.input).stem))
-    return {"frames": len(frames), "seconds": round(elapsed, 3), "fps": round(len(frames) / max(elapsed, 1e-9), 1)}
+    write_bvh(args.output, poses_to_motion(skeleton, fps, poses, Path(args.input).stem))
+    return {"frames": len(poses), "seconds": round(elapsed, 3), "fps": round(len(poses) / max(elapsed, 1e-9), 1)}
 
 
 def _camera(obs, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -241,7 +241,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--i-best", type=int, default=32, help="olng: hypotheses per frame (paper: 256)")
     p.add_argument("--window", type=int, default=32, help="olng: OLNG window M (frames)")
     p.add_argument("--imus", nargs="+", default=["right_foot"], help="hmm: worn IMUs (standard sensor names)")
-    p.add_argument("--no-ik", action="store_true", help="hmm: skip the foot-skate IK clean-up")
     progress.add_quiet_argument(p)
     p.add_argument("--graph", help="motion-graph: graph .npz from `courtside build-graph`")
     return p

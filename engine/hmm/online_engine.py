@@ -9,11 +9,15 @@ The HMM has no database file: ``load_spec`` is None and the console refuses --gr
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from engine.stream.decided import decided_pose
 from engine.stream.engines import ACC, GYRO, ORIENTATION, EngineMismatchError, EnginePose, EngineSpec
+
+if TYPE_CHECKING:
+    from engine.graph.warp import RootWarp
 
 DEFAULT_IMUS = ("right_foot",)  # seed 004's one IMU
 RICHER_CHANNELS = ("acc+gyro+tilt", "acc+gyro")  # tried in this order when the stream brings them
@@ -28,22 +32,34 @@ def _fed(channels: str, gyro: bool, orientation: bool) -> bool:
 
 class HMMEngine:
     """`engine.hmm.HMMReconstructor` in the `OnlineEngine` protocol. ``models`` maps `HMMConfig.imu_channels` to
-    a trained model and holds at least "acc"; the first complete frame picks the richest model it can feed
-    (module doc) for the whole session. Each frame is decided at once (no lag); the body features are decoded
-    incrementally (root ground step and heading change integrated from the first frame, as
-    `engine.hmm.features.decode` does for a whole take) and the joints follow by forward kinematics. A camera
-    fix sets the root's ground position for that frame (the stream path gives every frame the fix interpolated
-    at its own time); without one the root is integrated from the last. A dropout frame is the reconstructor's
-    own rule (no evidence: the chains move on their transitions); nothing is emitted before the first complete
-    reading."""
+    a trained model; the first complete frame picks the richest model it can feed (module doc; "acc" when the
+    frame brings neither gyro nor orientation) for the whole session. Each frame is decided at once (no lag): its
+    body features are decoded incrementally -- root ground step and heading change integrated from the first
+    frame, standing at the origin facing +z, as `engine.hmm.features.decode` does for a whole take -- and the pose
+    is that root and those local joint rotations of ``skeleton``, its joints their forward kinematics
+    (`engine.stream.decided`), so the console, the poses file and the BVH file show one pose.
 
-    def __init__(self, models: Mapping[str, Any], skeleton: Any) -> None:
+    A camera fix pulls the integrated root towards it after every frame by the bounded root warp
+    (engine/graph/warp.py; the first fix places the root), exactly as the batch `engine.hmm.evaluation.reconstruct`
+    does, so a take gives the same root live and offline; the heading fix is where the hips face, read off this
+    frame's pose. A dropout frame is the reconstructor's own rule (no evidence: the chains move on their
+    transitions); nothing is emitted before the first complete reading."""
+
+    def __init__(self, models: Mapping[str, Any], skeleton: Any, root_warp: RootWarp | None = None) -> None:
+        from engine.graph.warp import RootWarp
+        from engine.mocap import joint_roles
+
         self.models = dict(models)
         self.skeleton = skeleton
-        self.n_sensors = self.models["acc"].imu_mean.shape[0] // 3
+        self.root_warp = RootWarp() if root_warp is None else root_warp
+        self.n_sensors = next(iter(self.models.values())).imu_mean.shape[0] // 3
+        roles = joint_roles(skeleton)
+        self._hips = (roles["left_hip"], roles["right_hip"])
         self.rec: Any = None             # the session's HMMReconstructor, once the first frame chose its model
         self.t = -1
-        self._prev: tuple[np.ndarray, np.ndarray, float] | None = None  # (body features, root m, heading rad)
+        self._ground: complex | None = None  # root on the ground (x + iz) m, None before the first emitted frame
+        self._heading = 0.0              # integrated root heading rad
+        self._fixed = False              # has a camera fix placed the root yet?
 
     @property
     def channels(self) -> str | None:
@@ -55,40 +71,62 @@ class HMMEngine:
 
         gyro = gyro_rps is not None and bool(np.all(np.isfinite(gyro_rps)))
         orientation = quat_wxyz is not None and bool(np.all(np.isfinite(quat_wxyz)))
-        chosen = next((c for c in RICHER_CHANNELS if c in self.models and _fed(c, gyro, orientation)), "acc")
-        self.rec = HMMReconstructor(self.models[chosen])
+        fed = [c for c in RICHER_CHANNELS + ("acc",) if c in self.models and _fed(c, gyro, orientation)]
+        # no model the frame can feed (`courtside reconstruct`'s one acc + gyro model): the first, its missing
+        # channel a dropout
+        self.rec = HMMReconstructor(self.models[fed[0] if fed else next(iter(self.models))])
 
     def push(self, acc_g: np.ndarray | None, pos_m: Any = None, heading_rad: float | None = None, *,
              quat_wxyz: np.ndarray | None = None, gyro_rps: np.ndarray | None = None) -> list[EnginePose]:
-        from engine.mocap import Motion, forward_kinematics
-
-        from .features import decode
-
         self.t += 1
-        if acc_g is None and self._prev is None:
+        if acc_g is None and self._ground is None:
             return []
         if self.rec is None:
             self._start(quat_wxyz, gyro_rps)
         reading = np.full((self.n_sensors, 3), np.nan) if acc_g is None else np.asarray(acc_g, float)
-        nan = np.full((self.n_sensors, 3), np.nan)
         # a channel the session's model reads but this frame lacks is a dropped frame for the model (NaN)
-        gyro = nan if gyro_rps is None else gyro_rps
+        gyro = np.full((self.n_sensors, 3), np.nan) if gyro_rps is None else gyro_rps
         quats = np.full((self.n_sensors, 4), np.nan) if quat_wxyz is None else quat_wxyz
         body = self.rec.push(reading, gyro, quats).body
-        joints = self.skeleton.n_joints
-        if self._prev is None:  # the first frame: standing where the first decode puts it, facing +z
-            roots, quats = decode(body[None], joints, np.zeros(3), 0.0)
-            heading = 0.0
+        step = body[self.skeleton.n_joints * 4: self.skeleton.n_joints * 4 + 3]
+        if self._ground is None:
+            self._ground = 0j
         else:
-            prev_body, prev_root, prev_heading = self._prev
-            roots, quats = decode(np.stack([prev_body, body]), joints, prev_root, prev_heading)
-            heading = prev_heading + float(body[-1])
-        root = roots[-1].copy()
-        if pos_m is not None:
-            root[[0, 2]] = np.asarray(pos_m, float)[:2]
-        self._prev = (body, root, heading)
-        positions, _ = forward_kinematics(Motion(self.skeleton, self.rec.model.fps, root[None], quats[-1:]))
-        return [EnginePose(self.t, positions[0])]
+            self._ground += complex(step[0], step[2]) * np.exp(-1j * self._heading)
+            self._heading += float(body[-1])
+        self._follow_camera(body, pos_m, heading_rad)
+        root, rotations = self._pose(body, self._heading)
+        return [decided_pose(self.skeleton, self.t, root, rotations)]
+
+    def _pose(self, body: np.ndarray, heading_rad: float) -> tuple[np.ndarray, np.ndarray]:
+        """Root (3,) m at the current ground position and local rotations (J, 4) of ``body`` at this heading."""
+        from .features import decode
+
+        roots, rotations = decode(body[None], self.skeleton.n_joints,
+                                  np.array([self._ground.real, 0.0, self._ground.imag]), heading_rad)
+        return roots[0], rotations[0]
+
+    def _follow_camera(self, body: np.ndarray, pos_m: Any, heading_rad: float | None) -> None:
+        """Pull the root towards this frame's camera fix (`engine.graph.warp.follow_camera`'s rule, one frame)."""
+        from engine.graph.warp import warp_one
+        from engine.mocap import heading_from_positions
+
+        pos = None if pos_m is None or np.any(np.isnan(pos_m)) else complex(pos_m[0], pos_m[1])
+        head = None if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
+        if pos is None and head is None:
+            return
+        offset = 0.0  # where the hips face minus the root's integrated twist
+        if head is not None:
+            joints = decided_pose(self.skeleton, self.t, *self._pose(body, 0.0)).joint_positions_m
+            offset = float(heading_from_positions(joints[None], *self._hips)[0])
+        if not self._fixed:
+            self._ground = pos if pos is not None else self._ground
+            self._heading = head - offset if head is not None else self._heading
+            self._fixed = True
+            return
+        self._ground, body_heading = warp_one(self._ground, self._heading + offset, pos, head, self.root_warp,
+                                              self.rec.model.fps)
+        self._heading = body_heading - offset
 
     def flush(self) -> list[EnginePose]:
         return []

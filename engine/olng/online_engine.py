@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from engine.stream.decided import decided_pose
 from engine.stream.engines import EngineMismatchError, EnginePose, EngineSpec
 
 
@@ -24,16 +25,24 @@ class OLNGEngine:
     500k frames). ``keep_up`` (live use only: the console): the engine times itself and steps down to fewer
     neighbours, hypotheses and energy iterations when a frame costs more than half a frame period
     (`engine.olng.keep_up`); `status` then says so. Offline runs keep it off, so their results do not depend on
-    the machine."""
+    the machine. ``config``: the reconstructor's settings (`courtside reconstruct --k/--i-best/--window`); None =
+    the defaults sized to the knowledge base.
 
-    def __init__(self, kb: Any, keep_up: bool = False) -> None:
+    Each emitted pose is the reconstructor's root and local joint rotations on the knowledge base's standard
+    skeleton (`skeleton`), its joints their forward kinematics (`engine.stream.decided`): the console, the poses
+    file and the BVH file show one pose."""
+
+    def __init__(self, kb: Any, keep_up: bool = False, config: Any = None) -> None:
         from .config import OLNGConfig
         from .keep_up import Effort, KeepUp, effort_levels
+        from .mocap_bridge import skeleton_from_rig
         from .reconstructor import OLNGReconstructor
 
-        config = OLNGConfig()
-        config = replace(config, graph=config.graph.sized_for(kb.size))
+        if config is None:
+            config = OLNGConfig()
+            config = replace(config, graph=config.graph.sized_for(kb.size))
         self.rec = OLNGReconstructor(kb, config)
+        self.skeleton = skeleton_from_rig(kb.rig)
         self.n_sensors = kb.alpha_g.shape[1] // 3
         self.t = -1
         self.started = False
@@ -62,7 +71,7 @@ class OLNGEngine:
         if self.keep_up is not None and self.keep_up.record(time.perf_counter() - t0):
             effort = self.keep_up.effort
             self.rec.set_effort(effort.k_neighbours, effort.i_best, effort.iterations)
-        return [EnginePose(self.t, pose.joints_world_m)]
+        return [decided_pose(self.skeleton, self.t, pose.root_pos_m, pose.local_quats)]
 
     def flush(self) -> list[EnginePose]:
         return []
@@ -81,8 +90,9 @@ def olng_spec(kb: Any, database: str | Path, sensor_names: Sequence[str] | None 
     n = kb.alpha_g.shape[1] // 3
     if len(names) != n:
         raise EngineMismatchError(f"{database}: knowledge base has {n} sensors, named {list(names)}")
-    return EngineSpec("olng", str(database), names, float(kb.fps), np.asarray(skeleton_from_rig(kb.rig).parents),
-                      lambda lag_s: OLNGEngine(kb), lag_applies=False, inputs=kb.channels,
+    skeleton = skeleton_from_rig(kb.rig)
+    return EngineSpec("olng", str(database), names, float(kb.fps), np.asarray(skeleton.parents),
+                      lambda lag_s: OLNGEngine(kb), lag_applies=False, skeleton=skeleton, inputs=kb.channels,
                       make_live=lambda lag_s: OLNGEngine(kb, keep_up=True))
 
 
