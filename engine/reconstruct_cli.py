@@ -7,7 +7,9 @@
 
 The database comes from clip files, `--sample` (CMU subject 16 clips shipped in engine/data) or
 `--mocap-dir DIR --pattern GLOB`; `--save-kb`/`--kb` store and reuse a built OLNG knowledge base.
-Takes are the synthesis-input .npz or a gateway export (read by engine.graph.inputs.load_take).
+Takes are the synthesis-input .npz or a gateway export (read by engine.graph.inputs.load_take). OLNG and the HMM
+run as their live engines (engine/olng/online_engine.py, engine/hmm/online_engine.py) and the BVH is the poses
+they decide, as the console draws them and `--save-poses` saves them.
 """
 from __future__ import annotations
 
@@ -75,7 +77,7 @@ def _reconstruct_olng(args: argparse.Namespace) -> dict:
     acc = acc_in_sensor_order(args.input, obs, len(SEED003_SENSORS),
                               f"the OLNG needs all four sensors {list(SEED003_SENSORS)}")
     engine = OLNGEngine(kb, config=_olng_config(args))
-    return _write_decided(args, engine, engine.skeleton, kb.fps, acc, obs)
+    return _write_decided(args, engine, kb.fps, acc, obs)
 
 
 def _reconstruct_hmm(args: argparse.Namespace) -> dict:
@@ -90,13 +92,14 @@ def _reconstruct_hmm(args: argparse.Namespace) -> dict:
     acc = acc_in_sensor_order(args.input, take.obs, len(args.imus), f"the HMM needs the IMUs {args.imus}")
     gyro = _take_gyro(args.input, take.frame, model.fps, list(args.imus))
     engine = HMMEngine({model.config.imu_channels: model}, motions[0].skeleton)
-    return _write_decided(args, engine, engine.skeleton, model.fps, acc, take.obs, gyro)
+    return _write_decided(args, engine, model.fps, acc, take.obs, gyro)
 
 
-def _write_decided(args: argparse.Namespace, engine, skeleton, fps: float, acc: np.ndarray, obs,
+def _write_decided(args: argparse.Namespace, engine, fps: float, acc: np.ndarray, obs,
                    gyro_rps: np.ndarray | None = None) -> dict:
     """Push the take through ``engine`` (`drive_frames`, the loop every driver uses) and write its decided poses
-    as the BVH: the file is the poses the console and `--save-poses` show (issue 29), nothing applied after."""
+    (rotations of ``engine.skeleton``) as the BVH: the file is the poses the console and `--save-poses` show
+    (issue 29), nothing applied after."""
     from engine.mocap import write_bvh
     from engine.stream.decided import poses_to_motion
     from engine.stream.engines import drive_frames
@@ -105,7 +108,7 @@ def _write_decided(args: argparse.Namespace, engine, skeleton, fps: float, acc: 
     t0 = time.perf_counter()
     poses = drive_frames(engine, acc, cam_pos, cam_head, gyro_rps=gyro_rps)
     elapsed = time.perf_counter() - t0
-    write_bvh(args.output, poses_to_motion(skeleton, fps, poses, Path(args.input).stem))
+    write_bvh(args.output, poses_to_motion(engine.skeleton, fps, poses, Path(args.input).stem))
     return {"frames": len(poses), "seconds": round(elapsed, 3), "fps": round(len(poses) / max(elapsed, 1e-9), 1)}
 
 

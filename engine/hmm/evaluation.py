@@ -9,20 +9,20 @@ import numpy as np
 
 from engine import progress
 from engine.graph.evaluate import root_local
-from engine.graph.warp import RootWarp, follow_camera
+from engine.graph.warp import RootWarp
 from engine.hmm.config import HMMConfig
-from engine.hmm.features import (align_hemispheres, body_features, channel_set, decode, imu_features,
-                                 imu_orientations, stack_imu)
+from engine.hmm.features import (align_hemispheres, body_features, channel_set, imu_features, imu_orientations,
+                                 stack_imu)
 from engine.mocap.orientation import OrientationErrorModel, to_device_earth
 from engine.olng.channels import tilt_from_world
 from engine.hmm.model import HierarchicalHMM, TrainingClip
 from engine.hmm.phases import detect_events, label_phases, segments_from_labels
+from engine.hmm.pose_decoder import PoseDecoder
 from engine.hmm.reconstructor import HMMReconstructor
 from engine.mocap import (Motion, SensorErrorModel, error_joint_indices, forward_kinematics, joint_roles, resample,
                           root_heading, standard_placements)
 from engine.olng.metrics import ClipErrors, score
-from engine.mocap import quaternions
-from engine.olng.pose import split_heading, yaw_quat
+from engine.olng.pose import split_heading
 
 
 def behaviour_of(motion: Motion) -> str:
@@ -74,47 +74,25 @@ def reconstruct(model: HierarchicalHMM, acc_g: np.ndarray, gyro_rps: np.ndarray,
     """Stream a take; returns (root positions (T, 3), local quaternions (T, J, 4), per-frame HMMFrame list).
     ``quat_wxyz`` (T, S, 4) sensor -> device earth: the tilt channel's input (models with "+tilt").
 
-    With the overhead camera's ground position (T, 2) m and/or body heading (T,) rad (NaN = no fix) the
-    integrated root is pulled towards them frame by frame (engine/graph/warp.py; the first fix places it), so
-    the global error is the camera's instead of metres of drift; `skeleton` (needed for the heading) gives the
-    offset between the root's twist and where the hips face."""
+    The poses are decoded frame by frame by `PoseDecoder`, as the live engine decodes them, from the ground
+    position of ``root0_m`` and the heading of ``root_quat0``. With the overhead camera's ground position (T, 2) m
+    and/or body heading (T,) rad (NaN = no fix) the integrated root is pulled towards them frame by frame
+    (engine/graph/warp.py; the first fix places it), so the global error is the camera's instead of metres of
+    drift; `skeleton` (needed for the heading) gives the offset between the root's twist and where the hips
+    face."""
     rec = HMMReconstructor(model)
-    quats = [None] * len(acc_g) if quat_wxyz is None else quat_wxyz
-    frames = [rec.push(a, g, q) for a, g, q in zip(acc_g, gyro_rps, quats)]
     heading0, _ = split_heading(root_quat0[None])
-    body = np.stack([f.body for f in frames])
-    root, quats = decode(body, joints, root0_m, float(heading0[0]))
-    if camera_position_m is None and camera_heading_rad is None:
-        return root, quats, frames
-    return (*_follow_camera(body, joints, root, quats, float(heading0[0]), camera_position_m, camera_heading_rad,
-                            skeleton, root_warp, model.fps), frames)
-
-
-def _follow_camera(body: np.ndarray, joints: int, root: np.ndarray, quats: np.ndarray, heading0: float,
-                   cam_pos: np.ndarray | None, cam_head: np.ndarray | None, skeleton, warp: RootWarp,
-                   fps: float) -> tuple[np.ndarray, np.ndarray]:
-    """The decoded root re-integrated from the same per-frame steps with the camera warp (see `reconstruct`)."""
-    n = len(body)
-    local, dheading = body[:, joints * 4: joints * 4 + 3], np.r_[0.0, body[1:, -1]]
-    integrated = heading0 + np.cumsum(dheading)
-    offset = 0.0
-    if skeleton is not None and cam_head is not None:
-        offset = root_heading(Motion(skeleton, fps, root, quats)) - integrated  # hips' heading minus root twist
-    fixes = np.zeros(n, dtype=bool)
-    known = [np.flatnonzero(np.all(np.isfinite(np.asarray(a, float).reshape(n, -1)), axis=1))
-             for a in (cam_pos, cam_head) if a is not None]
-    first = min((k[0] for k in known if len(k)), default=None)
-    if first is not None:
-        fixes[first] = True
-    ground, heading = follow_camera(local[:, [0, 2]], dheading, (complex(root[0, 0], root[0, 2]), heading0),
-                                    None if cam_pos is None else np.asarray(cam_pos, float),
-                                    None if cam_head is None else np.asarray(cam_head, float), warp, fps,
-                                    reset=fixes, heading_offset_rad=offset)
-    root = root.copy()
-    root[:, 0], root[:, 2] = ground[:, 0], ground[:, 1]
-    quats = quats.copy()
-    quats[:, 0] = quaternions.multiply(yaw_quat(heading - integrated), quats[:, 0])
-    return root, quats
+    decoder = PoseDecoder(joints, model.fps, root_warp, skeleton, np.asarray(root0_m, float)[[0, 2]],
+                          float(heading0[0]))
+    quats = [None] * len(acc_g) if quat_wxyz is None else quat_wxyz
+    frames, roots, rotations = [], [], []
+    for t, (a, g, q) in enumerate(zip(acc_g, gyro_rps, quats)):
+        frames.append(rec.push(a, g, q))
+        root, rots = decoder.step(frames[-1].body, None if camera_position_m is None else camera_position_m[t],
+                                  None if camera_heading_rad is None else camera_heading_rad[t])
+        roots.append(root)
+        rotations.append(rots)
+    return np.stack(roots), np.stack(rotations), frames
 
 
 def to_motion(skeleton, fps: float, root_m: np.ndarray, quats: np.ndarray, foot_ik: bool = True, name: str = "") -> Motion:

@@ -1,4 +1,4 @@
-"""Body features X and IMU features Y per frame (spec B1), and decoding X back to a pose.
+"""Body features X and IMU features Y per frame (spec B1); `engine.hmm.pose_decoder` decodes X back to a pose.
 
 X_t = [local joint quaternions (root with its heading removed, w >= 0), root ground displacement since t-1 in
 the heading frame of t-1 with the root height in the vertical slot (m), heading change (rad)]. Joint angular velocities (also in the paper's X) are left
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.mocap import Motion, SensorPlacement, quaternions, virtual_accelerometers, virtual_gyroscopes
+from engine.mocap import Motion, SensorPlacement, virtual_accelerometers, virtual_gyroscopes
 from engine.mocap.orientation import virtual_orientations
-from engine.olng.pose import reference_quats, split_heading, yaw_quat
+from engine.olng.pose import reference_quats, split_heading
 
 
 def body_features(motion: Motion) -> np.ndarray:
@@ -72,20 +72,3 @@ def stack_imu(acc_g: np.ndarray, gyro_rps: np.ndarray | None, tilt: np.ndarray |
     """(..., S, 3) blocks -> (..., w S) IMU feature vectors, per IMU [acc, gyro, tilt] of those given (not None)."""
     parts = [p for p in (acc_g, gyro_rps, tilt) if p is not None]
     return np.concatenate(parts, axis=-1).reshape(acc_g.shape[:-2] + (-1,))
-
-
-def decode(features: np.ndarray, joints: int, root0_m: np.ndarray, heading0_rad: float) -> tuple[np.ndarray, np.ndarray]:
-    """Body features (T, J*4 + 4) -> (root positions (T, 3) m, local quaternions (T, J, 4)), integrating the
-    root displacement and heading change from the given start."""
-    quats = features[:, : joints * 4].reshape(len(features), joints, 4)
-    quats = quats / np.linalg.norm(quats, axis=-1, keepdims=True)
-    local, dheading = features[:, joints * 4: joints * 4 + 3], features[:, -1]
-    heading = heading0_rad + np.cumsum(np.r_[0.0, dheading[1:]])
-    prev = np.r_[heading[0], heading[:-1]]
-    c, s = np.cos(prev), np.sin(prev)
-    world_step = np.stack([c * local[:, 0] + s * local[:, 2], np.zeros(len(local)), -s * local[:, 0] + c * local[:, 2]], axis=1)
-    world_step[0] = 0.0
-    root = root0_m + np.cumsum(world_step, axis=0)
-    root[:, 1] = local[:, 1]
-    quats[:, 0] = quaternions.multiply(yaw_quat(heading), quats[:, 0])
-    return root, quats

@@ -34,32 +34,21 @@ class HMMEngine:
     """`engine.hmm.HMMReconstructor` in the `OnlineEngine` protocol. ``models`` maps `HMMConfig.imu_channels` to
     a trained model; the first complete frame picks the richest model it can feed (module doc; "acc" when the
     frame brings neither gyro nor orientation) for the whole session. Each frame is decided at once (no lag): its
-    body features are decoded incrementally -- root ground step and heading change integrated from the first
-    frame, standing at the origin facing +z, as `engine.hmm.features.decode` does for a whole take -- and the pose
-    is that root and those local joint rotations of ``skeleton``, its joints their forward kinematics
-    (`engine.stream.decided`), so the console, the poses file and the BVH file show one pose.
-
-    A camera fix pulls the integrated root towards it after every frame by the bounded root warp
-    (engine/graph/warp.py; the first fix places the root), exactly as the batch `engine.hmm.evaluation.reconstruct`
-    does, so a take gives the same root live and offline; the heading fix is where the hips face, read off this
-    frame's pose. A dropout frame is the reconstructor's own rule (no evidence: the chains move on their
-    transitions); nothing is emitted before the first complete reading."""
+    body features are decoded by `engine.hmm.pose_decoder.PoseDecoder` -- the batch reconstruction's decoder, so a
+    take gives the same poses live and offline, camera warp included -- standing at the origin facing +z on the
+    first frame. The pose is that root and those local joint rotations of ``skeleton``, its joints their forward
+    kinematics (`engine.stream.decided`), so the console, the poses file and the BVH file show one pose. A dropout
+    frame is the reconstructor's own rule (no evidence: the chains move on their transitions); nothing is emitted
+    before the first complete reading."""
 
     def __init__(self, models: Mapping[str, Any], skeleton: Any, root_warp: RootWarp | None = None) -> None:
-        from engine.graph.warp import RootWarp
-        from engine.mocap import joint_roles
-
         self.models = dict(models)
         self.skeleton = skeleton
-        self.root_warp = RootWarp() if root_warp is None else root_warp
+        self.root_warp = root_warp
         self.n_sensors = next(iter(self.models.values())).imu_mean.shape[0] // 3
-        roles = joint_roles(skeleton)
-        self._hips = (roles["left_hip"], roles["right_hip"])
         self.rec: Any = None             # the session's HMMReconstructor, once the first frame chose its model
+        self.decoder: Any = None         # ... and its PoseDecoder
         self.t = -1
-        self._ground: complex | None = None  # root on the ground (x + iz) m, None before the first emitted frame
-        self._heading = 0.0              # integrated root heading rad
-        self._fixed = False              # has a camera fix placed the root yet?
 
     @property
     def channels(self) -> str | None:
@@ -67,6 +56,7 @@ class HMMEngine:
         return None if self.rec is None else self.rec.model.config.imu_channels
 
     def _start(self, quat_wxyz: np.ndarray | None, gyro_rps: np.ndarray | None) -> None:
+        from .pose_decoder import PoseDecoder
         from .reconstructor import HMMReconstructor
 
         gyro = gyro_rps is not None and bool(np.all(np.isfinite(gyro_rps)))
@@ -75,11 +65,12 @@ class HMMEngine:
         # no model the frame can feed (`courtside reconstruct`'s one acc + gyro model): the first, its missing
         # channel a dropout
         self.rec = HMMReconstructor(self.models[fed[0] if fed else next(iter(self.models))])
+        self.decoder = PoseDecoder(self.skeleton.n_joints, self.rec.model.fps, self.root_warp, self.skeleton)
 
     def push(self, acc_g: np.ndarray | None, pos_m: Any = None, heading_rad: float | None = None, *,
              quat_wxyz: np.ndarray | None = None, gyro_rps: np.ndarray | None = None) -> list[EnginePose]:
         self.t += 1
-        if acc_g is None and self._ground is None:
+        if acc_g is None and self.rec is None:
             return []
         if self.rec is None:
             self._start(quat_wxyz, gyro_rps)
@@ -88,45 +79,7 @@ class HMMEngine:
         gyro = np.full((self.n_sensors, 3), np.nan) if gyro_rps is None else gyro_rps
         quats = np.full((self.n_sensors, 4), np.nan) if quat_wxyz is None else quat_wxyz
         body = self.rec.push(reading, gyro, quats).body
-        step = body[self.skeleton.n_joints * 4: self.skeleton.n_joints * 4 + 3]
-        if self._ground is None:
-            self._ground = 0j
-        else:
-            self._ground += complex(step[0], step[2]) * np.exp(-1j * self._heading)
-            self._heading += float(body[-1])
-        self._follow_camera(body, pos_m, heading_rad)
-        root, rotations = self._pose(body, self._heading)
-        return [decided_pose(self.skeleton, self.t, root, rotations)]
-
-    def _pose(self, body: np.ndarray, heading_rad: float) -> tuple[np.ndarray, np.ndarray]:
-        """Root (3,) m at the current ground position and local rotations (J, 4) of ``body`` at this heading."""
-        from .features import decode
-
-        roots, rotations = decode(body[None], self.skeleton.n_joints,
-                                  np.array([self._ground.real, 0.0, self._ground.imag]), heading_rad)
-        return roots[0], rotations[0]
-
-    def _follow_camera(self, body: np.ndarray, pos_m: Any, heading_rad: float | None) -> None:
-        """Pull the root towards this frame's camera fix (`engine.graph.warp.follow_camera`'s rule, one frame)."""
-        from engine.graph.warp import warp_one
-        from engine.mocap import heading_from_positions
-
-        pos = None if pos_m is None or np.any(np.isnan(pos_m)) else complex(pos_m[0], pos_m[1])
-        head = None if heading_rad is None or np.isnan(heading_rad) else float(heading_rad)
-        if pos is None and head is None:
-            return
-        offset = 0.0  # where the hips face minus the root's integrated twist
-        if head is not None:
-            joints = decided_pose(self.skeleton, self.t, *self._pose(body, 0.0)).joint_positions_m
-            offset = float(heading_from_positions(joints[None], *self._hips)[0])
-        if not self._fixed:
-            self._ground = pos if pos is not None else self._ground
-            self._heading = head - offset if head is not None else self._heading
-            self._fixed = True
-            return
-        self._ground, body_heading = warp_one(self._ground, self._heading + offset, pos, head, self.root_warp,
-                                              self.rec.model.fps)
-        self._heading = body_heading - offset
+        return [decided_pose(self.skeleton, self.t, *self.decoder.step(body, pos_m, heading_rad))]
 
     def flush(self) -> list[EnginePose]:
         return []

@@ -39,8 +39,8 @@ def _bvh_joints(path) -> np.ndarray:
 
 
 def test_the_engine_decodes_as_the_batch_reconstruction_camera_warp_included(motions):
-    """Pushed frame by frame with camera fixes (ground and heading), the engine's root and rotations are those of
-    `engine.hmm.evaluation.reconstruct` on the whole take, and its joints their FK."""
+    """Live = offline: pushed frame by frame with camera fixes (ground and heading), the engine's root and
+    rotations are those of `engine.hmm.evaluation.reconstruct` on the whole take, and its joints their FK."""
     model = train_model([motions[i] for i in (2, 3, 4)], IMUS)
     skeleton = motions[0].skeleton
     acc, gyro, ground = _walk(motions)
@@ -56,6 +56,31 @@ def test_the_engine_decodes_as_the_batch_reconstruction_camera_warp_included(mot
     joints = np.stack([p.joint_positions_m for p in poses])
     np.testing.assert_allclose(joints, forward_kinematics(Motion(skeleton, RATE_HZ, root, quats))[0], atol=1e-9)
     assert np.abs(joints[0, 0, [0, 2]] - ground[0]).max() < 1e-12  # the first fix places the root
+
+
+def test_the_decoder_follows_the_camera_by_the_warp_rule_and_faces_the_hips_to_a_heading_fix(motions):
+    """Frame by frame, the decoder's root is `engine.graph.warp.follow_camera`'s path for the same steps and fixes
+    (the first fix places it); with the skeleton, a first heading fix turns the body so its hips face it."""
+    from engine.graph.warp import RootWarp, follow_camera
+    from engine.hmm.features import body_features
+    from engine.hmm.pose_decoder import PoseDecoder
+    from engine.mocap import heading_from_positions, joint_roles, pose_joint_positions
+
+    walk = resample(motions[5], RATE_HZ)
+    body = body_features(walk)[:FRAMES]
+    joints = walk.skeleton.n_joints
+    fixes = walk.root_positions_m[:FRAMES][:, [0, 2]] + 0.3
+    fixes[:3] = np.nan
+    heading = np.full(FRAMES, np.nan)
+    decoder = PoseDecoder(joints, RATE_HZ, RootWarp())
+    roots = np.stack([decoder.step(b, f)[0] for b, f in zip(body, fixes)])
+    ground, _ = follow_camera(body[:, joints * 4: joints * 4 + 3][:, [0, 2]], np.r_[0.0, body[1:, -1]], (0j, 0.0),
+                              fixes, heading, RootWarp(), RATE_HZ, reset=np.arange(FRAMES) == 3)
+    np.testing.assert_allclose(roots[:, [0, 2]], ground, atol=1e-9)
+    roles = joint_roles(walk.skeleton)
+    decoder = PoseDecoder(joints, RATE_HZ, RootWarp(), walk.skeleton)
+    pose = pose_joint_positions(walk.skeleton, *decoder.step(body[0], None, 1.0))
+    assert heading_from_positions(pose[None], roles["left_hip"], roles["right_hip"])[0] == pytest.approx(1.0)
 
 
 @pytest.mark.parametrize("lag", [None, "0.5"])
