@@ -6,12 +6,15 @@ import time
 from dataclasses import replace
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from engine.stream.decided import decided_pose
 from engine.stream.engines import EngineMismatchError, EnginePose, EngineSpec
+
+if TYPE_CHECKING:
+    from .config import OLNGConfig
 
 
 class OLNGEngine:
@@ -32,7 +35,7 @@ class OLNGEngine:
     skeleton (`skeleton`), its joints their forward kinematics (`engine.stream.decided`): the console, the poses
     file and the BVH file show one pose."""
 
-    def __init__(self, kb: Any, keep_up: bool = False, config: Any = None) -> None:
+    def __init__(self, kb: Any, keep_up: bool = False, config: OLNGConfig | None = None) -> None:
         from .config import OLNGConfig
         from .keep_up import Effort, KeepUp, effort_levels
         from .mocap_bridge import skeleton_from_rig
