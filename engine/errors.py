@@ -36,10 +36,28 @@ class UsageError(CourtsideError):
     """A bad command-line argument (argparse's own checks: unknown option, missing value, bad choice)."""
 
 
+class DefaultsHelpFormatter(argparse.HelpFormatter):
+    """argparse's help with each option's default said after its text, unless the text already says it or there is
+    no value to say (None, a flag, an empty list): argparse's own `ArgumentDefaultsHelpFormatter` would print
+    "(default: None)" and repeat the many defaults the texts name in their own words."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        default = action.default
+        if (not action.option_strings or "default" in text.lower() or isinstance(default, bool)
+                or not isinstance(default, (int, float, str, Path)) or default == argparse.SUPPRESS):
+            return text
+        return f"{text} (default: %(default)s)"
+
+
 class ArgumentParser(argparse.ArgumentParser):
     """argparse in the project's one error style: a bad argument raises `UsageError`, which the dispatcher (or
     `cli_command`) reports as one line with exit status 2, like any other bad input, instead of argparse's usage
-    block and `SystemExit`. ``--help`` is unchanged."""
+    block and `SystemExit`. ``--help`` says each option's default (`DefaultsHelpFormatter`)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", DefaultsHelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> None:  # type: ignore[override]
         raise UsageError(f"{message} (see {self.prog} --help)")

@@ -362,11 +362,14 @@ class StationReader(ReaderThread):
             self.unwrapper.restart(hello.tick_rate_hz)
             self._on_clock_reset(f"station rebooted (boot id {hello.boot_id:#x})")
         self._epoch_at_hello = self.unwrapper.epoch
+        repeated = hello == self.hello  # the same boot's HELLO again (its unsolicited one, then our request's)
         self.hello = hello
         for info in hello.sensors:
             self._sensor(info.sensor_id).nominal_hz = float(info.rate_hz)
         if self.link_state == "connecting":
             self.link_state = "streaming"
+        if repeated:  # nothing new to log or tell the consoles
+            return
         self.sink.on_station_event(self.name, "info", "hello: firmware "
                                    f"{'.'.join(map(str, hello.firmware_version))}, {len(hello.sensors)} sensors, "
                                    f"{hello.tick_rate_hz} ticks/s", {"boot_id": hello.boot_id,

@@ -78,7 +78,14 @@ def _console_parser() -> argparse.ArgumentParser:
 
 
 def _demo_parser() -> argparse.ArgumentParser:
-    p = ArgumentParser(prog="courtside demo", description=__doc__.split("\n")[0])
+    p = ArgumentParser(prog="courtside demo",
+                       description="Everything on one machine, no hardware: two emulated athletes (base stations "
+                                   "replaying held-out CMU mocap clips as worn sensors over pseudo-terminals), a "
+                                   "synthetic overhead camera with the real tracker, the gateway (in a child "
+                                   "process) and the console synthesizing both athletes live.",
+                       epilog="Headless: courtside demo --duration 60 --screenshots out/ (without a display it runs "
+                              "offscreen; ./demo.sh starts Xvfb). Consoles on other machines need a gateway with a "
+                              "secret: courtside gateway --config court.toml (docs/gateway.md).")
     p.add_argument("--duration", type=float, default=None, help="exit after this many seconds (default: run until closed)")
     p.add_argument("--screenshots", type=Path, default=None, metavar="DIR", help="save PNGs of the views before exiting")
     p.add_argument("--lag", type=float, default=0.5, help="synthesis fixed lag, seconds (default 0.5)")

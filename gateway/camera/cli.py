@@ -128,32 +128,41 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str]) -> int:
-    parser = ArgumentParser(prog="courtside camera", description=__doc__.split("\n")[0])
+    parser = ArgumentParser(prog="courtside camera",
+                            description="The overhead camera offline: render a synthetic court video with its "
+                                        "calibration and ground truth (synth), fit a court calibration from clicked "
+                                        "keypoints (calibrate), track the player in a video (track).",
+                            epilog="`courtside camera COMMAND --help` for a command's options. Live, the gateway "
+                                   "runs the camera (`courtside gateway --camera SRC --court court.json`).")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("synth", help="render a synthetic court clip + calibration + ground truth")
-    p.add_argument("--out", type=Path, default=Path("court.mp4"))
-    p.add_argument("--calibration", type=Path, default=Path("court.json"))
-    p.add_argument("--truth", type=Path, default=Path("court_truth.csv"))
-    p.add_argument("--seconds", type=float, default=10.0)
+    p.add_argument("--out", type=Path, default=Path("court.mp4"), help="video file to write")
+    p.add_argument("--calibration", type=Path, default=Path("court.json"),
+                   help="court calibration of the rendered camera, for `courtside gateway --court`")
+    p.add_argument("--truth", type=Path, default=Path("court_truth.csv"),
+                   help="the player's true court position per frame (for `track --truth`)")
+    p.add_argument("--seconds", type=float, default=10.0, help="length of the clip")
     p.add_argument("--clip", help="a shipped CMU clip name (e.g. 16_21) instead of the scripted rally")
     p.add_argument("--x", type=float, default=0.0, help="court x (m) of the clip's mean root position")
     p.add_argument("--y", type=float, default=-8.0, help="court y (m) of the clip's mean root position")
-    p.add_argument("--fps", type=float, default=30.0)
-    p.add_argument("--width", type=int, default=800)
-    p.add_argument("--height", type=int, default=450)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--fps", type=float, default=30.0, help="frame rate of the video")
+    p.add_argument("--width", type=int, default=800, help="frame width, pixels")
+    p.add_argument("--height", type=int, default=450, help="frame height, pixels")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the scripted rally and the image noise")
     p.add_argument("--opponent", action="store_true", help="an opponent rallies on the far half (a distractor)")
     p.set_defaults(run=synth)
     p = sub.add_parser("calibrate", help="fit a court calibration from clicked keypoints")
     p.add_argument("--clicks", required=True, help='JSON {"near_baseline_left_doubles": [u, v], ...}')
-    p.add_argument("--image-size", type=int, nargs=2, required=True, metavar=("W", "H"))
+    p.add_argument("--image-size", type=int, nargs=2, required=True, metavar=("W", "H"),
+                   help="size of the image the keypoints were clicked on, pixels")
     p.add_argument("--focal-px", type=float, help="focal length (px) if known: enables the camera pose")
     p.add_argument("--ransac-px", type=float, help="RANSAC inlier threshold (px) to survive a misclick")
-    p.add_argument("--out", type=Path, default=Path("court.json"))
+    p.add_argument("--out", type=Path, default=Path("court.json"), help="court calibration file to write")
     p.set_defaults(run=calibrate)
     p = sub.add_parser("track", help="track the player in a video file")
-    p.add_argument("--video", type=Path, required=True)
-    p.add_argument("--calibration", type=Path, required=True)
+    p.add_argument("--video", type=Path, required=True, help="video file of the overhead camera")
+    p.add_argument("--calibration", type=Path, required=True,
+                   help="court calibration of that camera (from `calibrate` or `synth`)")
     p.add_argument("--out", type=Path, help="JSON-lines output (default stdout)")
     p.add_argument("--truth", type=Path, help="ground-truth CSV from `synth`: print the position RMS")
     p.add_argument("--side", choices=("near", "far"), help="half the instrumented player starts on (acquire "

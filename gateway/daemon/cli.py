@@ -12,17 +12,16 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, cli_command
 from engine.progress import add_quiet_argument
 from gateway import auth
+from gateway.court_config import CourtConfig
 from gateway.recorder import export_take
 
 from .core import DEFAULT_LISTEN
 
-if TYPE_CHECKING:
-    from gateway.court_config import CourtConfig
+_DEFAULTS = CourtConfig()  # what an option not given (and not in --config) is: its help says so
 
 # ---------------------------------------------------------------------------------------------------- CLI
 EXIT_OK = 0  # stopped by SIGINT/SIGTERM or --duration: recording flushed and closed
@@ -62,7 +61,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="find stations by USB VID:PID 1209:C0DE (serial + HID), also hot-plugged ones")
     g.add_argument("--emulate", type=int, default=None, metavar="N", help="start N emulated stations over ptys")
     g.add_argument("--emulate-motion", default=None, metavar="mocap|none",
-                   help="emulated sensors replay mocap clips (default) or stay still")
+                   help=f"emulated sensors replay mocap clips or stay still (default {_DEFAULTS.stations.emulate_motion})")
     g.add_argument("--emulate-clip", action="append", default=None, metavar="CLIP",
                    help="shipped clip name or .bvh/.amc file to replay (repeatable; default every shipped clip)")
     g.add_argument("--emulate-orientation", action=argparse.BooleanOptionalAction, default=None,
@@ -72,17 +71,22 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--camera", default=None, metavar="SRC", help="V4L2 index, device path or video file")
     g.add_argument("--court", type=Path, default=None, metavar="JSON",
                    help="court calibration (`courtside camera calibrate ... --out court.json`)")
-    g.add_argument("--player-side", default=None, metavar="near|far", help="half the player starts on")
-    g.add_argument("--camera-fps", type=float, default=None, help="frame rate asked of a live camera")
+    g.add_argument("--player-side", default=None, metavar="near|far",
+                   help="half the player starts on (default: the largest moving figure anywhere)")
+    g.add_argument("--camera-fps", type=float, default=None,
+                   help="frame rate asked of a live camera (default: the camera's own; files play at their rate)")
     g.add_argument("--camera-loop", action=argparse.BooleanOptionalAction, default=None,
-                   help="play a video file again at its end")
+                   help="play a video file again at its end (default: no)")
     g = p.add_argument_group("calibration")
     g.add_argument("--placements", type=lambda text: [s.strip() for s in text.split(",") if s.strip()], default=None,
                    metavar="SITE,SITE,...", help="worn sensor sites: attaches the calibration wizard")
-    g.add_argument("--pose", default=None, metavar="npose|tpose", help="calibration pose (default npose)")
-    g.add_argument("--calibration-dir", type=Path, default=None, help="where calibration records are saved")
+    g.add_argument("--pose", default=None, metavar="npose|tpose",
+                   help=f"calibration pose (default {_DEFAULTS.calibration.pose})")
+    g.add_argument("--calibration-dir", type=Path, default=None,
+                   help=f"where calibration records are saved (default ./{_DEFAULTS.calibration.records_dir})")
     g = p.add_argument_group("recording and network")
-    g.add_argument("--record-dir", type=Path, default=None, help="where takes are written (default ./recordings)")
+    g.add_argument("--record-dir", type=Path, default=None,
+                   help=f"where takes are written (default ./{_DEFAULTS.record_dir})")
     g.add_argument("--record", metavar="TAKE", help="start recording this take at once (TAKE-2... if it exists)")
     g.add_argument("--listen", default=None, help=f"host:port for clients (default {DEFAULT_LISTEN}; beyond "
                    "loopback needs --secret-file)")
@@ -90,15 +94,23 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--viewer-secret-file", type=Path, default=None, help="viewer secret (watch only)")
     g.add_argument("--tls-cert", type=Path, default=None, help="PEM certificate: serve TLS")
     g.add_argument("--tls-key", type=Path, default=None, help="PEM private key for --tls-cert")
-    g.add_argument("--max-clients", type=int, default=None)
-    g.add_argument("--handshake-timeout", type=float, default=None, metavar="S")
+    g.add_argument("--max-clients", type=int, default=None, metavar="N",
+                   help=f"consoles and other clients connected at once; more are refused (default "
+                        f"{_DEFAULTS.max_clients})")
+    g.add_argument("--handshake-timeout", type=float, default=None, metavar="S",
+                   help=f"seconds a new client has to authenticate before it is dropped (default "
+                        f"{_DEFAULTS.handshake_timeout_s:g})")
     g = p.add_argument_group("lab streaming layer")
     g.add_argument("--lsl", action="store_const", const=True, default=None,
                    help="publish one LSL outlet per station (pip install 'courtside[lsl]')")
     g.add_argument("--lsl-scope", default=None, help="machine (default: liblsl kept on 127.0.0.1) or network")
-    p.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
-    p.add_argument("--quiet", action="store_true", help="no status lines")
-    p.add_argument("--log-level", default=None, help="DEBUG, INFO (default), WARNING, ERROR")
+    p.add_argument("--duration", type=float, default=None, help="exit after this many seconds (default: run until "
+                   "stopped: Ctrl+C or SIGTERM)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no status lines and no INFO log lines: warnings and errors only (the 'gateway listening "
+                        "on HOST:PORT' line stays, scripts read the port from it)")
+    p.add_argument("--log-level", default=None,
+                   help=f"DEBUG, INFO, WARNING or ERROR (default {_DEFAULTS.log_level}; WARNING with --quiet)")
     return p
 
 
@@ -112,9 +124,9 @@ def _export_parser() -> argparse.ArgumentParser:
     return p
 
 
-def load_config(args: argparse.Namespace) -> "CourtConfig":
+def load_config(args: argparse.Namespace) -> CourtConfig:
     """The court config file (or the defaults) with the command line's options applied on top."""
-    from gateway.court_config import CourtConfig, check_consistent, load_court_config, with_overrides
+    from gateway.court_config import check_consistent, load_court_config, with_overrides
 
     config = load_court_config(args.config, check=False) if args.config else CourtConfig()
     overrides = {key: getattr(args, flag) for flag, key in FLAG_KEYS.items()}
@@ -153,7 +165,8 @@ def _export_main(argv: list[str]) -> int:
 def _new_secret_main(argv: list[str]) -> int:
     p = ArgumentParser(prog="courtside gateway new-secret",
                        description="Write a new random secret to FILE (mode 600; never overwrites).")
-    p.add_argument("file", type=Path)
+    p.add_argument("file", type=Path, help="where the secret goes: give it to `--secret-file` (or [auth] in the "
+                   "court config) here and on each console machine")
     args = p.parse_args(argv)
     try:
         auth.write_secret_file(args.file)
@@ -183,7 +196,8 @@ def main(argv: list[str] | None = None) -> int:
         return _new_secret_main(argv[1:])
     args = _parser().parse_args(argv)
     config = load_config(args)  # CourtsideError -> one line, exit 2 (gateway.cli)
-    logging.basicConfig(level=config.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    level = logging.WARNING if args.quiet and args.log_level is None else config.log_level
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     from gateway.assembly import StartError, build_court
 
     stop = threading.Event()

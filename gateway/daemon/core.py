@@ -133,7 +133,7 @@ class Gateway:
         if self.camera is not None:
             self.camera.start(self.publish_camera)
         self._status_thread.start()
-        log.info("gateway listening on %s:%d", *self.address)
+        log.debug("gateway listening on %s:%d", *self.address)  # the command prints it (one line, with its auth mode)
         return self
 
     def stop(self) -> None:
