@@ -206,8 +206,12 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
         record(Row(ORACLE, "-", CAMERA_ON),
                lambda: engines.Prediction(*_oracle(graph, take, cam_pos, cam_head)))
     if "motion-graph" in cfg.engines:
-        quats, calibration = None, None
-        if "acc+ori" in cfg.inputs and cfg.capture is not None:
+        quats, calibration, acc_ori = None, None, acc
+        if "acc+ori" in cfg.inputs and cfg.capture is not None and cfg.capture.from_take:
+            acc_ori, quats, calibration = simulate.take_calibrated_sensors(
+                take, graph.config.sensor_names, acc, cfg.orientation_model, np.random.default_rng(streams[4]),
+                cfg.capture, graph)
+        elif "acc+ori" in cfg.inputs and cfg.capture is not None:
             quats, calibration = simulate.calibrated_orientations(
                 take, graph.config.sensor_names, cfg.orientation_model, np.random.default_rng(streams[4]),
                 cfg.capture, graph.skeleton)
@@ -221,7 +225,8 @@ def evaluate_take(take: Take, held: HeldOut, cfg: EvalConfig, rng_seed: list[int
             for k, idx in sets:
                 for camera, w in ((CAMERA_ON, w_on), (CAMERA_OFF, w_off)):
                     record(Row(name, str(k), camera),
-                           lambda: engines.motion_graph(graph, acc, idx, cam.position_m, cam.heading_rad, w,
+                           lambda: engines.motion_graph(graph, acc_ori if ori else acc, idx, cam.position_m,
+                                                        cam.heading_rad, w,
                                                         camera == CAMERA_ON, cfg.warp, cfg.lag_s, cfg.fusion,
                                                         cfg.error_model, quats if ori else None,
                                                         calibration))
@@ -331,4 +336,5 @@ def pooled(per_group: dict[str, dict[Row, RowScores]]) -> dict[Row, RowScores]:
             acc.longest_run_s += scores.longest_run_s
             acc.seconds += scores.seconds
             acc.confidence += scores.confidence
+            acc.exported += scores.exported
     return out

@@ -30,15 +30,17 @@ from .graph import MotionGraph
 
 
 def motion_graph_spec(graph: MotionGraph, database: str | Path, skeleton: Any = None, warp: Any = None,
-                      fusion: Any = None, orientation_calibration: OrientationCalibration | None = None
-                      ) -> EngineSpec:
+                      fusion: Any = None, orientation_calibration: OrientationCalibration | None = None,
+                      reading_corrections: np.ndarray | None = None) -> EngineSpec:
     """Fixed-lag Viterbi over a `MotionGraph` (from `courtside build-graph` or the console's cache), with
     `courtside synthesize`'s defaults: root warping towards the camera (``warp``, default
     `engine.graph.warp.RootWarp()`) and the weights that go with it, the output root fused from the camera track
     (``fusion``, default `engine.graph.root_fusion.RootFusion()`). The confidence reference (the cost per sample
     of the graph's own clips) is measured once here, not at every engine restart. ``orientation_calibration``
     (the graph's sensors in order, `SensorCalibrationData.orientation_calibration`): segments posed with their yaw
-    relative to the pelvis, else by tilt only."""
+    relative to the pelvis, else by tilt only. ``reading_corrections`` (S, 3, 3): each pushed frame's
+    accelerations turned into the graph's nominal sensor frames first (calibrated_input.CorrectedReadings)."""
+    from .calibrated_input import CorrectedReadings
     from .confidence import reference_cost_per_sample
     from .online import FixedLagSynthesizer
     from .orientation_term import places_sensors
@@ -62,10 +64,14 @@ def motion_graph_spec(graph: MotionGraph, database: str | Path, skeleton: Any = 
     inputs = (ACC, ORIENTATION) if listens else (ACC,)
     note = "" if not (listens and weights.segment_pose > 0) else \
         "calibrated yaw" if orientation_calibration is not None else "tilt only"
+
+    def make(lag_s: float) -> Any:
+        engine = FixedLagSynthesizer(graph, lag_s, weights, warp=warp, confidence_reference=reference, fusion=fusion,
+                                     orientation_calibration=orientation_calibration)
+        return engine if reading_corrections is None else CorrectedReadings(engine, reading_corrections)
+
     return EngineSpec("motion-graph", str(database), names, float(graph.config.fps), np.asarray(skeleton.parents),
-                      lambda lag_s: FixedLagSynthesizer(graph, lag_s, weights, warp=warp,
-                                                        confidence_reference=reference, fusion=fusion,
-                                                        orientation_calibration=orientation_calibration),
+                      make,
                       graph=graph,
                       skeleton=skeleton,
                       inputs=inputs,
@@ -132,8 +138,15 @@ def build_spec(motions: Sequence[Motion], database: str) -> EngineSpec:
 
 
 def load_spec(path: str | Path, calibration: SensorCalibrationData | None = None) -> EngineSpec:
-    """The motion-graph engine on a graph file from `courtside build-graph`; a record's orientation calibration
-    applies to any graph (its sensor frames are the placements', not a skeleton's joint frames), its mounting
-    rotations only to a graph built with them."""
+    """The motion-graph engine on a graph file from `courtside build-graph` with a record's calibration applied
+    as `courtside synthesize --calibration` applies it: the orientation calibration poses the segments, the
+    mounting rotations turn each frame's readings into the graph's nominal sensor frames (a record made for
+    another skeleton's joint frames is refused)."""
+    from .calibrated_input import correction_matrices
+
     graph = MotionGraph.load(path)
-    return motion_graph_spec(graph, path, orientation_calibration=_orientation_calibration(graph, calibration))
+    corrections = None
+    if calibration is not None and graph.skeleton is not None:
+        corrections = correction_matrices(graph.skeleton, list(graph.config.sensor_names), calibration)
+    return motion_graph_spec(graph, path, orientation_calibration=_orientation_calibration(graph, calibration),
+                             reading_corrections=corrections)

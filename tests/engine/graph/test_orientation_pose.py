@@ -271,3 +271,49 @@ def test_strap_refinement_learns_little_from_a_segment_the_played_poses_do_not_f
     learnt_share = 2 * np.arccos(np.clip(np.abs(posing._strap[limbs, 0]), 0.0, 1.0)) / angles[limbs]
     assert np.all(learnt_share[[0, 2, 3]] > 0.7)  # measured 0.86: the 8-deg misfits weigh 0.85
     assert learnt_share[1] < 0.5 * learnt_share[[0, 2, 3]].min()  # unweighted: the same share (measured 0.32)
+
+
+def test_the_console_on_a_graph_file_applies_the_record_s_mountings_as_synthesize_does(graph, sample_motions,
+                                                                                     tmp_path, capsys):
+    """A record whose left forearm sensor sits 30 deg twisted (its readings turned alike): the console's engine on
+    the graph file (`load_spec(graph, record)`) turns each pushed frame's readings into the nominal frame as
+    `courtside synthesize --calibration --lag` turns the take, so both give the same poses, bit for bit; without
+    the turn the poses differ."""
+    import json
+
+    from engine.graph.cli import synthesize_main
+    from engine.graph.inputs import read_take
+    from engine.graph.online_engine import load_spec
+    from engine.mocap import load_sensor_calibration
+    from engine.stream.offline import drive_take
+    from engine.stream.poses_file import load_poses
+
+    graph_path = tmp_path / "g.npz"
+    graph.save(graph_path)
+    take, record = _take_with_npose_capture(tmp_path, sample_motions[1])
+    a = np.radians(30.0)
+    twist = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    with np.load(take) as data:
+        arrays = dict(data)
+    arrays["acc_g"][:, 0] = arrays["acc_g"][:, 0] @ twist  # the strapped sensor reads twistᵀ a
+    np.savez(take, **arrays)
+    content = json.loads(record.read_text())
+    entry = content["sensors"]["st1/0"]
+    entry["rotation"] = (np.array(entry["rotation"]) @ twist).tolist()
+    entry["correction_deg"] = 30.0
+    record.write_text(json.dumps(content))
+    assert synthesize_main(["--graph", str(graph_path), "--input", str(take), "-o", str(tmp_path / "out.bvh"),
+                            "--calibration", str(record), "--lag", "1.0", "--save-poses",
+                            str(tmp_path / "poses.npz")]) == 0
+    capsys.readouterr()
+    offline = load_poses(tmp_path / "poses.npz").joint_positions_m
+    frames = read_take(take, graph.config.sensor_names, graph.config.fps)
+
+    def console(spec) -> np.ndarray:
+        poses = drive_take(spec.make(1.0), frames.obs.acc_g, frames.obs, int(frames.frame[0]), spec.rate_hz)
+        return np.stack([p.joint_positions_m for p in poses])
+
+    calibration = load_sensor_calibration(record)
+    assert np.array_equal(console(load_spec(graph_path, calibration)), offline)
+    calibration.rotations.pop("left_forearm")  # the same record without the forearm's mounting
+    assert not np.allclose(console(load_spec(graph_path, calibration)), offline, atol=1e-4)
