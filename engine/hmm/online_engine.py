@@ -42,10 +42,13 @@ class HMMEngine:
     before the first complete reading."""
 
     def __init__(self, models: Mapping[str, Any], skeleton: Any, root_warp: RootWarp | None = None) -> None:
+        from .features import IMU_CHANNELS
+
         self.models = dict(models)
         self.skeleton = skeleton
         self.root_warp = root_warp
-        self.n_sensors = next(iter(self.models.values())).imu_mean.shape[0] // 3
+        channels, model = next(iter(self.models.items()))
+        self.n_sensors = model.imu_mean.shape[0] // IMU_CHANNELS[channels]
         self.rec: Any = None             # the session's HMMReconstructor, once the first frame chose its model
         self.decoder: Any = None         # ... and its PoseDecoder
         self.t = -1

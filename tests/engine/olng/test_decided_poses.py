@@ -38,7 +38,7 @@ def _bvh_joints(path) -> np.ndarray:
 
 def test_the_engine_emits_the_reconstruction_as_rotations_whose_fk_are_its_joints(motions):
     """The emitted pose is the reconstructor's (root, local quaternions) unchanged, on the spec's skeleton, and its
-    joints are the reconstructor's world joints (the FK of the same rotations)."""
+    joints are the reconstructor's world joints (the FK of the same rotations), through a dropout too."""
     from engine.olng.online_engine import build_spec
     from engine.olng.reconstructor import OLNGReconstructor
 
@@ -46,6 +46,7 @@ def test_the_engine_emits_the_reconstruction_as_rotations_whose_fk_are_its_joint
     assert spec.skeleton is not None and np.array_equal(spec.parents, spec.skeleton.parents)
     walk = resample(motions[5], spec.rate_hz)
     acc = virtual_accelerometers(walk, standard_placements(walk.skeleton, SEED003_SENSORS))[:FRAMES]
+    acc[20:23] = np.nan  # a dropout: the engine holds the last reading, as the reconstructor does
     engine = spec.make(0.0)
     poses = drive_frames(engine, acc)
     reference = OLNGReconstructor(engine.rec.kb, engine.rec.config)
