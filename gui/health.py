@@ -40,6 +40,30 @@ def sync_status(station: dict[str, Any]) -> Sync:
     return Sync.AMBER if residual < SYNC_AMBER_RESIDUAL_S else Sync.RED
 
 
+SENSOR_LOSS_RED_PCT = 5.0  # a sensor losing this share of its packets is red whatever its station's clock
+
+
+def sync_reason(station: dict[str, Any]) -> str:
+    """The sync light in words, for its cell: the colour says how good, this says why (a cell reading "green" on
+    green said nothing)."""
+    link = station.get("link")
+    if link in ("lost", "stale", "connecting"):
+        return f"link {link}"
+    clock = station.get("clock") or {}
+    if not clock.get("locked"):
+        return "warming up"
+    residual = abs(float(clock.get("residual_s") or 0.0))
+    return "locked" if residual < SYNC_GREEN_RESIDUAL_S else f"residual {1e3 * residual:.1f} ms"
+
+
+def sensor_sync(station: dict[str, Any], sensor: dict[str, Any]) -> tuple[Sync, str]:
+    """A sensor's light and its reason: its station's, or red when it loses too many packets."""
+    loss = float(sensor.get("loss_pct") or 0.0)
+    if loss >= SENSOR_LOSS_RED_PCT:
+        return Sync.RED, f"loss {loss:.1f} %"
+    return sync_status(station), sync_reason(station)
+
+
 @dataclass(frozen=True)
 class Alarm:
     """One alarm condition; ``key`` identifies it so a banner is shown once and cleared when it goes away."""

@@ -1,18 +1,29 @@
 """Device panel: every base station and sensor with link/battery/RSSI/rate/loss/CRC/clock/sync state, an
-identify (blink) button per sensor, and the sensor -> body-segment mapping on a simple body diagram."""
+identify (blink) button per sensor, and the sensor -> body-segment mapping on a body diagram per athlete.
+
+Readability (issue 30): the sync cell's colour says how good and its text why ("locked", "warming up",
+"residual 7.2 ms"), never the colour's name; a station's clock offset is its power-on time, huge and harmless, so
+it is shown in seconds with a tooltip saying so; identify buttons keep their own width."""
 from __future__ import annotations
 
 from typing import Any
 
 from PySide6 import QtCore, QtGui, QtWidgets
 
-from gui.health import Sync, sync_status
+from gui.health import Sync, sensor_sync, sync_reason, sync_status
 from gui.widgets import VIEWER_ONLY
 
 SYNC_QCOLOR = {Sync.GREEN: QtGui.QColor(40, 170, 70), Sync.AMBER: QtGui.QColor(220, 160, 30),
                Sync.RED: QtGui.QColor(200, 50, 50)}
 COLUMNS = ("device", "link", "battery %", "RSSI dBm", "rate / nominal Hz", "loss %", "lost", "CRC err",
-           "offset ms", "skew ppm", "residual ms", "sync", "segment", "")
+           "clock offset s", "skew ppm", "residual ms", "sync", "segment", "")
+OFFSET_TIP = ("Station clock minus gateway clock, in seconds. Any value is normal: a station counts from its own "
+              "power-on. What matters is the sync cell (locked) and a small residual.")
+HEADER_TIPS = {8: OFFSET_TIP, 9: "how fast the station's clock runs against the gateway's (parts per million)",
+               10: "scatter of the station's packet times about the fitted clock: under 5 ms is locked",
+               11: "clock sync: locked (green), warming up or residual elevated (amber), link lost or residual "
+                   "too large to trust sample times (red)"}
+LABEL_PX = 11  # body-diagram label size on screen, whatever the diagram's scale
 
 # Body diagram: segment -> polyline in a 100 x 200 box (x right, y down), front view.
 BODY_SEGMENTS: dict[str, tuple[tuple[float, float], ...]] = {
@@ -48,12 +59,14 @@ def segment_for(name: str) -> str | None:
 
 
 class BodyDiagram(QtWidgets.QWidget):
-    """Front-view stick body; segments carrying a sensor are drawn thick in that sensor's health colour."""
+    """Front-view stick body of one athlete; segments carrying a sensor are drawn thick in that sensor's health
+    colour and labelled with the sensor (station/index) beside the segment, on the side it is on."""
 
-    def __init__(self, parent: QtWidgets.QWidget | None = None) -> None:
+    def __init__(self, title: str = "", parent: QtWidgets.QWidget | None = None) -> None:
         super().__init__(parent)
+        self.title = title
         self.segment_state: dict[str, tuple[str, Sync]] = {}  # segment -> (sensor label, health)
-        self.setMinimumSize(110, 200)
+        self.setMinimumSize(170, 230)
 
     def set_state(self, state: dict[str, tuple[str, Sync]]) -> None:
         self.segment_state = state
@@ -62,24 +75,36 @@ class BodyDiagram(QtWidgets.QWidget):
     def paintEvent(self, _event: QtGui.QPaintEvent) -> None:
         p = QtGui.QPainter(self)
         p.setRenderHint(QtGui.QPainter.Antialiasing)
-        scale = min(self.width() / 110.0, self.height() / 205.0)
-        p.scale(scale, scale)
+        top = 18 if self.title else 0
+        scale = min(self.width() / 170.0, (self.height() - top) / 205.0)
+        # the figure (100 wide) centred, labels in unscaled pixels so they stay readable at any size
+        figure = QtGui.QTransform().translate(self.width() / 2 - 50 * scale, top).scale(scale, scale)
+        font = QtGui.QFont(self.font())
+        font.setPixelSize(LABEL_PX)
+        p.setFont(font)
+        if self.title:
+            p.setPen(self.palette().color(QtGui.QPalette.WindowText))
+            p.drawText(QtCore.QRectF(0, 0, self.width(), top), QtCore.Qt.AlignCenter, self.title)
+        p.setTransform(figure)
         p.setPen(QtGui.QPen(QtGui.QColor(120, 120, 120), 2))
         p.drawEllipse(QtCore.QPointF(50, 14), 8, 9)
         for seg, pts in BODY_SEGMENTS.items():
             label, health = self.segment_state.get(seg, ("", None))
-            colour = SYNC_QCOLOR.get(health, QtGui.QColor(120, 120, 120))
-            pen = QtGui.QPen(colour, 6 if label else 2)
+            pen = QtGui.QPen(SYNC_QCOLOR.get(health, QtGui.QColor(120, 120, 120)), 6 if label else 2)
             pen.setCapStyle(QtCore.Qt.RoundCap)
             p.setPen(pen)
             p.drawLine(QtCore.QPointF(*pts[0]), QtCore.QPointF(*pts[1]))
-            if label:
-                p.setPen(QtGui.QColor(230, 230, 230))
-                font = QtGui.QFont("sans")
-                font.setPixelSize(7)
-                p.setFont(font)
-                mid = ((pts[0][0] + pts[1][0]) / 2 + 4, (pts[0][1] + pts[1][1]) / 2)
-                p.drawText(QtCore.QPointF(*mid), label)
+        p.resetTransform()
+        p.setPen(self.palette().color(QtGui.QPalette.WindowText))
+        metrics = p.fontMetrics()
+        for seg, (label, _) in self.segment_state.items():
+            if not label or seg not in BODY_SEGMENTS:
+                continue
+            (x0, y0), (x1, y1) = BODY_SEGMENTS[seg]
+            mid = figure.map(QtCore.QPointF((x0 + x1) / 2, (y0 + y1) / 2))
+            # the figure's left (x > 50, the viewer's right) labelled to the right; its right side to the left
+            x = mid.x() + 8 if (x0 + x1) / 2 >= 50 else mid.x() - 8 - metrics.horizontalAdvance(label)
+            p.drawText(QtCore.QPointF(x, mid.y() + metrics.ascent() / 2), label)
         p.end()
 
 
@@ -99,7 +124,10 @@ class DevicePanel(QtWidgets.QWidget):
         self.tree.setHeaderLabels(list(COLUMNS))
         self.tree.setRootIsDecorated(True)
         self.tree.setUniformRowHeights(True)
-        self.body = BodyDiagram()
+        self.tree.header().setStretchLastSection(False)  # the identify buttons keep their own width
+        for col, tip in HEADER_TIPS.items():
+            self.tree.headerItem().setToolTip(col, tip)
+        self.bodies: dict[str, BodyDiagram] = {}  # athlete ("" for one) -> its diagram, created as athletes appear
         self.mapping: dict[tuple[str, int], str] = {}  # (station, sensor) -> diagram segment
         self.mapping_names: dict[tuple[str, int], str] = {}  # (station, sensor) -> placement name
         self._items: dict[Any, QtWidgets.QTreeWidgetItem] = {}
@@ -112,7 +140,8 @@ class DevicePanel(QtWidgets.QWidget):
         layout = QtWidgets.QHBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.tree, 1)
-        layout.addWidget(self.body)
+        self._bodies_layout = QtWidgets.QHBoxLayout()
+        layout.addLayout(self._bodies_layout)
 
     def set_mapping(self, mapping: dict[tuple[str, int], str]) -> None:
         """Sensor -> placement names (e.g. "left_forearm"); drawn on the diagram segment `segment_for` finds."""
@@ -139,6 +168,8 @@ class DevicePanel(QtWidgets.QWidget):
             (parent.addChild(item) if parent is not None else self.tree.addTopLevelItem(item))
             if sensor is not None:
                 button = QtWidgets.QPushButton("identify")
+                button.setSizePolicy(QtWidgets.QSizePolicy.Fixed, QtWidgets.QSizePolicy.Fixed)
+                button.setToolTip("blink this sensor's LED")
                 button.clicked.connect(lambda _=False, s=sensor: self.identify_requested.emit(*s))
                 self._allow(button)
                 self.tree.setItemWidget(item, len(COLUMNS) - 1, button)
@@ -150,42 +181,64 @@ class DevicePanel(QtWidgets.QWidget):
 
     def update_status(self, status: dict[str, Any]) -> None:
         """Refresh every row from a status snapshot (docs/gateway.md); rows appear as devices do."""
-        body: dict[str, tuple[str, Sync]] = {}
+        bodies: dict[str, dict[str, tuple[str, Sync]]] = {}
         self._drop_rows_not_in(status)
         for st in status.get("stations", []):
             sid = str(st.get("station"))
-            sync = sync_status(st)
             clock = st.get("clock") or {}
             row = self._item(("station", sid), None, f"station {sid}")
             row.setText(0, self._station_label(sid))
             values = {1: str(st.get("link", "?")), 7: str(st.get("crc_errors", 0)),
-                      8: _fmt(clock.get("offset_s"), ".2f", 1e3), 9: _fmt(clock.get("skew_ppm"), ".1f"),
-                      10: _fmt(clock.get("residual_s"), ".3f", 1e3), 11: sync.value}
+                      8: _fmt(clock.get("offset_s"), "+.3f"), 9: _fmt(clock.get("skew_ppm"), ".1f"),
+                      10: _fmt(clock.get("residual_s"), ".3f", 1e3)}
             for col, text in values.items():
                 row.setText(col, text)
-            row.setBackground(11, SYNC_QCOLOR[sync])
+            row.setToolTip(8, OFFSET_TIP)
+            self._show_sync(row, sync_status(st), sync_reason(st))
             for sensor in st.get("sensors", []):
                 idx = int(sensor.get("sensor", 0))
                 item = self._item(("sensor", sid, idx), row, f"sensor {idx}", (sid, idx))
-                seg = self.mapping.get((sid, idx), "")
-                placement = self.mapping_names.get((sid, idx), "")
-                healthy = sync if float(sensor.get("loss_pct") or 0) < 5 else Sync.RED
+                healthy, reason = sensor_sync(st, sensor)
                 cols = {1: str(st.get("link", "?")), 2: _fmt(sensor.get("battery_pct"), ".0f"),
                         3: _fmt(sensor.get("rssi_dbm"), ".0f"),
                         4: f"{_fmt(sensor.get('rate_hz'), '.1f')} / {_fmt(sensor.get('nominal_hz'), '.0f')}",
-                        5: _fmt(sensor.get("loss_pct"), ".2f"), 6: str(sensor.get("lost", 0)), 11: healthy.value,
-                        12: placement}
+                        5: _fmt(sensor.get("loss_pct"), ".2f"), 6: str(sensor.get("lost", 0)),
+                        12: self.mapping_names.get((sid, idx), "")}
                 for col, text in cols.items():
                     item.setText(col, text)
-                item.setBackground(11, SYNC_QCOLOR[healthy])
+                self._show_sync(item, healthy, reason)
                 self.sensor_health[(sid, idx)] = healthy
+                seg = self.mapping.get((sid, idx), "")
                 if seg:
-                    body[seg] = (f"{sid}/{idx}", healthy)
-        self.body.set_state(body)
+                    bodies.setdefault(self.sensor_athletes.get((sid, idx), ""), {})[seg] = (f"{sid}/{idx}", healthy)
+        self._show_bodies(bodies)
         if self._new_rows:
             for col in range(len(COLUMNS)):
                 self.tree.resizeColumnToContents(col)
             self._new_rows = False
+
+    @staticmethod
+    def _show_sync(item: QtWidgets.QTreeWidgetItem, sync: Sync, reason: str) -> None:
+        """The sync cell: its colour, the reason in a colour readable on it."""
+        item.setText(11, reason)
+        item.setBackground(11, SYNC_QCOLOR[sync])
+        item.setForeground(11, QtGui.QColor(20, 20, 20) if sync is Sync.AMBER else QtGui.QColor(255, 255, 255))
+
+    def _show_bodies(self, bodies: dict[str, dict[str, tuple[str, Sync]]]) -> None:
+        """One diagram per athlete wearing mapped sensors (titled when there are several), in order seen."""
+        titled = len(bodies) > 1
+        for athlete, state in bodies.items():
+            body = self.bodies.get(athlete)
+            if body is None:
+                body = self.bodies[athlete] = BodyDiagram()
+                self._bodies_layout.addWidget(body)
+            body.title = athlete if titled else ""
+            body.set_state(state)
+
+    @property
+    def body(self) -> BodyDiagram | None:
+        """The first athlete's diagram (one-athlete courts have only this one)."""
+        return next(iter(self.bodies.values()), None)
 
     def _station_label(self, sid: str) -> str:
         """``station st1``, or ``station st1 · alice`` when several athletes wear the sensors."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gui.health import Sync, status_alarms, sync_status
+from gui.health import Sync, sensor_sync, status_alarms, sync_reason, sync_status
 from gui.widgets.alarms import AlarmBar
 from gui.widgets.camera_pane import CourtMinimap, apply_homography
 from gui.widgets.device_panel import DevicePanel, segment_for
@@ -23,6 +23,16 @@ def test_sync_traffic_light():
     assert sync_status(station(locked=False)) is Sync.AMBER
     assert sync_status(station(residual=0.050)) is Sync.RED
     assert sync_status(station(link="stale")) is Sync.RED
+
+
+def test_the_sync_light_says_why_in_words():
+    """Issue 30: the cell said "green" on green; now it says what the colour means."""
+    assert sync_reason(station(residual=0.002)) == "locked"
+    assert sync_reason(station(residual=0.0123)) == "residual 12.3 ms"
+    assert sync_reason(station(locked=False)) == "warming up"
+    assert sync_reason(station(link="lost")) == "link lost"
+    lossy = station(loss=7.5)
+    assert sensor_sync(lossy, lossy["sensors"][0]) == (Sync.RED, "loss 7.5 %")
 
 
 def test_alarms_sensor_lost_sync_lost_battery_disk(tmp_path):
@@ -76,8 +86,24 @@ def test_device_panel_rows_and_renamed_station(qtbot):
     panel.update_status({"t_host_s": 2.0, "stations": [station()]})
     assert ("station", "/dev/pts/3") not in panel._items and panel.tree.topLevelItemCount() == 1
     row = panel.row_texts(("sensor", "st1", 0))
-    assert row[1] == "streaming" and row[2] == "95" and row[11] == "green" and row[12] == "left_wrist"
-    assert panel.body.segment_state["left_forearm"][1] is Sync.GREEN
+    assert row[1] == "streaming" and row[2] == "95" and row[11] == "locked" and row[12] == "left_wrist"
+    assert panel.body.segment_state["left_forearm"] == ("st1/0", Sync.GREEN)
+    station_row = panel.row_texts(("station", "st1"))
+    assert station_row[8] == "+1.000" and "power-on" in panel._items[("station", "st1")].toolTip(8)
+    button = panel.identify_button("st1", 0)
+    assert button.width() <= button.sizeHint().width() + 4  # not stretched over the rest of the row
+
+
+def test_device_panel_draws_one_body_diagram_per_athlete(qtbot):
+    panel = DevicePanel()
+    qtbot.addWidget(panel)
+    panel.resize(1200, 300)
+    panel.show()
+    panel.set_mapping({("st1", 0): "left_wrist", ("st2", 0): "left_wrist"})
+    panel.sensor_athletes = {("st1", 0): "alice", ("st2", 0): "bob"}
+    panel.update_status({"t_host_s": 2.0, "stations": [station("st1"), station("st2")]})
+    assert list(panel.bodies) == ["alice", "bob"] and [b.title for b in panel.bodies.values()] == ["alice", "bob"]
+    assert panel.bodies["bob"].segment_state["left_forearm"] == ("st2/0", Sync.GREEN)
 
 
 def test_segment_names_map_to_the_body_diagram():
