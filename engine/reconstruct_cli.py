@@ -221,7 +221,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog="courtside reconstruct", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("clips", nargs="*", help="database clips (.bvh or .amc, one skeleton)")
-    p.add_argument("--method", choices=["olng", "hmm", "motion-graph"], default="olng")
+    p.add_argument("--method", choices=["olng", "hmm", "motion-graph"], default="olng",
+                   help="olng: four wrist/ankle accelerometers; hmm: one or two IMUs with gyroscopes; motion-graph: "
+                        "courtside synthesize on --graph")
     p.add_argument("--input", help="take .npz")
     p.add_argument("-o", "--output", help="output .bvh")
     p.add_argument("--evaluate", action="store_true", help="leave-one-out table instead of reconstructing a take")
@@ -231,9 +233,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--orientations", action="store_true",
                    help="--evaluate: add rows searching on orientation (realistic filter: per-sensor yaw, drift, tilt "
                         "noise, misalignment) and angular rate, and the HMM's accelerometer-only model")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="--evaluate: seed of the simulated sensor errors")
     p.add_argument("--sample", action="store_true", help="use the CMU subject-16 clips shipped in engine/data")
-    p.add_argument("--mocap-dir", help="a mocap folder, e.g. /work/shared/mocap")
+    p.add_argument("--mocap-dir", help="a mocap folder, e.g. ../shared/mocap")
     p.add_argument("--pattern", default="cmu-amc/16/*.amc", help="glob under --mocap-dir")
     p.add_argument("--fps", type=float, default=30.0, help="rate the clips are loaded at (each method resamples)")
     p.add_argument("--kb", help="olng: load this knowledge base .npz instead of building one")
