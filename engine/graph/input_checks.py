@@ -3,8 +3,9 @@ and whether the graph can explain a take that long at all.
 
 Why a module of its own: the readers in `inputs.py` assume well-formed arrays; every check that turns a bad file
 into one clear `MalformedFileError` (file + field + problem) instead of an IndexError deep in the Viterbi lives
-here, next to the limits it enforces. The limits reject what cannot be a recording, not what is unusual:
-rates of 1 Hz..100 kHz, finite accelerations, tracks of the right shape.
+here, next to the limits it enforces. The limits reject what cannot be a recording, not what is unusual
+(`engine.recording_limits`): rates of 1 Hz..4 kHz, takes up to 6 h, finite accelerations within +-1000 g,
+unit quaternions, tracks of the right shape.
 """
 from __future__ import annotations
 
@@ -19,23 +20,44 @@ from scipy.sparse.csgraph import connected_components
 from engine.array_checks import READ_ERRORS
 from engine.errors import CourtsideError, MalformedFileError
 from engine.export_format import ACC_G, GYRO_RPS, MESSAGES, QUAT_WXYZ, T_HOST_S, sensor_key
+from engine.recording_limits import MAX_ACC_G, MAX_RATE_HZ, MAX_TAKE_S, MIN_RATE_HZ, QUAT_NORM_TOLERANCE
 from engine.safe_load import parse_json
 
 log = logging.getLogger(__name__)
 
-MIN_FPS, MAX_FPS = 1.0, 100_000.0
+MIN_FPS, MAX_FPS = MIN_RATE_HZ, MAX_RATE_HZ  # a take's rate is a recording's (engine.recording_limits)
 MIN_GRAPH_SAMPLES = 2  # a path needs a start and one step
 PLAUSIBLE_MEDIAN_G = 4.0  # a body's acceleration magnitude is ~1 g most of the time; ~9.8 means m/s^2
 
 
+_DEVICE_FILE_HINT = "; a device recording (CSV/TSV, Xsens, x-IMU3) becomes a take with `courtside import-imu`"
+
+
+def _unreadable_npz(path: Path, exc: BaseException) -> str:
+    """What is wrong with a file numpy could not open as an .npz, in the user's terms (numpy's own text talks
+    about allow_pickle, which means nothing to someone who gave a CSV or a folder)."""
+    if path.is_dir():
+        return "a folder, not a take .npz"
+    if isinstance(exc, FileNotFoundError):
+        return "no such file"
+    if isinstance(exc, OSError):
+        return f"cannot read ({exc.strerror or exc})"
+    if isinstance(exc, EOFError):
+        return "empty file, not an .npz archive"
+    if isinstance(exc, ValueError) and "pickle" in str(exc):
+        return "not an .npz archive (not a zip of numpy arrays)"
+    return "not a readable .npz archive (damaged or truncated)"
+
+
 def open_npz(path: Path) -> np.lib.npyio.NpzFile:
-    """An .npz opened without pickle; anything else (empty, truncated, .npy, a pickle) is a MalformedFileError."""
+    """An .npz opened without pickle; anything else (a folder, empty, truncated, .npy, text, a pickle) is one
+    MalformedFileError, with the import-imu hint once for what looks like a device recording."""
+    path = Path(path)
+    hint = _DEVICE_FILE_HINT if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx") else ""
     try:
         data = np.load(path, allow_pickle=False)
     except READ_ERRORS as exc:
-        hint = ("; a device recording (CSV/TSV, Xsens, x-IMU3) becomes a take with `courtside import-imu`"
-                if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx") else "")
-        raise MalformedFileError(path, None, f"not a readable .npz ({exc}){hint}") from None
+        raise MalformedFileError(path, None, _unreadable_npz(path, exc) + hint) from None
     if not isinstance(data, np.lib.npyio.NpzFile):
         raise MalformedFileError(path, None, "not an .npz archive (a single .npy array?)")
     return data
@@ -45,8 +67,9 @@ def array(path: Path, data, name: str, ndim: int | None = None, kind: str = "flo
     """``data[name]`` as a float (or "str") array of ``ndim`` dimensions; a clear error when it is not."""
     try:
         value = data[name]
-    except ValueError as exc:  # object arrays need pickle, which is never allowed
-        raise MalformedFileError(path, None, f"'{name}' cannot be read without pickle ({exc})") from None
+    except ValueError:  # object arrays need pickle, which is never allowed
+        raise MalformedFileError(path, None, f"'{name}' holds Python objects (a pickle), which are never loaded; "
+                                             "a take holds plain numbers and text") from None
     except READ_ERRORS as exc:  # a damaged member of the archive
         raise MalformedFileError(path, None, f"'{name}' is damaged ({exc})") from None
     if kind == "str":
@@ -71,18 +94,34 @@ def check_fps(path: Path, data) -> float:
     return fps
 
 
-def check_synthesis_file(path: Path, data, graph_sensors: list[str]) -> None:
-    """The synthesis-input layout: acc_g (T, S, 3), fps, optional sensor_names (S,), position_m (T, 2),
-    heading_rad (T,)."""
+def check_take_file(path: Path, data) -> None:
+    """The one check of a take in the synthesis-input layout, shared by `courtside synthesize` and `courtside
+    calibrate` (issue 30: calibrate accepted takes synthesize refused, and failed on them with tracebacks):
+    acc_g (T, S, 3) with T >= 2 and S >= 1, finite and within +-`MAX_ACC_G`; fps one number in the recording
+    limits; at most `MAX_TAKE_S` long; optional sensor_names and source_labels (S,) text naming each column once;
+    position_m (T, 2), heading_rad (T,); optional quat_wxyz / gyro_rps (`check_channels`)."""
     acc = array(path, data, "acc_g", 3)
-    if acc.shape[2] != 3:
-        raise MalformedFileError(path, None, f"acc_g must have shape (T, S, 3), got {acc.shape}")
+    if acc.shape[2] != 3 or acc.shape[0] < 2 or acc.shape[1] < 1:
+        raise MalformedFileError(path, None, f"acc_g must have shape (T, S, 3) with at least 2 samples and one "
+                                             f"sensor, got {acc.shape}")
     fps = check_fps(path, data)
+    if len(acc) / fps > MAX_TAKE_S:
+        raise MalformedFileError(path, None, f"{len(acc)} samples at {fps:g} Hz last {len(acc) / fps / 3600:.3g} h, "
+                                             f"more than the {MAX_TAKE_S / 3600:g} h a take may last")
     _check_finite(path, "acc_g", acc, fps)
-    if "sensor_names" in data.files:
-        names = [str(n) for n in array(path, data, "sensor_names", 1, kind="str")]
-        if len(set(names)) != len(names):
-            raise MalformedFileError(path, None, f"sensor_names {names} name a sensor twice")
+    beyond = np.abs(acc) > MAX_ACC_G
+    if beyond.any():
+        t, k, _ = np.argwhere(beyond)[0]
+        raise MalformedFileError(path, None, f"acc_g holds values beyond +-{MAX_ACC_G:g} g (first at sample {t}, "
+                                             f"sensor column {k}: {acc[t, k].tolist()})")
+    for key in ("sensor_names", "source_labels"):
+        if key in data.files:
+            names = [str(n) for n in array(path, data, key, 1, kind="str")]
+            if len(names) != acc.shape[1]:
+                raise MalformedFileError(path, None, f"{key} has {len(names)} entries for acc_g's "
+                                                     f"{acc.shape[1]} sensor columns")
+            if len(set(names)) != len(names):
+                raise MalformedFileError(path, None, f"{key} {names} name a sensor twice")
     n = len(acc)
     if "position_m" in data.files:
         pos = array(path, data, "position_m", 2)
@@ -94,11 +133,6 @@ def check_synthesis_file(path: Path, data, graph_sensors: list[str]) -> None:
         if head.shape != (n,):
             raise MalformedFileError(path, None, f"heading_rad must have shape ({n},), got {head.shape}")
     check_channels(path, data, "", acc.shape[:2])
-
-
-QUAT_NORM_TOLERANCE = 0.01
-"""A stored orientation must be a unit quaternion to 1 % (float32 exports and 4-decimal CSVs are far inside;
-a quaternion that is not one is a wrong column or a wrong unit)."""
 
 
 def check_channels(path: Path, data, prefix: str, leading: tuple[int, ...]) -> None:

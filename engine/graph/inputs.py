@@ -35,7 +35,7 @@ from engine.mocap import SEED_HEADING_SPEED_MPS, seed_heading_rule
 from engine.safe_load import parse_json
 from engine.stream import CameraTrack, FrameBatch, FrameResampler, RecordedStreams, resample_uniform, take_start_s
 
-from .input_checks import check_gateway_export, check_observations, check_sensor_map, check_synthesis_file, open_npz
+from .input_checks import check_gateway_export, check_observations, check_sensor_map, check_take_file, open_npz
 from .viterbi import Observations
 
 HEURISTIC_SPEED_MPS = SEED_HEADING_SPEED_MPS
@@ -75,7 +75,7 @@ def _track_at(values_t_s: np.ndarray, positions: np.ndarray | None, headings: np
 
 
 def _from_synthesis_file(path: Path, data, graph_sensors: list[str], fps_graph: float) -> TakeFrames:
-    check_synthesis_file(path, data, graph_sensors)  # shapes, fps, finite values: past here they are sound
+    check_take_file(path, data)  # shapes, fps, finite values: past here they are sound
     acc = np.asarray(data["acc_g"], float)
     fps = float(data["fps"])
     names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else graph_sensors[:acc.shape[1]]
@@ -175,14 +175,7 @@ def read_take(path: str | Path, graph_sensors: list[str], fps_graph: float, sens
               *, use_camera_heading: bool = False, times: str = "t_host_s", start_s: float | None = None) -> TakeFrames:
     """A synthesis-input .npz or a gateway export on the frame clock (see the module doc)."""
     path = Path(path)
-    try:
-        data = open_npz(path)
-    except MalformedFileError as exc:
-        if path.is_dir() or path.suffix.lower() in (".csv", ".tsv", ".txt", ".mvnx"):
-            raise MalformedFileError(path, None, f"{exc.problem}; a device recording (CSV/TSV, Xsens, x-IMU3) "
-                                                 "becomes a take with `courtside import-imu`") from None
-        raise
-    with data:
+    with open_npz(path) as data:  # its error has the import-imu hint for a device recording
         if "acc_g" in data.files:
             take = _from_synthesis_file(path, data, graph_sensors, fps_graph)
         else:

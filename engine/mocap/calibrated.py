@@ -37,11 +37,12 @@ import numpy as np
 
 from engine.errors import MalformedFileError
 from engine.mocap.orientation_calibration import OrientationCalibration
-from engine.mocap.sensors import SensorPlacement
+from engine.mocap.sensors import STANDARD_SENSORS, SensorPlacement
 from engine.versioned_json import read_versioned_json
 
 SCHEMA = "courtside.sensor_calibration"
 SCHEMA_VERSION = 1
+MAX_RECORD_SENSORS = 64  # far more than a body wears; 100 000 "sensors" is not a record (issue 30)
 ORIENTATION_YAW, ORIENTATION_MOUNT = "orientation_yaw_rad", "orientation_mount_wxyz"  # optional, per sensor
 
 log = logging.getLogger(__name__)
@@ -76,6 +77,8 @@ def read_orientation_fields(entry: Mapping) -> tuple[float, np.ndarray] | None:
     mount = np.asarray(entry[ORIENTATION_MOUNT], float).reshape(4)
     if not (np.isfinite(yaw) and np.isfinite(mount).all()):
         raise ValueError("non-finite orientation calibration")
+    if abs(yaw) > 2 * np.pi:  # the calibration writes an angle in [-pi, pi]; 1e300 is not a yaw
+        raise ValueError(f"{ORIENTATION_YAW} {yaw!r} is not an angle in [-2 pi, 2 pi]")
     if abs(np.linalg.norm(mount) - 1.0) > 1e-3:
         raise ValueError(f"{ORIENTATION_MOUNT} is not a unit quaternion (norm {np.linalg.norm(mount):.4f})")
     return yaw, mount
@@ -155,6 +158,11 @@ def read_calibration_record(path: str | Path) -> dict:
     sensors = doc.get("sensors")
     if not isinstance(sensors, dict) or not sensors:
         raise MalformedFileError(path, None, "no sensors in the record")
+    if len(sensors) > MAX_RECORD_SENSORS:
+        raise MalformedFileError(path, None, f"{len(sensors)} sensors: more than the {MAX_RECORD_SENSORS} a body "
+                                             "can wear (not a calibration record)")
+    if not isinstance(doc.get("passed"), bool):
+        raise MalformedFileError(path, None, f"'passed' must be true or false, got {doc.get('passed')!r}")
     segments: dict[str, str] = {}
     for sid, entry in sensors.items():
         try:
@@ -162,7 +170,8 @@ def read_calibration_record(path: str | Path) -> dict:
             rotation = np.asarray(entry["rotation"], float)
             gravity = np.asarray(entry["gravity_sensor_g"], float).reshape(3)
             numbers = [float(entry["norm_error_g"]), float(entry["correction_deg"])]
-            bool(entry["passed"])
+            if not isinstance(entry["passed"], bool):  # "no" would count as passed
+                raise ValueError(f"'passed' must be true or false, got {entry['passed']!r}")
             read_orientation_fields(entry)
         except (KeyError, TypeError, ValueError) as exc:
             raise MalformedFileError(path, None, f"sensor {sid!r}: bad entry ({exc!r})") from None
@@ -173,6 +182,9 @@ def read_calibration_record(path: str | Path) -> dict:
         if segment in segments:
             raise MalformedFileError(path, None, f"two sensors on segment {segment!r}: {segments[segment]!r} and {sid!r}")
         segments[segment] = str(sid)
+    if not set(segments) & set(STANDARD_SENSORS):
+        raise MalformedFileError(path, None, f"no sensor on a known segment (the record names {sorted(segments)}; "
+                                             f"known: {', '.join(STANDARD_SENSORS)}): it would calibrate nothing")
     return doc
 
 

@@ -16,10 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
+from engine.atomic_write import refuse_overwriting_inputs
 from engine.errors import ArgumentParser, CourtsideError, MalformedFileError
 from engine.export_format import recorded_sensors
-from engine.graph.input_checks import open_npz, parse_sensor_map
+from engine.graph.input_checks import check_take_file, open_npz, parse_sensor_map
 from engine.mocap import STANDARD_SENSORS
+from gateway.calibration.record import raw_samples_path
 from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, calibrate_recording,
                                            standard_segment_poses)
 
@@ -79,15 +81,12 @@ def _read_take(path: Path, sensor_map: dict[str, str] | None = None) -> Calibrat
         if missing:
             raise MalformedFileError(path, None, f"missing {missing}: calibrate reads a take written by "
                                                  "`courtside import-imu` (or any synthesis-input .npz with sensor_names)")
+        check_take_file(path, data)  # synthesize's own take check: past here shapes, rate and values are sound
         acc = np.asarray(data["acc_g"], float)
         names = [str(n) for n in data["sensor_names"]]
         labels = [str(n) for n in data["source_labels"]] if "source_labels" in data.files else names
         fps = float(data["fps"])
         quat = np.asarray(data["quat_wxyz"], float) if "quat_wxyz" in data.files else None
-    if acc.ndim != 3 or acc.shape[1:] != (len(names), 3):
-        raise MalformedFileError(path, None, f"acc_g has shape {acc.shape}, expected (T, {len(names)}, 3)")
-    if quat is not None and quat.shape != acc.shape[:2] + (4,):
-        raise MalformedFileError(path, None, f"quat_wxyz has shape {quat.shape}, expected {acc.shape[:2] + (4,)}")
     unknown = [n for n in names if n not in STANDARD_SENSORS]
     if unknown:
         raise MalformedFileError(path, None, f"sensor names {unknown} are not standard placements")
@@ -126,6 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--subject", default="")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
+    refuse_overwriting_inputs([args.output, raw_samples_path(args.output)], [path])
     take = _read_take(path, parse_sensor_map(args.sensor_map, list(STANDARD_SENSORS), "a standard placement"))
     names = take.names
     windows = _windows(args.second_pose)
@@ -136,10 +136,7 @@ def main(argv: list[str] | None = None) -> int:
                                      path.stem, quat_wxyz=take.quat_wxyz)
     except ValueError as exc:
         raise CourtsideError(f"{path}: {exc}") from None
-    try:
-        record.save(args.output)
-    except OSError as exc:
-        raise CourtsideError(f"{args.output}: cannot write the record ({exc.strerror or exc})") from None
+    record.save(args.output)  # each file whole or not at all; a failure is one line naming it
     for sid, s in record.sensors.items():
         for reason in s.reasons:
             print(f"calibrate: warning: {sid} ({s.segment}): {reason}", file=sys.stderr)

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from engine.array_checks import READ_ERRORS
+from engine.atomic_write import atomic_write
 from engine.errors import MalformedFileError
 from engine.mocap import quaternions
 # the format is the engine's (issue 19): one reader, one definition of the optional orientation fields
@@ -22,6 +23,12 @@ from gateway.calibration.errors import CalibrationRecordError
 
 RAW_KINDS = ("t_s", "acc_g", "quat_wxyz")  # the raw samples of one sensor in one step, in tuple order (the last
 # only for a sensor that streamed its orientation)
+
+
+def raw_samples_path(record_path: str | Path) -> Path:
+    """Where a record's raw samples go: beside it, same stem, ``.npz`` (so ``calibrate t.npz -o t.json`` would
+    write over its own take: the CLI refuses that before it starts)."""
+    return Path(record_path).with_suffix(".npz")
 
 
 @dataclass
@@ -84,15 +91,16 @@ class CalibrationRecord:
         return self.sensors[sensor_id].rotation
 
     def save(self, path: str | Path) -> Path:
-        """Write ``path`` (JSON) and the raw samples beside it (same stem, ``.npz``); returns the npz path."""
+        """Write ``path`` (JSON) and the raw samples beside it (`raw_samples_path`); returns the npz path. Each
+        file is written whole or not at all (`engine.atomic_write`)."""
         path = Path(path)
-        npz_path = path.with_suffix(".npz")
+        npz_path = raw_samples_path(path)
         arrays = {}
         for step, per_sensor in self.raw.items():
             for sensor_id, samples in per_sensor.items():
                 for kind, values in zip(RAW_KINDS, samples):
                     arrays[f"{step}/{sensor_id}/{kind}"] = np.asarray(values)
-        np.savez_compressed(npz_path, **arrays)
+        atomic_write(npz_path, lambda fh: np.savez_compressed(fh, **arrays))
         doc = {
             "schema": SCHEMA, "schema_version": SCHEMA_VERSION, "created_utc": self.created_utc,
             "subject": self.subject, "take": self.take, "quality_score": self.quality_score, "grade": self.grade,
@@ -100,7 +108,7 @@ class CalibrationRecord:
             "sensors": {sid: s.to_dict() for sid, s in self.sensors.items()},
             "raw_samples_file": npz_path.name,
         }
-        path.write_text(json.dumps(doc, indent=2))
+        atomic_write(path, lambda fh: fh.write(json.dumps(doc, indent=2).encode()))
         return npz_path
 
     @classmethod
