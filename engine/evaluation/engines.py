@@ -162,8 +162,8 @@ def hmm(model, acc_g: np.ndarray, gyro_rps: np.ndarray, skeleton: Skeleton, take
         root_quat0: np.ndarray, camera: tuple[np.ndarray, np.ndarray] | None = None,
         warp: RootWarp = RootWarp(), fixes: SimulatedCameraTrack | None = None,
         fusion: RootFusion = RootFusion.off()) -> Prediction:
-    """Hierarchical HMM (seed 004) on its IMU(s) at the take rate, with its foot-skate IK; `camera`, `fixes` and
-    `fusion` as in `olng`."""
+    """Hierarchical HMM (seed 004) on its IMU(s) at the take rate: its decided poses (no whole-take foot-skate IK:
+    the console never shows one, issue 29); `camera`, `fixes` and `fusion` as in `olng`."""
     from engine.hmm.evaluation import reconstruct, to_motion
 
     if camera is not None and abs(model.fps - take.fps) > 1e-9:
@@ -171,7 +171,7 @@ def hmm(model, acc_g: np.ndarray, gyro_rps: np.ndarray, skeleton: Skeleton, take
     cam_pos, cam_head = (None, None) if camera is None else camera
     root, quats, _ = reconstruct(model, acc_g, gyro_rps, skeleton.n_joints, root0_m, root_quat0, cam_pos, cam_head,
                                  skeleton, warp)
-    joints, _ = forward_kinematics(to_motion(skeleton, model.fps, root, quats, foot_ik=True))
+    joints, _ = forward_kinematics(to_motion(skeleton, model.fps, root, quats, foot_ik=False))
     if len(joints) != take.n_frames:
         joints = on_take_grid(joints, np.arange(len(joints)) / model.fps, take)
     return Prediction(joints if fixes is None else fused_joints(joints, take, fixes, fusion))
