@@ -10,7 +10,7 @@ from enum import Enum
 
 import numpy as np
 
-from gui.render.placement import FOLLOW_DISTANCE_M, framing_distance_m
+from gui.render.placement import FOLLOW_DISTANCE_M, across_yaw_rad, framing_distance_m
 
 
 def perspective(fovy_rad: float, aspect: float, near_m: float, far_m: float) -> np.ndarray:
@@ -91,26 +91,31 @@ class OrbitCamera:
             self.pitch_rad = math.radians(20.0)
         self.zoom_factor = 1.0
 
-    def follow(self, roots_m: np.ndarray | None) -> None:
+    def follow(self, roots_m: np.ndarray | None, aspect: float = 16 / 9) -> None:
         """Ease the orbit target towards the players' roots (3,) or (N, 3) — their centre on the ground + 1 m —
-        and the distance towards one framing them all (`gui.render.placement.framing_distance_m`), in FOLLOW
-        mode."""
+        and the distance towards one framing them all in a view of width/height ``aspect``
+        (`gui.render.placement.framing_distance_m`), in FOLLOW mode."""
         if self.mode is not CameraMode.FOLLOW or roots_m is None:
             return
-        goal_target, goal_distance = self._framing(roots_m)
+        goal_target, goal_distance = self._framing(roots_m, aspect)
         self.target_m = self.target_m + self.follow_gain * (goal_target - self.target_m)
         self.distance_m += self.follow_gain * (goal_distance - self.distance_m)
 
-    def snap_to(self, roots_m: np.ndarray) -> None:
-        """Jump straight to the players (3,) or (N, 3) (first frame, or after a scrub) instead of easing."""
-        self.target_m, distance = self._framing(roots_m)
+    def snap_to(self, roots_m: np.ndarray, aspect: float = 16 / 9) -> None:
+        """Jump straight to the players (3,) or (N, 3) (first frame, a scrub, an athlete appearing) instead of
+        easing; with several, in FOLLOW mode, turn to look across them (`gui.render.placement.across_yaw_rad`)."""
+        if self.mode is CameraMode.FOLLOW:
+            yaw = across_yaw_rad(roots_m)
+            self.yaw_rad = self.yaw_rad if yaw is None else yaw
+        self.target_m, distance = self._framing(roots_m, aspect)
         if self.mode is CameraMode.FOLLOW:
             self.distance_m = distance
 
-    def _framing(self, roots_m: np.ndarray) -> tuple[np.ndarray, float]:
+    def _framing(self, roots_m: np.ndarray, aspect: float) -> tuple[np.ndarray, float]:
         roots = np.asarray(roots_m, float).reshape(-1, 3)
         centre = roots.mean(axis=0)
-        return np.array([centre[0], 1.0, centre[2]]), framing_distance_m(roots, self.fovy_rad) * self.zoom_factor
+        distance = framing_distance_m(roots, self.fovy_rad, aspect, self.yaw_rad) * self.zoom_factor
+        return np.array([centre[0], 1.0, centre[2]]), distance
 
     def orbit(self, dyaw_rad: float, dpitch_rad: float) -> None:
         self.yaw_rad += dyaw_rad
@@ -119,6 +124,10 @@ class OrbitCamera:
     def zoom(self, factor: float) -> None:
         self.distance_m = float(np.clip(self.distance_m * factor, 1.0, 80.0))
         self.zoom_factor = float(np.clip(self.zoom_factor * factor, 0.05, 10.0))
+
+    def right_m(self) -> np.ndarray:
+        """Unit vector on the ground pointing to the right of the view (what "beside" means on screen)."""
+        return np.array([-math.cos(self.yaw_rad), 0.0, math.sin(self.yaw_rad)])
 
     def eye_m(self) -> np.ndarray:
         cp = math.cos(self.pitch_rad)

@@ -20,7 +20,8 @@ BASELINE_SPOT_FROM_NET_M = COURT_LENGTH_M / 2 - 1.5  # where a player without a 
                                                       # half's centre, 1.5 m inside the baseline
 SIDES = ("near", "far")  # the court config's athlete sides; near is the camera's half (court y < 0)
 FOLLOW_DISTANCE_M = 6.0  # the follow camera's distance for one athlete
-FRAMING_MARGIN = 1.25     # the athletes' spread times this fits the view's height when several are followed
+FRAMING_MARGIN = 1.3      # the athletes' spread across the screen times this fits the view's width
+OBLIQUE_RAD = math.radians(12.0)  # the view across two athletes is this far off square to the line between them
 
 
 def default_spot(side: str | None, index: int) -> np.ndarray:
@@ -49,9 +50,25 @@ def place(pose_m: np.ndarray, spot_xy: np.ndarray) -> np.ndarray:
     return pose_m + shift
 
 
-def framing_distance_m(roots_m: np.ndarray, fovy_rad: float) -> float:
-    """Follow-camera distance that keeps every root (N, 3) in view: the one-athlete distance, or the spread of the
-    roots on the ground over the view's height (a margin around them)."""
+def across_yaw_rad(roots_m: np.ndarray) -> float | None:
+    """Orbit yaw (0 looks along +Z, `gui.render.camera.OrbitCamera`) that looks across the line through the first
+    and last roots (N, 3), ``OBLIQUE_RAD`` off square so their depths read: with the athletes side by side on
+    screen, the view's wider axis holds their spread. None for one root (or two on one spot)."""
     roots = np.asarray(roots_m, float).reshape(-1, 3)
-    spread = float(np.ptp(roots[:, [0, 2]], axis=0).max()) if len(roots) > 1 else 0.0
-    return max(FOLLOW_DISTANCE_M, FRAMING_MARGIN * spread / (2.0 * math.tan(fovy_rad / 2.0)))
+    dx, dz = roots[-1, 0] - roots[0, 0], roots[-1, 2] - roots[0, 2]
+    if len(roots) < 2 or math.hypot(dx, dz) < 1e-6:
+        return None
+    return math.atan2(dz, -dx) + OBLIQUE_RAD  # looking along (dz, -dx): square to the line between them
+
+
+def framing_distance_m(roots_m: np.ndarray, fovy_rad: float, aspect: float, yaw_rad: float) -> float:
+    """Follow-camera distance that keeps every root (N, 3) in view: the one-athlete distance, or their spread
+    across the screen (along the view's right at ``yaw_rad``) over the view's width, with a margin."""
+    roots = np.asarray(roots_m, float).reshape(-1, 3)
+    if len(roots) < 2:
+        return FOLLOW_DISTANCE_M
+    right = np.array([-math.cos(yaw_rad), math.sin(yaw_rad)])  # `OrbitCamera.right_m` on the court's (x, y)
+    across = float(np.ptp(roots[:, [0, 2]] @ right))
+    along = float(np.ptp(roots[:, [0, 2]] @ np.array([math.sin(yaw_rad), math.cos(yaw_rad)])))
+    half_width = math.tan(fovy_rad / 2.0) * aspect
+    return max(FOLLOW_DISTANCE_M, FRAMING_MARGIN * across / (2.0 * half_width) + along / 2.0)

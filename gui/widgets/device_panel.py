@@ -13,6 +13,7 @@ from PySide6 import QtCore, QtGui, QtWidgets
 from gui.health import Sync, sensor_sync, sync_reason, sync_status
 from gui.widgets import VIEWER_ONLY
 
+SYNC_RANK = [Sync.GREEN, Sync.AMBER, Sync.RED]  # better to worse
 SYNC_QCOLOR = {Sync.GREEN: QtGui.QColor(40, 170, 70), Sync.AMBER: QtGui.QColor(220, 160, 30),
                Sync.RED: QtGui.QColor(200, 50, 50)}
 COLUMNS = ("device", "link", "battery %", "RSSI dBm", "rate / nominal Hz", "loss %", "lost", "CRC err",
@@ -102,9 +103,13 @@ class BodyDiagram(QtWidgets.QWidget):
                 continue
             (x0, y0), (x1, y1) = BODY_SEGMENTS[seg]
             mid = figure.map(QtCore.QPointF((x0 + x1) / 2, (y0 + y1) / 2))
-            # the figure's left (x > 50, the viewer's right) labelled to the right; its right side to the left
-            x = mid.x() + 8 if (x0 + x1) / 2 >= 50 else mid.x() - 8 - metrics.horizontalAdvance(label)
-            p.drawText(QtCore.QPointF(x, mid.y() + metrics.ascent() / 2), label)
+            width = metrics.horizontalAdvance(label)
+            if abs(x1 - x0) > abs(y1 - y0):  # across the body (pelvis): below it, centred
+                at = QtCore.QPointF(mid.x() - width / 2, mid.y() + 6 + metrics.ascent())
+            else:  # the figure's left (x > 50, the viewer's right) labelled to the right; its right to the left
+                at = QtCore.QPointF(mid.x() + 8 if (x0 + x1) / 2 >= 50 else mid.x() - 8 - width,
+                                    mid.y() + metrics.ascent() / 2)
+            p.drawText(at, label)
         p.end()
 
 
@@ -209,8 +214,11 @@ class DevicePanel(QtWidgets.QWidget):
                 self._show_sync(item, healthy, reason)
                 self.sensor_health[(sid, idx)] = healthy
                 seg = self.mapping.get((sid, idx), "")
-                if seg:
-                    bodies.setdefault(self.sensor_athletes.get((sid, idx), ""), {})[seg] = (f"{sid}/{idx}", healthy)
+                if seg:  # two sensors on one segment (forearm and wrist): both named, the worse health shown
+                    body = bodies.setdefault(self.sensor_athletes.get((sid, idx), ""), {})
+                    label, worst = body.get(seg, ("", Sync.GREEN))
+                    body[seg] = (f"{label}, {sid}/{idx}" if label else f"{sid}/{idx}",
+                                 max(worst, healthy, key=SYNC_RANK.index))
         self._show_bodies(bodies)
         if self._new_rows:
             for col in range(len(COLUMNS)):

@@ -17,7 +17,7 @@ from gui.render.camera import CameraMode, OrbitCamera
 from gui.render.placement import default_spot, place
 from gui.render.skeleton_renderer import ESTIMATE_STYLE, TRUTH_STYLE, SkeletonRenderer, SkeletonStyle
 
-TRUTH_OFFSET_M = np.array([1.5, 0.0, 0.0])  # ground truth drawn beside the estimate, not on top of it
+TRUTH_BESIDE_M = 1.5  # ground truth drawn this far to the estimate's right on screen, not on top of it
 # more athletes (issue 20): each in its own colour, at its own court spot
 ESTIMATE_CSS = "#ff9a2a"
 ATHLETE_STYLES = (SkeletonStyle(bone_rgb=(0.3, 0.85, 0.3), joint_rgb=(0.6, 1.0, 0.5)),
@@ -59,7 +59,6 @@ class SkeletonView(QtWidgets.QWidget):
         self.parents: np.ndarray | None = None
         self.estimate_m: np.ndarray | None = None
         self.truth_m: np.ndarray | None = None
-        self.truth_offset_m = TRUTH_OFFSET_M.copy()
         self.estimate_style = ESTIMATE_STYLE
         self.confidence_level: float | None = None
         self.athlete: str | None = None  # the estimate's athlete (named in the legend when there are several)
@@ -145,7 +144,7 @@ class SkeletonView(QtWidgets.QWidget):
         text += "".join(f"<span style='color:{ATHLETE_CSS[k % len(ATHLETE_CSS)]}'>■ {other}"
                         f"{self._where(other, k + 1)}</span>  " for k, other in enumerate(self.others))
         if self.truth_m is not None:
-            beside = f" (drawn {TRUTH_OFFSET_M[0]:g} m beside the estimate)" if self.estimate_m is not None else ""
+            beside = f" (drawn {TRUTH_BESIDE_M:g} m beside the estimate)" if self.estimate_m is not None else ""
             text += f"<span style='color:#4fd8e6'>■ ground truth{beside}</span>"
         self.legend.setText(text)
         self.legend.adjustSize()
@@ -188,11 +187,14 @@ class SkeletonView(QtWidgets.QWidget):
         scale = min(1.0, (MAX_RENDER_PIXELS / max(1.0, w * h)) ** 0.5)
         self.renderer.resize(int(w * scale), int(h * scale))
         skeletons = self._placed_skeletons()
-        roots = np.array([pose[0] for pose, _, _ in skeletons]) if skeletons else None
+        # the athletes' roots frame the view (a truth beside the estimate is in view with it; alone, it frames)
+        framing = [pose[0] for pose, _, style in skeletons if style is not TRUTH_STYLE or len(skeletons) == 1]
+        roots = np.array(framing) if framing else None
+        aspect = self.renderer.size[0] / self.renderer.size[1]
         if roots is not None and not self._snapped:
-            self.camera.snap_to(roots)
+            self.camera.snap_to(roots, aspect)
             self._snapped = True
-        self.camera.follow(roots)
+        self.camera.follow(roots, aspect)
         self._pixels = np.ascontiguousarray(self.renderer.render(self.camera, skeletons))
         h, w = self._pixels.shape[:2]
         self._image = rgba_to_qimage(self._pixels)
@@ -211,7 +213,7 @@ class SkeletonView(QtWidgets.QWidget):
         if self.estimate_m is not None:
             skeletons.append((place(self.estimate_m, first), self.parents, self.estimate_style))
         if self.truth_m is not None:
-            offset = TRUTH_OFFSET_M if self.estimate_m is not None else 0.0
+            offset = TRUTH_BESIDE_M * self.camera.right_m() if self.estimate_m is not None else 0.0
             skeletons.append((place(self.truth_m, first) + offset, self.parents, TRUTH_STYLE))
         for k, (name, (pose, style)) in enumerate(self.others.items(), 1):
             skeletons.append((place(pose, self._spot(name, k)), self.parents, style))

@@ -104,6 +104,9 @@ def test_device_panel_draws_one_body_diagram_per_athlete(qtbot):
     panel.update_status({"t_host_s": 2.0, "stations": [station("st1"), station("st2")]})
     assert list(panel.bodies) == ["alice", "bob"] and [b.title for b in panel.bodies.values()] == ["alice", "bob"]
     assert panel.bodies["bob"].segment_state["left_forearm"] == ("st2/0", Sync.GREEN)
+    panel.sensor_athletes = {}  # one athlete wearing both: forearm and wrist share a segment, both are named
+    panel.update_status({"t_host_s": 3.0, "stations": [station("st1"), station("st2", loss=9.0)]})
+    assert panel.bodies[""].segment_state["left_forearm"] == ("st1/0, st2/0", Sync.RED)
 
 
 def test_segment_names_map_to_the_body_diagram():

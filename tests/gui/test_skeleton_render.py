@@ -162,3 +162,14 @@ def test_segment_colour_paints_that_segments_bones(renderer):
     assert red[mid_thigh[1] - 1:mid_thigh[1] + 2, mid_thigh[0] - 1:mid_thigh[0] + 2].any()
     assert not red[mid_spine[1] - 2:mid_spine[1] + 3, mid_spine[0] - 2:mid_spine[0] + 3].any()
     assert is_estimate_colour(img)[mid_spine[1] - 1:mid_spine[1] + 2, mid_spine[0] - 1:mid_spine[0] + 2].any()
+
+
+def test_the_views_right_is_the_screens_right():
+    """The ground truth is drawn `right_m` of the estimate: that must be to the right on screen at any yaw."""
+    cam = OrbitCamera()
+    for yaw in (-2.0, -0.5, 0.0, 0.7, 2.5):
+        cam.yaw_rad = yaw
+        cam.snap_to(ROOT)
+        vp = cam.view_proj(1.5)
+        (left, _), (right, _) = project_to_pixels(np.array([ROOT, ROOT + cam.right_m()]), vp, 300, 200)
+        assert right > left + 5
