@@ -161,7 +161,7 @@ def read_calibration_record(path: str | Path) -> dict:
     if len(sensors) > MAX_RECORD_SENSORS:
         raise MalformedFileError(path, None, f"{len(sensors)} sensors: more than the {MAX_RECORD_SENSORS} a body "
                                              "can wear (not a calibration record)")
-    if not isinstance(doc.get("passed"), bool):
+    if "passed" in doc and not isinstance(doc["passed"], bool):  # "no" would count as passed
         raise MalformedFileError(path, None, f"'passed' must be true or false, got {doc.get('passed')!r}")
     segments: dict[str, str] = {}
     for sid, entry in sensors.items():
