@@ -88,11 +88,16 @@ def test_status_bar_says_whether_segments_are_posed_with_calibrated_yaw(live_gat
     from engine.mocap.calibrated import orientation_fields
     from engine.stream.poses_file import load_poses
 
+    from engine.graph.graph import MotionGraph
+    from engine.mocap import standard_placements
+
     gateway, _ = live_gateway(StillSource(4), 4)
     names = ["left_wrist", "right_wrist", "left_ankle", "right_ankle"]
+    # the nominal mountings of the graph's skeleton (the console turns readings by a record's mountings)
+    nominal = {p.name: p.rotation for p in standard_placements(MotionGraph.load(wrist_graph).skeleton, names)}
     record = tmp_path / "take.calibration.json"
     record.write_text(json.dumps({"schema": "courtside.sensor_calibration", "schema_version": 1, "sensors": {
-        f"st1/{i}": {"segment": seg, "rotation": np.eye(3).tolist(), "gravity_sensor_g": [0, 1, 0],
+        f"st1/{i}": {"segment": seg, "rotation": nominal[seg].tolist(), "gravity_sensor_g": [0, 1, 0],
                      "norm_error_g": 0.0, "correction_deg": 0.0, "passed": True,
                      **(orientation_fields(0.3 * i, [1.0, 0.0, 0.0, 0.0]) if oriented else {})}
         for i, seg in enumerate(names)}}))
