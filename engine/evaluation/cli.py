@@ -25,12 +25,13 @@ from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 from engine.mocap.orientation import OrientationErrorModel
+from engine.mocap.take_calibration import PoseSpec
 from engine.safe_load import read_json
 
 from . import plot, protocols, table
 from .labels import clip_label
 from .confidence_quality import ConfidenceQuality, confidence_quality
-from .simulate import CalibrationCapture, CameraModel
+from .simulate import CALIBRATION_SOURCES, STRAPPINGS, CalibrationCapture, CameraModel
 from .takes import plan_chained_takes
 
 PROTOCOLS = ("loo", "chained", "loco", "loso")
@@ -88,6 +89,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--posing-error-deg", type=float, default=CalibrationCapture.posing_error_deg, metavar="DEG",
                    help="acc+ori rows: how far (sd, degrees) each segment is off the reference N-pose while the "
                         "athlete holds it for the calibration capture (default %(default)s)")
+    p.add_argument("--strapping", choices=STRAPPINGS, default="nominal",
+                   help="acc+ori rows: nominal (the error model's few-degree misalignment) or random (every sensor, "
+                        "its accelerometer too, strapped by a rotation uniform over all rotations; the calibration "
+                        "is then solved from the take as `courtside calibrate` does)")
+    p.add_argument("--start-pose", metavar="npose|tpose|apose[:DEG]", default=None,
+                   help="acc+ori rows: the pose held before the take instead of the wizard's N-pose (apose: arms DEG "
+                        "out from hanging, default 70), calibrated from the take without being told which")
+    p.add_argument("--calibration-from", choices=CALIBRATION_SOURCES, default="pose",
+                   help="acc+ori rows: pose (a held pose before the take) or motion (no held pose: strapping and yaw "
+                        "from the take's motion against the database, engine/mocap/take_calibration.py)")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
     p.add_argument("--plot", metavar="OUT.png", help="draw the first take's per-second error of every row and the "
                                                      "table as bars (needs the plot extra: courtside[plot])")
@@ -126,7 +137,21 @@ def _config(args: argparse.Namespace) -> protocols.EvalConfig:
         fusion=RootFusion.off() if args.no_root_fusion else RootFusion(
             args.camera_noise_m, float(np.radians(args.camera_noise_deg))),
         lag_s=args.lag, seed=args.seed,
-        capture=None if args.no_calibration_capture else CalibrationCapture(posing_error_deg=args.posing_error_deg))
+        capture=None if args.no_calibration_capture else _capture(args))
+
+
+def _capture(args: argparse.Namespace) -> CalibrationCapture:
+    """The calibration capture the options describe (simulate.CalibrationCapture)."""
+    if args.start_pose is not None:
+        try:
+            spec = PoseSpec.parse(args.start_pose)
+        except ValueError as exc:
+            raise CourtsideError(f"--start-pose: {exc}") from None
+        if spec.name == "none" or spec.window_s is not None:
+            raise CourtsideError("--start-pose: npose, tpose or apose[:DEG] (no window; --calibration-from motion "
+                                 "holds no pose)")
+    return CalibrationCapture(posing_error_deg=args.posing_error_deg, strapping=args.strapping,
+                              start_pose=args.start_pose, source=args.calibration_from)
 
 
 def _database(args: argparse.Namespace) -> protocols.Database:

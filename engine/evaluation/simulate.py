@@ -20,6 +20,7 @@ from engine.mocap import (Motion, SensorErrorModel, Skeleton, resample, standard
 from engine.mocap import quaternions as quat
 from engine.mocap.orientation import OrientationErrorModel, random_rotations, virtual_orientations
 from engine.mocap.orientation_calibration import OrientationCalibration, pose_sensor_orientations
+from engine.mocap.take_calibration import MotionPrior, PoseSpec, calibrate_take
 
 from .takes import Take
 
@@ -89,14 +90,33 @@ def gyroscopes(take: Take, sensor_names: tuple[str, ...] | list[str], fps: float
                        lambda m: virtual_gyroscopes(m, standard_placements(m.skeleton, sensor_names)))[0]
 
 
+STRAPPINGS = ("nominal", "random")
+CALIBRATION_SOURCES = ("pose", "motion")
+
+
 @dataclass(frozen=True)
 class CalibrationCapture:
     """The still N-pose the athlete holds before the take (what the wizard asks for): `seconds` of it, held with
     `posing_error_deg` (sd) of each segment's orientation off the reference pose -- people do not hold a template
-    exactly -- and solved against the reference pose on the database's skeleton."""
+    exactly -- and solved against the reference pose on the database's skeleton.
+
+    Issue 29's real-recording conditions: `strapping` "random" straps every sensor by a rotation drawn uniformly
+    over all rotations (its accelerometer too); `start_pose` (npose, tpose, or apose:DEG, the arms DEG out from
+    hanging) is the pose held instead of the N-pose, and the calibration is then solved FROM THE TAKE by what
+    `courtside calibrate` runs (engine.mocap.take_calibration: the still stretch found, an A-pose's arm angle
+    fitted, each strap's twist from the motion against the database); `source` "motion" holds no pose at all and
+    calibrates from the motion alone. Defaults: the wizard's N-pose with today's straps and solve."""
 
     seconds: float = 2.0
     posing_error_deg: float = 8.0
+    strapping: str = "nominal"
+    start_pose: str | None = None
+    source: str = "pose"
+
+    @property
+    def from_take(self) -> bool:
+        """Is the calibration solved from the take (`calibrate_take`) rather than the wizard's N-pose solve?"""
+        return self.strapping != "nominal" or self.start_pose is not None or self.source != "pose"
 
 
 def _true_orientations(take: Take, sensor_names: tuple[str, ...] | list[str], fps: float) -> np.ndarray:
@@ -122,10 +142,49 @@ def calibrated_orientations(take: Take, sensor_names: tuple[str, ...] | list[str
     `reference_skeleton` (the database's), as the wizard would."""
     fps = take.fps if fps is None else fps
     n_capture = max(1, int(round(capture.seconds * fps)))
-    held = pose_sensor_orientations(take.segments[0].motion.skeleton, sensor_names,
-                                    heading_rad=float(take.heading_rad[0]))
-    held = quat.multiply(random_rotations(rng, len(held), np.radians(capture.posing_error_deg)), held)
+    held = _held_pose(take, sensor_names, capture, rng)
     q = np.concatenate([np.repeat(held[None], n_capture, axis=0), _true_orientations(take, sensor_names, fps)])
     readings = error_model.apply(q, fps, rng)
     template = pose_sensor_orientations(reference_skeleton, sensor_names)
     return readings[n_capture:], OrientationCalibration.from_still_pose(readings[:n_capture], template)
+
+
+def _held_pose(take: Take, sensor_names: tuple[str, ...] | list[str], capture: CalibrationCapture,
+               rng: np.random.Generator) -> np.ndarray:
+    """(S, 4) true sensor orientations of the start pose held (facing the take's first heading, on its first
+    skeleton, each segment off the template by the posing error)."""
+    spec = PoseSpec.parse(capture.start_pose or "npose")
+    held = pose_sensor_orientations(take.segments[0].motion.skeleton, sensor_names, spec.name,
+                                    heading_rad=float(take.heading_rad[0]),
+                                    arm_deg=(70.0 if spec.arm_deg is None else spec.arm_deg)
+                                    if spec.name == "apose" else None)
+    return quat.multiply(random_rotations(rng, len(held), np.radians(capture.posing_error_deg)), held)
+
+
+def take_calibrated_sensors(take: Take, sensor_names: tuple[str, ...] | list[str], acc_g: np.ndarray,
+                            error_model: OrientationErrorModel, rng: np.random.Generator, capture: CalibrationCapture,
+                            graph) -> tuple[np.ndarray, np.ndarray, OrientationCalibration]:
+    """Issue 29's capture (`CalibrationCapture.from_take`): the sensors strapped as `capture.strapping` says,
+    the start pose (or none) before the take, and the calibration solved from those readings by
+    `calibrate_take` against `graph` (its skeleton's poses, its nodes as the database; the pose family is not
+    told: an A-pose of unknown arm angle, 0 = N-pose, 90 = T-pose arms, found from the tilts and the motion).
+    Returns (the take's accelerations `acc_g` (T, S, 3) as the strapped sensors read them, turned back by the
+    solved strapping -- what `synthesize --calibration` does to a take --, the take's orientation readings,
+    the calibration)."""
+    fps = take.fps
+    n = len(sensor_names)
+    strap = quat.normalize(rng.normal(size=(n, 4))) if capture.strapping == "random" else quat.identity((n,))
+    truth = _true_orientations(take, sensor_names, fps)
+    held_n = 0 if capture.source == "motion" else max(1, int(round(capture.seconds * fps)))
+    if held_n:
+        truth = np.concatenate([np.repeat(_held_pose(take, sensor_names, capture, rng)[None], held_n, 0), truth])
+    readings = error_model.apply(quat.multiply(truth, strap[None]), fps, rng)
+    pose = PoseSpec("none") if capture.source == "motion" else PoseSpec("apose")
+    try:
+        solved = calibrate_take(readings, fps, list(sensor_names), graph.skeleton, pose, MotionPrior.from_graph(graph))
+    except ValueError as exc:
+        raise CourtsideError(f"simulated calibration: {exc}") from None
+    cal = solved.orientation
+    strapped = quat.rotate(quat.conjugate(strap)[None], acc_g)  # a_sensor = M⁻¹ a_nominal
+    corrected = quat.rotate(cal.mount_wxyz[None], strapped)
+    return corrected, readings[held_n:], cal

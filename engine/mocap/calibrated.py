@@ -21,12 +21,19 @@ onto the *nominal* sensor frame of its standard placement, which is the same in 
 placement is defined on the T-pose); so unlike ``rotation`` the pair is not tied to the wizard's skeleton.
 
 Frames: the record's rotations are in the joint frames of the skeleton whose standard placements gave the
-wizard its nominal mountings (``CalibrationService.standard``: the shipped CMU skeleton, which the console and
-``courtside build-graph --sample`` also use). :func:`placements_from_calibration` checks this: the angle
-between the measured and the graph's nominal rotation must equal the correction the wizard reported.
+calibration its nominal mountings (the shipped CMU skeleton for the live wizard by default; the graph's own
+skeleton for `courtside calibrate --graph`). Since issue 29 a record says which (optional top-level ``skeleton``:
+a human ``name``, the joint count, and a ``fingerprint`` of its names, parents and offsets, `skeleton_identity`)
+and holds each sensor's strapping relative to its placement's nominal sensor frame (optional ``strap_wxyz``, the
+quaternion of ``R_nominalᵀ R``), which is the same frame on every skeleton (a placement is defined on the
+T-pose). So :func:`placements_from_calibration` uses a record made for this skeleton as it is, converts one made
+for other joint frames (``R = R_nominal(this skeleton) · strap``), and refuses, in one line naming both skeletons,
+only an older record without the strapping whose rotations do not fit these frames: the angle between the
+measured and this skeleton's nominal rotation must then equal the correction the calibration reported.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 from collections.abc import Mapping, Sequence
@@ -36,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.mocap import quaternions as quat
 from engine.mocap.orientation_calibration import OrientationCalibration
 from engine.mocap.sensors import STANDARD_SENSORS, SensorPlacement
 from engine.versioned_json import read_versioned_json
@@ -44,6 +52,8 @@ SCHEMA = "courtside.sensor_calibration"
 SCHEMA_VERSION = 1
 MAX_RECORD_SENSORS = 64  # far more than a body wears; 100 000 "sensors" is not a record (issue 30)
 ORIENTATION_YAW, ORIENTATION_MOUNT = "orientation_yaw_rad", "orientation_mount_wxyz"  # optional, per sensor
+STRAP = "strap_wxyz"  # optional, per sensor: the strapping relative to the placement's nominal sensor frame
+SKELETON = "skeleton"  # optional, top level: the skeleton the rotations' joint frames belong to
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +73,52 @@ def orientation_fields(yaw_rad: float | None, mount_wxyz: np.ndarray | None) -> 
         return {}
     mount = np.asarray(mount_wxyz, float).reshape(4)
     return {ORIENTATION_YAW: float(yaw_rad), ORIENTATION_MOUNT: (mount if mount[0] >= 0 else -mount).tolist()}
+
+
+def skeleton_identity(skeleton, name: str) -> dict:
+    """``{"name", "joints", "fingerprint"}`` of a skeleton: `name` for people (e.g. the graph file's), the
+    fingerprint (12 hex digits of a SHA-1 over the joint names, parents and offsets to 0.1 mm) for the check."""
+    digest = hashlib.sha1()
+    digest.update("\0".join(skeleton.names).encode())
+    digest.update(np.asarray(skeleton.parents, np.int64).tobytes())
+    digest.update(np.round(np.asarray(skeleton.offsets_m, float) * 1e4).astype(np.int64).tobytes())
+    return {"name": str(name), "joints": int(skeleton.n_joints), "fingerprint": digest.hexdigest()[:12]}
+
+
+def skeleton_text(identity: Mapping | None) -> str:
+    """How a message names a skeleton identity (None: a record from before records named theirs)."""
+    if not identity:
+        return "an unnamed skeleton (a record from before issue 29: the shipped CMU one unless made otherwise)"
+    return f"{identity['name']} ({identity['joints']} joints, {identity['fingerprint']})"
+
+
+def read_skeleton_field(doc: Mapping) -> dict | None:
+    """The record's ``skeleton`` identity, or None when it has none; ValueError when it is malformed."""
+    value = doc.get(SKELETON)
+    if value is None:
+        return None
+    if not (isinstance(value, Mapping) and isinstance(value.get("name"), str) and isinstance(value.get("joints"), int)
+            and isinstance(value.get("fingerprint"), str)):
+        raise ValueError(f"{SKELETON!r} must be an object with a name, a joint count and a fingerprint")
+    return {"name": value["name"], "joints": value["joints"], "fingerprint": value["fingerprint"]}
+
+
+def strap_field(strap_wxyz: np.ndarray | None) -> dict:
+    """A sensor entry's optional strapping as written (nothing when unknown), sign fixed (w >= 0)."""
+    if strap_wxyz is None:
+        return {}
+    strap = np.asarray(strap_wxyz, float).reshape(4)
+    return {STRAP: (strap if strap[0] >= 0 else -strap).tolist()}
+
+
+def read_strap_field(entry: Mapping) -> np.ndarray | None:
+    """A sensor entry's strapping (4,), or None; ValueError when it is not a finite unit quaternion."""
+    if entry.get(STRAP) is None:
+        return None
+    strap = np.asarray(entry[STRAP], float).reshape(4)
+    if not np.isfinite(strap).all() or abs(np.linalg.norm(strap) - 1.0) > 1e-3:
+        raise ValueError(f"{STRAP} is not a finite unit quaternion")
+    return strap
 
 
 def read_orientation_fields(entry: Mapping) -> tuple[float, np.ndarray] | None:
@@ -123,6 +179,8 @@ class SensorCalibrationData:
     correction_deg: dict[str, float] = field(default_factory=dict)
     failed: list[str] = field(default_factory=list)
     orientation: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
+    straps: dict[str, np.ndarray] = field(default_factory=dict)  # segment -> strapping (3, 3), records that hold it
+    skeleton: dict | None = None  # `skeleton_identity` of the record's joint frames, records that say it
 
     def fingerprint(self) -> str:
         """Stable text of the rotations (and nothing else), for cache keys."""
@@ -161,6 +219,10 @@ def read_calibration_record(path: str | Path) -> dict:
     if len(sensors) > MAX_RECORD_SENSORS:
         raise MalformedFileError(path, None, f"{len(sensors)} sensors: more than the {MAX_RECORD_SENSORS} a body "
                                              "can wear (not a calibration record)")
+    try:
+        read_skeleton_field(doc)
+    except ValueError as exc:
+        raise MalformedFileError(path, None, str(exc)) from None
     if "passed" in doc and not isinstance(doc["passed"], bool):  # "no" would count as passed
         raise MalformedFileError(path, None, f"'passed' must be true or false, got {doc.get('passed')!r}")
     segments: dict[str, str] = {}
@@ -173,6 +235,7 @@ def read_calibration_record(path: str | Path) -> dict:
             if not isinstance(entry["passed"], bool):  # "no" would count as passed
                 raise ValueError(f"'passed' must be true or false, got {entry['passed']!r}")
             read_orientation_fields(entry)
+            read_strap_field(entry)
         except (KeyError, TypeError, ValueError) as exc:
             raise MalformedFileError(path, None, f"sensor {sid!r}: bad entry ({exc!r})") from None
         if not (np.all(np.isfinite(rotation)) and np.all(np.isfinite(gravity)) and np.all(np.isfinite(numbers))):
@@ -192,8 +255,9 @@ def load_sensor_calibration(path: str | Path) -> SensorCalibrationData:
     """What the engine uses of a ``courtside.sensor_calibration`` record (`read_calibration_record`), read
     without the gateway."""
     path = Path(path)
-    out = SensorCalibrationData(path)
-    for sid, entry in read_calibration_record(path)["sensors"].items():
+    doc = read_calibration_record(path)
+    out = SensorCalibrationData(path, skeleton=read_skeleton_field(doc))
+    for sid, entry in doc["sensors"].items():
         segment = str(entry["segment"])
         gravity = np.asarray(entry["gravity_sensor_g"], float).reshape(3)
         out.rotations[segment] = np.asarray(entry["rotation"], float)
@@ -205,35 +269,54 @@ def load_sensor_calibration(path: str | Path) -> SensorCalibrationData:
         orientation = read_orientation_fields(entry)
         if orientation is not None:
             out.orientation[segment] = orientation
+        strap = read_strap_field(entry)
+        if strap is not None:
+            out.straps[segment] = quat.to_matrix(strap)
     return out
 
 
 def placements_from_calibration(placements: list[SensorPlacement], calibration: SensorCalibrationData,
-                                with_bias: bool = False, frame_tolerance_deg: float = 5.0) -> list[SensorPlacement]:
+                                with_bias: bool = False, frame_tolerance_deg: float = 5.0,
+                                skeleton_id: Mapping | None = None) -> list[SensorPlacement]:
     """``calibrated_placements`` from a loaded record, for the placements the record covers (others stay
     nominal; record segments not among ``placements`` are ignored -- the graph simply does not use them).
 
-    Refuses (ValueError) a record made against other joint frames: for every sensor, the angle between the
-    measured rotation and *these* placements' nominal rotation must match the wizard's ``correction_deg``
-    within ``frame_tolerance_deg``."""
+    ``skeleton_id`` (`skeleton_identity` of the placements' skeleton, when the caller knows it): a record made
+    for that skeleton is used as it is; one made for other joint frames is converted through each sensor's
+    strapping (module docstring). A record without the strapping must fit these frames: for every sensor, the
+    angle between the measured rotation and *these* placements' nominal rotation must match the correction it
+    reports within ``frame_tolerance_deg``; MalformedFileError naming both skeletons otherwise."""
     nominal = {p.name: p.rotation for p in placements}
     used = [s for s in calibration.rotations if s in nominal]
+    same = bool(skeleton_id and calibration.skeleton
+                and calibration.skeleton["fingerprint"] == skeleton_id["fingerprint"])
+    rotations = {}
     for seg in used:
+        if not same and seg in calibration.straps:
+            rotations[seg] = nominal[seg] @ calibration.straps[seg]
+            continue
         angle = _angle_deg(calibration.rotations[seg] @ nominal[seg].T)
         if abs(angle - calibration.correction_deg[seg]) > frame_tolerance_deg:
+            target = skeleton_text(skeleton_id) if skeleton_id else "this one"
             raise MalformedFileError(
-                calibration.path, None, f"sensor on {seg!r} is {angle:.0f} deg from this skeleton's nominal mounting "
-                f"but the wizard corrected {calibration.correction_deg[seg]:.0f} deg: the record was made for "
-                "another skeleton's joint frames")
-    rotations = {s: calibration.rotations[s] for s in used}
+                calibration.path, None, f"the record was made for another skeleton's joint frames, "
+                f"{skeleton_text(calibration.skeleton)}, not {target}, and holds no strapping to convert it (sensor on "
+                f"{seg!r}: {angle:.0f} deg from this skeleton's nominal mounting, corrected "
+                f"{calibration.correction_deg[seg]:.0f} deg): calibrate again with `courtside calibrate --graph GRAPH`")
+        rotations[seg] = calibration.rotations[seg]
+    if not same and any(s in calibration.straps for s in used):
+        log.info("%s: made for %s: converted to %s through each sensor's strapping", calibration.path,
+                 skeleton_text(calibration.skeleton), skeleton_text(skeleton_id) if skeleton_id else "these frames")
     bias = {s: calibration.bias_along_gravity_g[s] for s in used} if with_bias else None
     return calibrated_placements(placements, rotations, bias)
 
 
-def reading_corrections(placements: list[SensorPlacement], calibration: SensorCalibrationData) -> dict[str, np.ndarray]:
+def reading_corrections(placements: list[SensorPlacement], calibration: SensorCalibrationData,
+                        skeleton_id: Mapping | None = None) -> dict[str, np.ndarray]:
     """Per calibrated placement, the rotation ``C = R_nominalᵀ R_measured`` that turns the real sensor's readings
     into what the nominally mounted virtual sensor reads (``a_nominal = C a_real``), so a take can be synthesised
-    on a graph built with the nominal mounting instead of rebuilding the graph. Same frame check as
-    :func:`placements_from_calibration`."""
-    measured = {p.name: p.rotation for p in placements_from_calibration(placements, calibration)}
+    on a graph built with the nominal mounting instead of rebuilding the graph. Same frame check (and conversion)
+    as :func:`placements_from_calibration`, for the skeleton `skeleton_id` names."""
+    measured = {p.name: p.rotation for p in placements_from_calibration(placements, calibration,
+                                                                       skeleton_id=skeleton_id)}
     return {p.name: p.rotation.T @ measured[p.name] for p in placements if p.name in calibration.rotations}

@@ -16,6 +16,12 @@ the skeleton itself (:func:`reference_npose`):
 
 A frame of a shipped clip is not used: frame 0 of 16_01 (the subject standing before walking) has the elbows bent
 ~22 deg and the shins ~17 deg off vertical, i.e. it is not the pose the operator asks for.
+
+Real takes start in whatever pose the athlete stands in (issue 29): an **A-pose** (:func:`reference_apose`) is the
+N-pose with both straight arms swung out sideways in the frontal plane by the abduction angle (0 = the N-pose,
+arms down; 90 = arms horizontal as in the T-pose; any angle between), the rest of the body as in the N-pose.
+:func:`pose_rotations` builds every pose on any skeleton: one whose zero pose is not upright (raw Bandai) gets it
+built on its T-pose re-based frames (engine.mocap.rest_pose) and mapped back into its own joint frames.
 """
 from __future__ import annotations
 
@@ -23,11 +29,13 @@ from typing import Any
 
 import numpy as np
 
+from engine.mocap.rest_pose import tpose_bases, tpose_skeleton
 from engine.mocap.roles import joint_roles
 from engine.mocap.rotations import minimal_rotation
 
 UP = np.array([0.0, 1.0, 0.0])
-POSES = ("npose", "tpose")
+POSES = ("npose", "tpose", "apose")
+ARM_JOINTS = ("shoulder", "elbow")  # the joints whose segments an A-pose's arm angle moves (upper arm, forearm)
 # (joint role, distal role) of each bone that hangs straight down in the N-pose, parents before children
 _HANGING = tuple((f"{side}_{joint}", f"{side}_{distal}") for side in ("left", "right")
                  for joint, distal in (("shoulder", "elbow"), ("elbow", "wrist"), ("hip", "knee"), ("knee", "ankle")))
@@ -46,6 +54,14 @@ def _fk(skeleton: Any, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return pos, glob
 
 
+def _zero_pose_tilt_deg(skeleton: Any) -> float:
+    """Angle (degrees) of the spine (pelvis -> upper back) from vertical in the skeleton's zero pose."""
+    roles = joint_roles(skeleton)
+    pos, _ = _fk(skeleton, np.tile(np.eye(3), (skeleton.n_joints, 1, 1)))
+    spine = pos[roles["upper_back"]] - pos[roles["pelvis"]]
+    return float(np.degrees(np.arccos(np.clip(spine @ UP / np.linalg.norm(spine), -1.0, 1.0))))
+
+
 def reference_npose(skeleton: Any) -> tuple[np.ndarray, np.ndarray]:
     """The reference N-pose (module docstring) of an engine skeleton: ``(local, global)`` joint rotation
     matrices, each (J, 3, 3); ``global`` is what ``segment_specs_from_placements(pose_rotations=)`` takes.
@@ -55,8 +71,7 @@ def reference_npose(skeleton: Any) -> tuple[np.ndarray, np.ndarray]:
     roles = joint_roles(skeleton)
     local = np.tile(np.eye(3), (skeleton.n_joints, 1, 1))
     pos, glob = _fk(skeleton, local)
-    spine = pos[roles["upper_back"]] - pos[roles["pelvis"]]
-    tilt = np.degrees(np.arccos(np.clip(spine @ UP / np.linalg.norm(spine), -1.0, 1.0)))
+    tilt = _zero_pose_tilt_deg(skeleton)
     if tilt > _MAX_TRUNK_TILT_DEG:
         raise ValueError(f"the skeleton's zero pose is not upright (spine {tilt:.0f} deg from vertical): "
                          "re-base it to a T-pose (engine.mocap.rebase_to_tpose) before building the N-pose")
@@ -108,11 +123,37 @@ def reference_long_sit(skeleton: Any) -> np.ndarray:
     return _fk(skeleton, local)[1]
 
 
-def pose_rotations(skeleton: Any, pose: str) -> np.ndarray:
-    """Global joint rotations (J, 3, 3) of the named calibration pose: ``"npose"`` (:func:`reference_npose`)
-    or ``"tpose"`` (the skeleton's zero pose, a T-pose for CMU ASF and re-based skeletons)."""
+def reference_apose(skeleton: Any, arm_deg: float) -> np.ndarray:
+    """Global joint rotations (J, 3, 3) of an A-pose: the reference N-pose with each straight arm swung out
+    sideways (about the forward axis, in the frontal plane) by ``arm_deg`` (0 = the N-pose, 90 = horizontal),
+    everything the shoulder carries turning with it."""
+    if not 0.0 <= arm_deg <= 180.0:
+        raise ValueError(f"arm angle {arm_deg:g} deg: expected 0 (arms down) to 90 (horizontal), at most 180")
+    roles = joint_roles(skeleton)
+    local, glob = reference_npose(skeleton)
+    local = local.copy()
+    for side, sign in (("left", 1.0), ("right", -1.0)):  # left arm out to +X: about +Z; right: about -Z
+        c, s = np.cos(np.radians(sign * arm_deg)), np.sin(np.radians(sign * arm_deg))
+        swing = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        j = roles[f"{side}_shoulder"]
+        local[j] = glob[skeleton.parents[j]].T @ swing @ glob[j]
+    return _fk(skeleton, local)[1]
+
+
+def pose_rotations(skeleton: Any, pose: str, arm_deg: float | None = None) -> np.ndarray:
+    """Global joint rotations (J, 3, 3), in the skeleton's own joint frames, of the named calibration pose:
+    ``"npose"`` (:func:`reference_npose`), ``"tpose"`` (the zero pose of the upright skeleton: a T-pose for CMU
+    ASF and re-based skeletons) or ``"apose"`` with the arms ``arm_deg`` out (:func:`reference_apose`). A skeleton
+    whose zero pose is not upright (raw Bandai) gets the pose of its T-pose re-based frames (G B_jᵀ per joint)."""
+    if pose not in POSES:
+        raise ValueError(f"unknown calibration pose {pose!r}; known: {', '.join(POSES)}")
+    if pose == "apose" and arm_deg is None:
+        raise ValueError("an A-pose needs its arm angle (degrees out from the arms-down N-pose)")
+    if _zero_pose_tilt_deg(skeleton) > _MAX_TRUNK_TILT_DEG:
+        bases = tpose_bases(skeleton)
+        return pose_rotations(tpose_skeleton(skeleton, bases), pose, arm_deg) @ np.transpose(bases, (0, 2, 1))
     if pose == "npose":
         return reference_npose(skeleton)[1]
-    if pose == "tpose":
-        return np.tile(np.eye(3), (skeleton.n_joints, 1, 1))
-    raise ValueError(f"unknown calibration pose {pose!r}; known: {', '.join(POSES)}")
+    if pose == "apose":
+        return reference_apose(skeleton, float(arm_deg))
+    return np.tile(np.eye(3), (skeleton.n_joints, 1, 1))

@@ -35,12 +35,12 @@ def mean_orientation(quat_wxyz: np.ndarray) -> np.ndarray:
 
 
 def pose_sensor_orientations(skeleton: Skeleton, sensor_names: list[str] | tuple[str, ...], pose: str = "npose",
-                             heading_rad: float = 0.0) -> np.ndarray:
+                             heading_rad: float = 0.0, arm_deg: float | None = None) -> np.ndarray:
     """(S, 4) sensor -> world orientations of the named standard sensors while `skeleton` holds the calibration
-    `pose`, facing `heading_rad`. The pose is built on the T-pose re-based skeleton (the same bones in frames
-    whose zero pose is upright), so raw Bandai skeletons work too."""
+    `pose` (an A-pose with the arms `arm_deg` out), facing `heading_rad`. The pose is built on the T-pose re-based
+    skeleton (the same bones in frames whose zero pose is upright), so raw Bandai skeletons work too."""
     upright = tpose_skeleton(skeleton)
-    glob = pose_rotations(upright, pose)
+    glob = pose_rotations(upright, pose, arm_deg)
     placements = standard_placements(upright, list(sensor_names))
     mats = np.stack([glob[p.joint] @ p.rotation for p in placements])
     return quat.canonical_sign(quat.multiply(yaw_about_up(heading_rad), quat.from_matrix(mats)))

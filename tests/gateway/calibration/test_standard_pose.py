@@ -158,8 +158,8 @@ def test_standard_setup_refuses_a_subject_in_the_tpose_naming_the_sensors():
 
 
 def test_unknown_pose_is_refused():
-    with pytest.raises(ValueError, match="unknown calibration pose 'apose'"):
-        CalibrationService.standard(pose="apose")
+    with pytest.raises(ValueError, match="unknown calibration pose 'lpose'"):
+        CalibrationService.standard(pose="lpose")
     with pytest.raises(RequestError):
         CalibrationService.standard().handle("assign", {"sensor": "st1/0", "segment": "tail"})
 

@@ -1,0 +1,431 @@
+"""Calibrating orientation sensors from a take, whatever their strapping and whatever pose the athlete starts in
+(issue 29): each sensor's earth-frame yaw and its strapping, as `OrientationCalibration`.
+
+The model: a sensor's reading (Y-up world, `from_device_earth`) is ``Q(t) = yaw(δ) S(t) M``, with δ its earth
+frame's unknown yaw, S(t) the orientation of its placement's nominal sensor frame and M its strapping (any
+rotation: upside down and rolled straps included). Its up axis in its own frame is ``u(t) = Q⁻¹ŷ = M⁻¹ v(t)``,
+``v(t) = S⁻¹ŷ`` the segment's up in the nominal frame.
+
+What one still pose identifies: with the pose known (its nominal orientations P), ``u = M⁻¹ P⁻¹ŷ`` fixes two of
+M's three angles; the turn of M about the pose's vertical cannot be told from a turn of the earth frame (δ), so a
+pose alone leaves each sensor's strap **twist** θ about its vertical free: for a hanging forearm that is where
+around the arm the sensor sits, which no still N-pose shows. Nor can one pose of unknown arm angle α tell α from
+the strap: any tilt of the arm sensors' axes fits some strap. What makes both identifiable is the motion that
+follows: the athlete's segments move relative to the pelvis as people move (the database's poses), and only the
+right (α, θ) turns the measured orientations into relative rotations the database holds. So:
+
+* **held pose** (N-pose, T-pose, or an A-pose of declared or unknown arm angle; the first still stretch of the
+  take or a declared window): per sensor the pose gives M(α, θ) = twist(v_pose, θ) · minimal(u → v_pose) and
+  δ(α, θ) exactly; θ (and α, shared by every arm sensor) are the values whose relative rotations to the pelvis
+  sensor over the take lie nearest the database's (`MotionPrior`); the pelvis sensor's own θ is the one whose
+  up axis over the take is likeliest under the database's. Without a database θ = 0 (the smallest strap
+  rotation, as the live wizard does) and α is the angle needing the smallest straps;
+* **no held pose** (``pose none``, research-level, after TIC 2025): each sensor's M from its up axis over the
+  take alone, the rotation that makes them likeliest under the database's distribution of that segment's up
+  (a global search over all rotations), then its twist and δ from the relative rotations as above, then a local
+  refinement of all four angles. The pelvis sensor's yaw is set to 0: the engines use yaws relative to it.
+
+The engines refine the strapping further over the take (engine/graph/orientation_pose.py, the strap refinement),
+so this only needs to land within its reach (tens of degrees would not; a few degrees do)."""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from engine.mocap import quaternions as quat
+from engine.mocap.orientation import from_device_earth, twist_yaw, yaw_about_up
+from engine.mocap.orientation_calibration import OrientationCalibration, mean_orientation, pose_sensor_orientations
+from engine.mocap.rotations import minimal_rotation
+from engine.mocap.skeleton import Skeleton
+
+UP = np.array([0.0, 1.0, 0.0])
+REFERENCE_SENSOR = "lower_back"  # the engines' yaw reference (engine/graph/orientation_term.py)
+ARM_SENSORS = ("left_forearm", "right_forearm", "left_wrist", "right_wrist")  # moved by an A-pose's arm angle
+POSE_NAMES = ("npose", "tpose", "apose", "none")
+_POSE_TEXT = re.compile(r"^(npose|tpose|apose|none)(?::([0-9.]+))?(?:@([0-9.]+):([0-9.]+))?$")
+
+
+@dataclass(frozen=True)
+class PoseSpec:
+    """The pose the take starts with: ``name`` (npose, tpose, apose, or none: no held pose, calibrate from the
+    motion), ``arm_deg`` (apose: the arms' angle out from hanging, 0-90; None: fit it) and ``window_s`` (start,
+    end) where it is held (None: the first still stretch)."""
+
+    name: str = "npose"
+    arm_deg: float | None = None
+    window_s: tuple[float, float] | None = None
+
+    @classmethod
+    def parse(cls, text: str) -> "PoseSpec":
+        """``npose``, ``tpose``, ``apose``, ``apose:20``, any of them ``@START:END`` (seconds), or ``none``."""
+        m = _POSE_TEXT.match(text.strip().lower())
+        if m is None:
+            raise ValueError(f"pose {text!r}: expected npose|tpose|apose[:DEG][@START:END] or none")
+        name, deg, start, end = m.groups()
+        if deg is not None and name != "apose":
+            raise ValueError(f"pose {text!r}: only an A-pose takes an arm angle")
+        if name == "none" and start is not None:
+            raise ValueError(f"pose {text!r}: no held pose has no window")
+        window = None if start is None else (float(start), float(end))
+        if window is not None and not window[1] > window[0]:
+            raise ValueError(f"pose {text!r}: the window must end after it starts")
+        arm = None if deg is None else float(deg)
+        if arm is not None and not 0.0 <= arm <= 90.0:
+            raise ValueError(f"pose {text!r}: arm angle {arm:g} deg outside 0 (arms down) - 90 (horizontal)")
+        return cls(name, arm, window)
+
+    def text(self) -> str:
+        out = self.name + ("" if self.arm_deg is None else f":{self.arm_deg:g}")
+        return out + ("" if self.window_s is None else f"@{self.window_s[0]:g}:{self.window_s[1]:g}")
+
+
+@dataclass(frozen=True)
+class StillnessConfig:
+    """A held pose: every sensor's orientation within ``still_deg`` of its mean over each ``window_s`` window,
+    for at least ``min_s`` seconds (orientation filters' tilt noise wanders ~1 degree in a quarter second)."""
+
+    window_s: float = 0.25
+    still_deg: float = 3.0
+    min_s: float = 1.0
+
+
+def check_orientations(quat_wxyz: np.ndarray, sensor_names: list[str] | tuple[str, ...]) -> None:
+    """ValueError naming the sensor when a reading is not a unit quaternion (all-zero rows are not orientations,
+    and nothing is invented for them); NaN rows are missing readings and allowed, but not a take with none."""
+    q = np.asarray(quat_wxyz, float)
+    finite = np.isfinite(q).all(axis=-1)
+    if not finite.any():
+        raise ValueError("quat_wxyz holds no orientation (every reading is NaN)")
+    norms = np.linalg.norm(np.where(finite[..., None], q, 1.0), axis=-1)
+    bad = finite & (np.abs(norms - 1.0) > 0.05)
+    for k in np.flatnonzero(bad.any(axis=0)):
+        frames = np.flatnonzero(bad[:, k])
+        raise ValueError(f"sensor {sensor_names[k]}: {len(frames)} orientation(s) are not unit quaternions (norm "
+                         f"{norms[frames[0], k]:.3g} at sample {frames[0]}; all-zero rows are not orientations)")
+
+
+def still_stretch(quat_wxyz: np.ndarray, fps: float, config: StillnessConfig = StillnessConfig()
+                  ) -> tuple[float, float] | None:
+    """(start, end) s of the take's first stretch in which every sensor holds still (`StillnessConfig`), or None."""
+    q = from_device_earth(np.asarray(quat_wxyz, float))
+    n = max(2, int(round(config.window_s * fps)))
+    w = len(q) // n
+    if not w:
+        return None
+    blocks = q[: w * n].reshape(w, n, *q.shape[1:])
+    mean = quat.normalize(np.sum(blocks * np.sign(np.sum(blocks * blocks[:, :1], axis=-1, keepdims=True)), axis=1))
+    dots = np.abs(np.sum(blocks * mean[:, None], axis=-1))
+    angle = np.degrees(2.0 * np.arccos(np.clip(dots, 0.0, 1.0)))
+    still = np.all(np.nan_to_num(angle, nan=180.0) <= config.still_deg, axis=(1, 2))
+    need = int(np.ceil(config.min_s * fps / n))
+    run = 0
+    for i, s in enumerate(np.append(still, False)):  # a moving sentinel ends the last run
+        if s:
+            run += 1
+            continue
+        if run >= need:
+            return ((i - run) * n / fps, i * n / fps)
+        run = 0
+    return None
+
+
+def _fibonacci_sphere(n: int) -> np.ndarray:
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    r = np.sqrt(1.0 - z**2)
+    phi = np.pi * (1.0 + 5**0.5) * k
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+def _rotations_about(axis: np.ndarray, angles_rad: np.ndarray) -> np.ndarray:
+    """(A, 3, 3) rotations by `angles_rad` about the unit `axis`."""
+    return quat.to_matrix(quat.from_rotvec(np.outer(angles_rad, axis / np.linalg.norm(axis))))
+
+
+@dataclass
+class MotionPrior:
+    """What the database says about the worn segments: its poses' nominal sensor orientations ``world_wxyz``
+    (N, S, 4) in the engine world (a motion graph's nodes), by ``sensor_names``. Lazily: each segment's
+    distribution of up directions in its nominal frame (a kernel density on a sphere grid) and, per sensor, a
+    kd-tree of its rotations relative to the reference sensor's."""
+
+    world_wxyz: np.ndarray
+    sensor_names: tuple[str, ...]
+    max_poses: int = 12000
+    kernel_deg: float = 10.0
+    _density: dict = field(default_factory=dict, repr=False)
+    _relative: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        q = np.asarray(self.world_wxyz, float)
+        step = max(1, len(q) // self.max_poses)
+        self._mats = quat.to_matrix(q[::step])  # (N', S, 3, 3)
+        self.sensor_names = tuple(self.sensor_names)
+
+    @classmethod
+    def from_graph(cls, graph) -> "MotionPrior":
+        """The prior of a motion graph's nodes (engine.graph.orientation_term.node_sensor_orientations)."""
+        from engine.graph.orientation_term import node_sensor_orientations  # the graph sits above engine.mocap
+
+        return cls(node_sensor_orientations(graph), tuple(graph.config.sensor_names))
+
+    def index(self, name: str) -> int:
+        if name not in self.sensor_names:
+            raise ValueError(f"the database has no {name} sensor (its sensors: {', '.join(self.sensor_names)})")
+        return self.sensor_names.index(name)
+
+    def up_log_density(self, name: str, up_nominal: np.ndarray) -> np.ndarray:
+        """(...,) log density of unit up directions (..., 3) in `name`'s nominal frame under the database's."""
+        if name not in self._density:
+            grid = _fibonacci_sphere(4000)
+            ups = self._mats[:, self.index(name), 1, :]  # row 1 of S = S⁻¹ŷ
+            kappa = 1.0 / np.radians(self.kernel_deg) ** 2
+            dens = np.zeros(len(grid))
+            for chunk in np.array_split(ups, max(1, len(ups) // 2000)):
+                dens += np.exp(kappa * (grid @ chunk.T - 1.0)).sum(axis=1)
+            self._density[name] = (cKDTree(grid), np.log(dens / dens.max() + 1e-4))
+        tree, logd = self._density[name]
+        return logd[tree.query(up_nominal.reshape(-1, 3))[1]].reshape(up_nominal.shape[:-1])
+
+    def relative_cost(self, name: str, reference: str, relative: np.ndarray, neighbours: int = 20) -> np.ndarray:
+        """(...,) minus the mean log density, over frames, of the relative rotations ``W_ref⁻¹ W`` (..., F, 3, 3)
+        under the database's for (reference, name): the log of the chordal distance to the `neighbours`-th
+        nearest database rotation (a k-nearest-neighbour density; the nearest alone is near for almost any
+        strap, since a broad database holds a rotation near almost anything)."""
+        key = (name, reference)
+        if key not in self._relative:
+            rel = np.swapaxes(self._mats[:, self.index(reference)], -1, -2) @ self._mats[:, self.index(name)]
+            self._relative[key] = cKDTree(rel.reshape(len(rel), 9))
+        d, _ = self._relative[key].query(relative.reshape(-1, 9), k=[neighbours])
+        return np.log(d[:, 0] + 1e-3).reshape(relative.shape[:-2]).mean(axis=-1)
+
+
+@dataclass(frozen=True)
+class TakeCalibration:
+    """The result: ``orientation`` (the calibrated sensors, in ``sensors`` order: indices into the take's
+    columns), the pose as found (``pose``: name and arm angle, the window held) and, per sensor, a note."""
+
+    orientation: OrientationCalibration
+    sensors: tuple[int, ...]
+    pose: PoseSpec
+    notes: tuple[str, ...] = ()
+
+
+def _frames(world: np.ndarray, max_frames: int) -> np.ndarray:
+    """(F', S, 3, 3) matrices of up to `max_frames` evenly spread samples with every sensor's reading."""
+    ok = np.flatnonzero(np.isfinite(world).all(axis=(1, 2)))
+    pick = ok[np.linspace(0, len(ok) - 1, min(max_frames, len(ok))).astype(int)] if len(ok) else ok
+    return quat.to_matrix(world[pick])
+
+
+@dataclass(frozen=True)
+class _Solution:
+    mount: np.ndarray  # (3, 3) sensor -> nominal
+    yaw_rad: float
+
+
+def _held_family(u: np.ndarray, v: np.ndarray, held: np.ndarray, pose: np.ndarray, thetas: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Straps (A, 3, 3) twist(v, θ) · minimal(u → v) for each θ, and the yaws (A,) that make each explain the
+    held reading `held` (3, 3) of the pose `pose` (3, 3): δ = twist of Q M⁻¹ P⁻¹ (a pure yaw: it keeps ŷ)."""
+    mounts = _rotations_about(v, thetas) @ minimal_rotation(u, v)
+    turn = held[None] @ np.swapaxes(mounts, -1, -2) @ pose.T[None]
+    return mounts, twist_yaw(quat.from_matrix(turn))
+
+
+def _world(frames: np.ndarray, mount: np.ndarray, yaw_rad: np.ndarray) -> np.ndarray:
+    """W = yaw(-δ) Q M⁻¹ for frames (F, 3, 3) and candidates mount (..., 3, 3), yaw (...): (..., F, 3, 3)."""
+    turn = quat.to_matrix(yaw_about_up(-np.asarray(yaw_rad, float)))
+    return turn[..., None, :, :] @ frames @ np.swapaxes(mount, -1, -2)[..., None, :, :]
+
+
+class _Solver:
+    """Fits the sensors of one take against a prior (module docstring)."""
+
+    def __init__(self, frames: np.ndarray, names: list[str], prior: MotionPrior | None, ref: int | None) -> None:
+        self.frames, self.names, self.prior, self.ref = frames, names, prior, ref
+
+    def up_score(self, k: int, mounts: np.ndarray) -> np.ndarray:
+        """(A,) mean log density of sensor k's up axes over the frames, strapped by each of `mounts` (A, 3, 3)."""
+        ups = self.frames[:, k, 1, :]  # row 1 of Q = Q⁻¹ŷ, the sensor-frame up
+        return self.prior.up_log_density(self.names[k], np.einsum("aij,fj->afi", mounts, ups)).mean(axis=-1)
+
+    def relative_cost(self, k: int, mounts: np.ndarray, yaws: np.ndarray, ref: _Solution) -> np.ndarray:
+        """(A,) the database misfit of sensor k's rotations relative to the reference sensor, per candidate."""
+        w_ref = _world(self.frames[:, self.ref], ref.mount, np.array(ref.yaw_rad))
+        w = _world(self.frames[:, k], mounts, yaws)
+        return self.prior.relative_cost(self.names[k], self.names[self.ref], np.swapaxes(w_ref, -1, -2) @ w)
+
+    def global_up_fit(self, k: int, rng: np.random.Generator, n_candidates: int = 3000) -> np.ndarray:
+        """M (3, 3) maximising `up_score` over all rotations: random candidates, the best refined locally."""
+        candidates = quat.to_matrix(quat.normalize(rng.normal(size=(n_candidates, 4))))
+        scores = self.up_score(k, candidates)
+        best = candidates[np.argsort(scores)[-8:]]
+        refined = [self._refine(lambda m: -self.up_score(k, m), m) for m in best]
+        return min(refined, key=lambda mc: mc[1])[0]
+
+    @staticmethod
+    def _refine(cost, mount: np.ndarray, steps_deg: tuple[float, ...] = (8.0, 4.0, 2.0, 1.0, 0.5)
+                ) -> tuple[np.ndarray, float]:
+        """Pattern search of `cost` (over (A, 3, 3) candidates) by small rotations about the frame's axes."""
+        best = float(cost(mount[None])[0])
+        for step in steps_deg:
+            for _ in range(20):
+                moves = quat.to_matrix(quat.from_rotvec(np.radians(step) * np.vstack([np.eye(3), -np.eye(3)])))
+                trial = moves @ mount[None]
+                c = cost(trial)
+                if c.min() >= best:
+                    break
+                best, mount = float(c.min()), trial[int(np.argmin(c))]
+        return mount, best
+
+    def refine_pair(self, k: int, sol: _Solution, ref: _Solution) -> _Solution:
+        """Local search of all four angles (M and δ) of sensor k on the relative misfit."""
+        mount, yaw = sol.mount, sol.yaw_rad
+        best = float(self.relative_cost(k, mount[None], np.array([yaw]), ref)[0])
+        for step in np.radians([8.0, 4.0, 2.0, 1.0]):
+            for _ in range(20):
+                rot = quat.to_matrix(quat.from_rotvec(step * np.vstack([np.eye(3), -np.eye(3)])))
+                mounts = np.concatenate([rot @ mount[None], mount[None], mount[None]])
+                yaws = np.concatenate([np.full(6, yaw), [yaw + step, yaw - step]])
+                c = self.relative_cost(k, mounts, yaws, ref)
+                if c.min() >= best:
+                    break
+                i = int(np.argmin(c))
+                best, mount, yaw = float(c[i]), mounts[i], float(yaws[i])
+        return _Solution(mount, yaw)
+
+
+def _held_pose_orientations(skeleton: Skeleton, names: list[str], spec: PoseSpec, arm_deg: float) -> np.ndarray:
+    """(S, 3, 3) nominal sensor orientations of the held pose at arm angle `arm_deg` (apose), facing +Z."""
+    pose = "apose" if spec.name == "apose" else spec.name
+    q = pose_sensor_orientations(skeleton, names, pose, arm_deg=arm_deg if pose == "apose" else None)
+    return quat.to_matrix(q)
+
+
+def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] | tuple[str, ...],
+                   skeleton: Skeleton, pose: PoseSpec = PoseSpec(), prior: MotionPrior | None = None,
+                   stillness: StillnessConfig = StillnessConfig(), max_frames: int = 300,
+                   seed: int = 0) -> TakeCalibration:
+    """Calibrate every sensor of a take whose orientations ``quat_device`` (T, S, 4, device earth; a sensor
+    with no reading at all is left out) at ``fps`` start with ``pose`` (module docstring), against the
+    reference poses built on ``skeleton`` and the database ``prior`` (needed for any strap twist, a fitted arm
+    angle with straps far from nominal, and ``pose none``). ValueError with the reason when it cannot."""
+    names = list(sensor_names)
+    q = np.asarray(quat_device, float)
+    check_orientations(q, names)
+    sensors = [k for k in range(len(names)) if np.isfinite(q[:, k]).all(axis=-1).any()]
+    q, names = q[:, sensors], [names[k] for k in sensors]
+    world = from_device_earth(q)
+    frames = _frames(world, max_frames)
+    ref = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else 0
+    solver = _Solver(frames, names, prior, ref)
+    if pose.name == "none":
+        if prior is None:
+            raise ValueError("calibration from motion (pose none) needs the database: give the graph (--graph)")
+        solutions = _from_motion(solver, np.random.default_rng(seed))
+        return TakeCalibration(_calibration(solutions), tuple(sensors), pose)
+    window = pose.window_s or still_stretch(q, fps, stillness)
+    if window is None:
+        raise ValueError(f"no still stretch: no {stillness.min_s:g} s in which every sensor's orientation stays "
+                         f"within {stillness.still_deg:g} deg; declare the held pose's window (--pose "
+                         "apose@START:END) or calibrate from the motion (--pose none)")
+    i0, i1 = int(round(window[0] * fps)), int(round(window[1] * fps))
+    held_q = q[max(0, i0):min(len(q), i1)]
+    held_q = held_q[np.isfinite(held_q).all(axis=(1, 2))]
+    if len(held_q) < 2:
+        raise ValueError(f"the pose window {window[0]:g}-{window[1]:g} s holds no sample with every sensor's "
+                         f"orientation (take: 0-{len(q) / fps:.1f} s)")
+    held = quat.to_matrix(from_device_earth(mean_orientation(held_q)))  # (S, 3, 3)
+    solutions, arm_deg = _from_held_pose(solver, held, skeleton, pose)
+    found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
+    return TakeCalibration(_calibration(solutions), tuple(sensors), found)
+
+
+def _calibration(solutions: list[_Solution]) -> OrientationCalibration:
+    yaws = np.angle(np.exp(1j * np.array([s.yaw_rad for s in solutions])))
+    mounts = quat.from_matrix(np.stack([s.mount for s in solutions]))
+    return OrientationCalibration(yaws, np.where(mounts[:, :1] < 0, -mounts, mounts))
+
+
+def _from_held_pose(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: PoseSpec
+                    ) -> tuple[list[_Solution], float | None]:
+    """Every sensor's (M, δ) from the held pose, its twist θ and the arm angle α fitted (module docstring)."""
+    names, ref = solver.names, solver.ref
+    arms = [k for k, n in enumerate(names) if n in ARM_SENSORS]
+    fit_arm = spec.name == "apose" and spec.arm_deg is None
+    angles = np.arange(0.0, 90.1, 5.0) if fit_arm else np.array([spec.arm_deg or 0.0])
+    poses = {a: _held_pose_orientations(skeleton, names, spec, a) for a in angles}
+    ups = held[:, 1, :]  # (S, 3) sensor-frame up in the pose
+    thetas = np.radians(np.arange(0.0, 360.0, 10.0)) if solver.prior is not None else np.zeros(1)
+
+    def family(k: int, a: float, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pose = poses[a][k]
+        return _held_family(ups[k], pose[1], held[k], pose, th)
+
+    def fine(k: int, a: float, theta: float, cost) -> _Solution:
+        th = theta + np.radians(np.arange(-9.0, 9.5, 1.0))
+        mounts, yaws = family(k, a, th)
+        i = int(np.argmin(cost(mounts, yaws)))
+        return _Solution(mounts[i], float(yaws[i]))
+
+    a0 = angles[0]
+    if solver.prior is None:  # no database: the smallest straps, and the arm angle that needs the smallest
+        if fit_arm and arms:
+            need = [sum(_angle_deg(family(k, a, thetas)[0][0]) for k in arms) for a in angles]
+            a0 = angles[int(np.argmin(need))]
+        smallest = [family(k, a0 if k in arms else angles[0], thetas) for k in range(len(names))]
+        return [_Solution(m[0], float(y[0])) for m, y in smallest], (float(a0) if spec.name == "apose" else None)
+    mounts, yaws = family(ref, a0, thetas)
+    up_cost = lambda m, y: -solver.up_score(ref, m)  # noqa: E731 - the reference's own twist: its up axis
+    i = int(np.argmin(up_cost(mounts, yaws)))
+    reference = fine(ref, a0, float(thetas[i]), up_cost)
+    out: list[_Solution | None] = [None] * len(names)
+    out[ref] = reference
+
+    def rel(k: int):
+        return lambda m, y: solver.relative_cost(k, m, y, reference)
+
+    best_arm = {}
+    if fit_arm and arms:
+        table = np.array([[rel(k)(*family(k, a, thetas)) for a in angles] for k in arms])  # (K, A, θ)
+        a_i = int(np.argmin(table.min(axis=2).sum(axis=0)))
+        a0 = float(angles[a_i])
+        best_arm = {k: float(thetas[int(np.argmin(table[j, a_i]))]) for j, k in enumerate(arms)}
+    for k in range(len(names)):
+        if k == ref:
+            continue
+        a = a0 if k in arms else angles[0]
+        theta = best_arm.get(k)
+        if theta is None:
+            theta = float(thetas[int(np.argmin(rel(k)(*family(k, a, thetas))))])
+        out[k] = fine(k, a, theta, rel(k))
+    return out, (a0 if spec.name == "apose" else None)
+
+
+def _from_motion(solver: _Solver, rng: np.random.Generator) -> list[_Solution]:
+    """Every sensor's (M, δ) from the motion alone (module docstring)."""
+    names, ref = solver.names, solver.ref
+    reference = _Solution(solver.global_up_fit(ref, rng), 0.0)
+    out: list[_Solution] = []
+    thetas = np.radians(np.arange(0.0, 360.0, 15.0))
+    for k in range(len(names)):
+        if k == ref:
+            out.append(reference)
+            continue
+        mount = solver.global_up_fit(k, rng)
+        mode = solver.prior._mats[:, solver.prior.index(names[k]), 1, :].mean(axis=0)  # the segment's usual up
+        twists = _rotations_about(mode, thetas) @ mount[None]  # (Θ, 3, 3)
+        mounts = np.repeat(twists, len(thetas), axis=0)
+        yaws = np.tile(thetas, len(thetas))
+        cost = solver.relative_cost(k, mounts, yaws, reference)
+        i = int(np.argmin(cost))
+        out.append(solver.refine_pair(k, _Solution(mounts[i], float(yaws[i])), reference))
+    return out
+
+
+def _angle_deg(r: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0))))
