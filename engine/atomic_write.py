@@ -30,8 +30,10 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
-def refuse_overwriting_inputs(outputs: Iterable[str | Path], inputs: Iterable[str | Path]) -> None:
-    """Refuse (CourtsideError, before any work) an output path that is one of the input files, naming both.
+def refuse_overwriting_inputs(outputs: Iterable[str | Path], inputs: Iterable[str | Path],
+                              what: str = "this output") -> None:
+    """Refuse (CourtsideError, before any work) an output path that is one of the input files, naming both;
+    ``what`` says what the output is when the user did not name it (e.g. a file written beside the one named).
 
     An input may be a folder (x-IMU3 recordings, a folder of MT exports): then every file under it counts."""
     inputs = [Path(p) for p in inputs]
@@ -40,8 +42,8 @@ def refuse_overwriting_inputs(outputs: Iterable[str | Path], inputs: Iterable[st
             under = [given] + (sorted(p for p in given.rglob("*") if p.is_file()) if given.is_dir() else [])
             hit = next((p for p in under if _same_file(out, p)), None)
             if hit is not None:
-                raise CourtsideError(f"{out}: this output would overwrite the input file {hit}; "
-                                     "choose another output name")
+                hit_is = "the input file itself" if str(hit) == str(out) else f"the input file {hit}"
+                raise CourtsideError(f"{out}: {what} would overwrite {hit_is}; choose another output name")
 
 
 def _umask() -> int:

@@ -28,6 +28,8 @@ QUAT_NORM_TOLERANCE = 0.01
 
 def rate_problem(rate_hz: float) -> str | None:
     """Why ``rate_hz`` cannot be a recording's sample rate, or None (NaN, inf, negative and zero included)."""
-    if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
-        return f"{rate_hz!r} Hz is outside {MIN_RATE_HZ:g}..{MAX_RATE_HZ:g} Hz"
+    if not isinstance(rate_hz, (int, float)):
+        return f"{rate_hz!r} is not a number of Hz"
+    if not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
+        return f"{rate_hz:g} Hz is outside {MIN_RATE_HZ:g}..{MAX_RATE_HZ:g} Hz"
     return None

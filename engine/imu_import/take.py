@@ -23,9 +23,10 @@ from engine.imu_import.origin import Origin, stream_error
 from engine.imu_import.orientations import orientation_rows
 from engine.imu_import.samples import check_acceleration_range, missing_rows
 from engine.imu_import.timing import (bridge, bridge_quaternions, check_gaps, check_times, common_grid,
-                                     sample_rate)
+                                     neighbours_s, sample_rate)
 from engine.mocap import STANDARD_SENSORS
 from engine.mocap import quaternions as quat
+from engine.recording_limits import MAX_GAP_S
 
 _RATE_ROUNDING = 1e-3  # rates are rounded to this many Hz when they agree across sensors
 
@@ -162,13 +163,13 @@ def assemble(streams: list[SensorStream], fmt: str, units: str = "auto", quat_or
     rate = round(min(c.rate_hz for c in cleaned) / _RATE_ROUNDING) * _RATE_ROUNDING
     usable_t = [c.t_s[np.isfinite(c.acc_g).all(axis=1)] for c in cleaned]
     grid = common_grid([(float(t[0]), float(t[-1])) for t in usable_t], rate, max(len(c.t_s) for c in cleaned))
-    acc = np.stack([bridge(grid, c.t_s, c.acc_g) for c in cleaned], axis=1)  # gaps were checked: all finite
+    acc = np.stack([bridge(grid, c.t_s, c.acc_g, MAX_GAP_S) for c in cleaned], axis=1)  # gaps checked: finite
     quats = None
     if any(c.quat is not None for c in cleaned):
-        quats = np.stack([bridge_quaternions(grid, c.t_s, c.quat) if c.quat is not None
+        quats = np.stack([bridge_quaternions(grid, c.t_s, c.quat, neighbours_s(c.t_s)) if c.quat is not None
                           else np.full((len(grid), 4), np.nan) for c in cleaned], axis=1)
         report["no_orientation"] = [c.stream.label for c in cleaned if c.quat is None]
-    gyro = (np.stack([bridge(grid, c.t_s, c.gyro_rps) for c in cleaned], axis=1)
+    gyro = (np.stack([bridge(grid, c.t_s, c.gyro_rps, neighbours_s(c.t_s)) for c in cleaned], axis=1)
             if all(c.gyro_rps is not None for c in cleaned) else None)
     report.update(fps=rate, samples=int(len(grid)), duration_s=round(float(grid[-1] - grid[0]), 4))
     return ImportedTake(rate, grid - grid[0], acc, [c.stream.name for c in cleaned],

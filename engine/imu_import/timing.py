@@ -9,6 +9,7 @@ The rules, with the limits of `engine.recording_limits`:
   sample;
 * a stream spans at most `MAX_TAKE_S`, and its median rate lies in `MIN_RATE_HZ` .. `MAX_RATE_HZ`;
 * between two usable accelerations there is at most `MAX_GAP_S` (longer gaps are refused, not interpolated);
+  orientation and gyro are resampled between neighbouring samples only (`neighbours_s`): a missing one stays NaN;
 * the grid holds at most a few samples per input row (so memory is bounded by the input's size too)."""
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ def check_times(t_s: np.ndarray, origin: Origin | None, label: str) -> None:
     bad = ~np.isfinite(t)
     if bad.any():
         i = int(np.argmax(bad))
-        raise stream_error(origin, label, i, f"time {t[i]!r} is not a number")
+        raise stream_error(origin, label, i, f"time {float(t[i])} is not a number")
     step = np.diff(t)
     if (step < 0).any():
         i = int(np.argmax(step < 0)) + 1
@@ -76,7 +77,13 @@ def common_grid(spans_s: list[tuple[float, float]], rate_hz: float, input_rows: 
     return t0 + np.arange(n) / rate_hz
 
 
-def bridge(grid_s: np.ndarray, t_s: np.ndarray, values: np.ndarray, max_gap_s: float = MAX_GAP_S) -> np.ndarray:
+def neighbours_s(t_s: np.ndarray) -> float:
+    """The longest step `bridge` may interpolate over for orientation and gyro: 1.5 median steps of the stream's
+    own rows, so they are resampled between neighbouring samples only and a missing one stays missing."""
+    return 1.5 * float(np.median(np.diff(np.asarray(t_s, float))))
+
+
+def bridge(grid_s: np.ndarray, t_s: np.ndarray, values: np.ndarray, max_gap_s: float) -> np.ndarray:
     """``values`` (N, K) linearly interpolated at ``grid_s`` from its finite rows; NaN at grid times outside those
     rows' span or between two of them more than ``max_gap_s`` apart (never extrapolated, never bridged
     further)."""
@@ -96,8 +103,7 @@ def bridge(grid_s: np.ndarray, t_s: np.ndarray, values: np.ndarray, max_gap_s: f
     return out
 
 
-def bridge_quaternions(grid_s: np.ndarray, t_s: np.ndarray, q_wxyz: np.ndarray,
-                       max_gap_s: float = MAX_GAP_S) -> np.ndarray:
+def bridge_quaternions(grid_s: np.ndarray, t_s: np.ndarray, q_wxyz: np.ndarray, max_gap_s: float) -> np.ndarray:
     """`bridge` for unit quaternions (NaN rows missing): consecutive present rows are put in one hemisphere
     first, the result is renormalised (nlerp); missing stays NaN."""
     q = np.asarray(q_wxyz, float).copy()

@@ -24,7 +24,7 @@ from engine.errors import CourtsideError, MalformedFileError
 from engine.imu_import.orientations import orientation_rows
 from engine.imu_import.table import read_table
 from engine.imu_import.take import SensorStream
-from engine.imu_import.timing import bridge_quaternions, check_times
+from engine.imu_import.timing import bridge_quaternions, check_times, neighbours_s
 from engine.mocap import STANDARD_SENSORS
 
 INERTIAL = "Inertial.csv"
@@ -98,19 +98,20 @@ def read_ximu3(path: str | Path, sensor_map: dict[str, str] | None = None) -> tu
 
 def _orientation_at(folder: Path, t_us: np.ndarray) -> np.ndarray:
     """The device's ``Quaternion.csv`` (its own, usually slower, message rate) at the ``Inertial.csv`` times
-    ``t_us``: NaN where it has no orientation within `MAX_GAP_S`. Refused when it has no rows, a clock reset, a
+    ``t_us``: NaN where it has no orientation (between neighbouring Quaternion.csv rows only). Refused when it has no rows, a clock reset, a
     bad quaternion (`orientations`), or no time in common with the inertial data (another clock)."""
     table = read_table(folder / QUATERNION, ",")
     _require(table.header, QUATERNION_COLUMNS, folder / QUATERNION)
     tq_us = table.get(QUATERNION_COLUMNS[:1])[:, 0]
     check_times(tq_us * 1e-6, table.origin(), folder.name)
     q = bridge_quaternions(np.asarray(t_us, float) * 1e-6, tq_us * 1e-6,
-                           orientation_rows(table.get(QUATERNION_COLUMNS[1:]), table.origin(), folder.name))
-    if not np.isfinite(q).any():
-        raise MalformedFileError(folder / QUATERNION, None, f"its {len(tq_us)} orientation(s) at {tq_us[0]:.0f}.."
-                                                            f"{tq_us[-1]:.0f} us do not overlap {INERTIAL}'s "
-                                                            f"{np.nanmin(t_us):.0f}..{np.nanmax(t_us):.0f} us: not the "
-                                                            "same device clock")
+                           orientation_rows(table.get(QUATERNION_COLUMNS[1:]), table.origin(), folder.name),
+                           neighbours_s(tq_us * 1e-6) if len(tq_us) > 1 else 0.0)  # one row: refused below
+    if len(tq_us) < 2 or not np.isfinite(q).any():
+        raise MalformedFileError(folder / QUATERNION, None, f"its {len(tq_us)} orientation row(s) at {tq_us[0]:.0f}.."
+                                                            f"{tq_us[-1]:.0f} us do not cover {INERTIAL}'s "
+                                                            f"{np.nanmin(t_us):.0f}..{np.nanmax(t_us):.0f} us (too few "
+                                                            "rows, or another clock)")
     return q
 
 

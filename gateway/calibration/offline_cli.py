@@ -125,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--subject", default="")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
-    refuse_overwriting_inputs([args.output, raw_samples_path(args.output)], [path])
+    refuse_overwriting_inputs([args.output], [path])
+    refuse_overwriting_inputs([raw_samples_path(args.output)], [path], f"the raw samples of -o {args.output}")
     take = _read_take(path, parse_sensor_map(args.sensor_map, list(STANDARD_SENSORS), "a standard placement"))
     names = take.names
     windows = _windows(args.second_pose)
