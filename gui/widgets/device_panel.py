@@ -67,7 +67,7 @@ class BodyDiagram(QtWidgets.QWidget):
         super().__init__(parent)
         self.title = title
         self.segment_state: dict[str, tuple[str, Sync]] = {}  # segment -> (sensor label, health)
-        self.setMinimumSize(170, 230)
+        self.setMinimumSize(220, 240)
 
     def set_state(self, state: dict[str, tuple[str, Sync]]) -> None:
         self.segment_state = state
@@ -77,12 +77,17 @@ class BodyDiagram(QtWidgets.QWidget):
         p = QtGui.QPainter(self)
         p.setRenderHint(QtGui.QPainter.Antialiasing)
         top = 18 if self.title else 0
-        scale = min(self.width() / 170.0, (self.height() - top) / 205.0)
-        # the figure (100 wide) centred, labels in unscaled pixels so they stay readable at any size
-        figure = QtGui.QTransform().translate(self.width() / 2 - 50 * scale, top).scale(scale, scale)
         font = QtGui.QFont(self.font())
         font.setPixelSize(LABEL_PX)
         p.setFont(font)
+        # labels in unscaled pixels (readable at any size) on either side; the figure (100 wide) between them
+        widths = {side: max([p.fontMetrics().horizontalAdvance(label) for seg, (label, _) in self.segment_state.items()
+                             if label and seg in BODY_SEGMENTS and _label_side(seg) == side], default=0)
+                  for side in ("left", "right", "below")}
+        room = self.width() - widths["left"] - widths["right"] - 24
+        scale = max(0.2, min(room / 100.0, (self.height() - top - LABEL_PX - 4) / 205.0))
+        x0 = widths["left"] + 12 + max(0.0, room - 100 * scale) / 2
+        figure = QtGui.QTransform().translate(x0, top).scale(scale, scale)
         if self.title:
             p.setPen(self.palette().color(QtGui.QPalette.WindowText))
             p.drawText(QtCore.QRectF(0, 0, self.width(), top), QtCore.Qt.AlignCenter, self.title)
@@ -104,13 +109,23 @@ class BodyDiagram(QtWidgets.QWidget):
             (x0, y0), (x1, y1) = BODY_SEGMENTS[seg]
             mid = figure.map(QtCore.QPointF((x0 + x1) / 2, (y0 + y1) / 2))
             width = metrics.horizontalAdvance(label)
-            if abs(x1 - x0) > abs(y1 - y0):  # across the body (pelvis): below it, centred
+            side = _label_side(seg)
+            if side == "below":
                 at = QtCore.QPointF(mid.x() - width / 2, mid.y() + 6 + metrics.ascent())
-            else:  # the figure's left (x > 50, the viewer's right) labelled to the right; its right to the left
-                at = QtCore.QPointF(mid.x() + 8 if (x0 + x1) / 2 >= 50 else mid.x() - 8 - width,
+            else:
+                at = QtCore.QPointF(mid.x() + 8 if side == "right" else mid.x() - 8 - width,
                                     mid.y() + metrics.ascent() / 2)
             p.drawText(at, label)
         p.end()
+
+
+def _label_side(segment: str) -> str:
+    """Where a segment's label goes: below a segment across the body (pelvis), right of the figure's left side
+    (x > 50 is the viewer's right), left of its right side."""
+    (x0, y0), (x1, y1) = BODY_SEGMENTS[segment]
+    if abs(x1 - x0) > abs(y1 - y0):
+        return "below"
+    return "right" if (x0 + x1) / 2 >= 50 else "left"
 
 
 def _fmt(value: Any, spec: str, scale: float = 1.0) -> str:
