@@ -12,6 +12,8 @@ import numpy as np
 
 from gui.render.placement import FOLLOW_DISTANCE_M, across_yaw_rad, framing_distance_m
 
+ACROSS_PITCH_RAD = math.radians(30.0)  # the follow view's pitch at least, looking across several athletes
+
 
 def perspective(fovy_rad: float, aspect: float, near_m: float, far_m: float) -> np.ndarray:
     """OpenGL perspective projection (right-handed eye space, looking down -Z, depth to [-1, 1])."""
@@ -104,9 +106,10 @@ class OrbitCamera:
     def snap_to(self, roots_m: np.ndarray, aspect: float = 16 / 9) -> None:
         """Jump straight to the players (3,) or (N, 3) (first frame, a scrub, an athlete appearing) instead of
         easing; with several, in FOLLOW mode, turn to look across them (`gui.render.placement.across_yaw_rad`)."""
-        if self.mode is CameraMode.FOLLOW:
-            yaw = across_yaw_rad(roots_m)
-            self.yaw_rad = self.yaw_rad if yaw is None else yaw
+        yaw = across_yaw_rad(roots_m)
+        if self.mode is CameraMode.FOLLOW and yaw is not None:
+            # looking down a little more than on one athlete: the court between them fills the view, not the sky
+            self.yaw_rad, self.pitch_rad = yaw, max(self.pitch_rad, ACROSS_PITCH_RAD)
         self.target_m, distance = self._framing(roots_m, aspect)
         if self.mode is CameraMode.FOLLOW:
             self.distance_m = distance
