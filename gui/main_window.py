@@ -404,11 +404,12 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                                               for name, p in latest.items()})
 
     def _court_spots(self, t_first: float | None, others: dict[str, Any]) -> dict[str, np.ndarray | None]:
-        """Each athlete's court (x, y) from its camera track at its pose's time (`gui.render.placement`); one
-        athlete whose camera names nobody: the camera's one track."""
+        """Each athlete's court (x, y) from its camera track at its pose's time (`gui.render.placement`); a console
+        synthesizing one athlete takes the camera's first track (named or not)."""
         tracks = self.bridge.athlete_tracks()
         first = self.athlete or ""
-        first_trail = tracks[first][1] if first in tracks else (self.bridge.camera_frame()[2] if not tracks else None)
+        first_trail = tracks[first][1] if first in tracks else (
+            None if self.other_workers else self.bridge.camera_frame()[2])
         spots = {first: None if first_trail is None else track_spot(first_trail, t_first)}
         for name, pose in others.items():
             spots[name] = track_spot(tracks[name][1], None if pose is None else pose.t_s) if name in tracks else None

@@ -124,3 +124,17 @@ def test_traces_and_device_panel_group_sensors_per_athlete(qtbot):
     pane.update_athletes(bridge.athlete_tracks(), bridge.camera_athlete)
     assert pane.athletes_info.text() == "alice: (-1.0, -10.0) m  bob: LOST"
     assert len(pane.minimap.others) == 1 and pane.minimap.others[0][1] is None
+
+
+def test_a_one_athlete_console_stands_its_athlete_on_the_cameras_track(qtbot):
+    """The camera names its one athlete ("player") while the console names none: its track is still the spot."""
+    from gui.main_window import ConsoleWindow
+
+    window = ConsoleWindow()
+    qtbot.addWidget(window)
+    try:
+        for k in range(3):
+            window.bridge.on_camera(camera("player", float(k), k, 1.0 + k, -9.0))
+        np.testing.assert_allclose(window._court_spots(1.5, {})[""], [2.5, -9.0])  # the pose's time, interpolated
+    finally:
+        window.shutdown()
