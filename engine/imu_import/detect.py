@@ -6,7 +6,8 @@ Both are read off the data and can be overridden; a stated value the data contra
   still ~1 g while the sensor moves (linear acceleration averages out). So the median over windows of
   ``|mean a|`` tells g (~1), m/s² (~9.81) and mg (~1000) apart; the bands [0.7, 1.4] g do not overlap. m/s² is converted, never
   taken as g (the issue that motivated this module: m/s² accepted as g gives readings ~10x too large).
-* **Quaternion layout.** Unit norm says that four columns are a rotation at all. Which column is the scalar
+* **Quaternion layout.** Unit norm (checked per row first, `engine.imu_import.orientations`) says that four
+  columns are a rotation at all. Which column is the scalar
   part (w first or last) and whether the quaternion turns sensor axes into the world or the reverse is read from
   gravity: rotated into the world by the right hypothesis, the specific force of still samples points the same
   way (world up) whatever the sensor's orientation; under a wrong one it follows the sensor around. The
@@ -113,22 +114,10 @@ def to_wxyz(q_file: np.ndarray, order: str) -> np.ndarray:
     return q if order == "wxyz" else q[..., [3, 0, 1, 2]]
 
 
-def check_unit_norm(q_file: np.ndarray, what: str = "quaternion") -> None:
-    """Refuse columns that are not unit quaternions (wrong columns, or Euler angles given as a quaternion)."""
-    norm = np.linalg.norm(np.asarray(q_file, float), axis=1)
-    norm = norm[np.isfinite(norm)]
-    if not len(norm):
-        raise DetectionError(f"{what}: no finite samples")
-    off = float(np.median(np.abs(norm - 1.0)))
-    if off > 0.01:
-        raise DetectionError(f"{what}: the four columns are not a unit quaternion (median |q| = "
-                             f"{float(np.median(norm)):.4g}); check the column map")
-
-
-def layout_scores(q_file: np.ndarray, acc_g: np.ndarray, rate_hz: float, what: str = "quaternion"
+def layout_scores(q_file: np.ndarray, acc_g: np.ndarray, rate_hz: float
                   ) -> dict[tuple[str, bool], tuple[float, np.ndarray]]:
-    """Score and world-up direction of every layout hypothesis ``(order, sensor_to_world)`` for one sensor."""
-    check_unit_norm(q_file, what)
+    """Score and world-up direction of every layout hypothesis ``(order, sensor_to_world)`` for one sensor.
+    ``q_file``: unit rows or NaN (missing), as `orientations.orientation_rows` leaves them."""
     a = np.asarray(acc_g, float)
     q_file = np.asarray(q_file, float)
     ok = np.all(np.isfinite(a), axis=1) & np.all(np.isfinite(q_file), axis=1)

@@ -131,8 +131,7 @@ def _to_wxyz_sensor_to_world(cleaned: list[_Cleaned], quat_order: str, report: d
     whole file detected on all its quaternion sensors together (`detect`)."""
     unknown = [c for c in cleaned if c.quat is not None and c.stream.quat_layout is None]
     if unknown:
-        layout = detect_quat_layout([layout_scores(c.quat, c.acc_g, c.rate_hz, f"sensor {c.stream.label!r} "
-                                                   "quaternion") for c in unknown], quat_order)
+        layout = detect_quat_layout([layout_scores(c.quat, c.acc_g, c.rate_hz) for c in unknown], quat_order)
         report["quaternions"] = {"order": layout.order, "sensor_to_world": layout.sensor_to_world,
                                  "score": round(layout.concentration, 4), "runner_up": round(layout.runner_up, 4),
                                  "world_up": np.round(layout.world_up, 3).tolist()}
