@@ -88,8 +88,8 @@ def read_ximu3(path: str | Path, sensor_map: dict[str, str] | None = None) -> tu
         acc = inertial.get(INERTIAL_COLUMNS[4:7])
         quat = _orientation_at(folder, t_us) if (folder / QUATERNION).is_file() else None
         t_s = (t_us - t_us[0]) * 1e-6
-        streams.append(SensorStream(folder.name, name, t_s, acc, quat, gyro, ("wxyz", True) if quat is not None else None,
-                                    inertial.origin()))
+        layout = ("wxyz", True) if quat is not None else None
+        streams.append(SensorStream(folder.name, name, t_s, acc, quat, gyro, layout, inertial.origin()))
     if not streams:
         raise CourtsideError(f"{path}: no device is mapped to a sensor placement (devices: "
                              f"{', '.join(ignored)}); give --sensor-map DEVICE=PLACEMENT")
@@ -98,8 +98,9 @@ def read_ximu3(path: str | Path, sensor_map: dict[str, str] | None = None) -> tu
 
 def _orientation_at(folder: Path, t_us: np.ndarray) -> np.ndarray:
     """The device's ``Quaternion.csv`` (its own, usually slower, message rate) at the ``Inertial.csv`` times
-    ``t_us``: NaN where it has no orientation (between neighbouring Quaternion.csv rows only). Refused when it has no rows, a clock reset, a
-    bad quaternion (`orientations`), or no time in common with the inertial data (another clock)."""
+    ``t_us``: NaN where it has no orientation (interpolated between neighbouring Quaternion.csv rows only).
+    Refused when it has no rows or one, a clock reset, a bad quaternion (`orientations`), or no time in common
+    with the inertial data (another clock)."""
     table = read_table(folder / QUATERNION, ",")
     _require(table.header, QUATERNION_COLUMNS, folder / QUATERNION)
     tq_us = table.get(QUATERNION_COLUMNS[:1])[:, 0]

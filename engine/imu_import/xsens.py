@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import re
 import xml.etree.ElementTree as ET
+from xml.parsers import expat
 from pathlib import Path
 
 import numpy as np
@@ -56,18 +57,36 @@ def _tag(name: str) -> str:
     return f"{{{MVNX_NS}}}{name}"
 
 
+class _PrologEnd(Exception):
+    """The first element was reached: the prolog (where a DOCTYPE would be) is over."""
+
+
 def _refuse_declarations(path: Path) -> None:
     """Refuse a DOCTYPE (and so any entity declaration) before parsing: MVN never writes one, and entities
     let a 3 MB file expand, within the XML parser's own amplification limit, into gigabytes of numbers
-    (issue 30). A DOCTYPE must come before the root element, so the head of the file is enough to look at."""
+    (issue 30). Only the prolog is read: expat is stopped at the first element, so this costs nothing."""
+    scanner = expat.ParserCreate()
+
+    def doctype(*_: object) -> None:
+        raise MalformedFileError(path, scanner.CurrentLineNumber, "a DOCTYPE/entity declaration: not an MVNX export "
+                                                                  "(MVN writes none)")
+
+    def first_element(*_: object) -> None:
+        raise _PrologEnd
+
+    scanner.StartDoctypeDeclHandler = doctype
+    scanner.StartElementHandler = first_element
     try:
         with open(path, "rb") as fh:
-            head = fh.read(64 * 1024)
+            while chunk := fh.read(64 * 1024):
+                scanner.Parse(chunk, False)
+    except _PrologEnd:
+        return
+    except expat.ExpatError as exc:
+        raise MalformedFileError(path, exc.lineno, f"not well-formed MVNX XML ({expat.errors.messages[exc.code]})") \
+            from None
     except OSError as exc:
         raise MalformedFileError(path, None, f"cannot read: {exc.strerror}") from None
-    root = head.find(b"<mvnx")
-    if b"<!DOCTYPE" in (head if root < 0 else head[:root]).upper():
-        raise MalformedFileError(path, None, "a DOCTYPE/entity declaration: not an MVNX export (MVN writes none)")
 
 
 def _numbers(path: Path, frame: ET.Element, child: str, n_sensors: int, per_sensor: int) -> np.ndarray:

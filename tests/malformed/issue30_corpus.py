@@ -169,7 +169,8 @@ def csv_cases() -> list[Case]:
         refused("acceleration-inf", _set("chest_acc_y", [120], "inf"), r"line 122: .*infinite"),
         refused("acceleration-1e300", _set("chest_acc_y", [120], "1e300"), r"line 122: .*beyond \+-1000 g"),
         refused("time-typo-1e10-ms-last-row", _set("time", [-1], "1e10"), r"would span .* h, more than the 6 h"),
-        refused("time-typo-1e10-ms-mid-row", _set("time", [200], "1e10"), r"line 203: .*time goes back from 1e\+07 s to 2.01 s"),
+        refused("time-typo-1e10-ms-mid-row", _set("time", [200], "1e10"),
+                r"line 203: .*time goes back from 1e\+07 s to 2.01 s"),
         refused("time-clock-reset", _set("time", slice(250, None), lambda v: str(float(v) - 2400.0)),
                 r"line 252: .*time goes back .*clock reset"),
         refused("time-hour-gap", _set("time", slice(250, None), lambda v: str(float(v) + 3.6e6)),
@@ -229,7 +230,10 @@ def mvnx_cases() -> tuple[list[Refused], list[Repaired]]:
         Refused("mvnx-orientation-missing-for-1-s", {"rec.mvnx": _mvnx_orientation(text, range(150, 250), 0,
                                                                                    "nan nan nan nan").encode()},
                 argv, "rec.mvnx", r"no acceleration for 1.01 s"),
-        Refused("mvnx-entity-declaration", {"rec.mvnx": entity.encode()}, argv, "rec.mvnx", r"DOCTYPE"),
+        Refused("mvnx-entity-declaration", {"rec.mvnx": entity.encode()}, argv, "rec.mvnx", r"line 2: a DOCTYPE"),
+        Refused("mvnx-entity-declaration-after-a-comment", {"rec.mvnx": entity.replace(
+            "<!DOCTYPE", "<!-- <mvnx> " + "x" * 70_000 + " -->\n<!DOCTYPE", 1).encode()}, argv, "rec.mvnx",
+            r"line 3: a DOCTYPE"),
     ]
     repaired = [
         Repaired("mvnx-orientation-nan-frames", {"rec.mvnx": _mvnx_orientation(text, range(150, 160), 0,
