@@ -108,12 +108,7 @@ def check_take_file(path: Path, data) -> None:
     if len(acc) / fps > MAX_TAKE_S:
         raise MalformedFileError(path, None, f"{len(acc)} samples at {fps:g} Hz last {len(acc) / fps / 3600:.3g} h, "
                                              f"more than the {MAX_TAKE_S / 3600:g} h a take may last")
-    _check_finite(path, "acc_g", acc, fps)
-    beyond = np.abs(acc) > MAX_ACC_G
-    if beyond.any():
-        t, k, _ = np.argwhere(beyond)[0]
-        raise MalformedFileError(path, None, f"acc_g holds values beyond +-{MAX_ACC_G:g} g (first at sample {t}, "
-                                             f"sensor column {k}: {acc[t, k].tolist()})")
+    _check_acceleration(path, "acc_g", acc, fps)
     for key in ("sensor_names", "source_labels"):
         if key in data.files:
             names = [str(n) for n in array(path, data, key, 1, kind="str")]
@@ -175,7 +170,7 @@ def check_gateway_export(path: Path, data, keys: list[str]) -> None:
         # that are not after every earlier one, live and offline alike), but overall its times must increase
         if len(t) < 2 or not np.all(np.isfinite(t)) or not t[-1] > t[0] or np.mean(np.diff(t) > 0) < 0.5:
             raise MalformedFileError(path, None, f"'{t_key}' must hold at least 2 finite, increasing times")
-        _check_finite(path, acc_key, acc[:, None], 1.0 / float(np.median(np.diff(t))))
+        _check_acceleration(path, acc_key, acc[:, None], 1.0 / float(np.median(np.diff(t))))
         check_channels(path, data, sensor_key(key, ""), (len(acc),))
     if MESSAGES in data.files:
         messages = parse_json(str(array(path, data, MESSAGES, 0, kind="str")), f"{path}: '{MESSAGES}'")
@@ -191,13 +186,19 @@ def check_gateway_export(path: Path, data, keys: list[str]) -> None:
                                                          f"[x, y] and heading_rad, got {json.dumps(m)[:120]}")
 
 
-def _check_finite(path: Path, name: str, acc: np.ndarray, fps: float) -> None:
-    """acc (T, S, 3) must be finite: a NaN would poison every path cost of the search."""
+def _check_acceleration(path: Path, name: str, acc: np.ndarray, fps: float) -> None:
+    """acc (T, S, 3) must be finite (a NaN would poison every path cost of the search) and within +-`MAX_ACC_G`
+    (no worn sensor reads more: a wrong column or unit)."""
     bad = ~np.isfinite(acc).all(axis=2)
     if bad.any():
         t, s = np.argwhere(bad)[0]
         raise MalformedFileError(path, None, f"{name} holds {int(bad.sum())} non-finite sample(s) (first at sample "
                                              f"{t} = {t / fps:.3f} s, sensor column {s})")
+    beyond = (np.abs(acc) > MAX_ACC_G).any(axis=2)
+    if beyond.any():
+        t, s = np.argwhere(beyond)[0]
+        raise MalformedFileError(path, None, f"{name} holds values beyond +-{MAX_ACC_G:g} g (first at sample {t}, "
+                                             f"sensor column {s}: {acc[t, s].tolist()})")
 
 
 def check_observations(path: Path, acc_g: np.ndarray | None, fps_graph: float) -> None:

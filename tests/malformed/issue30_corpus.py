@@ -413,7 +413,18 @@ def take_cases() -> list[Refused]:
         out.append(Refused(f"synthesize-{name}", {"take.npz": data}, ["synthesize", "--graph", "{graph}", "--input",
                                                                        "{d}/take.npz", "-o", "{d}/out.bvh"],
                            "take.npz", says, ("out.bvh",)))
+    t = np.arange(len(acc)) / FPS
+    export = _npz(**{f"st1/{k}/acc_g": big[:, k] for k in range(len(NAMES))},
+                  **{f"st1/{k}/t_host_s": t for k in range(len(NAMES))})
+    sensor_map = ["--sensor-map", *(f"st1/{k}={name}" for k, name in enumerate(NAMES))]
     out += [
+        Refused("calibrate-export-acceleration-1e300", {"rec.npz": export}, ["calibrate", "{d}/rec.npz", *sensor_map,
+                                                                             "-o", "{d}/rec.calibration.json"],
+                "rec.npz", r"st1/1/acc_g holds values beyond \+-1000 g", ("rec.calibration.json",)),
+        Refused("synthesize-export-acceleration-1e300", {"rec.npz": export}, ["synthesize", "--graph", "{graph}",
+                                                                              "--input", "{d}/rec.npz", "-o",
+                                                                              "{d}/out.bvh"],
+                "rec.npz", r"st1/1/acc_g holds values beyond \+-1000 g", ("out.bvh",)),
         Refused("calibrate-output-over-its-take", {"t.npz": _npz(**good)}, ["calibrate", "{d}/t.npz", "-o",
                                                                            "{d}/t.json"], "t.npz",
                 r"t.npz: the raw samples of -o .*t.json would overwrite the input file itself", ("t.json",)),
