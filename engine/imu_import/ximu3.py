@@ -37,9 +37,9 @@ _FOLDER = re.compile(r"^(?P<name>.+?) (?P<serial>[0-9A-Fa-f]{8}) \((?P<interface
 
 def device_folders(path: str | Path) -> list[Path]:
     """The device folders of a recording: ``path`` is the recording folder, one device folder, or an
-    ``Inertial.csv``. A recording folder's device folders are those with an ``Inertial.csv`` and those named as
-    the logger names devices (``"<name> <serial> (<interface>)"``), so that a mapped device that logged no
-    inertial data is reported rather than silently missing."""
+    ``Inertial.csv``. A recording folder's device folders are those holding a CSV and those named as the logger
+    names devices (``"<name> <serial> (<interface>)"``), so that a mapped device that logged no inertial data is
+    reported rather than silently missing."""
     path = Path(path)
     if path.is_file():
         if path.name != INERTIAL:
@@ -47,7 +47,7 @@ def device_folders(path: str | Path) -> list[Path]:
         return [path.parent]
     if (path / INERTIAL).is_file():
         return [path]
-    found = sorted(p for p in path.iterdir() if p.is_dir() and ((p / INERTIAL).is_file() or _FOLDER.match(p.name))) \
+    found = sorted(p for p in path.iterdir() if p.is_dir() and (_FOLDER.match(p.name) or any(p.glob("*.csv")))) \
         if path.is_dir() else []
     if not any((p / INERTIAL).is_file() for p in found):
         raise MalformedFileError(path, None, f"no x-IMU3 device folder with an {INERTIAL} in it")
