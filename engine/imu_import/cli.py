@@ -7,7 +7,7 @@ import json
 import sys
 
 from engine.atomic_write import refuse_overwriting_inputs
-from engine.errors import ArgumentParser, CourtsideError
+from engine.errors import ArgumentParser, CourtsideError, check_output_dir
 from engine.progress import add_quiet_argument
 from engine.imu_import.csv_generic import GYRO_UNITS_RPS, TIME_UNITS_S, read_generic_csv
 from engine.imu_import.detect import QUAT_ORDERS, UNITS_TO_G
@@ -59,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    check_output_dir(args.output)  # refused before a long read, not after it
     refuse_overwriting_inputs([args.output], [args.file])
     sensor_map = _pairs(args.sensor_map, "--sensor-map") or None
     ignored: list[str] = []

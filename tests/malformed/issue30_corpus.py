@@ -181,6 +181,8 @@ def csv_cases() -> list[Case]:
         refused("rate-negative", None, r"--rate -100 Hz is outside 1..4000 Hz", rate_argv + ["-100"], "--rate"),
         refused("rate-tiny", None, r"--rate 1e-09 Hz is outside", rate_argv + ["1e-9"], "--rate"),
         refused("rate-1e12", None, r"--rate 1e\+12 Hz is outside", rate_argv + ["1e12"], "--rate"),
+        refused("output-directory-missing", None, r"out.npz: output directory .*/no does not exist",
+                with_("-o", "{d}/no/out.npz"), "no/out.npz"),
         refused("two-placements-same-columns", None, r"line 1: column 'left_forearm_acc_x' is mapped twice",
                 same_columns),
     ]
@@ -425,6 +427,9 @@ def take_cases() -> list[Refused]:
                                                                               "--input", "{d}/rec.npz", "-o",
                                                                               "{d}/out.bvh"],
                 "rec.npz", r"st1/1/acc_g holds values beyond \+-1000 g", ("out.bvh",)),
+        Refused("calibrate-output-directory-missing", {"t.npz": _npz(**good)}, ["calibrate", "{d}/t.npz", "-o",
+                                                                               "{d}/no/t.calibration.json"],
+                "no/t.calibration.json", r"output directory .*/no does not exist", ()),
         Refused("calibrate-output-over-its-take", {"t.npz": _npz(**good)}, ["calibrate", "{d}/t.npz", "-o",
                                                                            "{d}/t.json"], "t.npz",
                 r"t.npz: the raw samples of -o .*t.json would overwrite the input file itself", ("t.json",)),
