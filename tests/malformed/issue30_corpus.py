@@ -312,10 +312,6 @@ def _ximu3(change: Callable[[dict[str, bytes]], None]) -> dict[str, bytes]:
     return files
 
 
-def _device(files: dict[str, bytes], device: str, csv: str) -> str:
-    return next(k for k in files if k.startswith(f"rec/{device}") and k.endswith(csv))
-
-
 def ximu3_cases() -> tuple[list[Refused], list[Repaired]]:
     argv = ["import-imu", "{d}/rec", "--format", "ximu3", "-o", "{d}/out.npz"]
     forearm_q = "rec/Left Forearm 0000A001 (USB)/Quaternion.csv"
