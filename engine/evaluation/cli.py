@@ -1,8 +1,8 @@
 """`courtside evaluate`: the seed-000 leave-one-out (default, `--protocol loo`, engine.graph.cli) or the
-protocols of issue 11:
+held-out protocols (chained takes, leave one content out, leave one style out):
 
-    courtside evaluate --protocol chained --mocap-dir /work/shared/mocap --graph g.npz --takes 3 --take-seconds 60
-    courtside evaluate --protocol loco --mocap-dir /work/shared/mocap --graph g.npz --groups walk-left,walk-right
+    courtside evaluate --protocol chained --mocap-dir ../shared/mocap --graph g.npz --takes 3 --take-seconds 60
+    courtside evaluate --protocol loco --mocap-dir ../shared/mocap --graph g.npz --groups walk-left,walk-right
     courtside evaluate --protocol loso ...   (leave one style out; the Bandai sets name no performers)
 """
 from __future__ import annotations
@@ -42,7 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("clips", nargs="*", help=".bvh or .amc files (one skeleton)")
     _add_database_args(p)
-    p.add_argument("--protocol", choices=PROTOCOLS, default="loo")
+    p.add_argument("--protocol", choices=PROTOCOLS, default="loo",
+                   help="loo: leave one clip out; chained: held-out clips chained into long takes; loco / loso: "
+                        "leave one content / style out (--groups)")
     p.add_argument("--graph", help="motion graph .npz from `courtside build-graph` over the same clips "
                                    "(default: build one here, see --variant)")
     p.add_argument("--variant", default="msv", choices=["plain", "msv", "interp", "msv+interp"],
@@ -69,9 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "over the lag (engine/graph/root_fusion.py; the pose still comes from the engine)")
     p.add_argument("--lag", type=float, default=None,
                    help="motion graph: the online fixed-lag decoder with this latency (s) instead of the batch search")
-    p.add_argument("--camera-noise-m", type=float, default=0.05)
-    p.add_argument("--camera-noise-deg", type=float, default=10.0)
-    p.add_argument("--camera-hz", type=float, default=30.0)
+    p.add_argument("--camera-noise-m", type=float, default=0.05, help="simulated camera: position noise, m (sd)")
+    p.add_argument("--camera-noise-deg", type=float, default=10.0, help="simulated camera: heading noise, deg (sd)")
+    p.add_argument("--camera-hz", type=float, default=30.0, help="simulated camera: fix rate, Hz")
     # Default: the gap measured between real body-worn IMUs and their virtual copies (issue 11: seed 000's fixed
     # white noise is larger than the signal and hides how the search treats real data); seed000 stays one flag away.
     p.add_argument("--sensor-noise", choices=["seed000", "measured_real", "clean"], default="measured_real",
@@ -102,7 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", help="write every row's summary and per-second traces here")
     p.add_argument("--plot", metavar="OUT.png", help="draw the first take's per-second error of every row and the "
                                                      "table as bars (needs the plot extra: courtside[plot])")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the simulated sensor and camera errors")
     p.add_argument("--compare", nargs=2, metavar=("BEFORE.json", "AFTER.json"),
                    help="print two --json reports side by side (before -> after) and exit")
     add_quiet_argument(p)

@@ -53,7 +53,7 @@ def database_paths(args: argparse.Namespace) -> list[Path]:
 
 def _add_database_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sample", action="store_true", help="use the CMU subject-16 clips shipped in engine/data")
-    p.add_argument("--mocap-dir", help="a mocap folder, e.g. /work/shared/mocap")
+    p.add_argument("--mocap-dir", help="a mocap folder, e.g. ../shared/mocap")
     p.add_argument("--pattern", default="bandai-namco-1/data/*.bvh", help="glob under --mocap-dir")
     p.add_argument("--max-clips", type=int, default=0, help="use only the first N clips (0 = all)")
     p.add_argument("--sensors", nargs="+", default=list(SEED000_SENSORS), choices=STANDARD_SENSORS,

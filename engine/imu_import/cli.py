@@ -34,7 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog="courtside import-imu", description=__doc__)
     p.add_argument("file", help="csv/tsv file; xsens: .mvnx, an MT Manager/DOT .txt/.csv export or a folder of "
                                 "them; ximu3: the data-logger recording folder (or a device folder)")
-    p.add_argument("--format", required=True, choices=["csv", "xsens", "ximu3"])
+    p.add_argument("--format", required=True, choices=["csv", "xsens", "ximu3"],
+                   help="csv: any delimited text (columns named by --sensor/--quat/--gyro); xsens: MVN .mvnx or MT "
+                        "Manager / DOT exports; ximu3: an x-IMU3 data-logger recording")
     p.add_argument("-o", "--output", required=True, help="take .npz (synthesis-input format)")
     p.add_argument("--sensor", action="append", metavar="PLACEMENT=AX,AY,AZ",
                    help="csv: acceleration columns of one sensor (names or 0-based indexes), repeat per sensor")
@@ -42,10 +44,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="csv: quaternion columns in file order (w-first or w-last is detected)")
     p.add_argument("--gyro", action="append", metavar="PLACEMENT=GX,GY,GZ", help="csv: gyro columns")
     p.add_argument("--time", help="csv: time column")
-    p.add_argument("--time-unit", default="s", choices=list(TIME_UNITS_S))
+    p.add_argument("--time-unit", default="s", choices=list(TIME_UNITS_S), help="csv: unit of the --time column")
     p.add_argument("--rate", type=float, help="csv: constant sample rate (Hz) instead of a time column; "
                                               "xsens text: rate when SampleTimeFine is absent")
-    p.add_argument("--gyro-unit", default="rad/s", choices=list(GYRO_UNITS_RPS))
+    p.add_argument("--gyro-unit", default="rad/s", choices=list(GYRO_UNITS_RPS), help="csv: unit of the --gyro columns")
     p.add_argument("--delimiter", help="csv: field delimiter (default: sniffed from the header: tab , ;)")
     p.add_argument("--sensor-map", action="append", metavar="LABEL=PLACEMENT",
                    help="xsens/ximu3: device id / MVN sensor label / x-IMU3 device -> standard placement")

@@ -68,7 +68,9 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--train-s", type=float, default=10.0,
                         help="training window in seconds when --train-frames is not given (at most half the take): "
                              "the clustering needs the body segments to move relative to each other")
-    parser.add_argument("--recovery", choices=["offsets", "kabsch"], default=LabelingConfig.recovery)
+    parser.add_argument("--recovery", choices=["offsets", "kabsch"], default=LabelingConfig.recovery,
+                        help="a missing marker from its body's last complete shape fitted rigidly (kabsch) or from "
+                             "one observed marker plus its last offset (offsets)")
     parser.add_argument("--degrade", type=int, metavar="SEED", help="scramble the input, then score the labels")
     parser.add_argument("--bootstrap", action="store_true",
                         help="trust only the first frame's labels; label the other training frames by closest point")

@@ -34,7 +34,8 @@ def main(argv: list[str]) -> int:
     parser.add_argument("input", help="labelled marker C3D")
     parser.add_argument("-o", "--output", required=True, help="BVH file to write")
     parser.add_argument("--subject", help="subject prefix (labels 'Subject:MARKER'); default: the first")
-    parser.add_argument("--marker-set", choices=["auto", *MARKER_SETS], default="auto")
+    parser.add_argument("--marker-set", choices=["auto", *MARKER_SETS], default="auto",
+                        help="the capture's marker set (auto: the shipped set whose markers the file has)")
     parser.add_argument("--kappa-max", type=float, default=JointFitConfig.kappa_max, help="hinge if κ(C) above")
     parser.add_argument("--static-std-m", type=float, default=JointFitConfig.static_std, help="static if below")
     parser.add_argument("--max-samples", type=int, default=None, help="frames per joint fit (default: all)")
