@@ -290,13 +290,15 @@ def placements_from_calibration(placements: list[SensorPlacement], calibration: 
     used = [s for s in calibration.rotations if s in nominal]
     same = bool(skeleton_id and calibration.skeleton
                 and calibration.skeleton["fingerprint"] == skeleton_id["fingerprint"])
-    rotations = {}
+    other = bool(skeleton_id and calibration.skeleton) and not same  # the record names other joint frames
+    rotations, converted = {}, False
     for seg in used:
-        if not same and seg in calibration.straps:
-            rotations[seg] = nominal[seg] @ calibration.straps[seg]
-            continue
         angle = _angle_deg(calibration.rotations[seg] @ nominal[seg].T)
-        if abs(angle - calibration.correction_deg[seg]) > frame_tolerance_deg:
+        fits = abs(angle - calibration.correction_deg[seg]) <= frame_tolerance_deg
+        if not same and seg in calibration.straps and (other or not fits):
+            rotations[seg], converted = nominal[seg] @ calibration.straps[seg], True
+            continue
+        if not same and not fits:
             target = skeleton_text(skeleton_id) if skeleton_id else "this one"
             raise MalformedFileError(
                 calibration.path, None, f"the record was made for another skeleton's joint frames, "
@@ -304,7 +306,7 @@ def placements_from_calibration(placements: list[SensorPlacement], calibration: 
                 f"{seg!r}: {angle:.0f} deg from this skeleton's nominal mounting, corrected "
                 f"{calibration.correction_deg[seg]:.0f} deg): calibrate again with `courtside calibrate --graph GRAPH`")
         rotations[seg] = calibration.rotations[seg]
-    if not same and any(s in calibration.straps for s in used):
+    if converted:
         log.info("%s: made for %s: converted to %s through each sensor's strapping", calibration.path,
                  skeleton_text(calibration.skeleton), skeleton_text(skeleton_id) if skeleton_id else "these frames")
     bias = {s: calibration.bias_along_gravity_g[s] for s in used} if with_bias else None

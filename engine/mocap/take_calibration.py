@@ -37,11 +37,15 @@ from scipy.spatial import cKDTree
 
 from engine.mocap import quaternions as quat
 from engine.mocap.orientation import from_device_earth, twist_yaw, yaw_about_up
-from engine.mocap.orientation_calibration import OrientationCalibration, mean_orientation, pose_sensor_orientations
+from engine.mocap.calibration_poses import pose_rotations
+from engine.mocap.orientation_calibration import OrientationCalibration, mean_orientation
 from engine.mocap.rotations import minimal_rotation
+from engine.mocap.sensors import standard_placements
 from engine.mocap.skeleton import Skeleton
 
 UP = np.array([0.0, 1.0, 0.0])
+NO_TWIST_NOTE = ("the strap's twist about the pose's vertical is not observed without a database (give --graph): "
+                 "the smallest strap rotation is assumed")
 REFERENCE_SENSOR = "lower_back"  # the engines' yaw reference (engine/graph/orientation_term.py)
 ARM_SENSORS = ("left_forearm", "right_forearm", "left_wrist", "right_wrist")  # moved by an A-pose's arm angle
 POSE_NAMES = ("npose", "tpose", "apose", "none")
@@ -126,8 +130,9 @@ def still_stretch(quat_wxyz: np.ndarray, fps: float, config: StillnessConfig = S
         if s:
             run += 1
             continue
-        if run >= need:
-            return ((i - run) * n / fps, i * n / fps)
+        if run >= need:  # a window at each end dropped when the stretch is long enough: it may hold the move
+            edge = 1 if run - 2 >= need else 0  # into or out of the pose
+            return ((i - run + edge) * n / fps, (i - edge) * n / fps)
         run = 0
     return None
 
@@ -300,10 +305,12 @@ class _Solver:
 
 
 def _held_pose_orientations(skeleton: Skeleton, names: list[str], spec: PoseSpec, arm_deg: float) -> np.ndarray:
-    """(S, 3, 3) nominal sensor orientations of the held pose at arm angle `arm_deg` (apose), facing +Z."""
-    pose = "apose" if spec.name == "apose" else spec.name
-    q = pose_sensor_orientations(skeleton, names, pose, arm_deg=arm_deg if pose == "apose" else None)
-    return quat.to_matrix(q)
+    """(S, 3, 3) nominal sensor orientations ``G_j N`` of the held pose at arm angle `arm_deg` (apose), facing +Z,
+    the pose built in the skeleton's own joint frames: the template the live wizard and the accelerometers'
+    expected up use (on the shipped CMU skeleton the chest differs by its zero pose's 2.7-degree trunk lean from
+    the T-pose re-based `pose_sensor_orientations`; on a skeleton that is not upright they are the same)."""
+    glob = pose_rotations(skeleton, spec.name, arm_deg if spec.name == "apose" else None)
+    return np.stack([glob[p.joint] @ p.rotation for p in standard_placements(skeleton, names)])
 
 
 def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] | tuple[str, ...],
@@ -342,7 +349,8 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     held = quat.to_matrix(from_device_earth(mean_orientation(held_q)))  # (S, 3, 3)
     solutions, arm_deg = _from_held_pose(solver, held, skeleton, pose)
     found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
-    return TakeCalibration(_calibration(solutions), tuple(sensors), found)
+    notes = tuple(NO_TWIST_NOTE if prior is None else "" for _ in sensors)
+    return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes)
 
 
 def _calibration(solutions: list[_Solution]) -> OrientationCalibration:

@@ -6,7 +6,15 @@ The take is an `import-imu` file, or the gateway's own recording (`courtside gat
 `courtside console --calibration` reads each segment from that live sensor (devices bought off the shelf are one
 station each, and no station holds all the worn sensors). A take with orientations (``quat_wxyz``: an
 `import-imu` file from devices that report one, or a recording of orientation-capable stations) also gets each
-sensor's yaw and strapping calibrated from the standing stretches (issue 18)."""
+sensor's yaw and strapping calibrated (issues 18 and 29): any strapping, from the pose the take starts with (found
+in its first still stretch: N-pose, T-pose or an A-pose of any arm angle; or declared with --pose), or from the
+motion alone (--pose none, needs --graph).
+
+``--graph GRAPH.npz`` calibrates for that graph: the poses are built on its skeleton, the record's rotations are
+in its joint frames and name it (so `courtside synthesize --graph GRAPH --calibration REC` takes the record as it
+is), and its database fits what one held pose cannot show: each orientation sensor's strap twist about the pose's
+vertical, an A-pose's arm angle under unknown straps, and every angle of a calibration from the motion
+(engine/mocap/take_calibration.py)."""
 from __future__ import annotations
 
 import json
@@ -22,7 +30,8 @@ from engine.export_format import recorded_sensors
 from engine.graph.input_checks import check_take_file, open_npz, parse_sensor_map
 from engine.mocap import STANDARD_SENSORS
 from gateway.calibration.record import raw_samples_path
-from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, calibrate_recording,
+from engine.mocap.take_calibration import MotionPrior, PoseSpec
+from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, TakeStart, calibrate_recording,
                                            standard_segment_poses)
 
 
@@ -61,7 +70,9 @@ def _read_gateway_export(path: Path, sensor_map: dict[str, str]) -> CalibrationT
             for axis in range(3):
                 acc[bad, k, axis] = np.interp(np.flatnonzero(bad), good, acc[good, k, axis])
     names = [placements[i] for i in take.obs.sensor_indices]
-    return CalibrationTake(acc, EXPORT_RATE_HZ, names, list(take.stream_keys), take.obs.quat_wxyz)
+    quat = take.obs.quat_wxyz
+    streamed = quat is not None and bool(np.isfinite(quat).any())  # NaN throughout: no station streamed one
+    return CalibrationTake(acc, EXPORT_RATE_HZ, names, list(take.stream_keys), quat if streamed else None)
 
 
 def _read_take(path: Path, sensor_map: dict[str, str] | None = None) -> CalibrationTake:
@@ -108,6 +119,31 @@ def _windows(texts: list[str] | None) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _take_start(pose_text: str, graph_path: str | None) -> TakeStart:
+    """--pose and --graph as a `TakeStart`: the graph's skeleton (named after its file) and database, or the
+    shipped CMU skeleton and none."""
+    from engine.mocap import load_clip, sample_clips
+    from engine.mocap.calibrated import skeleton_identity
+
+    try:
+        pose = PoseSpec.parse(pose_text)
+    except ValueError as exc:
+        raise CourtsideError(f"--pose: {exc}") from None
+    if graph_path is None:
+        if pose.name == "none":
+            raise CourtsideError("--pose none calibrates from the motion against a database: give --graph GRAPH.npz")
+        skeleton = load_clip(sample_clips()["16_01"]).skeleton
+        return TakeStart(pose, skeleton, skeleton_identity(skeleton, "the shipped CMU skeleton"))
+    from engine.graph.graph import MotionGraph
+
+    graph = MotionGraph.load(graph_path)  # an unreadable graph is one MalformedFileError line
+    if graph.skeleton is None:
+        raise MalformedFileError(graph_path, None, "the graph holds no skeleton to calibrate for (rebuild it with "
+                                                   "build-graph)")
+    return TakeStart(pose, graph.skeleton, skeleton_identity(graph.skeleton, Path(graph_path).name),
+                     MotionPrior.from_graph(graph))
+
+
 def main(argv: list[str] | None = None) -> int:
     p = ArgumentParser(prog="courtside calibrate", description=__doc__)
     p.add_argument("take", help="take .npz from `courtside import-imu`, or a gateway recording exported with "
@@ -122,6 +158,13 @@ def main(argv: list[str] | None = None) -> int:
                         "the floor, legs straight out in front, kneecaps up) for the shanks; repeatable")
     p.add_argument("--max-std", type=float, default=RecordingCalibrationConfig.max_std_g,
                    help="windows stiller than this (g) count as quasi-static")
+    p.add_argument("--graph", metavar="GRAPH.npz",
+                   help="calibrate for this motion graph: its skeleton's joint frames and poses, its database for the "
+                        "strap twists, the arm angle and --pose none (default: the shipped CMU skeleton, no database)")
+    p.add_argument("--pose", metavar="npose|tpose|apose[:DEG][@START:END]|none", default="apose",
+                   help="takes with orientations: the pose the take starts with, held from START to END s (default: "
+                        "found, an A-pose of any arm angle, DEG out from hanging: 0 = N-pose, 90 = T-pose arms, in the "
+                        "first still stretch); none: no held pose, calibrate from the motion (needs --graph)")
     p.add_argument("--subject", default="")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
@@ -132,10 +175,11 @@ def main(argv: list[str] | None = None) -> int:
     names = take.names
     windows = _windows(args.second_pose)
     config = RecordingCalibrationConfig(max_std_g=args.max_std)
+    start = _take_start(args.pose, args.graph)
     try:
         record = calibrate_recording(take.acc_g, take.fps, take.labels, names,
-                                     standard_segment_poses(names, tuple(windows)), config, windows, args.subject,
-                                     path.stem, quat_wxyz=take.quat_wxyz)
+                                     standard_segment_poses(names, tuple(windows), start.skeleton), config, windows,
+                                     args.subject, path.stem, quat_wxyz=take.quat_wxyz, take_start=start)
     except ValueError as exc:
         raise CourtsideError(f"{path}: {exc}") from None
     record.save(args.output)  # each file whole or not at all; a failure is one line naming it
@@ -153,5 +197,6 @@ def main(argv: list[str] | None = None) -> int:
                                         "quality": round(s.quality, 2),
                                         **({} if s.orientation_yaw_rad is None else
                                            {"orientation_yaw_deg": round(float(np.degrees(s.orientation_yaw_rad)), 1)})}
-                                  for sid, s in record.sensors.items()}}))
+                                  for sid, s in record.sensors.items()},
+                      "pose": record.config.get("pose"), "skeleton": record.skeleton}))
     return 0

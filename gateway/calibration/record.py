@@ -17,8 +17,9 @@ from engine.atomic_write import atomic_write
 from engine.errors import MalformedFileError
 from engine.mocap import quaternions
 # the format is the engine's (issue 19): one reader, one definition of the optional orientation fields
-from engine.mocap.calibrated import (ORIENTATION_MOUNT, ORIENTATION_YAW, SCHEMA, SCHEMA_VERSION, orientation_fields,
-                                     read_calibration_record, read_orientation_fields)
+from engine.mocap.calibrated import (ORIENTATION_MOUNT, ORIENTATION_YAW, SCHEMA, SCHEMA_VERSION, SKELETON, STRAP,
+                                     orientation_fields, read_calibration_record, read_orientation_fields,
+                                     read_skeleton_field, read_strap_field, strap_field)
 from gateway.calibration.errors import CalibrationRecordError
 
 RAW_KINDS = ("t_s", "acc_g", "quat_wxyz")  # the raw samples of one sensor in one step, in tuple order (the last
@@ -36,7 +37,9 @@ class SensorCalibration:
     """Result for one sensor. ``rotation`` (3, 3): sensor axes -> segment frame (engine ``SensorPlacement``).
     ``orientation_yaw_rad`` / ``orientation_mount_wxyz`` (4,): for a sensor that streamed its orientation during
     the still capture, its earth frame's yaw and its strapping (`engine.mocap.OrientationCalibration` of one
-    sensor); None for an accelerometer-only sensor (and in records written before them)."""
+    sensor); None for an accelerometer-only sensor (and in records written before them). ``strap_wxyz`` (4,):
+    the strapping relative to the placement's nominal sensor frame (``R_nominalᵀ rotation``), what converts the
+    record to another skeleton's joint frames (`engine.mocap.calibrated`); None in records written before it."""
 
     sensor_id: str
     segment: str
@@ -50,18 +53,21 @@ class SensorCalibration:
     reasons: list[str] = field(default_factory=list)
     orientation_yaw_rad: float | None = None
     orientation_mount_wxyz: np.ndarray | None = None
+    strap_wxyz: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        out = {k: v for k, v in asdict(self).items() if k not in (ORIENTATION_YAW, ORIENTATION_MOUNT)}
+        out = {k: v for k, v in asdict(self).items() if k not in (ORIENTATION_YAW, ORIENTATION_MOUNT, STRAP)}
         out["rotation"] = np.asarray(self.rotation).tolist()
         q = quaternions.from_matrix(self.rotation)
         out["rotation_wxyz"] = (q if q[0] >= 0 else -q).tolist()  # w >= 0: one of the two equal quaternions
         out["gravity_sensor_g"] = np.asarray(self.gravity_sensor_g).tolist()
-        return {**out, **orientation_fields(self.orientation_yaw_rad, self.orientation_mount_wxyz)}
+        return {**out, **orientation_fields(self.orientation_yaw_rad, self.orientation_mount_wxyz),
+                **strap_field(self.strap_wxyz)}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "SensorCalibration":
-        fields = {k: data[k] for k in cls.__dataclass_fields__ if k not in (ORIENTATION_YAW, ORIENTATION_MOUNT)}
+        fields = {k: data[k] for k in cls.__dataclass_fields__ if k not in (ORIENTATION_YAW, ORIENTATION_MOUNT, STRAP)}
+        fields[STRAP] = read_strap_field(data)
         fields["rotation"] = np.asarray(fields["rotation"], float)
         fields["gravity_sensor_g"] = np.asarray(fields["gravity_sensor_g"], float)
         orientation = read_orientation_fields(data)
@@ -73,7 +79,8 @@ class SensorCalibration:
 @dataclass
 class CalibrationRecord:
     """A finished calibration. ``raw``: step -> sensor id -> ``(t_s (N,), acc_g (N, 3))``, with a third array
-    ``quat_wxyz`` (N, 4) for a sensor whose orientations went into it."""
+    ``quat_wxyz`` (N, 4) for a sensor whose orientations went into it. ``skeleton``: the identity of the skeleton
+    whose joint frames the rotations are in (`engine.mocap.calibrated.skeleton_identity`; None: not said)."""
 
     sensors: dict[str, SensorCalibration]
     quality_score: float
@@ -85,6 +92,7 @@ class CalibrationRecord:
     created_utc: str = ""
     config: dict[str, Any] = field(default_factory=dict)
     raw: dict[str, dict[str, tuple[np.ndarray, ...]]] = field(default_factory=dict)
+    skeleton: dict[str, Any] | None = None
 
     def rotation(self, sensor_id: str) -> np.ndarray:
         """Sensor -> segment rotation (3, 3) for ``engine.mocap.SensorPlacement(..., rotation=...)``."""
@@ -106,7 +114,7 @@ class CalibrationRecord:
             "subject": self.subject, "take": self.take, "quality_score": self.quality_score, "grade": self.grade,
             "passed": self.passed, "tap": self.tap, "config": self.config,
             "sensors": {sid: s.to_dict() for sid, s in self.sensors.items()},
-            "raw_samples_file": npz_path.name,
+            "raw_samples_file": npz_path.name, **({SKELETON: self.skeleton} if self.skeleton else {}),
         }
         atomic_write(path, lambda fh: fh.write(json.dumps(doc, indent=2).encode()))
         return npz_path
@@ -141,4 +149,5 @@ class CalibrationRecord:
             sensors=sensors, quality_score=float(doc["quality_score"]), grade=str(doc["grade"]),
             passed=bool(doc["passed"]), tap=doc.get("tap"), subject=doc.get("subject", ""), take=doc.get("take", ""),
             created_utc=doc.get("created_utc", ""), config=doc.get("config", {}), raw=raw,
+            skeleton=read_skeleton_field(doc),
         )

@@ -24,16 +24,16 @@ stillest moment had a forearm std of ~0.12 g. This calibrates from what a take d
    fit.
 3. **Per-sensor quality** ``min(stillness, consistency, heading)`` in 0..1: stillness ``1 - std/max_std_g`` of the
    windows used, consistency = weight fraction inside the dominant cluster, heading = the walking axis' share
-   of horizontal variance (``(λ1 - λ2)/(λ1 + λ2)``, 1 with a second pose). A sensor whose measured up is more than
-   90° from where its placement puts it is flagged as **flipped** (strapped upside down, or the Bandai-style
-   180° roll), and fails.
+   of horizontal variance (``(λ1 - λ2)/(λ1 + λ2)``, 1 with a second pose). An accelerometer-only sensor whose
+   measured up is more than 90° from where its placement puts it is flagged as **flipped** (strapped upside down,
+   or the Bandai-style 180° roll), and fails.
 
-4. **Orientation sensors** (a take with ``quat_wxyz``, issue 18): each sensor's earth-frame yaw and strapping
-   (`engine.mocap.orientation_calibration`) from the still windows every sensor shares (each in its dominant
-   cluster), taken to be the N-pose like the gravity directions. Each window gives one solution; the subject may
-   face another way in each, which turns every sensor's yaw alike, so the windows' yaws are averaged after
-   removing that common turn (relative to the stillest window), weighted like the gravity directions; the
-   strapping does not depend on the heading and is averaged as it is.
+4. **Orientation sensors** (a take with ``quat_wxyz``, issues 18 and 29): each sensor's earth-frame yaw and
+   strapping from `engine.mocap.take_calibration.calibrate_take` (the pose the take starts with, found or
+   declared: N-pose, T-pose, an A-pose of any arm angle, or none; against the database of a graph when one is
+   given). Any strapping is solved (upside down, rolled, far off nominal): such a sensor is never failed for its
+   mounting, and its ``rotation`` is its placement's nominal rotation times that strapping (``R = N M``), so the
+   accelerometer and the orientation halves of the record describe one strap.
 
 The result is the wizard's :class:`CalibrationRecord` (same schema, same rotations convention), so
 ``courtside build-graph --calibration`` / ``courtside synthesize --calibration`` use it unchanged.
@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from engine.mocap import quaternions
-from engine.mocap.orientation_calibration import OrientationCalibration, mean_orientation
+from engine.mocap.take_calibration import MotionPrior, PoseSpec, TakeCalibration, calibrate_take
 from gateway.calibration.alignment import (UP, norm_error_g, rotation_angle_deg, rotation_from_directions,
                                            sensor_to_segment_rotation, tilt_deg)
 from gateway.calibration.record import CalibrationRecord, SensorCalibration
@@ -99,6 +99,28 @@ class SegmentPose:
     forward: np.ndarray
     up_in: dict[str, np.ndarray] = field(default_factory=dict)
     orientation_wxyz: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class TakeStart:
+    """How the orientation sensors of a take are calibrated (`engine.mocap.take_calibration`): the ``pose`` the
+    take starts with (default: found, an A-pose of any arm angle from 0 = N-pose to 90 = T-pose arms, in the first
+    still stretch), the ``skeleton`` the poses are built on (None: the shipped CMU skeleton; the same one
+    `standard_segment_poses` was given), its identity for the record (``skeleton_id``,
+    `engine.mocap.calibrated.skeleton_identity`) and the database ``prior`` (a graph's; None: each strap's twist
+    about the pose's vertical is not observed and the smallest strap is taken, and ``pose none`` is refused)."""
+
+    pose: PoseSpec = PoseSpec("apose")
+    skeleton: Any = None
+    skeleton_id: dict | None = None
+    prior: MotionPrior | None = None
+
+    def solve(self, quat_wxyz: np.ndarray, fps: float, segments: list[str]) -> TakeCalibration:
+        """The take's orientation calibration; ValueError with the reason when it has none to give."""
+        from engine.mocap import load_clip, sample_clips
+
+        skeleton = self.skeleton if self.skeleton is not None else load_clip(sample_clips()["16_01"]).skeleton
+        return calibrate_take(quat_wxyz, fps, segments, skeleton, self.pose, self.prior)
 
 
 def standard_segment_poses(names: list[str], second_poses: tuple[str, ...] = (), skeleton: Any = None
@@ -182,55 +204,16 @@ def _walking_axis(acc: np.ndarray, moving: np.ndarray, up_s: np.ndarray, band: t
     return vecs[:, 2], float((l1 - l2) / max(l1 + l2, 1e-12))
 
 
-def still_orientations(quat_wxyz: np.ndarray, starts: np.ndarray, n: int, weights: np.ndarray,
-                       pose_world: np.ndarray) -> OrientationCalibration:
-    """The orientation calibration of S sensors from their readings ``quat_wxyz`` (T, S, 4) in still windows of
-    ``n`` samples starting at ``starts`` (W,), weighted by ``weights`` (W,), against the nominal orientations
-    ``pose_world`` (S, 4) of the pose held (module docstring, step 4)."""
-    solved = [OrientationCalibration.from_still_pose(quat_wxyz[s:s + n], pose_world) for s in starts]
-    yaws = np.array([c.yaw_rad for c in solved])  # (W, S)
-    best = int(np.argmax(weights))
-    relative = yaws - yaws[best]
-    turned = np.angle(np.exp(1j * relative).sum(axis=1))  # (W,) the subject's turn since the stillest window
-    residual = np.exp(1j * (relative - turned[:, None]))
-    yaw = yaws[best] + np.angle((weights[:, None] * residual).sum(axis=0))
-    mounts = np.array([c.mount_wxyz for c in solved]) * weights[:, None, None]
-    return OrientationCalibration(np.angle(np.exp(1j * yaw)), mean_orientation(mounts))
-
-
-def _orientation_calibration(quat_wxyz: np.ndarray | None, ok: np.ndarray, keeps: list[np.ndarray],
-                             weights: np.ndarray, n: int, poses: list[SegmentPose]
-                             ) -> tuple[list[int], OrientationCalibration | None, list[str]]:
-    """(the sensors calibrated, their `still_orientations`, per sensor why its orientation was not calibrated or
-    ""): over the ``ok`` windows (W,) where every sensor is in its dominant cluster (``keeps``, each over the ok
-    windows) and every orientation sensor has a reading at every sample."""
-    n_sensors = len(keeps)
-    if quat_wxyz is None:
-        return [], None, [""] * n_sensors
-    q = np.asarray(quat_wxyz, float)[: len(ok) * n].reshape(len(ok), n, n_sensors, 4)
-    finite = np.isfinite(q).all(axis=(1, 3))  # (W, S)
-    sensors = [k for k in range(n_sensors) if finite[:, k].any() and poses[k].orientation_wxyz is not None]
-    if not sensors:
-        return [], None, [""] * n_sensors
-    common = np.all(keeps, axis=0) & finite[ok][:, sensors].all(axis=1)
-    if not common.any():
-        why = "orientation not calibrated: no still window in which every sensor holds the standing pose"
-        return [], None, [why if k in sensors else "" for k in range(n_sensors)]
-    starts = np.flatnonzero(ok)[common] * n
-    pose_world = np.stack([poses[k].orientation_wxyz for k in sensors])
-    solved = still_orientations(np.asarray(quat_wxyz, float)[:, sensors], starts, n, weights[common], pose_world)
-    return sensors, solved, [""] * n_sensors
-
-
 def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], segments: list[str],
                         poses: dict[str, SegmentPose], config: RecordingCalibrationConfig = RecordingCalibrationConfig(),
                         second_windows: dict[str, tuple[float, float]] | None = None, subject: str = "",
-                        take: str = "", pose_name: str = "npose", quat_wxyz: np.ndarray | None = None
-                        ) -> CalibrationRecord:
+                        take: str = "", quat_wxyz: np.ndarray | None = None,
+                        take_start: TakeStart = TakeStart()) -> CalibrationRecord:
     """Calibrate every sensor of a take ``acc_g`` (T, S, 3) g at ``fps``; ``segments[k]`` is sensor k's standard
     placement name, ``poses`` its :class:`SegmentPose`. ``second_windows``: second pose name -> (start, end) s
     where the subject holds it (see ``SECOND_POSES``). ``quat_wxyz`` (T, S, 4): the sensors' orientations
-    (sensor -> device earth; NaN where a sensor has none), whose yaw and strapping are then calibrated too."""
+    (sensor -> device earth; NaN where a sensor has none), whose yaw and strapping are then calibrated too, with
+    the pose, skeleton and database of ``take_start`` (`TakeStart`)."""
     acc = np.asarray(acc_g, float)
     n = max(2, int(round(config.window_s * fps)))
     t = np.arange(len(acc)) / fps
@@ -270,8 +253,8 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
         still.append((keep, consistency, gravity, float((w * stds[ok, k][keep]).sum() / w.sum())))
     ups = np.array([g / np.linalg.norm(g) for _, _, g, _ in still])
     step_hz = step_frequency_hz(acc, moving, ups, fps, config.cadence_band_hz)
-    oriented, orientation, why_not = _orientation_calibration(quat_wxyz, ok, [s[0] for s in still], weights, n,
-                                                             [poses[seg] for seg in segments])
+    solved = None if quat_wxyz is None else take_start.solve(quat_wxyz, fps, segments)
+    oriented = [] if solved is None else list(solved.sensors)
     for k, (sid, seg) in enumerate(zip(sensor_ids, segments)):
         pose = poses[seg]
         keep, consistency, gravity, std = still[k]
@@ -307,9 +290,18 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
                    "an arm needs a second pose, e.g. --second-pose tpose@START:END" if seg.endswith(("forearm", "wrist"))
                    else "the trunk needs a second pose, e.g. --second-pose bow@START:END")
             reasons.append(f"heading about gravity not observed ({why}): nominal mounting assumed for it")
+        yaw = mount = None
+        if k in oriented:  # any strapping: solved from the orientations, never failed for being far from nominal
+            j = oriented.index(k)
+            yaw, mount = float(solved.orientation.yaw_rad[j]), solved.orientation.mount_wxyz[j]
+            rotation = pose.nominal_rotation @ quaternions.to_matrix(mount)
+            reasons = [r for r in reasons if not r.startswith("heading about gravity")] + \
+                [n for n in solved.notes[j:j + 1] if n]
         correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
         flipped = tilt_deg(gravity, pose.nominal_rotation, pose.up)
-        if flipped > config.flipped_deg:
+        if k in oriented:
+            pass
+        elif flipped > config.flipped_deg:
             reasons.append(f"axes look flipped against the placement: the sensor's up is {flipped:.0f} deg from "
                            "where the placement table puts it (strapped upside down or rolled 180 deg?)")
         elif correction > config.max_correction_deg:
@@ -319,20 +311,14 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
         still_term = 1.0 - std / config.max_std_g
         quality = float(np.clip(min(still_term, consistency, heading_term if heading_term else 0.5), 0.0, 1.0))
         passed = not any("flipped" in r or "mounted" in r for r in reasons)
-        yaw = mount = None
-        if k in oriented:
-            j = oriented.index(k)
-            yaw, mount = float(orientation.yaw_rad[j]), orientation.mount_wxyz[j]
-        elif why_not[k]:
-            reasons.append(why_not[k])
         results[sid] = SensorCalibration(sid, seg, rotation, gravity, err, std, correction, quality, passed, reasons,
-                                         yaw, mount)
+                                         yaw, mount, quaternions.from_matrix(pose.nominal_rotation.T @ rotation))
         idx = (np.flatnonzero(ok)[keep][:, None] * n + np.arange(n)).ravel()
         raw[sid] = (t[idx], acc[idx, k]) + ((quat_wxyz[idx, k],) if k in oriented else ())
     score = 100.0 * float(np.mean([r.quality for r in results.values()]))
     grade = "good" if score >= 70 else "fair" if score >= 40 else "poor"
-    cfg = {"method": "recording", "pose": pose_name,
+    cfg = {"method": "recording", "pose": "npose" if solved is None else solved.pose.text(),
            "second_windows_s": {k: list(v) for k, v in second_windows.items()}, "fps": fps, **asdict(config)}
     return CalibrationRecord(results, round(score, 1), grade, all(r.passed for r in results.values()), None, subject,
-                             take, datetime.now(timezone.utc).isoformat(), cfg, {"still": raw})
+                             take, datetime.now(timezone.utc).isoformat(), cfg, {"still": raw}, take_start.skeleton_id)
 

@@ -51,19 +51,27 @@ class CalibrationService:
         self._lock = threading.Lock()
         self.wizard = CalibrationWizard(segments, config, pose)
 
+    skeleton_id: dict[str, Any] | None = None  # the skeleton whose joint frames the records' rotations are in
+
     @classmethod
     def standard(cls, sensor_names: tuple[str, ...] | None = None, config: WizardConfig = WizardConfig(),
-                 pose: str = "npose", records_dir: str | Path | None = None) -> "CalibrationService":
-        """Segments = the engine's standard sensor placements (default: the six seed-000 sensors) on the
-        shipped CMU skeleton, i.e. exactly the mounting the engine's virtual sensors assume, calibrated in
-        ``pose``: ``"npose"`` (default: the reference N-pose of ``gateway.calibration.pose.reference_npose``,
-        arms straight down, palms in, legs straight) or ``"tpose"`` (the skeleton's zero pose: arms out)."""
+                 pose: str = "npose", records_dir: str | Path | None = None, skeleton: Any = None,
+                 skeleton_name: str = "the shipped CMU skeleton") -> "CalibrationService":
+        """Segments = the engine's standard sensor placements (default: the six seed-000 sensors) on
+        ``skeleton`` (default: the shipped CMU skeleton; a loaded graph's skeleton makes records for that graph,
+        any skeleton works, raw Bandai included), i.e. exactly the mounting the engine's virtual sensors assume,
+        calibrated in ``pose``: ``"npose"`` (default: the reference N-pose of
+        ``gateway.calibration.pose.reference_npose``, arms straight down, palms in, legs straight) or ``"tpose"``
+        (the skeleton's zero pose: arms out). Saved records name the skeleton (``skeleton_name``)."""
         from engine.mocap import SEED000_SENSORS, load_clip, sample_clips, standard_placements
+        from engine.mocap.calibrated import skeleton_identity
 
-        skeleton = load_clip(sample_clips()["16_01"]).skeleton
+        skeleton = skeleton if skeleton is not None else load_clip(sample_clips()["16_01"]).skeleton
         placements = standard_placements(skeleton, sensor_names or SEED000_SENSORS)
         specs = segment_specs_from_placements(placements, pose_rotations=pose_rotations(skeleton, pose))
-        return cls(specs, config, pose, records_dir)
+        service = cls(specs, config, pose, records_dir)
+        service.skeleton_id = skeleton_identity(skeleton, skeleton_name)
+        return service
 
     def on_samples(self, station: str, sensor: int | str, t_host_s: np.ndarray, acc_g: np.ndarray,
                    quat_wxyz: np.ndarray | None = None) -> None:
@@ -102,6 +110,7 @@ class CalibrationService:
             elif action == "save":
                 path = self._record_path(args)
                 record = wiz.record(subject=str(args.get("subject", "")), take=str(args.get("take", "")))
+                record.skeleton = self.skeleton_id
                 path.parent.mkdir(parents=True, exist_ok=True)
                 npz = record.save(path)
                 return {"json": str(path), "npz": str(npz), "quality": wiz.quality()}

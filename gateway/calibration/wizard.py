@@ -264,7 +264,8 @@ class CalibrationWizard:
             quality = float(np.clip(min(1 - correction / cfg.max_correction_deg, 1 - abs(err) / cfg.norm_tolerance_g,
                                         1 - std / cfg.still_std_g), 0.0, 1.0))
             self.results[sid] = SensorCalibration(sid, segment, rotation, mean, err, std, correction, quality,
-                                                  not reasons, reasons, *self._orientation(quat[streamed], spec))
+                                                  not reasons, reasons, *self._orientation(quat[streamed], spec),
+                                                  quaternions.from_matrix(spec.nominal_rotation.T @ rotation))
             oriented += self.results[sid].orientation_yaw_rad is not None
         self._capturing = False
         self._say("N-pose captured" + (f" (orientation calibrated for {oriented} of {len(self.assignment)} sensors)"

@@ -165,14 +165,22 @@ def test_build_graph_cli_uses_the_record(scenario, tmp_path, capsys):
     np.testing.assert_allclose(built.meta_acc_g, expected.meta_acc_g, atol=1e-5)
     assert np.abs(built.meta_acc_g - nominal.meta_acc_g).max() > 0.2
 
-    # a record made against other joint frames is refused with the reason
+    # a record whose rotations are in other joint frames is converted through each sensor's strapping ...
     doc = json.loads(scenario.record_path.read_text())
     for entry in doc["sensors"].values():
         entry["rotation"] = (np.diag([1.0, -1.0, -1.0]) @ np.asarray(entry["rotation"])).tolist()
     other = tmp_path / "other.calibration.json"
     other.write_text(json.dumps(doc))
-    assert build_graph_main(["--sample", "--calibration", str(other), "-o", str(tmp_path / "x.npz")]) == 2
-    assert "another skeleton's joint frames" in capsys.readouterr().err
+    assert build_graph_main(["--sample", "--calibration", str(other), "-o", str(tmp_path / "x.npz")]) == 0
+    np.testing.assert_allclose(MotionGraph.load(tmp_path / "x.npz").meta_acc_g, built.meta_acc_g, atol=1e-5)
+    # ... and an older record without the strapping is refused with the reason, naming both skeletons
+    for entry in doc["sensors"].values():
+        del entry["strap_wxyz"]
+    other.write_text(json.dumps(doc))
+    capsys.readouterr()
+    assert build_graph_main(["--sample", "--calibration", str(other), "-o", str(tmp_path / "y.npz")]) == 2
+    err = capsys.readouterr().err
+    assert "another skeleton's joint frames" in err and "shipped CMU" in err and err.count("\n") == 1
 
 
 def test_console_graph_is_built_and_cached_per_calibration(scenario, tmp_path):

@@ -210,6 +210,7 @@ def test_calibrate_a_take_with_orientations_solves_each_sensor_s_yaw(tmp_path, c
     from .conftest import FILTER, tilt_rotation
 
     from engine.mocap.orientation_calibration import mean_orientation
+    from engine.mocap.take_calibration import PoseSpec
 
     motion = standing_then_walking(fps=FPS, seed=6, sway_deg=0.0)
     poses = standard_segment_poses(NAMES)
@@ -233,7 +234,10 @@ def test_calibrate_a_take_with_orientations_solves_each_sensor_s_yaw(tmp_path, c
 
     strap_error = angle_deg(np.array([record.sensors[n].orientation_mount_wxyz for n in NAMES]),
                             quat.from_matrix(np.array([straps[n] for n in NAMES])))
-    tilt = angle_deg(mean_orientation(errors.tilt_wxyz[: int(3.5 * FPS)]), quat.identity((len(NAMES),)))
+    held = PoseSpec.parse(record.config["pose"])  # the still stretch found: the N-pose (an A-pose of 0 deg)
+    assert held.name == "apose" and held.arm_deg == 0.0 and held.window_s[1] - held.window_s[0] >= 2.0
+    i0, i1 = (int(round(t * FPS)) for t in held.window_s)
+    tilt = angle_deg(mean_orientation(errors.tilt_wxyz[i0:i1]), quat.identity((len(NAMES),)))
     print("yaw relative to the pelvis, solved - emulated (deg):", np.round(error, 2),
           "strapping error (deg):", np.round(strap_error, 2), "the filter's mean tilt error (deg):", np.round(tilt, 2))
     assert np.abs(error).max() < 1.0 and (strap_error < tilt + 1.0).all()
