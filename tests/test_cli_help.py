@@ -2,9 +2,9 @@
 one-line summary, every option of every subcommand explained, no internal jargon ("issue 11") and no paths of
 this build machine (/work/...); `demo --help` is a description, not the module's comment.
 
-The parsers are taken from the commands themselves (each builds its parser inside its main): `parse_args` is
-intercepted (its `parse_known_args`) at the first parser that offers --help, so no command runs. Subcommands of a command (``camera synth``) are walked; the
-gateway's ``export`` / ``new-secret`` are parsers of their own, reached by their first word."""
+The parsers are taken from the commands themselves (each builds its parser inside its main): argparse's
+`parse_known_args` is intercepted at the first parser that offers --help, so no command runs. Subcommands of a
+command (``camera synth``) are walked; the gateway's ``export`` / ``new-secret`` are parsers of their own, reached by their first word."""
 from __future__ import annotations
 
 import argparse

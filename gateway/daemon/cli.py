@@ -61,7 +61,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="find stations by USB VID:PID 1209:C0DE (serial + HID), also hot-plugged ones")
     g.add_argument("--emulate", type=int, default=None, metavar="N", help="start N emulated stations over ptys")
     g.add_argument("--emulate-motion", default=None, metavar="mocap|none",
-                   help=f"emulated sensors replay mocap clips or stay still (default {_DEFAULTS.stations.emulate_motion})")
+                   help="emulated sensors replay mocap clips or stay still "
+                        f"(default {_DEFAULTS.stations.emulate_motion})")
     g.add_argument("--emulate-clip", action="append", default=None, metavar="CLIP",
                    help="shipped clip name or .bvh/.amc file to replay (repeatable; default every shipped clip)")
     g.add_argument("--emulate-orientation", action=argparse.BooleanOptionalAction, default=None,
