@@ -4,7 +4,8 @@ this build machine (/work/...); `demo --help` is a description, not the module's
 
 The parsers are taken from the commands themselves (each builds its parser inside its main): argparse's
 `parse_known_args` is intercepted at the first parser that offers --help, so no command runs. Subcommands of a
-command (``camera synth``) are walked; the gateway's ``export`` / ``new-secret`` are parsers of their own, reached by their first word."""
+command (``camera synth``) are walked; the gateway's ``export`` / ``new-secret`` are parsers of their own,
+reached by their first word."""
 from __future__ import annotations
 
 import argparse
