@@ -28,8 +28,10 @@ def rotate_readings(acc_g: np.ndarray, correction: np.ndarray) -> np.ndarray:
 def _column_corrections(skeleton, sensor_names: list[str], indices: tuple[int, ...], record: str | Path
                         ) -> dict[int, np.ndarray]:
     """Observation column -> the rotation taking its sensor's readings into the nominal frame (calibrated
-    sensors only). ValueError when the record was made for another skeleton's joint frames."""
-    corrections = reading_corrections(standard_placements(skeleton, sensor_names), load_sensor_calibration(record))
+    sensors only; a record made for other joint frames converted through its straps). MalformedFileError naming
+    both skeletons when it cannot be."""
+    corrections = reading_corrections(standard_placements(skeleton, sensor_names), load_sensor_calibration(record),
+                                      skeleton_identity(skeleton, "the graph's skeleton"))
     return {column: corrections[sensor_names[g]] for column, g in enumerate(indices) if sensor_names[g] in corrections}
 
 
