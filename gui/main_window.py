@@ -269,9 +269,17 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             return []
         return [Alarm("gateway", "alarm", f"gateway {self.client.host}:{self.client.port} unreachable: reconnecting")]
 
+    def synthesis_alarms(self) -> list[Alarm]:
+        """A banner per athlete whose synthesis process crashed: a warning once restarted, an alarm when it was
+        given up (the athlete's status says the same in red, `gui.athlete_status`)."""
+        return [Alarm(f"synthesis:{name}", "warning", f"{name or 'synthesis'}: {worker.fault}") if worker.is_alive()
+                else Alarm(f"synthesis-stopped:{name}", "alarm", f"{name or 'synthesis'}: {worker.fault}")
+                for name, worker in self.workers().items() if worker.fault]
+
     def check_link(self) -> None:
-        """Once a second: show a lost gateway connection and try to reconnect (off the GUI thread)."""
-        self.alarms.set_conditions(self._status_alarms + self.link_alarms())
+        """Once a second: show a lost gateway connection or a crashed synthesis, and try to reconnect (off the GUI
+        thread)."""
+        self.alarms.set_conditions(self._status_alarms + self.link_alarms() + self.synthesis_alarms())
         if self.client is None or self.playback is not None or self.client.connected or self._reconnecting:
             return
         self.connection.setText(f"DISCONNECTED from {self.client.host}:{self.client.port}")
@@ -367,7 +375,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         rec = self.bridge.latest("recording") or {}
         disk = str(Path(rec["path"]).parent) if rec.get("path") and Path(rec["path"]).parent.exists() else "."
         self._status_alarms = status_alarms(status, disk, self._was_locked)
-        self.alarms.set_conditions(self._status_alarms + self.link_alarms())
+        self.alarms.set_conditions(self._status_alarms + self.link_alarms() + self.synthesis_alarms())
 
     def _mark_tap(self, calibration: dict[str, Any] | None) -> None:
         """A sync tap found by the calibration workflow becomes an event marker on the traces."""

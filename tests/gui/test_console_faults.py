@@ -44,6 +44,8 @@ def test_a_killed_synthesis_child_is_restarted_and_the_athlete_status_says_so(li
             text = window.athlete_status.text("player")
             assert "synthesis restarted after crash (1/3): killed by signal 9" in text
             assert window.athlete_status.is_fault_shown("player")
+            window.check_link()  # the alarm bar's once-a-second look: a banner too
+            assert "synthesis restarted after crash (1/3)" in window.alarms.active()["synthesis:player"]
         finally:
             window.shutdown()
 
