@@ -6,7 +6,7 @@ The take is an `import-imu` file, or the gateway's own recording (`courtside gat
 `courtside console --calibration` reads each segment from that live sensor (devices bought off the shelf are one
 station each, and no station holds all the worn sensors). A take with orientations (``quat_wxyz``: an
 `import-imu` file from devices that report one, or a recording of orientation-capable stations) also gets each
-sensor's yaw and strapping calibrated (issues 18 and 29): any strapping, from the pose the take starts with (found
+sensor's yaw and strapping calibrated: any strapping, from the pose the take starts with (found
 in its first still stretch: N-pose, T-pose or an A-pose of any arm angle; or declared with --pose), or from the
 motion alone (--pose none, needs --graph).
 
@@ -165,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="takes with orientations: the pose the take starts with, held from START to END s (default: "
                         "found, an A-pose of any arm angle, DEG out from hanging: 0 = N-pose, 90 = T-pose arms, in the "
                         "first still stretch); none: no held pose, calibrate from the motion (needs --graph)")
-    p.add_argument("--subject", default="")
+    p.add_argument("--subject", default="", help="who wore the sensors, written into the record")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
     check_output_dir(args.output)  # refused before the calibration runs, not after it
