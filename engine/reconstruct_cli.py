@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from engine import progress
+from engine.atomic_write import refuse_overwriting_inputs
 from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, cli_command
 from engine.stream.offline import acc_in_sensor_order
 
@@ -258,6 +259,7 @@ def main(argv: list[str]) -> int:
         return _evaluate(args)
     if not args.input or not args.output:
         raise CourtsideError("--input and -o are required (or use --evaluate)")
+    refuse_overwriting_inputs([args.output], [args.input, *args.clips])
     if args.method == "motion-graph":
         return _reconstruct_motion_graph(args)
     summary = _reconstruct_olng(args) if args.method == "olng" else _reconstruct_hmm(args)

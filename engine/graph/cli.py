@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine.atomic_write import refuse_overwriting_inputs
 from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.progress import add_quiet_argument
 from engine.mocap.orientation_calibration import OrientationCalibration
@@ -96,6 +97,8 @@ def build_graph_main(argv: list[str]) -> int:
                         "virtual sensors use its measured sensor-to-segment rotations")
     add_quiet_argument(p)
     args = p.parse_args(argv)
+    refuse_overwriting_inputs([args.output, Path(args.output).with_suffix(".json")],
+                              database_paths(args), "the graph or its report")
     check_non_negative("--threshold", [args.threshold], positive=True)
     config = GraphConfig(msv=args.msv, interp=args.interp, transition_threshold_m=args.threshold,
                          connect=not args.no_connect)
@@ -321,6 +324,8 @@ class Search:
 def synthesize_main(argv: list[str]) -> int:
     """Read the take, decide the path (batch search, or the online decoder with --lag), write BVH and poses."""
     args = _synthesize_parser().parse_args(argv)
+    refuse_overwriting_inputs([o for o in (args.output, args.save_poses) if o],
+                              [i for i in (args.input, args.graph, args.calibration, args.database) if i])
     if args.engine != "motion-graph":
         return _synthesize_online(args)
     if not args.graph:

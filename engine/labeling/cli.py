@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from engine import progress
+from engine.atomic_write import refuse_overwriting_inputs
 from engine.errors import ArgumentParser, CourtsideError, MalformedFileError, check_output_dir, cli_command
 from engine.progress import add_quiet_argument
 from engine.mocap import MarkerData, read_c3d
@@ -76,6 +77,7 @@ def main(argv: list[str]) -> int:
                         help="trust only the first frame's labels; label the other training frames by closest point")
     add_quiet_argument(parser)
     args = parser.parse_args(argv)
+    refuse_overwriting_inputs([args.output], [args.input])
     check_output_dir(args.output)
     try:
         data = read_c3d(args.input)

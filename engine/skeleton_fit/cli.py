@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from engine.atomic_write import refuse_overwriting_inputs
 from engine.errors import ArgumentParser, MalformedFileError, check_output_dir, cli_command
 from engine.progress import add_quiet_argument
 from engine.mocap import read_c3d, write_bvh
@@ -43,6 +44,7 @@ def main(argv: list[str]) -> int:
                         help="geometric refinement steps after the closed form (0 = GDKE only)")
     add_quiet_argument(parser)
     args = parser.parse_args(argv)
+    refuse_overwriting_inputs([args.output], [args.input])
     check_output_dir(args.output)
     try:
         data = read_c3d(args.input)

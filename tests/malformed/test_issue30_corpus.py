@@ -123,3 +123,30 @@ def test_corpus_size():
     """The count quoted in docs/imu-import.md."""
     assert len(REFUSED) + len(REPAIRED) >= 60
     print(f"\nissue-30 corpus: {len(REFUSED)} refused, {len(REPAIRED)} repaired")
+
+
+@pytest.mark.parametrize("argv", [
+    ["build-graph", "{d}/clip.bvh", "-o", "{d}/clip.bvh"],
+    ["build-graph", "{d}/clip.bvh", "-o", "{d}/clip.npz"],  # beside its input: refused only for the bad clip
+    ["label", "{d}/m.c3d", "-o", "{d}/./m.c3d"],
+    ["fit-skeleton", "{d}/m.c3d", "-o", "{d}/m.c3d"],
+    ["reconstruct", "--method", "hmm", "--input", "{d}/t.npz", "-o", "{d}/t.npz"],
+])
+def test_no_command_writes_over_its_input(tmp_path, argv, capsys):
+    """Every command that writes a file refuses an output naming one of its inputs, before reading anything
+    (the input is left byte for byte), naming the file; an output beside the inputs is not refused."""
+    from gateway.cli import main as courtside
+
+    inputs = {"clip.bvh": b"HIERARCHY\n", "m.c3d": b"\0" * 512, "t.npz": b"PK\x03\x04"}
+    for name, data in inputs.items():
+        (tmp_path / name).write_bytes(data)
+    argv = [a.replace("{d}", str(tmp_path)) for a in argv]
+    before = {n: hashlib.sha256((tmp_path / n).read_bytes()).hexdigest() for n in inputs}
+    code = courtside(argv)
+    err = capsys.readouterr().err
+    assert {n: hashlib.sha256((tmp_path / n).read_bytes()).hexdigest() for n in inputs} == before
+    assert code == 2
+    if argv[-1].endswith("clip.npz"):  # refused for the bad clip, not for the output
+        assert "overwrite" not in err
+    else:
+        assert "would overwrite the input file itself" in err and err.count("\n") == 1
