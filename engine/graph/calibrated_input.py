@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from engine.mocap import SensorCalibrationData, load_sensor_calibration, reading_corrections, standard_placements
+from engine.mocap.calibrated import skeleton_identity
 
 from .viterbi import Observations
 
