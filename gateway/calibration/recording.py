@@ -299,12 +299,11 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
                 [n for n in solved.notes[j:j + 1] if n]
         correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
         flipped = tilt_deg(gravity, pose.nominal_rotation, pose.up)
-        if k in oriented:
-            pass
-        elif flipped > config.flipped_deg:
+        measured_only = k not in oriented  # the mounting checks are for accelerometer-only sensors
+        if measured_only and flipped > config.flipped_deg:
             reasons.append(f"axes look flipped against the placement: the sensor's up is {flipped:.0f} deg from "
                            "where the placement table puts it (strapped upside down or rolled 180 deg?)")
-        elif correction > config.max_correction_deg:
+        elif measured_only and correction > config.max_correction_deg:
             reasons.append(f"mounted {correction:.0f} deg away from the nominal orientation "
                            f"(limit {config.max_correction_deg:g}); check the placement")
         err = norm_error_g(gravity)
