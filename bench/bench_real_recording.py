@@ -1,0 +1,230 @@
+"""The path a user takes with a real recording (issue 29), on a simulated one: a CSV of six IMUs (specific force in
+m/s² in each sensor's frame, the vendor's orientation quaternion in its own earth frame, 60 Hz) strapped any way
+(uniform over all rotations), starting in an A-pose, of motions held out of the graph ->
+`courtside import-imu` -> `courtside calibrate --graph` -> `courtside synthesize --calibration`, scored against the
+mocap truth for the written BVH (read back) and the saved poses, and the console's live path (the graph file's
+engine with that record, `load_spec`, pushed frame by frame) -- beside the same take with a perfect calibration
+(the simulated yaws and straps), with orientations but no calibration, accelerations only, and the mean pose at
+the camera's root, a camera-only search and the database oracle, all in one run.
+
+    nice .venv/bin/python bench/bench_real_recording.py --mocap-dir ../shared/mocap --graph b1.npz \\
+        [--groups respond,call] [--start-pose apose:70] [--strapping random|nominal] [--seconds 50] [--seed 0]
+
+``--graph``: a graph built from ``--pattern`` over ``--mocap-dir`` (`courtside build-graph --mocap-dir ...
+--pattern ... --msv -o b1.npz`); every clip of the held-out groups is removed from it for the run.
+
+The simulation: the take's clips chained (engine.evaluation.takes), the athlete first holding the start pose for
+1.5 s (each segment 3 deg off the template, the arms at the stated angle), the standard sensors' true
+orientations and accelerations (the measured real-sensor error model) at 60 Hz, each sensor strapped by its own
+rotation, its orientation read through a magnetometer-free filter's errors (random yaw per sensor, drift, 2 deg of
+wandering tilt: `OrientationErrorModel.realistic` without its own strapping). The perfect record holds each
+sensor's yaw at the take's start and its strap.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import sys
+import tempfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from engine.evaluation import baselines, engines, simulate
+from engine.evaluation.labels import clip_label
+from engine.evaluation.metrics import frame_errors
+from engine.evaluation.takes import Take, chain_clips
+from engine.graph.graph import MotionGraph
+from engine.graph.online_engine import load_spec
+from engine.graph.root_fusion import RootFusion
+from engine.graph.viterbi import SearchWeights
+from engine.graph.warp import RootWarp
+from engine.mocap import (SEED000_SENSORS, SensorErrorModel, forward_kinematics, load_clip, load_sensor_calibration,
+                          read_bvh, standard_placements, virtual_orientations)
+from engine.mocap import quaternions as quat
+from engine.mocap.calibrated import SKELETON, orientation_fields, skeleton_identity, strap_field
+from engine.mocap.orientation import OrientationErrorModel, random_rotations
+from engine.mocap.orientation_calibration import pose_sensor_orientations
+from engine.stream.offline import synthesize_take
+from engine.stream.poses_file import load_poses
+from gateway.cli import main as courtside
+
+RATE_HZ = 60.0
+HOLD_S = 1.5
+GRAVITY_MPS2 = 9.80665
+NAMES = list(SEED000_SENSORS)
+
+
+@dataclass
+class Recording:
+    """The simulated recording: readings at `RATE_HZ` from the hold's start, the truth after it."""
+
+    take: Take
+    acc_mps2: np.ndarray      # (F, S, 3) specific force in each sensor's frame
+    quat_device: np.ndarray   # (F, S, 4) sensor -> device earth (Z up), w first
+    yaw_rad: np.ndarray       # (S,) each sensor's earth-frame yaw at the take's start (the perfect calibration)
+    strap_wxyz: np.ndarray    # (S, 4) each sensor's strapping (sensor axes -> nominal sensor frame)
+
+
+def parse_start_pose(text: str) -> tuple[str, float | None]:
+    name, _, angle = text.partition(":")
+    return name, (float(angle) if angle else (70.0 if name == "apose" else None))
+
+
+def simulate_recording(take: Take, start_pose: str, strapping: str, rng: np.random.Generator) -> Recording:
+    """Module doc: the hold, then the take; strapped, filtered."""
+    pose, arm_deg = parse_start_pose(start_pose)
+    skeleton = take.segments[0].motion.skeleton
+    acc_g, _ = simulate.accelerometers(take, NAMES, SensorErrorModel.measured_real(), rng, fps=RATE_HZ)
+    q_true, _ = simulate.per_segment(take, RATE_HZ, lambda m: virtual_orientations(m, standard_placements(
+        m.skeleton, NAMES)))
+    n_hold = int(round(HOLD_S * RATE_HZ))
+    held = pose_sensor_orientations(skeleton, NAMES, pose, float(take.heading_rad[0]), arm_deg)
+    held = quat.multiply(random_rotations(rng, len(NAMES), np.radians(3.0)), held)
+    held_acc = quat.rotate(quat.conjugate(held), np.array([0.0, 1.0, 0.0]))  # still: 1 g up, in the sensor frame
+    held_acc = held_acc[None] + rng.normal(0.0, 0.01, (n_hold, len(NAMES), 3))
+    q_nominal = np.concatenate([np.repeat(held[None], n_hold, axis=0), q_true])
+    acc_nominal = np.concatenate([held_acc, acc_g[:len(q_true)]])
+    strap = quat.from_matrix(Rotation.random(len(NAMES), random_state=rng.integers(1 << 31)).as_matrix()) \
+        if strapping == "random" else np.tile(quat.identity(), (len(NAMES), 1))
+    q_sensor = quat.multiply(q_nominal, strap)                 # the strapped sensor's orientation in the world
+    acc_sensor = quat.rotate(quat.conjugate(strap), acc_nominal)  # its readings in its own axes
+    model = replace(OrientationErrorModel.realistic(), misalignment_deg=0.0)
+    errors = model.draw(len(q_sensor), len(NAMES), RATE_HZ, rng)
+    return Recording(take, acc_sensor * GRAVITY_MPS2, errors.apply(q_sensor), errors.yaw_rad[n_hold], strap)
+
+
+def write_csv(path: Path, rec: Recording) -> list[str]:
+    """The recording as a vendor-style CSV; returns the import-imu arguments that read it."""
+    n = len(rec.acc_mps2)
+    columns, header, args = [np.arange(n) / RATE_HZ], ["time_s"], ["--time", "time_s", "--time-unit", "s"]
+    for k, name in enumerate(NAMES):
+        acc = [f"{name}_a{a}" for a in "xyz"]
+        qs = [f"{name}_q{a}" for a in "wxyz"]
+        header += acc + qs
+        columns += [rec.acc_mps2[:, k, i] for i in range(3)] + [rec.quat_device[:, k, i] for i in range(4)]
+        args += ["--sensor", f"{name}={','.join(acc)}", "--quat", f"{name}={','.join(qs)}"]
+    np.savetxt(path, np.column_stack(columns), delimiter=",", header=",".join(header), comments="", fmt="%.7g")
+    return args
+
+
+def perfect_record(path: Path, rec: Recording, skeleton) -> None:
+    """The record a perfect calibration would write: each sensor's true yaw and strap, and its mounting (the
+    nominal placement turned by the strap) for the accelerations."""
+    placements = standard_placements(skeleton, NAMES)
+    sensors = {}
+    for k, p in enumerate(placements):
+        mount = quat.to_matrix(rec.strap_wxyz[k])
+        angle = float(np.degrees(np.linalg.norm(quat.to_rotvec(rec.strap_wxyz[k]))))
+        sensors[f"{p.name}"] = {"segment": p.name, "rotation": (p.rotation @ mount).tolist(),
+                                "gravity_sensor_g": [0, 1, 0], "norm_error_g": 0.0, "correction_deg": angle,
+                                "passed": True, **orientation_fields(rec.yaw_rad[k], rec.strap_wxyz[k]),
+                                **strap_field(rec.strap_wxyz[k])}
+    path.write_text(json.dumps({"schema": "courtside.sensor_calibration", "schema_version": 1, "sensors": sensors,
+                                SKELETON: skeleton_identity(skeleton, "the graph's skeleton")}))
+
+
+def run(argv: list[str]) -> str:
+    """One courtside command in this process; its stdout (exit code 0 asserted)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = courtside(argv)
+    if code != 0:
+        raise SystemExit(f"courtside {' '.join(argv)} exited {code}")
+    return out.getvalue()
+
+
+def score(joints_m: np.ndarray, t_s: np.ndarray, take: Take) -> float:
+    """Root-relative error (cm) of world joints at times t_s (from the recording's start) on the take's truth."""
+    frames = np.round((np.asarray(t_s) - HOLD_S) * take.fps).astype(int)
+    keep = (frames >= 0) & (frames < take.n_frames)
+    pred = np.full_like(take.joints_m, np.nan)
+    pred[frames[keep]] = joints_m[keep]
+    ok = np.isfinite(pred).all(axis=(1, 2))
+    errors = frame_errors(pred[ok], take.joints_m[ok], take.skeleton)
+    return float(np.mean(errors.root_relative_cm))
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--mocap-dir", required=True)
+    p.add_argument("--pattern", default="bandai-namco-1/data/*.bvh")
+    p.add_argument("--graph", required=True, help="graph of every clip the pattern matches")
+    p.add_argument("--groups", default="respond,call", help="contents held out and acted in the take")
+    p.add_argument("--seconds", type=float, default=50.0, help="take length (its groups' clips chained)")
+    p.add_argument("--start-pose", default="apose:70", help="npose, tpose or apose:DEG (arms DEG out from down)")
+    p.add_argument("--strapping", choices=("random", "nominal"), default="random")
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args()
+    paths = sorted(Path(args.mocap_dir).glob(args.pattern))
+    graph = MotionGraph.load(args.graph)
+    if graph.clip_names != [path.stem for path in paths]:
+        sys.exit(f"{args.graph}: not built from {args.pattern} ({len(graph.clip_names)} vs {len(paths)} clips)")
+    labels = [clip_label(path).content for path in paths]
+    held = [i for i, label in enumerate(labels) if label in args.groups.split(",")]
+    motions = {i: load_clip(paths[i], fps=graph.config.fps) for i in held}
+    chosen, total = [], 0.0
+    for i in held:
+        if total < args.seconds:
+            chosen.append(i)
+            total += motions[i].duration_s
+    take = chain_clips([motions.get(i) for i in range(len(paths))], chosen, labels)
+    rng = np.random.default_rng(args.seed)
+    rec = simulate_recording(take, args.start_pose, args.strapping, rng)
+    train = graph.without_clips(held)
+    rows: dict[str, dict[str, float]] = {}
+    with tempfile.TemporaryDirectory(prefix="courtside-real-") as folder:
+        work = Path(folder)
+        train.save(work / "graph.npz")
+        csv_args = write_csv(work / "take.csv", rec)
+        run(["import-imu", str(work / "take.csv"), "--format", "csv", *csv_args, "-o", str(work / "take.npz"),
+             "--quiet"])
+        acc_args = [a for a in csv_args if not a.startswith("--quat") and "_q" not in a]
+        run(["import-imu", str(work / "take.csv"), "--format", "csv", *acc_args, "-o", str(work / "acc.npz"),
+             "--quiet"])
+        run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "-o",
+             str(work / "from_take.json")])
+        run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "--pose", "none", "-o",
+             str(work / "from_motion.json")])
+        perfect_record(work / "perfect.json", rec, train.skeleton)
+        cases = {"accelerations only": ("acc.npz", None), "orientations, no calibration (tilt)": ("take.npz", None),
+                 "calibrate --graph (start pose found)": ("take.npz", "from_take.json"),
+                 "calibrate --graph --pose none (from motion)": ("take.npz", "from_motion.json"),
+                 "perfect calibration": ("take.npz", "perfect.json")}
+        for name, (take_file, record) in cases.items():
+            extra = [] if record is None else ["--calibration", str(work / record)]
+            run(["synthesize", "--graph", str(work / "graph.npz"), "--input", str(work / take_file), "-o",
+                 str(work / "out.bvh"), "--save-poses", str(work / "poses.npz"), "--quiet", *extra])
+            poses = load_poses(work / "poses.npz")
+            bvh = forward_kinematics(read_bvh(work / "out.bvh", scale="cm"))[0]
+            calibration = None if record is None else load_sensor_calibration(work / record)
+            live = synthesize_take(load_spec(work / "graph.npz", calibration), work / take_file, 0.5)
+            rows[name] = {"poses": score(poses.joint_positions_m, poses.t_s, take),
+                          "bvh": score(bvh, poses.t_s, take),
+                          "console": score(np.stack([q.joint_positions_m for q in live]),
+                                           np.array([q.t_s for q in live]), take)}
+    cam = simulate.camera_track(take, simulate.CameraModel(), np.random.default_rng(args.seed + 1))
+    cam_pos, cam_head = cam.filled()
+    t_truth = HOLD_S + np.arange(take.n_frames) / take.fps
+    camera_only = engines.motion_graph(train, None, (), cam.position_m, cam.heading_rad,
+                                       replace(SearchWeights.camera_following(), acc=0.0), True, RootWarp(),
+                                       None, RootFusion())
+    oracle, _ = baselines.database_oracle(train, take.joints_m, take.skeleton, cam_pos, cam_head)
+    for name, joints in (("mean pose at the camera's root", baselines.mean_pose(train, cam_pos, cam_head)),
+                         ("camera-only search", camera_only.joints_m), ("database oracle", oracle)):
+        rows[name] = {"poses": score(joints, t_truth, take)}
+    print(f"take: {take.n_frames / take.fps:.1f} s of {', '.join(sorted({labels[i] for i in chosen}))} "
+          f"({len(chosen)} clips held out with their groups), start pose {args.start_pose} held {HOLD_S} s, "
+          f"strapping {args.strapping}, {RATE_HZ:g} Hz CSV in m/s2, seed {args.seed}")
+    print(f"{'root-relative error, cm':48s} {'saved poses':>12s} {'BVH file':>9s} {'console':>8s}")
+    for name, r in rows.items():
+        cells = [f"{r[k]:.2f}" if k in r else "-" for k in ("poses", "bvh", "console")]
+        print(f"{name:48s} {cells[0]:>12s} {cells[1]:>9s} {cells[2]:>8s}")
+
+
+if __name__ == "__main__":
+    main()
