@@ -294,7 +294,10 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
         if k in oriented:  # any strapping: solved from the orientations, never failed for being far from nominal
             j = oriented.index(k)
             yaw, mount = float(solved.orientation.yaw_rad[j]), solved.orientation.mount_wxyz[j]
-            rotation = pose.nominal_rotation @ quaternions.to_matrix(mount)
+            if not heading_term:  # a declared second pose (two gravity directions) or a clear walking axis
+                # observes the accelerometer's heading about gravity; one held pose leaves the strap's twist to the
+                # database fit, so the strap solved from the orientations is the better mounting only without them
+                rotation = pose.nominal_rotation @ quaternions.to_matrix(mount)
             reasons = [r for r in reasons if not r.startswith("heading about gravity")] + \
                 [n for n in solved.notes[j:j + 1] if n]
         correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
