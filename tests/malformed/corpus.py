@@ -516,14 +516,19 @@ def _npy(array: np.ndarray) -> bytes:
 NESTED_JSON = b"[" * 100_000 + b"]" * 100_000
 
 
+def record_with_entry(good: dict, **changes) -> bytes:
+    """``good`` (a record's JSON document) with its first sensor entry's fields changed, as file bytes."""
+    doc = json.loads(json.dumps(good))
+    doc["sensors"][next(iter(doc["sensors"]))].update(changes)
+    return json.dumps(doc).encode()
+
+
 def calibration_cases() -> list[Case]:
     good = valid_calibration_record()
     sensor = next(iter(good["sensors"]))
 
     def entry(**changes) -> bytes:
-        doc = json.loads(json.dumps(good))
-        doc["sensors"][sensor].update(changes)
-        return json.dumps(doc).encode()
+        return record_with_entry(good, **changes)
 
     def top(**changes) -> bytes:
         return json.dumps({**good, **changes}).encode()

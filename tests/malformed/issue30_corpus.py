@@ -23,7 +23,7 @@ import numpy as np
 from bench.support.imu_formats import Truth, write_generic_csv, write_mt_exports, write_mvnx, write_ximu3_logger
 from engine.mocap import quaternions as quat
 
-from .corpus import valid_calibration_record
+from .corpus import record_with_entry, valid_calibration_record
 
 NAMES = ["left_forearm", "chest"]
 FPS = 100.0
@@ -458,9 +458,7 @@ def record_cases() -> list[Refused]:
     sensor = next(iter(good["sensors"]))
 
     def entry(**changes) -> bytes:
-        doc = json.loads(json.dumps(good))
-        doc["sensors"][sensor].update(changes)
-        return json.dumps(doc).encode()
+        return record_with_entry(good, **changes)
 
     many = {f"st/{i}": {**good["sensors"][sensor], "segment": f"s{i}"} for i in range(100_000)}
     unknown = {sid: {**s, "segment": f"tail_{i}"} for i, (sid, s) in enumerate(good["sensors"].items())}

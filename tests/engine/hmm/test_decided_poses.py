@@ -11,11 +11,11 @@ import pytest
 from engine.hmm.evaluation import reconstruct, train_model
 from engine.hmm.features import imu_features
 from engine.hmm.online_engine import HMMEngine
-from engine.mocap import Motion, forward_kinematics, load_clip, read_bvh, resample, sample_clips, standard_placements
+from engine.mocap import Motion, forward_kinematics, load_clip, resample, sample_clips, standard_placements
 from engine.stream.engines import drive_frames
 from gateway.cli import main as courtside
+from tests.engine.stream.decided_checks import MM, assert_synthesize_writes_the_saved_poses, bvh_joints
 
-MM = 1e-3
 FRAMES = 60
 RATE_HZ = 30.0  # HMMConfig.fps: at this rate the frames are the take's samples
 IMUS = ("right_foot",)
@@ -32,10 +32,6 @@ def _walk(motions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     walk = resample(motions[5], RATE_HZ)
     acc, gyro = imu_features(walk, standard_placements(walk.skeleton, IMUS))
     return acc[:FRAMES], gyro[:FRAMES], walk.root_positions_m[:FRAMES][:, [0, 2]] + 0.3
-
-
-def _bvh_joints(path) -> np.ndarray:
-    return forward_kinematics(read_bvh(path))[0]
 
 
 def test_the_engine_decodes_as_the_batch_reconstruction_camera_warp_included(motions):
@@ -88,18 +84,10 @@ def test_the_decoder_follows_the_camera_by_the_warp_rule_and_faces_the_hips_to_a
 def test_synthesize_writes_the_saved_poses_as_bvh(motions, tmp_path, lag):
     """`synthesize --engine hmm -o OUT.bvh --save-poses P.npz`: the BVH read back is the saved poses (joints
     within 1 mm, same frames), with or without --lag (the HMM decides each frame at once)."""
-    from engine.stream.poses_file import load_poses
-
     acc, gyro, ground = _walk(motions)
-    take, out, saved = tmp_path / "take.npz", tmp_path / "hmm.bvh", tmp_path / "poses.npz"
+    take = tmp_path / "take.npz"
     np.savez(take, acc_g=acc, gyro_rps=gyro, fps=RATE_HZ, position_m=ground, sensor_names=np.array(IMUS))
-    assert courtside(["synthesize", "--engine", "hmm", "--input", str(take), "-o", str(out), "--save-poses",
-                      str(saved), "--quiet", *(["--lag", lag] if lag else [])]) == 0
-    poses = load_poses(saved)
-    assert poses.local_rotations is not None and len(poses.frame) > FRAMES - 5
-    joints = _bvh_joints(out)
-    assert joints.shape == poses.joint_positions_m.shape
-    assert np.abs(joints - poses.joint_positions_m).max() < MM
+    assert_synthesize_writes_the_saved_poses("hmm", take, tmp_path, lag, FRAMES - 5)
 
 
 def test_reconstruct_writes_the_poses_the_engine_emits(motions, tmp_path):
@@ -121,4 +109,4 @@ def test_reconstruct_writes_the_poses_the_engine_emits(motions, tmp_path):
     poses = drive_frames(HMMEngine({model.config.imu_channels: model}, clips[0].skeleton), obs.acc_g,
                          obs.position_m, obs.heading_rad, gyro_rps=_take_gyro(str(take), frames.frame, RATE_HZ, IMUS))
     emitted = np.stack([p.joint_positions_m for p in poses])
-    assert np.abs(_bvh_joints(out) - emitted).max() < MM
+    assert np.abs(bvh_joints(out) - emitted).max() < MM

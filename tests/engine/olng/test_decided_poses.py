@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.mocap import (SEED003_SENSORS, forward_kinematics, load_clip, read_bvh, resample, sample_clips,
-                          standard_placements, virtual_accelerometers)
+from engine.mocap import (SEED003_SENSORS, load_clip, resample, sample_clips, standard_placements,
+                          virtual_accelerometers)
 from engine.stream.engines import drive_frames
 from gateway.cli import main as courtside
+from tests.engine.stream.decided_checks import MM, assert_synthesize_writes_the_saved_poses, bvh_joints
 
-MM = 1e-3
 FRAMES = 50
 KB_RATE_HZ = 25.0  # KnowledgeBaseConfig.fps
 
@@ -30,10 +30,6 @@ def _take(motions, path, fps: float = KB_RATE_HZ) -> tuple[np.ndarray, np.ndarra
     ground = walk.root_positions_m[:FRAMES][:, [0, 2]] + 0.3
     np.savez(path, acc_g=acc, fps=fps, position_m=ground, sensor_names=np.array(SEED003_SENSORS))
     return acc, ground
-
-
-def _bvh_joints(path) -> np.ndarray:
-    return forward_kinematics(read_bvh(path))[0]
 
 
 def test_the_engine_emits_the_reconstruction_as_rotations_whose_fk_are_its_joints(motions):
@@ -62,18 +58,9 @@ def test_the_engine_emits_the_reconstruction_as_rotations_whose_fk_are_its_joint
 def test_synthesize_writes_the_saved_poses_as_bvh(motions, tmp_path, lag):
     """`synthesize --engine olng -o OUT.bvh --save-poses P.npz`: the BVH read back is the saved poses (joints
     within 1 mm, same frames), with or without --lag (OLNG decides each frame at once)."""
-    from engine.stream.poses_file import load_poses
-
     take = tmp_path / "take.npz"
     _take(motions, take)
-    out, saved = tmp_path / "olng.bvh", tmp_path / "poses.npz"
-    assert courtside(["synthesize", "--engine", "olng", "--input", str(take), "-o", str(out), "--save-poses",
-                      str(saved), "--quiet", *(["--lag", lag] if lag else [])]) == 0
-    poses = load_poses(saved)
-    assert poses.local_rotations is not None and len(poses.frame) > FRAMES - 5
-    joints = _bvh_joints(out)
-    assert joints.shape == poses.joint_positions_m.shape
-    assert np.abs(joints - poses.joint_positions_m).max() < MM
+    assert_synthesize_writes_the_saved_poses("olng", take, tmp_path, lag, FRAMES - 5)
 
 
 def test_reconstruct_writes_the_poses_the_engine_emits(motions, tmp_path):
@@ -94,6 +81,6 @@ def test_reconstruct_writes_the_poses_the_engine_emits(motions, tmp_path):
     poses = drive_frames(OLNGEngine(KnowledgeBase.load(kb), config=config), obs.acc_g, obs.position_m,
                          obs.heading_rad)
     emitted = np.stack([p.joint_positions_m for p in poses])
-    assert np.abs(_bvh_joints(out) - emitted).max() < MM
+    assert np.abs(bvh_joints(out) - emitted).max() < MM
     # the root followed the camera (placed on the first fix, then the bounded warp)
     assert np.abs(emitted[:, 0, [0, 2]] - obs.position_m).max() < 0.5
