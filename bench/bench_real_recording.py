@@ -8,7 +8,8 @@ engine with that record, `load_spec`, pushed frame by frame) -- beside the same 
 the camera's root, a camera-only search and the database oracle, all in one run.
 
     nice .venv/bin/python bench/bench_real_recording.py --mocap-dir ../shared/mocap --graph b1.npz \\
-        [--groups respond,call] [--start-pose apose:70] [--strapping random|nominal] [--seconds 50] [--seed 0]
+        [--groups respond,call] [--start-pose apose:70] [--strapping random|nominal] [--filter 6axis|9axis]
+        [--seconds 50] [--seed 0]
 
 ``--graph``: a graph built from ``--pattern`` over ``--mocap-dir`` (`courtside build-graph --mocap-dir ...
 --pattern ... --msv -o b1.npz`); every clip of the held-out groups is removed from it for the run.
@@ -16,9 +17,11 @@ the camera's root, a camera-only search and the database oracle, all in one run.
 The simulation: the take's clips chained (engine.evaluation.takes), the athlete first holding the start pose for
 1.5 s (each segment 3 deg off the template, the arms at the stated angle), the standard sensors' true
 orientations and accelerations (the measured real-sensor error model) at 60 Hz, each sensor strapped by its own
-rotation, its orientation read through a magnetometer-free filter's errors (random yaw per sensor, drift, 2 deg of
-wandering tilt: `OrientationErrorModel.realistic` without its own strapping). The perfect record holds each
-sensor's yaw at the take's start and its strap.
+rotation, its orientation read through a magnetometer-free filter's errors (``--filter 6axis``: random yaw per
+sensor, drift, 2 deg of wandering tilt: `OrientationErrorModel.realistic` without its own strapping) or a
+magnetometer-aided one's (``9axis``, as Xsens MTw/DOT export: one north, each sensor 4 deg off it:
+`OrientationErrorModel.magnetometer`). The perfect record holds each sensor's yaw at the take's start and its
+strap.
 """
 from __future__ import annotations
 
@@ -75,7 +78,11 @@ def parse_start_pose(text: str) -> tuple[str, float | None]:
     return name, (float(angle) if angle else (70.0 if name == "apose" else None))
 
 
-def simulate_recording(take: Take, start_pose: str, strapping: str, rng: np.random.Generator) -> Recording:
+FILTERS = {"6axis": OrientationErrorModel.realistic, "9axis": OrientationErrorModel.magnetometer}
+
+
+def simulate_recording(take: Take, start_pose: str, strapping: str, orientation_filter: str,
+                       rng: np.random.Generator) -> Recording:
     """Module doc: the hold, then the take; strapped, filtered."""
     pose, arm_deg = parse_start_pose(start_pose)
     skeleton = take.segments[0].motion.skeleton
@@ -93,7 +100,7 @@ def simulate_recording(take: Take, start_pose: str, strapping: str, rng: np.rand
         if strapping == "random" else np.tile(quat.identity(), (len(NAMES), 1))
     q_sensor = quat.multiply(q_nominal, strap)                 # the strapped sensor's orientation in the world
     acc_sensor = quat.rotate(quat.conjugate(strap), acc_nominal)  # its readings in its own axes
-    model = replace(OrientationErrorModel.realistic(), misalignment_deg=0.0)
+    model = replace(FILTERS[orientation_filter](), misalignment_deg=0.0)
     errors = model.draw(len(q_sensor), len(NAMES), RATE_HZ, rng)
     return Recording(take, acc_sensor * GRAVITY_MPS2, errors.apply(q_sensor), errors.yaw_rad[n_hold], strap)
 
@@ -158,6 +165,8 @@ def main() -> None:
     p.add_argument("--seconds", type=float, default=50.0, help="take length (its groups' clips chained)")
     p.add_argument("--start-pose", default="apose:70", help="npose, tpose or apose:DEG (arms DEG out from down)")
     p.add_argument("--strapping", choices=("random", "nominal"), default="random")
+    p.add_argument("--filter", choices=tuple(FILTERS), default="6axis",
+                   help="the IMUs' orientation filter: 6axis (a north per sensor, drifting) or 9axis (one north)")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args()
     paths = sorted(Path(args.mocap_dir).glob(args.pattern))
@@ -174,7 +183,7 @@ def main() -> None:
             total += motions[i].duration_s
     take = chain_clips([motions.get(i) for i in range(len(paths))], chosen, labels)
     rng = np.random.default_rng(args.seed)
-    rec = simulate_recording(take, args.start_pose, args.strapping, rng)
+    rec = simulate_recording(take, args.start_pose, args.strapping, args.filter, rng)
     train = graph.without_clips(held)
     rows: dict[str, dict[str, float]] = {}
     with tempfile.TemporaryDirectory(prefix="courtside-real-") as folder:
@@ -186,8 +195,8 @@ def main() -> None:
         acc_args = [a for a in csv_args if not a.startswith("--quat") and "_q" not in a]
         run(["import-imu", str(work / "take.csv"), "--format", "csv", *acc_args, "-o", str(work / "acc.npz"),
              "--quiet"])
-        run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "-o",
-             str(work / "from_take.json")])
+        found = json.loads(run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "-o",
+                                str(work / "from_take.json")]))
         run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "--pose", "none", "-o",
              str(work / "from_motion.json")])
         perfect_record(work / "perfect.json", rec, train.skeleton)
@@ -219,7 +228,8 @@ def main() -> None:
         rows[name] = {"poses": score(joints, t_truth, take)}
     print(f"take: {take.n_frames / take.fps:.1f} s of {', '.join(sorted({labels[i] for i in chosen}))} "
           f"({len(chosen)} clips held out with their groups), start pose {args.start_pose} held {HOLD_S} s, "
-          f"strapping {args.strapping}, {RATE_HZ:g} Hz CSV in m/s2, seed {args.seed}")
+          f"strapping {args.strapping}, {args.filter} filter, {RATE_HZ:g} Hz CSV in m/s2, seed {args.seed}")
+    print(f"calibrate --graph found: pose {found['pose']}, north {found['north']}")
     print(f"{'root-relative error, cm':48s} {'saved poses':>12s} {'BVH file':>9s} {'console':>8s}")
     for name, r in rows.items():
         cells = [f"{r[k]:.2f}" if k in r else "-" for k in ("poses", "bvh", "console")]

@@ -83,8 +83,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="motion graph rows: comma list of acc (accelerations only) and acc+ori (accelerations + "
                         "orientation quaternions under OrientationErrorModel.realistic(): per-sensor yaw, drift, "
                         "tilt noise, misalignment)")
-    p.add_argument("--orientation-noise", choices=["realistic", "clean"], default="realistic",
-                   help="acc+ori rows: the orientation filter's error model (clean = a shared north, no error)")
+    p.add_argument("--orientation-noise", choices=["realistic", "magnetometer", "clean"], default="realistic",
+                   help="acc+ori rows: the orientation filter's error model: realistic (6-axis: a north per sensor, "
+                        "drifting), magnetometer (9-axis: one north, each sensor 4 deg off it), clean (a shared "
+                        "north, no error)")
     p.add_argument("--no-calibration-capture", action="store_true",
                    help="acc+ori rows: no N-pose capture before each take (no yaw offsets or strapping solved: the "
                         "worn segments are posed by their tilt only)")

@@ -75,6 +75,8 @@ class OrientationErrorModel:
     """What a real magnetometer-free orientation filter adds to the true sensor orientation (all per sensor).
 
     yaw_offset: each sensor's earth frame is turned by a random yaw, uniform on the circle (no shared north);
+    north_spread_deg: None, or the sensors share one north (a magnetometer-aided filter: Xsens, Noitom, ...):
+    one random yaw for all, each sensor's off it by this sd (the field's local disturbances);
     yaw_drift_deg_per_min: sd of each sensor's constant yaw drift rate (gyro bias the filter cannot see without a
     magnetometer); yaw_walk_deg_per_sqrt_min: sd of a random walk added on top of the drift (bias instability);
     tilt_noise_deg: sd of the tilt error, about a horizontal axis, correlated over ``tilt_time_constant_s`` (the
@@ -84,6 +86,7 @@ class OrientationErrorModel:
     The order of the errors: ``q_device = conj(E) * yaw(t) * tilt(t) * q_world * misalignment``."""
 
     yaw_offset: bool = True
+    north_spread_deg: float | None = None
     yaw_drift_deg_per_min: float = 0.0
     yaw_walk_deg_per_sqrt_min: float = 0.0
     tilt_noise_deg: float = 0.0
@@ -95,6 +98,14 @@ class OrientationErrorModel:
         """A consumer 6-axis IMU's on-board filter (no magnetometer): random yaw per sensor, drift of a few
         degrees a minute, 2 degrees of slowly wandering tilt error, 5 degrees of strapping misalignment."""
         return cls(yaw_offset=True, yaw_drift_deg_per_min=3.0, yaw_walk_deg_per_sqrt_min=1.0, tilt_noise_deg=2.0,
+                   tilt_time_constant_s=1.0, misalignment_deg=5.0)
+
+    @classmethod
+    def magnetometer(cls) -> "OrientationErrorModel":
+        """A 9-axis filter (magnetometer-aided, as Xsens MTw or DOT report by default): one north shared by every
+        sensor, each 4 degrees (sd) off it where the court's steel bends the field, no drift, 1 degree of
+        wandering tilt error, 5 degrees of strapping misalignment."""
+        return cls(yaw_offset=True, north_spread_deg=4.0, yaw_walk_deg_per_sqrt_min=0.5, tilt_noise_deg=1.0,
                    tilt_time_constant_s=1.0, misalignment_deg=5.0)
 
     @classmethod
@@ -116,8 +127,10 @@ class OrientationErrorModel:
             if self.misalignment_deg > 0 else None
         tilt = self._tilt_errors(rng, n_frames, n_sensors, fps) if self.tilt_noise_deg > 0 else None
         yaw = np.zeros((n_frames, n_sensors))
-        if self.yaw_offset:
+        if self.yaw_offset and self.north_spread_deg is None:
             yaw += rng.uniform(-np.pi, np.pi, n_sensors)
+        elif self.yaw_offset:
+            yaw += rng.uniform(-np.pi, np.pi) + np.radians(rng.normal(0.0, self.north_spread_deg, n_sensors))
         if self.yaw_drift_deg_per_min > 0:
             yaw += np.radians(rng.normal(0.0, self.yaw_drift_deg_per_min, n_sensors)) * t_min[:, None]
         if self.yaw_walk_deg_per_sqrt_min > 0 and n_frames > 1:

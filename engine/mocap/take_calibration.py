@@ -26,6 +26,14 @@ right (α, θ) turns the measured orientations into relative rotations the datab
   (a global search over all rotations), then its twist and δ from the relative rotations as above, then a local
   refinement of all four angles. The pelvis sensor's yaw is set to 0: the engines use yaws relative to it.
 
+**One north** (``north``): a magnetometer-aided filter (Xsens MTw, DOT; most 9-axis IMUs by default) reports
+every sensor in one earth frame, δ the same for all. A held pose then fixes every strap but for ONE angle shared
+by all sensors, the athlete's heading in that frame ε (M = P⁻¹ yaw(-ε) Q): (α, ε) is the pair whose straps
+leave every sensor's rotations relative to the pelvis sensor, and their up axes, likeliest under the database
+(`_shared_north`): six sensors' evidence on one angle instead of one sensor's on its own twist. ``auto``
+solves each sensor's own north first and takes one north when they agree (`ONE_NORTH_DEG`), as they rarely do
+on 6-axis filters whose norths are where each device booted.
+
 The engines refine the strapping further over the take (engine/graph/orientation_pose.py, the strap refinement),
 so this only needs to land within its reach (tens of degrees would not; a few degrees do). Measured on held-out
 Bandai gestures (docs/imu-import.md, docs/engine-evaluation.md): twists median 5.6 deg but 10-40 deg on segments
@@ -53,6 +61,11 @@ NO_TWIST_NOTE = ("the strap's twist about the pose's vertical is not observed wi
 REFERENCE_SENSOR = "lower_back"  # the engines' yaw reference (engine/graph/orientation_term.py)
 ARM_SENSORS = ("left_forearm", "right_forearm", "left_wrist", "right_wrist")  # moved by an A-pose's arm angle
 POSE_NAMES = ("npose", "tpose", "apose", "none")
+NORTHS = ("auto", "shared", "own")  # the sensors' earth frames: found, one for all (9-axis), one each (6-axis)
+ONE_NORTH_DEG = 35.0  # auto: one north when all but one in six of at least 4 sensors' own solved norths lie this
+# close to their circular mean. Measured: on one north the own solves of 6 sensors lay within 33 deg (a twist fit
+# on a still segment is 10-40 deg off); uniform random norths pass 1.9 / 0.4 / 1.2 % of the time for 4 / 5 / 6
+# sensors (test_take_calibration), and then within this angle of one north anyway.
 _POSE_TEXT = re.compile(r"^(npose|tpose|apose|none)(?::([0-9.]+))?(?:@([0-9.]+):([0-9.]+))?$")
 
 
@@ -215,12 +228,14 @@ class MotionPrior:
 @dataclass(frozen=True)
 class TakeCalibration:
     """The result: ``orientation`` (the calibrated sensors, in ``sensors`` order: indices into the take's
-    columns), the pose as found (``pose``: name and arm angle, the window held) and, per sensor, a note."""
+    columns), the pose as found (``pose``: name and arm angle, the window held), per sensor a note, and whether
+    the sensors were solved in one earth frame (``north`` "shared") or each in its own ("own")."""
 
     orientation: OrientationCalibration
     sensors: tuple[int, ...]
     pose: PoseSpec
     notes: tuple[str, ...] = ()
+    north: str = "own"
 
 
 def _frames(world: np.ndarray, max_frames: int) -> np.ndarray:
@@ -333,11 +348,14 @@ def _held_pose_orientations(skeleton: Skeleton, names: list[str], spec: PoseSpec
 def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] | tuple[str, ...],
                    skeleton: Skeleton, pose: PoseSpec = PoseSpec(), prior: MotionPrior | None = None,
                    stillness: StillnessConfig = StillnessConfig(), max_frames: int = 300,
-                   seed: int = 0) -> TakeCalibration:
+                   seed: int = 0, north: str = "auto") -> TakeCalibration:
     """Calibrate every sensor of a take whose orientations ``quat_device`` (T, S, 4, device earth; a sensor
     with no reading at all is left out) at ``fps`` start with ``pose`` (module docstring), against the
     reference poses built on ``skeleton`` and the database ``prior`` (needed for any strap twist, a fitted arm
-    angle with straps far from nominal, and ``pose none``). ValueError with the reason when it cannot."""
+    angle with straps far from nominal, and ``pose none``); ``north`` says whether the sensors share one earth
+    frame (module docstring: auto, shared, own). ValueError with the reason when it cannot."""
+    if north not in NORTHS:
+        raise ValueError(f"north {north!r}: expected one of {', '.join(NORTHS)}")
     names = list(sensor_names)
     q = np.asarray(quat_device, float)
     check_orientations(q, names)
@@ -364,10 +382,24 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
         raise ValueError(f"the pose window {window[0]:g}-{window[1]:g} s holds no sample with every sensor's "
                          f"orientation (take: 0-{len(q) / fps:.1f} s)")
     held = quat.to_matrix(from_device_earth(mean_orientation(held_q)))  # (S, 3, 3)
-    solutions, arm_deg = _from_held_pose(solver, held, skeleton, pose)
+    one_north = north == "shared"
+    if north != "shared":
+        solutions, arm_deg = _from_held_pose(solver, held, skeleton, pose)
+        one_north = north == "auto" and prior is not None and _norths_agree([s.yaw_rad for s in solutions])
+    if one_north:
+        solutions, arm_deg = _shared_north(solver, held, skeleton, pose)
     found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
-    notes = tuple(NO_TWIST_NOTE if prior is None else "" for _ in sensors)
-    return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes)
+    notes = tuple(NO_TWIST_NOTE if prior is None and not one_north else "" for _ in sensors)
+    return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes, "shared" if one_north else "own")
+
+
+def _norths_agree(yaws_rad: list[float]) -> bool:
+    """Do the sensors' own solved earth yaws say one north (`ONE_NORTH_DEG`)? Four sensors at least."""
+    if len(yaws_rad) < 4:
+        return False
+    z = np.exp(1j * np.asarray(yaws_rad))
+    off = np.degrees(np.abs(np.angle(z * np.conj(z.mean()))))
+    return int(np.sum(off <= ONE_NORTH_DEG)) >= len(z) - len(z) // 6
 
 
 def _calibration(solutions: list[_Solution]) -> OrientationCalibration:
@@ -381,8 +413,7 @@ def _from_held_pose(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec:
     """Every sensor's (M, δ) from the held pose, its twist θ and the arm angle α fitted (module docstring)."""
     names, ref = solver.names, solver.ref
     arms = [k for k, n in enumerate(names) if n in ARM_SENSORS]
-    fit_arm = spec.name == "apose" and spec.arm_deg is None
-    angles = np.arange(0.0, 90.1, 5.0) if fit_arm else np.array([spec.arm_deg or 0.0])
+    fit_arm, angles = _arm_angles(spec)
     poses = {a: _held_pose_orientations(skeleton, names, spec, a) for a in angles}
     ups = held[:, 1, :]  # (S, 3) sensor-frame up in the pose
     thetas = np.radians(np.arange(0.0, 360.0, 10.0)) if solver.prior is not None else np.zeros(1)
@@ -424,6 +455,59 @@ def _from_held_pose(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec:
         cost = solver.combined_cost(k, *family(k, a, thetas), reference)
         out[k] = fine(k, a, float(thetas[int(np.argmin(cost(*family(k, a, thetas))))]), cost)
     return out, (a0 if spec.name == "apose" else None)
+
+
+def _arm_angles(spec: PoseSpec) -> tuple[bool, np.ndarray]:
+    """Is the arm angle fitted, and the candidates (degrees; a 5-degree grid from arms down to horizontal)."""
+    fit_arm = spec.name == "apose" and spec.arm_deg is None
+    return fit_arm, (np.arange(0.0, 90.1, 5.0) if fit_arm else np.array([spec.arm_deg or 0.0]))
+
+
+def _shared_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: PoseSpec
+                  ) -> tuple[list[_Solution], float | None]:
+    """Every sensor's (M, δ) in one earth frame (module docstring): M = P(α)⁻¹ yaw(-ε) Q_held, δ = ε, with (α, ε)
+    minimising the sum over sensors of their relative-rotation misfit and minus their up axes' log density, each
+    in units of its spread over the grid (as `_Solver.combined_cost`); ε on a 10-degree grid, then 1 degree.
+    Without a database (α, ε) are the reference sensor's own as `_from_held_pose` finds them (its smallest
+    strap, the arm angle needing the smallest straps)."""
+    names, ref = solver.names, solver.ref
+    arms = [k for k, n in enumerate(names) if n in ARM_SENSORS]
+    _, angles = _arm_angles(spec)
+    poses = np.stack([_held_pose_orientations(skeleton, names, spec, a) for a in angles])  # (Aα, S, 3, 3)
+
+    def straps(eps: np.ndarray) -> np.ndarray:
+        """(Aα, E, S, 3, 3) M = P⁻¹ yaw(-ε) Q_held for every arm angle and heading."""
+        turn = quat.to_matrix(yaw_about_up(-eps))  # (E, 3, 3)
+        return np.swapaxes(poses, -1, -2)[:, None] @ (turn[:, None] @ held[None])[None]
+
+    def cost(eps: np.ndarray) -> np.ndarray:
+        """(Aα, E) the summed, spread-scaled misfit of every sensor (one arm-angle row for the sensors the arm
+        angle does not move)."""
+        mounts = straps(eps)
+        total = np.zeros(mounts.shape[:2])
+        for k in range(len(names)):
+            rows = slice(None) if k in arms or ref in arms else slice(0, 1)
+            m, grid = mounts[rows], mounts[rows].shape[:2]
+            terms = [-solver.up_score(k, m[:, :, k].reshape(-1, 3, 3)).reshape(grid)]
+            if k != ref:
+                yaws = np.broadcast_to(eps, grid)
+                w_ref, w = (_world(solver.frames[:, j], m[:, :, j], yaws) for j in (ref, k))
+                terms.append(solver.prior.relative_cost(names[k], names[ref], np.swapaxes(w_ref, -1, -2) @ w))
+            for t in terms:
+                total += (t - t.mean()) / (t.std() + 1e-9)
+        return total
+
+    if solver.prior is None:
+        own, arm = _from_held_pose(solver, held, skeleton, spec)
+        ia, eps = int(np.argmin(np.abs(angles - (arm or angles[0])))), own[ref].yaw_rad
+    else:
+        coarse = np.radians(np.arange(0.0, 360.0, 10.0))
+        c = cost(coarse)
+        ia, ie = np.unravel_index(int(np.argmin(c)), c.shape)
+        fine = coarse[ie] + np.radians(np.arange(-9.0, 9.5, 1.0))
+        eps = float(fine[int(np.argmin(cost(fine)[ia]))])
+    mounts = straps(np.array([eps]))[ia, 0]
+    return [_Solution(m, float(eps)) for m in mounts], (float(angles[ia]) if spec.name == "apose" else None)
 
 
 def _from_motion(solver: _Solver, rng: np.random.Generator) -> list[_Solution]:

@@ -30,7 +30,7 @@ from engine.export_format import recorded_sensors
 from engine.graph.input_checks import check_take_file, open_npz, parse_sensor_map
 from engine.mocap import STANDARD_SENSORS
 from gateway.calibration.record import raw_samples_path
-from engine.mocap.take_calibration import MotionPrior, PoseSpec
+from engine.mocap.take_calibration import NORTHS, MotionPrior, PoseSpec
 from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, TakeStart, calibrate_recording,
                                            standard_segment_poses)
 
@@ -119,9 +119,9 @@ def _windows(texts: list[str] | None) -> dict[str, tuple[float, float]]:
     return out
 
 
-def _take_start(pose_text: str, graph_path: str | None) -> TakeStart:
-    """--pose and --graph as a `TakeStart`: the graph's skeleton (named after its file) and database, or the
-    shipped CMU skeleton and none."""
+def _take_start(pose_text: str, graph_path: str | None, north: str) -> TakeStart:
+    """--pose, --graph and --north as a `TakeStart`: the graph's skeleton (named after its file) and database, or
+    the shipped CMU skeleton and none."""
     from engine.mocap import load_clip, sample_clips
     from engine.mocap.calibrated import skeleton_identity
 
@@ -133,7 +133,7 @@ def _take_start(pose_text: str, graph_path: str | None) -> TakeStart:
         if pose.name == "none":
             raise CourtsideError("--pose none calibrates from the motion against a database: give --graph GRAPH.npz")
         skeleton = load_clip(sample_clips()["16_01"]).skeleton
-        return TakeStart(pose, skeleton, skeleton_identity(skeleton, "the shipped CMU skeleton"))
+        return TakeStart(pose, skeleton, skeleton_identity(skeleton, "the shipped CMU skeleton"), north=north)
     from engine.graph.graph import MotionGraph
 
     graph = MotionGraph.load(graph_path)  # an unreadable graph is one MalformedFileError line
@@ -141,7 +141,7 @@ def _take_start(pose_text: str, graph_path: str | None) -> TakeStart:
         raise MalformedFileError(graph_path, None, "the graph holds no skeleton to calibrate for (rebuild it with "
                                                    "build-graph)")
     return TakeStart(pose, graph.skeleton, skeleton_identity(graph.skeleton, Path(graph_path).name),
-                     MotionPrior.from_graph(graph))
+                     MotionPrior.from_graph(graph), north)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -165,6 +165,12 @@ def main(argv: list[str] | None = None) -> int:
                    help="takes with orientations: the pose the take starts with, held from START to END s (default: "
                         "found, an A-pose of any arm angle, DEG out from hanging: 0 = N-pose, 90 = T-pose arms, in the "
                         "first still stretch); none: no held pose, calibrate from the motion (needs --graph)")
+    p.add_argument("--north", choices=NORTHS, default="auto",
+                   help="takes with orientations: do the sensors share one earth frame? shared: a magnetometer-aided "
+                        "(9-axis) filter, as Xsens MTw/DOT report by default: one held pose then fixes every strap "
+                        "but the athlete's heading, found from the motion; own: each sensor's north is its own "
+                        "(6-axis filters, where the device booted); auto (default): solved each, one north taken "
+                        "when they agree")
     p.add_argument("--subject", default="", help="who wore the sensors, written into the record")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
@@ -175,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
     names = take.names
     windows = _windows(args.second_pose)
     config = RecordingCalibrationConfig(max_std_g=args.max_std)
-    start = _take_start(args.pose, args.graph)
+    start = _take_start(args.pose, args.graph, args.north)
     try:
         record = calibrate_recording(take.acc_g, take.fps, take.labels, names,
                                      standard_segment_poses(names, tuple(windows), start.skeleton), config, windows,
@@ -198,5 +204,6 @@ def main(argv: list[str] | None = None) -> int:
                                         **({} if s.orientation_yaw_rad is None else
                                            {"orientation_yaw_deg": round(float(np.degrees(s.orientation_yaw_rad)), 1)})}
                                   for sid, s in record.sensors.items()},
-                      "pose": record.config.get("pose"), "skeleton": record.skeleton}))
+                      "pose": record.config.get("pose"), "north": record.config.get("north"),
+                      "skeleton": record.skeleton}))
     return 0

@@ -108,19 +108,21 @@ class TakeStart:
     still stretch), the ``skeleton`` the poses are built on (None: the shipped CMU skeleton; the same one
     `standard_segment_poses` was given), its identity for the record (``skeleton_id``,
     `engine.mocap.calibrated.skeleton_identity`) and the database ``prior`` (a graph's; None: each strap's twist
-    about the pose's vertical is not observed and the smallest strap is taken, and ``pose none`` is refused)."""
+    about the pose's vertical is not observed and the smallest strap is taken, and ``pose none`` is refused) and
+    whether the sensors share one earth frame (``north``: auto, shared -- 9-axis filters --, own -- 6-axis)."""
 
     pose: PoseSpec = PoseSpec("apose")
     skeleton: Any = None
     skeleton_id: dict | None = None
     prior: MotionPrior | None = None
+    north: str = "auto"
 
     def solve(self, quat_wxyz: np.ndarray, fps: float, segments: list[str]) -> TakeCalibration:
         """The take's orientation calibration; ValueError with the reason when it has none to give."""
         from engine.mocap import load_clip, sample_clips
 
         skeleton = self.skeleton if self.skeleton is not None else load_clip(sample_clips()["16_01"]).skeleton
-        return calibrate_take(quat_wxyz, fps, segments, skeleton, self.pose, self.prior)
+        return calibrate_take(quat_wxyz, fps, segments, skeleton, self.pose, self.prior, north=self.north)
 
 
 def standard_segment_poses(names: list[str], second_poses: tuple[str, ...] = (), skeleton: Any = None
@@ -320,6 +322,7 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
     score = 100.0 * float(np.mean([r.quality for r in results.values()]))
     grade = "good" if score >= 70 else "fair" if score >= 40 else "poor"
     cfg = {"method": "recording", "pose": "npose" if solved is None else solved.pose.text(),
+           **({} if solved is None else {"north": solved.north}),
            "second_windows_s": {k: list(v) for k, v in second_windows.items()}, "fps": fps, **asdict(config)}
     return CalibrationRecord(results, round(score, 1), grade, all(r.passed for r in results.values()), None, subject,
                              take, datetime.now(timezone.utc).isoformat(), cfg, {"still": raw}, take_start.skeleton_id)

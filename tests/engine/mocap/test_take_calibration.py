@@ -11,7 +11,8 @@ from engine.mocap.calibration_poses import pose_rotations
 from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
 from engine.mocap.orientation_calibration import pose_sensor_orientations
 from engine.mocap.roles import joint_roles
-from engine.mocap.take_calibration import MotionPrior, PoseSpec, calibrate_take, check_orientations, still_stretch
+from engine.mocap.take_calibration import (MotionPrior, PoseSpec, _norths_agree, calibrate_take, check_orientations,
+                                          still_stretch)
 
 NAMES = list(M.SEED000_SENSORS)
 FPS = 60.0
@@ -30,16 +31,18 @@ def motion():
     return clips[0].skeleton, truth
 
 
-def _take(skeleton, truth, pose: str | None, arm_deg: float | None, seed: int):
+def _take(skeleton, truth, pose: str | None, arm_deg: float | None, seed: int,
+          error_model: OrientationErrorModel = FILTER):
     """The take's readings: the pose held 2 s (none: not held), then the motion; every sensor strapped by a
-    rotation uniform over all rotations (upside down and rolled included), its earth frame turned by its own yaw."""
+    rotation uniform over all rotations (upside down and rolled included), its earth frame turned by its own yaw
+    (or, `error_model` with a north spread, by one shared yaw)."""
     rng = np.random.default_rng(seed)
     strap = quat.normalize(rng.normal(size=(len(NAMES), 4)))
     q = truth
     if pose is not None:
         held = pose_sensor_orientations(skeleton, NAMES, pose, arm_deg=arm_deg)
         q = np.concatenate([np.repeat(held[None], int(2 * FPS), 0), truth])
-    errors = FILTER.draw(len(q), len(NAMES), FPS, rng)
+    errors = error_model.draw(len(q), len(NAMES), FPS, rng)
     return errors.apply(quat.multiply(q, strap[None])), strap, errors.yaw_rad[0]
 
 
@@ -66,6 +69,41 @@ def test_any_strapping_and_the_arm_angle_of_an_a_pose_are_recovered(motion, seed
         assert np.degrees(np.arccos(np.clip(quat.rotate(off[k], [0.0, 1.0, 0.0])[1], -1, 1))) < lean_deg + 0.5
     turned = np.angle(np.exp(1j * (cal.yaw_rad - yaw)))  # common to every limb sensor's yaw: the body's turn
     assert np.abs(np.degrees(np.angle(np.exp(1j * (turned[limbs] - turned[limbs[0]]))))).max() < 2.5
+
+def test_one_north_is_found_and_fixes_every_strap_trunk_included(motion):
+    """A magnetometer-aided filter: every sensor in one earth frame. `auto` sees the sensors' own solved norths
+    agree and solves one heading for all: every strap, the trunk's twist too (which one sensor's own fit cannot
+    see while the trunk hardly tilts), within 5 deg; the sensors' yaws all equal."""
+    skeleton, truth = motion
+    one_north = OrientationErrorModel(yaw_offset=True, north_spread_deg=0.0)
+    readings, strap, _ = _take(skeleton, truth, "apose", 40.0, 1, one_north)
+    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("apose"), MotionPrior(truth, tuple(NAMES)))
+    assert solved.north == "shared" and solved.pose.arm_deg == 40.0
+    assert _angle_deg(solved.orientation.mount_wxyz, strap).max() < 5.0
+    assert np.ptp(solved.orientation.yaw_rad) == 0.0
+
+
+def test_own_norths_stay_own(motion):
+    """Each sensor's own north (6-axis filters): `auto` keeps one north per sensor; `shared` can be forced."""
+    skeleton, truth = motion
+    readings, strap, _ = _take(skeleton, truth, "npose", None, 2)
+    prior = MotionPrior(truth, tuple(NAMES))
+    assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("npose"), prior).north == "own"
+    assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("npose"), prior, north="shared").north == "shared"
+    with pytest.raises(ValueError, match="north 'magnetic': expected one of auto, shared, own"):
+        calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("npose"), prior, north="magnetic")
+
+
+@pytest.mark.parametrize("n_sensors, rate", [(4, 0.019), (5, 0.004), (6, 0.012)])
+def test_random_norths_rarely_look_like_one(n_sensors, rate):
+    """`_norths_agree` on uniform random norths passes as rarely as ONE_NORTH_DEG's comment says (20000 draws:
+    within 0.5 points), and on norths 30 deg apart at most it always passes; 3 sensors never decide."""
+    rng = np.random.default_rng(0)
+    passed = np.mean([_norths_agree(list(y)) for y in rng.uniform(0, 2 * np.pi, (20000, n_sensors))])
+    assert abs(passed - rate) < 0.005
+    assert _norths_agree(list(np.radians(rng.uniform(-15, 15, n_sensors)) + 2.0))
+    assert not _norths_agree([0.1, 0.1, 0.1])
+
 
 def test_without_a_database_the_smallest_strap_is_taken_and_said(motion):
     """An N-pose held with straps a few degrees off nominal (about axes horizontal in the pose, which one pose
