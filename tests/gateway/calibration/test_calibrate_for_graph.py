@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from engine.errors import CourtsideError
+from engine.errors import CourtsideError, UsageError
 from engine.graph.cli import build_graph_main, synthesize_main
 from engine.mocap import SEED000_SENSORS, read_bvh, resample, standard_placements, virtual_accelerometers
 from engine.mocap import quaternions as quat
@@ -53,6 +53,7 @@ def test_a_record_for_the_graph_in_use_with_any_strapping(bandai, capsys):
     assert record.skeleton["name"] == "g.npz" and record.skeleton["joints"] == skeleton.n_joints
     pose = record.config["pose"]
     assert pose.startswith("apose:") and abs(float(pose.split(":")[1].split("@")[0]) - 60.0) <= 10.0, pose
+    assert record.config["north"] == "own"  # a 6-axis filter: every sensor's own north, found so (auto)
     assert record.passed  # no sensor failed for its mounting, though every strap is far from nominal
     assert not any("flipped" in r or "limit" in r for s in record.sensors.values() for r in s.reasons)
     assert max(s.correction_deg for s in record.sensors.values()) > 90.0
@@ -94,5 +95,8 @@ def test_bad_takes_are_one_line(bandai, tmp_path):
             calibrate_main([str(tmp_path / f"{name}.npz"), "--graph", str(tmp / "g.npz"), "-o",
                             str(tmp_path / f"{name}.calibration.json")])
         assert "\n" not in str(caught.value)
+    with pytest.raises(UsageError, match="--north: invalid choice: 'magnetic'"):
+        calibrate_main([str(tmp / "take.npz"), "--north", "magnetic", "-o", str(tmp_path / "m.calibration.json")])
+    assert not (tmp_path / "m.calibration.json").exists()
     with pytest.raises(CourtsideError, match="--pose none .* give --graph"):
         calibrate_main([str(tmp / "take.npz"), "--pose", "none", "-o", str(tmp_path / "n.calibration.json")])
