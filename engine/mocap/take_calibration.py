@@ -277,9 +277,12 @@ class _Solver:
         ups = self.frames[:, k, 1, :]  # row 1 of Q = Q⁻¹ŷ, the sensor-frame up
         return self.prior.up_log_density(self.names[k], np.einsum("aij,fj->afi", mounts, ups)).mean(axis=-1)
 
-    def relative_cost(self, k: int, mounts: np.ndarray, yaws: np.ndarray, ref: _Solution) -> np.ndarray:
-        """(A,) the database misfit of sensor k's rotations relative to the reference sensor, per candidate."""
-        w_ref = _world(self.frames[:, self.ref], ref.mount, np.array(ref.yaw_rad))
+    def relative_cost(self, k: int, mounts: np.ndarray, yaws: np.ndarray, ref_mount: np.ndarray,
+                      ref_yaw: float | np.ndarray) -> np.ndarray:
+        """(...) the database misfit of sensor k's rotations relative to the reference sensor, per candidate
+        (`mounts` (..., 3, 3), `yaws` (...)); the reference strapped by `ref_mount` at `ref_yaw`, one solution or
+        one per candidate (`_shared_north`, where every strap moves with the one heading)."""
+        w_ref = _world(self.frames[:, self.ref], ref_mount, np.asarray(ref_yaw, float))
         w = _world(self.frames[:, k], mounts, yaws)
         return self.prior.relative_cost(self.names[k], self.names[self.ref], np.swapaxes(w_ref, -1, -2) @ w)
 
@@ -290,9 +293,9 @@ class _Solver:
         median 5.6 deg, 95 % within 20 deg; the relative misfit alone 7.8 / 80 %, the up density alone 9.5 /
         80 %: a broad database holds a near relative rotation for many wrong twists, and an up direction alone
         says little about a segment that seldom tilts."""
-        rel, up = self.relative_cost(k, mounts, yaws, ref), -self.up_score(k, mounts)
+        rel, up = self.relative_cost(k, mounts, yaws, ref.mount, ref.yaw_rad), -self.up_score(k, mounts)
         (rel_mean, rel_sd), (up_mean, up_sd) = ((c.mean(), c.std() + 1e-9) for c in (rel, up))
-        return lambda m, y: ((self.relative_cost(k, m, y, ref) - rel_mean) / rel_sd
+        return lambda m, y: ((self.relative_cost(k, m, y, ref.mount, ref.yaw_rad) - rel_mean) / rel_sd
                              + (-self.up_score(k, m) - up_mean) / up_sd)
 
     def global_up_fit(self, k: int, rng: np.random.Generator, n_candidates: int = 3000) -> np.ndarray:
@@ -382,8 +385,9 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
         raise ValueError(f"the pose window {window[0]:g}-{window[1]:g} s holds no sample with every sensor's "
                          f"orientation (take: 0-{len(q) / fps:.1f} s)")
     held = quat.to_matrix(from_device_earth(mean_orientation(held_q)))  # (S, 3, 3)
-    one_north = north == "shared"
-    if north != "shared":
+    if north == "shared":
+        one_north = True
+    else:
         solutions, arm_deg = _from_held_pose(solver, held, skeleton, pose)
         one_north = north == "auto" and prior is not None and _norths_agree([s.yaw_rad for s in solutions])
     if one_north:
@@ -443,7 +447,7 @@ def _from_held_pose(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec:
     out[ref] = reference
 
     def rel(k: int):
-        return lambda m, y: solver.relative_cost(k, m, y, reference)
+        return lambda m, y: solver.relative_cost(k, m, y, reference.mount, reference.yaw_rad)
 
     if fit_arm and arms:  # the arm angle whose best twists leave the arms' relative rotations likeliest
         table = np.array([[rel(k)(*family(k, a, thetas)).min() for a in angles] for k in arms])  # (K, A)
@@ -491,8 +495,7 @@ def _shared_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: P
             terms = [-solver.up_score(k, m[:, :, k].reshape(-1, 3, 3)).reshape(grid)]
             if k != ref:
                 yaws = np.broadcast_to(eps, grid)
-                w_ref, w = (_world(solver.frames[:, j], m[:, :, j], yaws) for j in (ref, k))
-                terms.append(solver.prior.relative_cost(names[k], names[ref], np.swapaxes(w_ref, -1, -2) @ w))
+                terms.append(solver.relative_cost(k, m[:, :, k], yaws, m[:, :, ref], yaws))
             for t in terms:
                 total += (t - t.mean()) / (t.std() + 1e-9)
         return total
