@@ -63,9 +63,9 @@ ARM_SENSORS = ("left_forearm", "right_forearm", "left_wrist", "right_wrist")  # 
 POSE_NAMES = ("npose", "tpose", "apose", "none")
 NORTHS = ("auto", "shared", "own")  # the sensors' earth frames: found, one for all (9-axis), one each (6-axis)
 ONE_NORTH_DEG = 35.0  # auto: one north when all but one in six of at least 4 sensors' own solved norths lie this
-# close to their circular mean. Measured: on one north the own solves of 6 sensors lay within 33 deg (a twist fit
-# on a still segment is 10-40 deg off); uniform random norths pass 1.9 / 0.4 / 1.2 % of the time for 4 / 5 / 6
-# sensors (test_take_calibration), and then within this angle of one north anyway.
+# close to their circular mean. Measured (bench/bench_one_north.py): on one north the own solves of 6 sensors lay
+# within 32 deg of it (a twist fit on a still segment is 10-40 deg off), on a north each 100-177 deg; uniform
+# random norths pass 1.8 / 0.3 / 1.2 % of the time for 4 / 5 / 6 sensors, and then within this angle of one north.
 _POSE_TEXT = re.compile(r"^(npose|tpose|apose|none)(?::([0-9.]+))?(?:@([0-9.]+):([0-9.]+))?$")
 
 
