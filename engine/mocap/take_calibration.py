@@ -66,6 +66,8 @@ ONE_NORTH_DEG = 35.0  # auto: one north when all but one in six of at least 4 se
 # close to their circular mean. Measured (bench/bench_one_north.py): on one north the own solves of 6 sensors lay
 # within 32 deg of it (a twist fit on a still segment is 10-40 deg off), on a north each 100-177 deg; uniform
 # random norths pass 1.8 / 0.3 / 1.2 % of the time for 4 / 5 / 6 sensors, and then within this angle of one north.
+TURN_NORTH_DEG = 60.0  # pose none, auto: one north when the sensors' turns follow the pelvis's as the
+#                       database's do to within this (`_turns_say_one_north`)
 _POSE_TEXT = re.compile(r"^(npose|tpose|apose|none)(?::([0-9.]+))?(?:@([0-9.]+):([0-9.]+))?$")
 
 
@@ -154,6 +156,15 @@ def still_stretch(quat_wxyz: np.ndarray, fps: float, config: StillnessConfig = S
     return None
 
 
+def _chordal(quaternion_distance: np.ndarray) -> np.ndarray:
+    """The matrices' chordal (Frobenius) distance of two rotations from their unit quaternions' nearer distance
+    ``2 sin(θ/4)`` (θ the angle between them): ``2√2 sin(θ/2)``. Both grow with θ, so the nearest neighbours are
+    the same, and a kd-tree of quaternions (4-D, each rotation stored as q and -q) finds them several times faster
+    than one of 9-D matrices."""
+    theta = 4.0 * np.arcsin(np.clip(quaternion_distance / 2.0, 0.0, 1.0))
+    return 2.0 * np.sqrt(2.0) * np.sin(theta / 2.0)
+
+
 def _fibonacci_sphere(n: int) -> np.ndarray:
     k = np.arange(n) + 0.5
     z = 1.0 - 2.0 * k / n
@@ -171,8 +182,8 @@ def _rotations_about(axis: np.ndarray, angles_rad: np.ndarray) -> np.ndarray:
 class MotionPrior:
     """What the database says about the worn segments: its poses' nominal sensor orientations ``world_wxyz``
     (N, S, 4) in the engine world (a motion graph's nodes), by ``sensor_names``. Lazily: each segment's
-    distribution of up directions in its nominal frame (a kernel density on a sphere grid) and, per sensor, a
-    kd-tree of its rotations relative to the reference sensor's."""
+    distribution of up directions in its nominal frame (a kernel density on a sphere grid), per sensor a
+    kd-tree of its rotations relative to the reference sensor's, and how its turns follow the reference's."""
 
     world_wxyz: np.ndarray
     sensor_names: tuple[str, ...]
@@ -180,6 +191,7 @@ class MotionPrior:
     kernel_deg: float = 10.0
     _density: dict = field(default_factory=dict, repr=False)
     _relative: dict = field(default_factory=dict, repr=False)
+    _turns: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         q = np.asarray(self.world_wxyz, float)
@@ -193,6 +205,14 @@ class MotionPrior:
         from engine.graph.orientation_term import node_sensor_orientations  # the graph sits above engine.mocap
 
         return cls(node_sensor_orientations(graph), tuple(graph.config.sensor_names))
+
+    def turn_coupling(self, reference: str) -> tuple[np.ndarray, np.ndarray]:
+        """`horizontal_turn_coupling` of the database's poses against `reference` (its nodes in order: a clip's
+        frames are consecutive)."""
+        if reference not in self._turns:
+            self._turns[reference] = horizontal_turn_coupling(np.asarray(self.world_wxyz, float),
+                                                              self.index(reference))
+        return self._turns[reference]
 
     def index(self, name: str) -> int:
         if name not in self.sensor_names:
@@ -219,10 +239,11 @@ class MotionPrior:
         strap, since a broad database holds a rotation near almost anything)."""
         key = (name, reference)
         if key not in self._relative:
-            rel = np.swapaxes(self._mats[:, self.index(reference)], -1, -2) @ self._mats[:, self.index(name)]
-            self._relative[key] = cKDTree(rel.reshape(len(rel), 9))
-        d, _ = self._relative[key].query(relative.reshape(-1, 9), k=[neighbours])
-        return np.log(d[:, 0] + 1e-3).reshape(relative.shape[:-2]).mean(axis=-1)
+            rel = quat.from_matrix(np.swapaxes(self._mats[:, self.index(reference)], -1, -2)
+                                   @ self._mats[:, self.index(name)])
+            self._relative[key] = cKDTree(np.concatenate([rel, -rel]))  # q and -q: one rotation
+        d, _ = self._relative[key].query(quat.from_matrix(relative.reshape(-1, 3, 3)), k=[neighbours], workers=-1)
+        return np.log(_chordal(d[:, 0]) + 1e-3).reshape(relative.shape[:-2]).mean(axis=-1)
 
 
 @dataclass(frozen=True)
@@ -371,8 +392,10 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     if pose.name == "none":
         if prior is None:
             raise ValueError("calibration from motion (pose none) needs the database: give the graph (--graph)")
-        solutions = _from_motion(solver, np.random.default_rng(seed))
-        return TakeCalibration(_calibration(solutions), tuple(sensors), pose)
+        rng = np.random.default_rng(seed)
+        one_north = north == "shared" or (north == "auto" and _turns_say_one_north(world, names, ref, prior))
+        solutions = (_from_motion_one_north if one_north else _from_motion)(solver, rng)
+        return TakeCalibration(_calibration(solutions), tuple(sensors), pose, north="shared" if one_north else "own")
     window = pose.window_s or still_stretch(q, fps, stillness)
     if window is None:
         raise ValueError(f"no still stretch: no {stillness.min_s:g} s in which every sensor's orientation stays "
@@ -395,6 +418,39 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
     notes = tuple(NO_TWIST_NOTE if prior is None and not one_north else "" for _ in sensors)
     return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes, "shared" if one_north else "own")
+
+
+def horizontal_turn_coupling(world_wxyz: np.ndarray, ref: int, max_step_rad: float = 0.35
+                             ) -> tuple[np.ndarray, np.ndarray]:
+    """How each sensor's horizontal turning follows the reference's in the world frame, from consecutive
+    orientations (T, S, 4; Y up): the angle (S,) between their horizontal angular steps, summed over the take,
+    and its coherence (S,), 0-1 (1: always the same turn). The strapping (right of Q) never enters a world-frame
+    step, so this is seen before any calibration; steps over `max_step_rad` (missing samples, the jump between
+    two database clips) are left out."""
+    steps = quat.to_rotvec(quat.multiply(world_wxyz[1:], quat.conjugate(world_wxyz[:-1])))  # (T-1, S, 3)
+    ok = np.isfinite(steps).all(axis=(1, 2)) & (np.linalg.norm(steps, axis=-1) < max_step_rad).all(axis=1)
+    h = steps[ok][..., 2] + 1j * steps[ok][..., 0]  # the horizontal (Z, X) step as a complex number
+    cross = np.sum(np.conj(h[:, ref:ref + 1]) * h, axis=0)
+    power = np.sum(np.abs(h) ** 2, axis=0)
+    return np.angle(cross), np.abs(cross) / np.sqrt(power[ref] * power + 1e-30)
+
+
+def _turns_say_one_north(world: np.ndarray, names: list[str], ref: int, prior: MotionPrior) -> bool:
+    """Pose none, north auto: do the sensors share one north? In one earth frame each segment's horizontal turns
+    follow the pelvis's at the angle the database's motion shows (the shins about 180 degrees: they tilt back as
+    the pelvis tilts forward; the chest about 0), in a per-sensor frame at that angle plus the difference of the
+    two norths. So: the mean, weighted by the database's coherence per sensor, of the take's angle minus the
+    database's; one north when it lies within `TURN_NORTH_DEG` of zero. Measured on held-out Bandai contents
+    (docs/imu-import.md): one north within 30 degrees in 18 of 18 takes; own norths outside 60 in 12 of 18 --
+    a miss there costs little, since calibration from motion with a north per sensor is poor either way."""
+    angle, _ = horizontal_turn_coupling(world, ref)
+    db_angle, db_coherence = prior.turn_coupling(names[ref])
+    idx = [prior.index(n) for n in names]
+    others = [k for k in range(len(names)) if k != ref]
+    w = db_coherence[[idx[k] for k in others]]
+    residual = angle[others] - db_angle[[idx[k] for k in others]]
+    mean = np.angle(np.sum(w * np.exp(1j * residual)))
+    return bool(np.degrees(abs(mean)) <= TURN_NORTH_DEG)
 
 
 def _norths_agree(yaws_rad: list[float]) -> bool:
@@ -532,6 +588,60 @@ def _from_motion(solver: _Solver, rng: np.random.Generator) -> list[_Solution]:
         i = int(np.argmin(cost(mounts, yaws)))
         out.append(solver.refine_pair(_Solution(mounts[i], float(yaws[i])), cost))
     return out
+
+
+def _from_motion_one_north(solver: _Solver, rng: np.random.Generator) -> list[_Solution]:
+    """Every sensor's M from the motion alone, all in one earth frame (δ = 0 for every sensor: a shared north
+    cancels from the relative rotations and never touches an up axis, so it is neither seen nor needed). Each
+    strap's tilt from its up axes (`global_up_fit`) leaves a twist about its segment's usual up; the reference's
+    twist ψ is the one under which every other sensor's best twist θ leaves its rotations relative to the
+    reference, and its up axes, likeliest (the sum over sensors, each term in units of its spread over the
+    (ψ, θ) grid), which a per-sensor north cannot do: there each sensor's own north absorbs the reference's
+    twist. Then each strap refined locally on that cost."""
+    names, ref, prior = solver.names, solver.ref, solver.prior
+    grid = np.radians(np.arange(0.0, 360.0, 10.0))
+
+    def twists(k: int) -> np.ndarray:
+        """(Θ, 3, 3) the up fit's strap turned about the segment's usual up by every grid angle."""
+        mode = prior._mats[:, prior.index(names[k]), 1, :].mean(axis=0)
+        return _rotations_about(mode, grid) @ solver.global_up_fit(k, rng)[None]
+
+    ref_mounts = twists(ref)  # (Ψ, 3, 3)
+    total = _spread_units(-solver.up_score(ref, ref_mounts))
+    zero = np.zeros((len(grid), len(grid)))
+    costs = {}
+    for k in range(len(names)):
+        if k == ref:
+            continue
+        mounts = twists(k)
+        rel = solver.relative_cost(k, np.broadcast_to(mounts, zero.shape + (3, 3)), zero, ref_mounts[:, None], zero)
+        up = np.broadcast_to(-solver.up_score(k, mounts), zero.shape)
+        costs[k] = (mounts, _spread_units(rel) + _spread_units(up), _scales(rel), _scales(up))
+        total = total + costs[k][1].min(axis=1)
+    ip = int(np.argmin(total))
+    reference = _Solution(ref_mounts[ip], 0.0)
+    out: list[_Solution] = []
+    for k in range(len(names)):
+        if k == ref:
+            out.append(reference)
+            continue
+        mounts, cost, (rel_mean, rel_sd), (up_mean, up_sd) = costs[k]
+
+        def scaled(m: np.ndarray, k: int = k) -> np.ndarray:
+            return ((solver.relative_cost(k, m, np.zeros(len(m)), reference.mount, 0.0) - rel_mean) / rel_sd
+                    + (-solver.up_score(k, m) - up_mean) / up_sd)
+
+        out.append(_Solution(solver._refine(scaled, mounts[int(np.argmin(cost[ip]))])[0], 0.0))
+    return out
+
+
+def _scales(cost: np.ndarray) -> tuple[float, float]:
+    return float(cost.mean()), float(cost.std() + 1e-9)
+
+
+def _spread_units(cost: np.ndarray) -> np.ndarray:
+    mean, sd = _scales(cost)
+    return (cost - mean) / sd
 
 
 def _angle_deg(r: np.ndarray) -> float:

@@ -8,11 +8,12 @@ import pytest
 import engine.mocap as M
 from engine.mocap import quaternions as quat
 from engine.mocap.calibration_poses import pose_rotations
-from engine.mocap.orientation import OrientationErrorModel, virtual_orientations
+from engine.mocap.orientation import (OrientationErrorModel, from_device_earth, to_device_earth,
+                                      virtual_orientations)
 from engine.mocap.orientation_calibration import pose_sensor_orientations
 from engine.mocap.roles import joint_roles
-from engine.mocap.take_calibration import (MotionPrior, PoseSpec, _norths_agree, calibrate_take, check_orientations,
-                                          still_stretch)
+from engine.mocap.take_calibration import (MotionPrior, PoseSpec, _norths_agree, _turns_say_one_north, calibrate_take,
+                                          check_orientations, horizontal_turn_coupling, still_stretch)
 
 NAMES = list(M.SEED000_SENSORS)
 FPS = 60.0
@@ -92,6 +93,47 @@ def test_own_norths_stay_own(motion):
     assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("npose"), prior, north="shared").north == "shared"
     with pytest.raises(ValueError, match="north 'magnetic': expected one of auto, shared, own"):
         calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("npose"), prior, north="magnetic")
+
+
+def test_pose_free_one_north_finds_every_strap(motion):
+    """No held pose, one earth frame (a magnetometer-aided filter), straps uniform over all rotations: `auto`
+    sees one north in how the segments turn with the pelvis and every strap but the chest's comes out within
+    2 deg (the database holds the take's motion: the method's known answer). The chest strap's turn about the
+    chest's vertical shows only where the chest twists against the pelvis, which walks and runs hardly do."""
+    skeleton, truth = motion
+    one_north = OrientationErrorModel(yaw_offset=True, north_spread_deg=0.0)
+    readings, strap, _ = _take(skeleton, truth, None, None, 3, one_north)
+    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), MotionPrior(truth, tuple(NAMES)))
+    assert solved.north == "shared"
+    error_deg = _angle_deg(solved.orientation.mount_wxyz, strap)
+    chest = NAMES.index("chest")
+    assert np.delete(error_deg, chest).max() < 2.0 and error_deg[chest] < 25.0
+
+
+@pytest.mark.parametrize("norths_deg, one", [((0, 90, 180, 270, 0, 135), False), ((0, 0, 0, 0, 0, 0), True),
+                                              ((20, -20, 25, 30, 10, -15), True)])
+def test_pose_free_north_decision(motion, norths_deg, one):
+    """No held pose, `auto`: the segments' turns against the pelvis's say whether the sensors share a north
+    (within a few tens of degrees) or have their own (90-180 deg apart: not one north)."""
+    _, truth = motion
+    world = from_device_earth(to_device_earth(truth, np.radians(norths_deg)[None]))
+    assert _turns_say_one_north(world, NAMES, NAMES.index("lower_back"), MotionPrior(truth, tuple(NAMES))) is one
+
+
+def test_horizontal_turn_coupling_is_the_angle_between_the_turns():
+    """The reference nods about the world X axis; a second sensor nods the same in a frame turned 70 deg about
+    the vertical, a third about the opposite axis: angles 70 and 180 deg, coherence 1; the strapping (right of
+    Q) changes nothing."""
+    t = np.linspace(0.0, 6.0, 600)
+    nod = quat.from_rotvec(np.outer(0.5 * np.sin(2.0 * t), [1.0, 0.0, 0.0]))
+    turned = quat.multiply(quat.from_rotvec([0.0, np.radians(70.0), 0.0]), nod)
+    world = np.stack([nod, turned, quat.conjugate(nod)], axis=1)
+    strapped = quat.multiply(world, quat.normalize(np.random.default_rng(0).normal(size=(3, 4)))[None])
+    for q in (world, strapped):
+        angle, coherence = horizontal_turn_coupling(q, 0)
+        off = np.angle(np.exp(1j * (angle - np.radians([0.0, 70.0, 180.0]))))
+        assert np.abs(off).max() < 1e-6
+        assert np.allclose(coherence, 1.0)
 
 
 @pytest.mark.parametrize("n_sensors, rate", [(4, 0.019), (5, 0.004), (6, 0.012)])
