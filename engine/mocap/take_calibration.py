@@ -25,6 +25,8 @@ right (α, θ) turns the measured orientations into relative rotations the datab
   take alone, the rotation that makes them likeliest under the database's distribution of that segment's up
   (a global search over all rotations), then its twist and δ from the relative rotations as above, then a local
   refinement of all four angles. The pelvis sensor's yaw is set to 0: the engines use yaws relative to it.
+  In one earth frame (below) no north is solved at all: the pelvis strap's twist about its up is the one under
+  which every other sensor's best strap fits likeliest (`_from_motion_one_north`).
 
 **One north** (``north``): a magnetometer-aided filter (Xsens MTw, DOT; most 9-axis IMUs by default) reports
 every sensor in one earth frame, δ the same for all. A held pose then fixes every strap but for ONE angle shared
@@ -32,13 +34,14 @@ by all sensors, the athlete's heading in that frame ε (M = P⁻¹ yaw(-ε) Q): 
 leave every sensor's rotations relative to the pelvis sensor, and their up axes, likeliest under the database
 (`_shared_north`): six sensors' evidence on one angle instead of one sensor's on its own twist. ``auto``
 solves each sensor's own north first and takes one north when they agree (`ONE_NORTH_DEG`), as they rarely do
-on 6-axis filters whose norths are where each device booted.
+on 6-axis filters whose norths are where each device booted; without a held pose it asks how the segments'
+horizontal turns follow the pelvis's (`turn_north_offset_deg`), which no strap changes.
 
 The engines refine the strapping further over the take (engine/graph/orientation_pose.py, the strap refinement),
 so this only needs to land within its reach (tens of degrees would not; a few degrees do). Measured on held-out
 Bandai gestures (docs/imu-import.md, docs/engine-evaluation.md): twists median 5.6 deg but 10-40 deg on segments
-that move little, and from motion alone 3-172 deg: the evaluation's sessions lose 1.0 cm (held A-pose) and 4.8 cm
-(no pose) against a held N-pose with nominal straps."""
+that move little, and from motion alone 3-172 deg with a north per sensor (docs/engine-evaluation.md has the
+sessions' figures for each case)."""
 from __future__ import annotations
 
 import re
@@ -435,22 +438,27 @@ def horizontal_turn_coupling(world_wxyz: np.ndarray, ref: int, max_step_rad: flo
     return np.angle(cross), np.abs(cross) / np.sqrt(power[ref] * power + 1e-30)
 
 
-def _turns_say_one_north(world: np.ndarray, names: list[str], ref: int, prior: MotionPrior) -> bool:
-    """Pose none, north auto: do the sensors share one north? In one earth frame each segment's horizontal turns
-    follow the pelvis's at the angle the database's motion shows (the shins about 180 degrees: they tilt back as
-    the pelvis tilts forward; the chest about 0), in a per-sensor frame at that angle plus the difference of the
-    two norths. So: the mean, weighted by the database's coherence per sensor, of the take's angle minus the
-    database's; one north when it lies within `TURN_NORTH_DEG` of zero. Measured on held-out Bandai contents
-    (docs/imu-import.md): one north within 30 degrees in 18 of 18 takes; own norths outside 60 in 12 of 18 --
-    a miss there costs little, since calibration from motion with a north per sensor is poor either way."""
+def turn_north_offset_deg(world: np.ndarray, names: list[str], ref: int, prior: MotionPrior) -> float:
+    """How far (degrees, 0-180) the sensors' horizontal turns lie from following the pelvis's as the database's
+    do (`horizontal_turn_coupling`): in one earth frame each segment turns with the pelvis at the angle the
+    database's motion shows (the shins about 180 degrees: they tilt back as the pelvis tilts forward; the chest
+    about 0); in a frame of its own at that angle plus the difference of the two norths. The mean of the take's
+    angle minus the database's, weighted by the database's coherence per sensor (the segments whose turns follow
+    the pelvis's at all)."""
     angle, _ = horizontal_turn_coupling(world, ref)
     db_angle, db_coherence = prior.turn_coupling(names[ref])
-    idx = [prior.index(n) for n in names]
     others = [k for k in range(len(names)) if k != ref]
-    w = db_coherence[[idx[k] for k in others]]
-    residual = angle[others] - db_angle[[idx[k] for k in others]]
-    mean = np.angle(np.sum(w * np.exp(1j * residual)))
-    return bool(np.degrees(abs(mean)) <= TURN_NORTH_DEG)
+    db = [prior.index(names[k]) for k in others]
+    mean = np.sum(db_coherence[db] * np.exp(1j * (angle[others] - db_angle[db])))
+    return float(np.degrees(abs(np.angle(mean))))
+
+
+def _turns_say_one_north(world: np.ndarray, names: list[str], ref: int, prior: MotionPrior) -> bool:
+    """Pose none, north auto: one north when `turn_north_offset_deg` is within `TURN_NORTH_DEG`. Measured on
+    held-out Bandai contents (`bench/bench_pose_free.py`, docs/imu-import.md): one north within 35 degrees in 18
+    of 18 takes; a north per sensor (three draws, six contents) beyond 60 in 12 of 18. A miss there costs little: calibration from motion
+    with a north per sensor is poor either way."""
+    return turn_north_offset_deg(world, names, ref, prior) <= TURN_NORTH_DEG
 
 
 def _norths_agree(yaws_rad: list[float]) -> bool:

@@ -1,0 +1,76 @@
+"""Calibration from motion alone (`calibrate_take(pose=none)`, docs/imu-import.md "From motion"), on held-out
+Bandai-1 gesture contents: each content's clips chained into one take at 30 Hz, six virtual orientation sensors
+strapped uniformly over all rotations, read through a magnetometer-aided filter (one north ± 4 deg) or a 6-axis
+one (a north per sensor); the database is every other content (leave one content out), as `courtside evaluate
+--session` does.
+
+Per take: how far the segments' turns lie from following the pelvis's as the database's do
+(`turn_north_offset_deg`) and what `auto` decides from it (`TURN_NORTH_DEG`); with --solve, each strap's error
+after the solve auto chose, and its seconds.
+
+    python bench/bench_pose_free.py --mocap-dir ../shared/mocap [--seeds 3] [--solve]
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import engine.mocap as M  # noqa: E402
+from engine.mocap import quaternions as quat  # noqa: E402
+from engine.mocap.orientation import OrientationErrorModel, from_device_earth, virtual_orientations  # noqa: E402
+from engine.mocap.take_calibration import (REFERENCE_SENSOR, TURN_NORTH_DEG, MotionPrior, PoseSpec,  # noqa: E402
+                                          calibrate_take, turn_north_offset_deg)
+
+FPS = 30.0
+NAMES = list(M.SEED000_SENSORS)
+CONTENTS = ("bow", "bye", "byebye", "guide", "respond", "call")
+FILTERS = {"9-axis": OrientationErrorModel.magnetometer, "6-axis": OrientationErrorModel.realistic}
+
+
+def strap_error_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.degrees(2 * np.arccos(np.minimum(1.0, np.abs(np.sum(a * b, axis=-1)))))
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--mocap-dir", required=True, help="the shared mocap folder (holds bandai-namco-1/data)")
+    p.add_argument("--seeds", type=int, default=3, help="strap and north draws per content and filter")
+    p.add_argument("--solve", action="store_true", help="also calibrate each take and print its strap errors")
+    args = p.parse_args()
+    files = sorted(Path(args.mocap_dir, "bandai-namco-1", "data").glob("*.bvh"))
+    by_content: dict[str, list[np.ndarray]] = {}
+    for f in files:
+        motion = M.resample(M.load_clip(f), FPS)
+        by_content.setdefault(f.stem.split("_")[1], []).append(
+            virtual_orientations(motion, M.standard_placements(motion.skeleton, NAMES)))
+    skeleton = M.resample(M.load_clip(files[0]), FPS).skeleton
+    ref = NAMES.index(REFERENCE_SENSOR)
+    print(f"{'content':<9}{'filter':<8}{'seed':>5}{'turn offset deg':>16}{'auto':>8}"
+          + (f"{'strap errors deg (' + ', '.join(NAMES) + ')':>60}{'s':>6}" if args.solve else ""))
+    for content in CONTENTS:
+        prior = MotionPrior(np.concatenate([q for c, qs in by_content.items() if c != content for q in qs]),
+                            tuple(NAMES))
+        truth = np.concatenate(by_content[content])
+        for label, model in FILTERS.items():
+            for seed in range(1, args.seeds + 1):
+                rng = np.random.default_rng(seed)
+                strap = quat.normalize(rng.normal(size=(len(NAMES), 4)))
+                readings = model().apply(quat.multiply(truth, strap[None]), FPS, rng)
+                offset = turn_north_offset_deg(from_device_earth(readings), NAMES, ref, prior)
+                line = f"{content:<9}{label:<8}{seed:>5}{offset:>16.0f}{'shared' if offset <= TURN_NORTH_DEG else 'own':>8}"
+                if args.solve:
+                    start = time.perf_counter()
+                    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior)
+                    errors = strap_error_deg(solved.orientation.mount_wxyz, strap)
+                    line += f"{' '.join(f'{e:6.0f}' for e in errors):>60}{time.perf_counter() - start:>6.0f}"
+                print(line, flush=True)
+
+
+if __name__ == "__main__":
+    main()
