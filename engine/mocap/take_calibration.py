@@ -318,7 +318,7 @@ class _Solver:
         80 %: a broad database holds a near relative rotation for many wrong twists, and an up direction alone
         says little about a segment that seldom tilts."""
         rel, up = self.relative_cost(k, mounts, yaws, ref.mount, ref.yaw_rad), -self.up_score(k, mounts)
-        (rel_mean, rel_sd), (up_mean, up_sd) = ((c.mean(), c.std() + 1e-9) for c in (rel, up))
+        (rel_mean, rel_sd), (up_mean, up_sd) = _scales(rel), _scales(up)
         return lambda m, y: ((self.relative_cost(k, m, y, ref.mount, ref.yaw_rad) - rel_mean) / rel_sd
                              + (-self.up_score(k, m) - up_mean) / up_sd)
 
@@ -329,6 +329,12 @@ class _Solver:
         best = candidates[np.argsort(scores)[-8:]]
         refined = [self._refine(lambda m: -self.up_score(k, m), m) for m in best]
         return min(refined, key=lambda mc: mc[1])[0]
+
+    def up_fit_twists(self, k: int, rng: np.random.Generator, angles_rad: np.ndarray) -> np.ndarray:
+        """(Θ, 3, 3) `global_up_fit`'s strap turned about the segment's usual up (the database's mean) by each
+        angle: what the up axes leave open, most of all on a limb that mostly hangs."""
+        mode = self.prior._mats[:, self.prior.index(self.names[k]), 1, :].mean(axis=0)
+        return _rotations_about(mode, angles_rad) @ self.global_up_fit(k, rng)[None]
 
     @staticmethod
     def _refine(cost, mount: np.ndarray, steps_deg: tuple[float, ...] = (8.0, 4.0, 2.0, 1.0, 0.5)
@@ -561,7 +567,7 @@ def _shared_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: P
                 yaws = np.broadcast_to(eps, grid)
                 terms.append(solver.relative_cost(k, m[:, :, k], yaws, m[:, :, ref], yaws))
             for t in terms:
-                total += (t - t.mean()) / (t.std() + 1e-9)
+                total += _spread_units(t)
         return total
 
     if solver.prior is None:
@@ -587,10 +593,7 @@ def _from_motion(solver: _Solver, rng: np.random.Generator) -> list[_Solution]:
         if k == ref:
             out.append(reference)
             continue
-        mount = solver.global_up_fit(k, rng)
-        mode = solver.prior._mats[:, solver.prior.index(names[k]), 1, :].mean(axis=0)  # the segment's usual up
-        twists = _rotations_about(mode, thetas) @ mount[None]  # (Θ, 3, 3)
-        mounts = np.repeat(twists, len(thetas), axis=0)
+        mounts = np.repeat(solver.up_fit_twists(k, rng, thetas), len(thetas), axis=0)
         yaws = np.tile(thetas, len(thetas))
         cost = solver.combined_cost(k, mounts, yaws, reference)
         i = int(np.argmin(cost(mounts, yaws)))
@@ -606,22 +609,16 @@ def _from_motion_one_north(solver: _Solver, rng: np.random.Generator) -> list[_S
     reference, and its up axes, likeliest (the sum over sensors, each term in units of its spread over the
     (ψ, θ) grid), which a per-sensor north cannot do: there each sensor's own north absorbs the reference's
     twist. Then each strap refined locally on that cost."""
-    names, ref, prior = solver.names, solver.ref, solver.prior
+    names, ref = solver.names, solver.ref
     grid = np.radians(np.arange(0.0, 360.0, 10.0))
-
-    def twists(k: int) -> np.ndarray:
-        """(Θ, 3, 3) the up fit's strap turned about the segment's usual up by every grid angle."""
-        mode = prior._mats[:, prior.index(names[k]), 1, :].mean(axis=0)
-        return _rotations_about(mode, grid) @ solver.global_up_fit(k, rng)[None]
-
-    ref_mounts = twists(ref)  # (Ψ, 3, 3)
+    ref_mounts = solver.up_fit_twists(ref, rng, grid)  # (Ψ, 3, 3)
     total = _spread_units(-solver.up_score(ref, ref_mounts))
     zero = np.zeros((len(grid), len(grid)))
     costs = {}
     for k in range(len(names)):
         if k == ref:
             continue
-        mounts = twists(k)
+        mounts = solver.up_fit_twists(k, rng, grid)
         rel = solver.relative_cost(k, np.broadcast_to(mounts, zero.shape + (3, 3)), zero, ref_mounts[:, None], zero)
         up = np.broadcast_to(-solver.up_score(k, mounts), zero.shape)
         costs[k] = (mounts, _spread_units(rel) + _spread_units(up), _scales(rel), _scales(up))
@@ -644,10 +641,12 @@ def _from_motion_one_north(solver: _Solver, rng: np.random.Generator) -> list[_S
 
 
 def _scales(cost: np.ndarray) -> tuple[float, float]:
+    """The mean and spread of a cost over a grid of candidates: the units in which unlike costs are summed."""
     return float(cost.mean()), float(cost.std() + 1e-9)
 
 
 def _spread_units(cost: np.ndarray) -> np.ndarray:
+    """`cost` in units of its spread over the grid (`_scales`), about its mean."""
     mean, sd = _scales(cost)
     return (cost - mean) / sd
 
