@@ -71,6 +71,9 @@ ONE_NORTH_DEG = 35.0  # auto: one north when all but one in six of at least 4 se
 # random norths pass 1.8 / 0.3 / 1.2 % of the time for 4 / 5 / 6 sensors, and then within this angle of one north.
 TURN_NORTH_DEG = 60.0  # pose none, auto: one north when the sensors' turns follow the pelvis's as the
 #                       database's do to within this (`_turns_say_one_north`)
+ONE_NORTH_MISFIT = 0.17  # pose none, auto: how much worse (mean log k-NN distance per sensor) the one-north solve
+#                         may fit than the per-sensor one; measured on 12 held-out Bandai takes: one north 0.15 at
+#                         most, a north per sensor 0.19 at least (docs/imu-import.md)
 _POSE_TEXT = re.compile(r"^(npose|tpose|apose|none)(?::([0-9.]+))?(?:@([0-9.]+):([0-9.]+))?$")
 
 
@@ -401,9 +404,7 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     if pose.name == "none":
         if prior is None:
             raise ValueError("calibration from motion (pose none) needs the database: give the graph (--graph)")
-        rng = np.random.default_rng(seed)
-        one_north = north == "shared" or (north == "auto" and _turns_say_one_north(world, names, ref, prior))
-        solutions = (_from_motion_one_north if one_north else _from_motion)(solver, rng)
+        solutions, one_north = _from_motion_any_north(solver, world, north, seed)
         return TakeCalibration(_calibration(solutions), tuple(sensors), pose, north="shared" if one_north else "own")
     window = pose.window_s or still_stretch(q, fps, stillness)
     if window is None:
@@ -581,6 +582,31 @@ def _shared_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: P
         eps = float(fine[int(np.argmin(cost(fine)[ia]))])
     mounts = straps(np.array([eps]))[ia, 0]
     return [_Solution(m, float(eps)) for m in mounts], (float(angles[ia]) if spec.name == "apose" else None)
+
+
+def _from_motion_any_north(solver: _Solver, world: np.ndarray, north: str, seed: int
+                           ) -> tuple[list[_Solution], bool]:
+    """Pose none: the straps (and whether in one north). `auto` takes one north only when both tests say so: the
+    segments' turns follow the pelvis's as the database's do (`_turns_say_one_north`), and the one-north solve's
+    relative rotations fit the database within `ONE_NORTH_MISFIT` per sensor of the per-sensor solve's (which,
+    freer, always fits at least as well)."""
+    if north == "own" or (north == "auto" and not _turns_say_one_north(world, solver.names, solver.ref,
+                                                                      solver.prior)):
+        return _from_motion(solver, np.random.default_rng(seed)), False
+    shared = _from_motion_one_north(solver, np.random.default_rng(seed))
+    if north == "shared":
+        return shared, True
+    own = _from_motion(solver, np.random.default_rng(seed))
+    if _relative_misfit(solver, shared) <= _relative_misfit(solver, own) + ONE_NORTH_MISFIT:
+        return shared, True
+    return own, False
+
+
+def _relative_misfit(solver: _Solver, solutions: list[_Solution]) -> float:
+    """The mean over the non-reference sensors of their relative rotations' database misfit."""
+    ref = solutions[solver.ref]
+    return float(np.mean([solver.relative_cost(k, s.mount[None], np.array([s.yaw_rad]), ref.mount, ref.yaw_rad)[0]
+                          for k, s in enumerate(solutions) if k != solver.ref]))
 
 
 def _from_motion(solver: _Solver, rng: np.random.Generator) -> list[_Solution]:
