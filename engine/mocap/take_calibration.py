@@ -72,8 +72,9 @@ ONE_NORTH_DEG = 35.0  # auto: one north when all but one in six of at least 4 se
 TURN_NORTH_DEG = 60.0  # pose none, auto: one north when the sensors' turns follow the pelvis's as the
 #                       database's do to within this (`_turns_say_one_north`)
 ONE_NORTH_MISFIT = 0.17  # pose none, auto: how much worse (mean log k-NN distance per sensor) the one-north solve
-#                         may fit than the per-sensor one; measured on 12 held-out Bandai takes: one north 0.15 at
-#                         most, a north per sensor 0.19 at least (docs/imu-import.md)
+#                         may fit than the per-sensor one; on 12 held-out Bandai takes one north fit 0.15 worse at
+#                         most, a north per sensor 0.19 at least; in the evaluation's sessions one 9-axis content
+#                         of six failed it and one 6-axis content passed it (docs/imu-import.md)
 _POSE_TEXT = re.compile(r"^(npose|tpose|apose|none)(?::([0-9.]+))?(?:@([0-9.]+):([0-9.]+))?$")
 
 
