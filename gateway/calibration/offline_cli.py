@@ -170,7 +170,8 @@ def main(argv: list[str] | None = None) -> int:
                         "(9-axis) filter, as Xsens MTw/DOT report by default: one held pose then fixes every strap "
                         "but the athlete's heading, found from the motion; own: each sensor's north is its own "
                         "(6-axis filters, where the device booted); auto (default): solved each, one north taken "
-                        "when they agree")
+                        "when they agree (--pose none: when the segments turn with the pelvis as in the database "
+                        "and the one-north solve fits nearly as well)")
     p.add_argument("--subject", default="", help="who wore the sensors, written into the record")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     path = Path(args.take)
