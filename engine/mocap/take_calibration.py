@@ -464,8 +464,8 @@ def turn_north_offset_deg(world: np.ndarray, names: list[str], ref: int, prior: 
 def _turns_say_one_north(world: np.ndarray, names: list[str], ref: int, prior: MotionPrior) -> bool:
     """Pose none, north auto: one north when `turn_north_offset_deg` is within `TURN_NORTH_DEG`. Measured on
     held-out Bandai contents (`bench/bench_pose_free.py`, docs/imu-import.md): one north within 35 degrees in 18
-    of 18 takes; a north per sensor (three draws, six contents) beyond 60 in 12 of 18. A miss there costs little: calibration from motion
-    with a north per sensor is poor either way."""
+    of 18 takes; a north per sensor (three draws, six contents) beyond 60 in 12 of 18. A miss is not cheap (a
+    6-axis session at 17.9 cm against 10.5), hence the fit test after it (`_from_motion_any_north`)."""
     return turn_north_offset_deg(world, names, ref, prior) <= TURN_NORTH_DEG
 
 
