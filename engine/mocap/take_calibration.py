@@ -334,11 +334,18 @@ class _Solver:
         refined = [self._refine(lambda m: -self.up_score(k, m), m) for m in best]
         return min(refined, key=lambda mc: mc[1])[0]
 
-    def up_fit_twists(self, k: int, rng: np.random.Generator, angles_rad: np.ndarray) -> np.ndarray:
-        """(Θ, 3, 3) `global_up_fit`'s strap turned about the segment's usual up (the database's mean) by each
+    def up_fits(self, rng: np.random.Generator) -> list[np.ndarray]:
+        """Every sensor's `global_up_fit` (the reference's drawn first), computed once for both motion-only
+        solves."""
+        order = [self.ref] + [k for k in range(len(self.names)) if k != self.ref]
+        fits = {k: self.global_up_fit(k, rng) for k in order}
+        return [fits[k] for k in range(len(self.names))]
+
+    def up_fit_twists(self, k: int, fit: np.ndarray, angles_rad: np.ndarray) -> np.ndarray:
+        """(Θ, 3, 3) sensor k's up fit `fit` turned about the segment's usual up (the database's mean) by each
         angle: what the up axes leave open, most of all on a limb that mostly hangs."""
         mode = self.prior._mats[:, self.prior.index(self.names[k]), 1, :].mean(axis=0)
-        return _rotations_about(mode, angles_rad) @ self.global_up_fit(k, rng)[None]
+        return _rotations_about(mode, angles_rad) @ fit[None]
 
     @staticmethod
     def _refine(cost, mount: np.ndarray, steps_deg: tuple[float, ...] = (8.0, 4.0, 2.0, 1.0, 0.5)
@@ -591,13 +598,14 @@ def _from_motion_any_north(solver: _Solver, world: np.ndarray, north: str, seed:
     segments' turns follow the pelvis's as the database's do (`_turns_say_one_north`), and the one-north solve's
     relative rotations fit the database within `ONE_NORTH_MISFIT` per sensor of the per-sensor solve's (which,
     freer, always fits at least as well)."""
+    fits = solver.up_fits(np.random.default_rng(seed))
     if north == "own" or (north == "auto" and not _turns_say_one_north(world, solver.names, solver.ref,
                                                                       solver.prior)):
-        return _from_motion(solver, np.random.default_rng(seed)), False
-    shared = _from_motion_one_north(solver, np.random.default_rng(seed))
+        return _from_motion(solver, fits), False
+    shared = _from_motion_one_north(solver, fits)
     if north == "shared":
         return shared, True
-    own = _from_motion(solver, np.random.default_rng(seed))
+    own = _from_motion(solver, fits)
     if _relative_misfit(solver, shared) <= _relative_misfit(solver, own) + ONE_NORTH_MISFIT:
         return shared, True
     return own, False
@@ -610,17 +618,17 @@ def _relative_misfit(solver: _Solver, solutions: list[_Solution]) -> float:
                           for k, s in enumerate(solutions) if k != solver.ref]))
 
 
-def _from_motion(solver: _Solver, rng: np.random.Generator) -> list[_Solution]:
-    """Every sensor's (M, δ) from the motion alone (module docstring)."""
+def _from_motion(solver: _Solver, fits: list[np.ndarray]) -> list[_Solution]:
+    """Every sensor's (M, δ) from the motion alone (module docstring), from its up fit `fits[k]`."""
     names, ref = solver.names, solver.ref
-    reference = _Solution(solver.global_up_fit(ref, rng), 0.0)
+    reference = _Solution(fits[ref], 0.0)
     out: list[_Solution] = []
     thetas = np.radians(np.arange(0.0, 360.0, 15.0))
     for k in range(len(names)):
         if k == ref:
             out.append(reference)
             continue
-        mounts = np.repeat(solver.up_fit_twists(k, rng, thetas), len(thetas), axis=0)
+        mounts = np.repeat(solver.up_fit_twists(k, fits[k], thetas), len(thetas), axis=0)
         yaws = np.tile(thetas, len(thetas))
         cost = solver.combined_cost(k, mounts, yaws, reference)
         i = int(np.argmin(cost(mounts, yaws)))
@@ -628,7 +636,7 @@ def _from_motion(solver: _Solver, rng: np.random.Generator) -> list[_Solution]:
     return out
 
 
-def _from_motion_one_north(solver: _Solver, rng: np.random.Generator) -> list[_Solution]:
+def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray]) -> list[_Solution]:
     """Every sensor's M from the motion alone, all in one earth frame (δ = 0 for every sensor: a shared north
     cancels from the relative rotations and never touches an up axis, so it is neither seen nor needed). Each
     strap's tilt from its up axes (`global_up_fit`) leaves a twist about its segment's usual up; the reference's
@@ -638,14 +646,14 @@ def _from_motion_one_north(solver: _Solver, rng: np.random.Generator) -> list[_S
     twist. Then each strap refined locally on that cost."""
     names, ref = solver.names, solver.ref
     grid = np.radians(np.arange(0.0, 360.0, 10.0))
-    ref_mounts = solver.up_fit_twists(ref, rng, grid)  # (Ψ, 3, 3)
+    ref_mounts = solver.up_fit_twists(ref, fits[ref], grid)  # (Ψ, 3, 3)
     total = _spread_units(-solver.up_score(ref, ref_mounts))
     zero = np.zeros((len(grid), len(grid)))
     costs = {}
     for k in range(len(names)):
         if k == ref:
             continue
-        mounts = solver.up_fit_twists(k, rng, grid)
+        mounts = solver.up_fit_twists(k, fits[k], grid)
         rel = solver.relative_cost(k, np.broadcast_to(mounts, zero.shape + (3, 3)), zero, ref_mounts[:, None], zero)
         up = np.broadcast_to(-solver.up_score(k, mounts), zero.shape)
         costs[k] = (mounts, _spread_units(rel) + _spread_units(up), _scales(rel), _scales(up))
