@@ -8,7 +8,7 @@ Per take: how far the segments' turns lie from following the pelvis's as the dat
 (`turn_north_offset_deg`) and what that test alone says (`TURN_NORTH_DEG`); with --solve, what `auto` decides
 with the fit test too (`ONE_NORTH_MISFIT`), each strap's error after the solve it chose, and its seconds.
 
-    python bench/bench_pose_free.py --mocap-dir ../shared/mocap [--seeds 3] [--solve]
+    python bench/bench_pose_free.py --mocap-dir ../shared/mocap [--seeds 3] [--solve] [--filter 9-axis]
 """
 from __future__ import annotations
 
@@ -42,6 +42,8 @@ def main() -> None:
     p.add_argument("--mocap-dir", required=True, help="the shared mocap folder (holds bandai-namco-1/data)")
     p.add_argument("--seeds", type=int, default=3, help="strap and north draws per content and filter")
     p.add_argument("--solve", action="store_true", help="also calibrate each take and print its strap errors")
+    p.add_argument("--filter", choices=sorted(FILTERS), action="append",
+                   help="only these orientation filters (repeatable; default both)")
     args = p.parse_args()
     files = sorted(Path(args.mocap_dir, "bandai-namco-1", "data").glob("*.bvh"))
     by_content: dict[str, list[np.ndarray]] = {}
@@ -58,6 +60,8 @@ def main() -> None:
                             tuple(NAMES))
         truth = np.concatenate(by_content[content])
         for label, model in FILTERS.items():
+            if args.filter and label not in args.filter:
+                continue
             for seed in range(1, args.seeds + 1):
                 rng = np.random.default_rng(seed)
                 strap = quat.normalize(rng.normal(size=(len(NAMES), 4)))

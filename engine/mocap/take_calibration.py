@@ -75,6 +75,11 @@ ONE_NORTH_MISFIT = 0.17  # pose none, auto: how much worse (mean log k-NN distan
 #                         may fit than the per-sensor one; on 12 held-out Bandai takes one north fit 0.15 worse at
 #                         most, a north per sensor 0.19 at least; in the evaluation's sessions one 9-axis content
 #                         of six failed it and one 6-axis content passed it (docs/imu-import.md)
+SPIN_INTERVAL_S = 1.0 / 15.0  # the turn whose axis is a segment's spin: long enough to rise above a filter's
+#                                sample-to-sample noise, short enough that the axis is still one axis
+SPIN_KERNEL_DEG = 15.0
+MOTION_CANDIDATES = 2000  # pose none: uniform random straps a sensor's search over all rotations starts from,
+MOTION_SCREEN_STEP = 4  # screened on every 4th of the take's frames
 _POSE_TEXT = re.compile(r"^(npose|tpose|apose|none)(?::([0-9.]+))?(?:@([0-9.]+):([0-9.]+))?$")
 
 
@@ -185,6 +190,39 @@ def _rotations_about(axis: np.ndarray, angles_rad: np.ndarray) -> np.ndarray:
     return quat.to_matrix(quat.from_rotvec(np.outer(angles_rad, axis / np.linalg.norm(axis))))
 
 
+class _SphereDensity:
+    """A kernel density of weighted unit directions (N, 3) on a sphere grid, read as its log (floored: a
+    direction the data never shows costs a bounded amount, not infinity)."""
+
+    def __init__(self, dirs: np.ndarray, weights: np.ndarray, kernel_deg: float) -> None:
+        grid = _fibonacci_sphere(4000)
+        kappa = 1.0 / np.radians(kernel_deg) ** 2
+        dens = np.zeros(len(grid))
+        chunks = max(1, len(dirs) // 2000)
+        for d, w in zip(np.array_split(dirs, chunks), np.array_split(weights, chunks)):
+            dens += np.exp(kappa * (grid @ d.T - 1.0)) @ w
+        self.tree, self.log_density = cKDTree(grid), np.log(dens / max(dens.max(), 1e-300) + 1e-4)
+
+    def __call__(self, dirs: np.ndarray) -> np.ndarray:
+        return self.log_density[self.tree.query(dirs.reshape(-1, 3))[1]].reshape(dirs.shape[:-1])
+
+
+def body_spins(world_wxyz: np.ndarray, fps: float, min_rate_rad_s: float = 0.5, max_step_rad: float = 1.0
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Each sensor's spin axis in its own frame over `SPIN_INTERVAL_S` from consecutive orientations (T, S, 4):
+    unit axes (T', S, 3) and weights (T', S), the turn in radians, 0 where the segment turned slower than
+    `min_rate_rad_s` (the axis is then the filter's noise), more than `max_step_rad` (a jump: a lost sample, the
+    seam between two database clips) or a reading is missing. The frame is the sensor's, so no earth frame,
+    north or yaw enters: M maps these axes to the segment's frame as it maps the up axes."""
+    q = np.asarray(world_wxyz, float)
+    stride = max(1, int(round(fps * SPIN_INTERVAL_S)))
+    steps = quat.to_rotvec(quat.multiply(quat.conjugate(q[:-stride]), q[stride:]))  # body frame: Q(t)⁻¹ Q(t+Δ)
+    angle = np.linalg.norm(steps, axis=-1)
+    ok = np.isfinite(angle) & (angle > min_rate_rad_s * stride / fps) & (angle < max_step_rad)
+    dirs = np.where(ok[..., None], steps / np.where(ok, angle, 1.0)[..., None], 0.0)
+    return dirs, np.where(ok, angle, 0.0)
+
+
 @dataclass
 class MotionPrior:
     """What the database says about the worn segments: its poses' nominal sensor orientations ``world_wxyz``
@@ -196,6 +234,7 @@ class MotionPrior:
     sensor_names: tuple[str, ...]
     max_poses: int = 12000
     kernel_deg: float = 10.0
+    fps: float = 30.0
     _density: dict = field(default_factory=dict, repr=False)
     _relative: dict = field(default_factory=dict, repr=False)
     _turns: dict = field(default_factory=dict, repr=False)
@@ -211,7 +250,7 @@ class MotionPrior:
         """The prior of a motion graph's nodes (engine.graph.orientation_term.node_sensor_orientations)."""
         from engine.graph.orientation_term import node_sensor_orientations  # the graph sits above engine.mocap
 
-        return cls(node_sensor_orientations(graph), tuple(graph.config.sensor_names))
+        return cls(node_sensor_orientations(graph), tuple(graph.config.sensor_names), fps=graph.config.fps)
 
     def turn_coupling(self, reference: str) -> tuple[np.ndarray, np.ndarray]:
         """`horizontal_turn_coupling` of the database's poses against `reference` (its nodes in order: a clip's
@@ -229,15 +268,23 @@ class MotionPrior:
     def up_log_density(self, name: str, up_nominal: np.ndarray) -> np.ndarray:
         """(...,) log density of unit up directions (..., 3) in `name`'s nominal frame under the database's."""
         if name not in self._density:
-            grid = _fibonacci_sphere(4000)
             ups = self._mats[:, self.index(name), 1, :]  # row 1 of S = S⁻¹ŷ
-            kappa = 1.0 / np.radians(self.kernel_deg) ** 2
-            dens = np.zeros(len(grid))
-            for chunk in np.array_split(ups, max(1, len(ups) // 2000)):
-                dens += np.exp(kappa * (grid @ chunk.T - 1.0)).sum(axis=1)
-            self._density[name] = (cKDTree(grid), np.log(dens / dens.max() + 1e-4))
-        tree, logd = self._density[name]
-        return logd[tree.query(up_nominal.reshape(-1, 3))[1]].reshape(up_nominal.shape[:-1])
+            self._density[name] = _SphereDensity(ups, np.ones(len(ups)), self.kernel_deg)
+        return self._density[name](up_nominal)
+
+    def spin_log_density(self, name: str, spin_nominal: np.ndarray) -> np.ndarray:
+        """(...,) log density of unit spin axes (..., 3) in `name`'s nominal frame under the database's
+        (`body_spins` of its consecutive poses at `fps`, weighted by rate): where a segment's turning axes lie in
+        its own frame (a shin's about its knee's axis, a forearm's about its elbow's and along itself) fixes the
+        twist about its up that its up axes leave open; the jumps between clips are left out as fast turns."""
+        key = ("spin", name)
+        if key not in self._density:
+            dirs, weights = body_spins(np.asarray(self.world_wxyz, float)[:, self.index(name):self.index(name) + 1],
+                                       self.fps)
+            ok = weights[:, 0] > 0
+            step = max(1, int(ok.sum()) // self.max_poses)
+            self._density[key] = _SphereDensity(dirs[ok, 0][::step], weights[ok, 0][::step], SPIN_KERNEL_DEG)
+        return self._density[key](spin_nominal)
 
     def relative_cost(self, name: str, reference: str, relative: np.ndarray, neighbours: int = 20) -> np.ndarray:
         """(...,) minus the mean log density, over frames, of the relative rotations ``W_ref⁻¹ W`` (..., F, 3, 3)
@@ -266,11 +313,23 @@ class TakeCalibration:
     north: str = "own"
 
 
+def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(n, 3, 3) rotations uniform over all rotations."""
+    return quat.to_matrix(quat.normalize(rng.normal(size=(n, 4))))
+
+
 def _frames(world: np.ndarray, max_frames: int) -> np.ndarray:
     """(F', S, 3, 3) matrices of up to `max_frames` evenly spread samples with every sensor's reading."""
     ok = np.flatnonzero(np.isfinite(world).all(axis=(1, 2)))
     pick = ok[np.linspace(0, len(ok) - 1, min(max_frames, len(ok))).astype(int)] if len(ok) else ok
     return quat.to_matrix(world[pick])
+
+
+def _spread_spins(world: np.ndarray, fps: float, max_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """`body_spins` of the take at up to `max_frames` evenly spread samples."""
+    dirs, weights = body_spins(world, fps)
+    pick = np.linspace(0, len(dirs) - 1, min(max_frames, len(dirs))).astype(int) if len(dirs) else []
+    return dirs[pick], weights[pick]
 
 
 @dataclass(frozen=True)
@@ -297,13 +356,28 @@ def _world(frames: np.ndarray, mount: np.ndarray, yaw_rad: np.ndarray) -> np.nda
 class _Solver:
     """Fits the sensors of one take against a prior (module docstring)."""
 
-    def __init__(self, frames: np.ndarray, names: list[str], prior: MotionPrior | None, ref: int | None) -> None:
+    def __init__(self, frames: np.ndarray, spins: tuple[np.ndarray, np.ndarray], names: list[str],
+                 prior: MotionPrior | None, ref: int | None) -> None:
         self.frames, self.names, self.prior, self.ref = frames, names, prior, ref
+        self.spin_dirs, self.spin_weights = spins
 
-    def up_score(self, k: int, mounts: np.ndarray) -> np.ndarray:
-        """(A,) mean log density of sensor k's up axes over the frames, strapped by each of `mounts` (A, 3, 3)."""
+    def strap_score(self, k: int, mounts: np.ndarray) -> np.ndarray:
+        """(A,) how likely sensor k's strap is from its own readings alone, strapped by each of `mounts`
+        (A, 3, 3): the mean log density of its up axes over the frames plus the rate-weighted one of its spin
+        axes (`body_spins`). The up axes fix a strap's tilt; the spin axes its twist about the segment's up, which
+        the up axes leave open on a segment that mostly hangs. Measured on held-out Bandai gesture takes (straps
+        uniform over all rotations, 9-axis filters), the twist each picks alone: the spin axes put a forearm's
+        within 30 deg in 10 of 12 takes, where the up axes miss by up to 100; on shins and trunk both leave the
+        turn by 180 deg open."""
         ups = self.frames[:, k, 1, :]  # row 1 of Q = Q⁻¹ŷ, the sensor-frame up
-        return self.prior.up_log_density(self.names[k], np.einsum("aij,fj->afi", mounts, ups)).mean(axis=-1)
+        name = self.names[k]
+        score = self.prior.up_log_density(name, np.einsum("aij,fj->afi", mounts, ups)).mean(axis=-1)
+        weights = self.spin_weights[:, k]
+        if weights.sum() > 0:
+            used = weights > 0
+            axes = np.einsum("aij,fj->afi", mounts, self.spin_dirs[used, k])
+            score = score + self.prior.spin_log_density(name, axes) @ weights[used] / weights[used].sum()
+        return score
 
     def relative_cost(self, k: int, mounts: np.ndarray, yaws: np.ndarray, ref_mount: np.ndarray,
                       ref_yaw: float | np.ndarray) -> np.ndarray:
@@ -321,18 +395,36 @@ class _Solver:
         median 5.6 deg, 95 % within 20 deg; the relative misfit alone 7.8 / 80 %, the up density alone 9.5 /
         80 %: a broad database holds a near relative rotation for many wrong twists, and an up direction alone
         says little about a segment that seldom tilts."""
-        rel, up = self.relative_cost(k, mounts, yaws, ref.mount, ref.yaw_rad), -self.up_score(k, mounts)
-        (rel_mean, rel_sd), (up_mean, up_sd) = _scales(rel), _scales(up)
+        return self.scaled_cost(k, ref, self.cost_scales(k, mounts, yaws, ref))
+
+    def cost_scales(self, k: int, mounts: np.ndarray, yaws: np.ndarray, ref: _Solution) -> tuple[tuple, tuple]:
+        """The mean and spread (`_scales`) of sensor k's relative misfit and of minus its `strap_score` over the
+        candidates."""
+        return (_scales(self.relative_cost(k, mounts, yaws, ref.mount, ref.yaw_rad)),
+                _scales(-self.strap_score(k, mounts)))
+
+    def scaled_cost(self, k: int, ref: _Solution, scales: tuple[tuple, tuple]):
+        """`combined_cost` in the given units (`cost_scales`)."""
+        (rel_mean, rel_sd), (up_mean, up_sd) = scales
         return lambda m, y: ((self.relative_cost(k, m, y, ref.mount, ref.yaw_rad) - rel_mean) / rel_sd
-                             + (-self.up_score(k, m) - up_mean) / up_sd)
+                             + (-self.strap_score(k, m) - up_mean) / up_sd)
+
+    def thinned(self, step: int) -> "_Solver":
+        """This solver on every `step`-th frame: a screening of many candidates at a fraction of the cost."""
+        return _Solver(self.frames[::step], (self.spin_dirs[::step], self.spin_weights[::step]), self.names,
+                       self.prior, self.ref)
 
     def global_up_fit(self, k: int, rng: np.random.Generator, n_candidates: int = 3000) -> np.ndarray:
-        """M (3, 3) maximising `up_score` over all rotations: random candidates, the best refined locally."""
-        candidates = quat.to_matrix(quat.normalize(rng.normal(size=(n_candidates, 4))))
-        scores = self.up_score(k, candidates)
-        best = candidates[np.argsort(scores)[-8:]]
-        refined = [self._refine(lambda m: -self.up_score(k, m), m) for m in best]
-        return min(refined, key=lambda mc: mc[1])[0]
+        """M (3, 3) maximising `strap_score` over all rotations."""
+        return self.best_rotation(lambda m: -self.strap_score(k, m), _random_rotations(rng, n_candidates))
+
+    def best_rotation(self, cost, candidates: np.ndarray, starts: tuple[np.ndarray, ...] = (), screen=None,
+                      keep: int = 8) -> np.ndarray:
+        """M (3, 3) minimising `cost` (over (A, 3, 3)) over all rotations: the best `keep` of `candidates`
+        (uniform random rotations) on `screen` (a cheaper estimate of `cost`; default `cost` itself) and the
+        given `starts`, each refined locally on `cost`."""
+        seeds = list(candidates[np.argsort((screen or cost)(candidates))[:keep]]) + list(starts)
+        return min((self._refine(cost, m) for m in seeds), key=lambda mc: mc[1])[0]
 
     def up_fits(self, rng: np.random.Generator) -> list[np.ndarray]:
         """Every sensor's `global_up_fit` (the reference's drawn first), computed once for both motion-only
@@ -408,7 +500,7 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     world = from_device_earth(q)
     frames = _frames(world, max_frames)
     ref = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else 0
-    solver = _Solver(frames, names, prior, ref)
+    solver = _Solver(frames, _spread_spins(world, fps, max_frames), names, prior, ref)
     if pose.name == "none":
         if prior is None:
             raise ValueError("calibration from motion (pose none) needs the database: give the graph (--graph)")
@@ -519,7 +611,7 @@ def _from_held_pose(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec:
         smallest = [family(k, a0 if k in arms else angles[0], thetas) for k in range(len(names))]
         return [_Solution(m[0], float(y[0])) for m, y in smallest], (float(a0) if spec.name == "apose" else None)
     mounts, yaws = family(ref, a0, thetas)
-    up_cost = lambda m, y: -solver.up_score(ref, m)  # noqa: E731 - the reference's own twist: its up axis
+    up_cost = lambda m, y: -solver.strap_score(ref, m)  # noqa: E731 - the reference's own twist: its up axis
     i = int(np.argmin(up_cost(mounts, yaws)))
     reference = fine(ref, a0, float(thetas[i]), up_cost)
     out: list[_Solution | None] = [None] * len(names)
@@ -571,7 +663,7 @@ def _shared_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: P
         for k in range(len(names)):
             rows = slice(None) if k in arms or ref in arms else slice(0, 1)
             m, grid = mounts[rows], mounts[rows].shape[:2]
-            terms = [-solver.up_score(k, m[:, :, k].reshape(-1, 3, 3)).reshape(grid)]
+            terms = [-solver.strap_score(k, m[:, :, k].reshape(-1, 3, 3)).reshape(grid)]
             if k != ref:
                 yaws = np.broadcast_to(eps, grid)
                 terms.append(solver.relative_cost(k, m[:, :, k], yaws, m[:, :, ref], yaws))
@@ -598,11 +690,12 @@ def _from_motion_any_north(solver: _Solver, world: np.ndarray, north: str, seed:
     segments' turns follow the pelvis's as the database's do (`_turns_say_one_north`), and the one-north solve's
     relative rotations fit the database within `ONE_NORTH_MISFIT` per sensor of the per-sensor solve's (which,
     freer, always fits at least as well)."""
-    fits = solver.up_fits(np.random.default_rng(seed))
+    rng = np.random.default_rng(seed)
+    fits = solver.up_fits(rng)
     if north == "own" or (north == "auto" and not _turns_say_one_north(world, solver.names, solver.ref,
                                                                       solver.prior)):
         return _from_motion(solver, fits), False
-    shared = _from_motion_one_north(solver, fits)
+    shared = _from_motion_one_north(solver, fits, rng)
     if north == "shared":
         return shared, True
     own = _from_motion(solver, fits)
@@ -636,18 +729,21 @@ def _from_motion(solver: _Solver, fits: list[np.ndarray]) -> list[_Solution]:
     return out
 
 
-def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray]) -> list[_Solution]:
+def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray], rng: np.random.Generator) -> list[_Solution]:
     """Every sensor's M from the motion alone, all in one earth frame (δ = 0 for every sensor: a shared north
     cancels from the relative rotations and never touches an up axis, so it is neither seen nor needed). Each
-    strap's tilt from its up axes (`global_up_fit`) leaves a twist about its segment's usual up; the reference's
-    twist ψ is the one under which every other sensor's best twist θ leaves its rotations relative to the
-    reference, and its up axes, likeliest (the sum over sensors, each term in units of its spread over the
-    (ψ, θ) grid), which a per-sensor north cannot do: there each sensor's own north absorbs the reference's
-    twist. Then each strap refined locally on that cost."""
+    strap's tilt from its own readings (`global_up_fit`) leaves a twist about its segment's usual up; the
+    reference's twist ψ is the one under which every other sensor's best twist θ leaves its rotations relative to
+    the reference, and its own readings, likeliest (the sum over sensors, each term in units of its spread over
+    the (ψ, θ) grid), which a per-sensor north cannot do: there each sensor's own north absorbs the reference's
+    twist. Then each other strap is searched over all rotations on that cost, from its best twist and from the
+    best of uniform random rotations: a segment whose motion the database lacks (a forearm waving) can be
+    likeliest on its own readings at a tilt well off its true one, which no twist family about that tilt
+    reaches, while its rotations relative to the pelvis still find the true one."""
     names, ref = solver.names, solver.ref
     grid = np.radians(np.arange(0.0, 360.0, 10.0))
     ref_mounts = solver.up_fit_twists(ref, fits[ref], grid)  # (Ψ, 3, 3)
-    total = _spread_units(-solver.up_score(ref, ref_mounts))
+    total = _spread_units(-solver.strap_score(ref, ref_mounts))
     zero = np.zeros((len(grid), len(grid)))
     costs = {}
     for k in range(len(names)):
@@ -655,23 +751,24 @@ def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray]) -> list[_Sol
             continue
         mounts = solver.up_fit_twists(k, fits[k], grid)
         rel = solver.relative_cost(k, np.broadcast_to(mounts, zero.shape + (3, 3)), zero, ref_mounts[:, None], zero)
-        up = np.broadcast_to(-solver.up_score(k, mounts), zero.shape)
-        costs[k] = (mounts, _spread_units(rel) + _spread_units(up), _scales(rel), _scales(up))
+        up = np.broadcast_to(-solver.strap_score(k, mounts), zero.shape)
+        costs[k] = (mounts, _spread_units(rel) + _spread_units(up))
         total = total + costs[k][1].min(axis=1)
     ip = int(np.argmin(total))
     reference = _Solution(ref_mounts[ip], 0.0)
+    thin = solver.thinned(MOTION_SCREEN_STEP)
     out: list[_Solution] = []
     for k in range(len(names)):
         if k == ref:
             out.append(reference)
             continue
-        mounts, cost, (rel_mean, rel_sd), (up_mean, up_sd) = costs[k]
-
-        def scaled(m: np.ndarray, k: int = k) -> np.ndarray:
-            return ((solver.relative_cost(k, m, np.zeros(len(m)), reference.mount, 0.0) - rel_mean) / rel_sd
-                    + (-solver.up_score(k, m) - up_mean) / up_sd)
-
-        out.append(_Solution(solver._refine(scaled, mounts[int(np.argmin(cost[ip]))])[0], 0.0))
+        mounts, cost_grid = costs[k]
+        candidates = _random_rotations(rng, MOTION_CANDIDATES)
+        scales = thin.cost_scales(k, candidates, np.zeros(len(candidates)), reference)
+        cost, screen = solver.scaled_cost(k, reference, scales), thin.scaled_cost(k, reference, scales)
+        out.append(_Solution(solver.best_rotation(lambda m: cost(m, np.zeros(len(m))), candidates,
+                                                  (mounts[int(np.argmin(cost_grid[ip]))],),
+                                                  lambda m: screen(m, np.zeros(len(m))), keep=4), 0.0))
     return out
 
 

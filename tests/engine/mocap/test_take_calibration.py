@@ -12,7 +12,8 @@ from engine.mocap.orientation import (OrientationErrorModel, from_device_earth, 
                                       virtual_orientations)
 from engine.mocap.orientation_calibration import pose_sensor_orientations
 from engine.mocap.roles import joint_roles
-from engine.mocap.take_calibration import (MotionPrior, PoseSpec, _norths_agree, _turns_say_one_north, calibrate_take,
+from engine.mocap.take_calibration import (MotionPrior, PoseSpec, _norths_agree, _turns_say_one_north, body_spins,
+                                          calibrate_take,
                                           check_orientations, horizontal_turn_coupling, still_stretch)
 
 NAMES = list(M.SEED000_SENSORS)
@@ -55,7 +56,7 @@ def test_any_strapping_and_the_arm_angle_of_an_a_pose_are_recovered(motion, seed
     motion)."""
     skeleton, truth = motion
     readings, strap, yaw = _take(skeleton, truth, "apose", 40.0, seed)
-    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("apose"), MotionPrior(truth, tuple(NAMES)))
+    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("apose"), MotionPrior(truth, tuple(NAMES), fps=FPS))
     assert solved.pose.arm_deg == 40.0 and solved.pose.window_s[0] < 0.5 and 1.0 < solved.pose.window_s[1] <= 2.0
     cal = solved.orientation
     limbs = [k for k, n in enumerate(NAMES) if n not in ("lower_back", "chest")]
@@ -78,7 +79,7 @@ def test_one_north_is_found_and_fixes_every_strap_trunk_included(motion):
     skeleton, truth = motion
     one_north = OrientationErrorModel(yaw_offset=True, north_spread_deg=0.0)
     readings, strap, _ = _take(skeleton, truth, "apose", 40.0, 1, one_north)
-    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("apose"), MotionPrior(truth, tuple(NAMES)))
+    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("apose"), MotionPrior(truth, tuple(NAMES), fps=FPS))
     assert solved.north == "shared" and solved.pose.arm_deg == 40.0
     assert _angle_deg(solved.orientation.mount_wxyz, strap).max() < 5.0
     assert np.ptp(solved.orientation.yaw_rad) == 0.0
@@ -88,7 +89,7 @@ def test_own_norths_stay_own(motion):
     """Each sensor's own north (6-axis filters): `auto` keeps one north per sensor; `shared` can be forced."""
     skeleton, truth = motion
     readings, strap, _ = _take(skeleton, truth, "npose", None, 2)
-    prior = MotionPrior(truth, tuple(NAMES))
+    prior = MotionPrior(truth, tuple(NAMES), fps=FPS)
     assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("npose"), prior).north == "own"
     assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("npose"), prior, north="shared").north == "shared"
     with pytest.raises(ValueError, match="north 'magnetic': expected one of auto, shared, own"):
@@ -97,17 +98,18 @@ def test_own_norths_stay_own(motion):
 
 def test_pose_free_one_north_finds_every_strap(motion):
     """No held pose, one earth frame (a magnetometer-aided filter), straps uniform over all rotations: `auto`
-    sees one north in how the segments turn with the pelvis and every strap but the chest's comes out within
-    2 deg (the database holds the take's motion: the method's known answer). The chest strap's turn about the
-    chest's vertical shows only where the chest twists against the pelvis, which walks and runs hardly do."""
+    sees one north in how the segments turn with the pelvis and every strap comes out within 3 deg (the
+    database holds the take's motion: the method's known answer), the chest's too: its turn about the chest's
+    vertical, which walks and runs hardly show against the pelvis, is fixed by its spin axes and the search
+    over all rotations."""
     skeleton, truth = motion
     one_north = OrientationErrorModel(yaw_offset=True, north_spread_deg=0.0)
     readings, strap, _ = _take(skeleton, truth, None, None, 3, one_north)
-    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), MotionPrior(truth, tuple(NAMES)))
+    prior = MotionPrior(truth, tuple(NAMES), fps=FPS)
+    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior)
     assert solved.north == "shared"
     error_deg = _angle_deg(solved.orientation.mount_wxyz, strap)
-    chest = NAMES.index("chest")
-    assert np.delete(error_deg, chest).max() < 2.0 and error_deg[chest] < 25.0
+    assert error_deg.max() < 3.0
 
 
 @pytest.mark.parametrize("norths_deg, one", [((0, 90, 180, 270, 0, 135), False), ((0, 0, 0, 0, 0, 0), True),
@@ -117,7 +119,8 @@ def test_pose_free_north_decision(motion, norths_deg, one):
     (within a few tens of degrees) or have their own (90-180 deg apart: not one north)."""
     _, truth = motion
     world = from_device_earth(to_device_earth(truth, np.radians(norths_deg)[None]))
-    assert _turns_say_one_north(world, NAMES, NAMES.index("lower_back"), MotionPrior(truth, tuple(NAMES))) is one
+    prior = MotionPrior(truth, tuple(NAMES), fps=FPS)
+    assert _turns_say_one_north(world, NAMES, NAMES.index("lower_back"), prior) is one
 
 
 def test_pose_free_forearms_in_their_own_norths_are_caught_by_the_fit(motion):
@@ -126,7 +129,7 @@ def test_pose_free_forearms_in_their_own_norths_are_caught_by_the_fit(motion):
     per-sensor solve, and `auto` keeps a north per sensor."""
     skeleton, truth = motion
     readings = to_device_earth(truth, np.radians([90.0, 180.0, 0.0, 0.0, 0.0, 0.0])[None])
-    prior = MotionPrior(truth, tuple(NAMES))
+    prior = MotionPrior(truth, tuple(NAMES), fps=FPS)
     assert _turns_say_one_north(from_device_earth(readings), NAMES, NAMES.index("lower_back"), prior)
     assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior).north == "own"
 
@@ -217,3 +220,48 @@ def test_bad_orientations_and_no_still_stretch_are_refused(motion):
         calibrate_take(truth, FPS, NAMES, skeleton, PoseSpec("apose"))
     with pytest.raises(ValueError, match="needs the database"):
         calibrate_take(truth, FPS, NAMES, skeleton, PoseSpec("none"))
+
+
+def _hinge_swing(n: int, fps: float, seed: int) -> np.ndarray:
+    """(n, 1, 4) a segment swinging ±3 deg about its own x axis (a shin about its knee's axis) at 5 Hz from a
+    seeded phase, facing a seeded heading: its up axis barely moves, so only its spin axes can show where around
+    it a sensor sits."""
+    rng = np.random.default_rng(seed)
+    swing = np.radians(3.0) * np.sin(2 * np.pi * 5.0 * np.arange(n) / fps + rng.uniform(0, 2 * np.pi))
+    facing = quat.from_rotvec(np.array([0.0, rng.uniform(0, 2 * np.pi), 0.0]))
+    return quat.multiply(facing[None], quat.from_rotvec(np.outer(swing, [1.0, 0.0, 0.0])))[:, None, :]
+
+
+def test_body_spins_are_the_turn_axes_in_the_sensor_frame():
+    """A sensor strapped by M on the swinging segment: its spin axes are ±M⁻¹x̂ (the hinge seen from the sensor),
+    the weights the turns in radians over SPIN_INTERVAL_S; stillness and jumps weigh nothing."""
+    strap = quat.from_rotvec(np.array([0.3, 1.1, -0.4]))
+    q = quat.multiply(_hinge_swing(600, FPS, 1), strap[None, None])
+    dirs, weights = body_spins(q, FPS)
+    used = weights[:, 0] > 0
+    hinge = quat.to_matrix(quat.conjugate(strap)) @ np.array([1.0, 0.0, 0.0])
+    assert 0.5 < used.mean() < 1.0
+    assert np.degrees(np.arccos(np.minimum(1.0, np.abs(dirs[used, 0] @ hinge)))).max() < 1.0
+    still = np.repeat(strap[None, None], 50, axis=0)
+    jump = np.concatenate([still[:25], quat.multiply(quat.from_rotvec(np.array([0.0, 2.0, 0.0]))[None, None],
+                                                     still[25:])])
+    assert not body_spins(jump, FPS)[1].any()
+
+
+@pytest.mark.parametrize("twist_deg", [35.0, 100.0, 250.0])
+def test_spin_axes_fix_the_twist_the_up_axes_leave_open(twist_deg):
+    """Database and take the same hinge swing; the take's sensor strapped with a known twist about the segment's
+    up. Over candidate twists, the spin density peaks at the strap's (or half a turn off: a hinge swings both
+    ways) within 10 deg, while the up density is flat to within a tenth of the spin's range."""
+    prior = MotionPrior(_hinge_swing(3000, FPS, 2), ("left_shin",), fps=FPS)
+    strap = quat.from_rotvec(np.radians([0.0, twist_deg, 0.0]))
+    dirs, weights = body_spins(quat.multiply(_hinge_swing(900, FPS, 3), strap[None, None]), FPS)
+    used = weights[:, 0] > 0
+    candidates = np.radians(np.arange(0.0, 360.0, 2.0))
+    mounts = quat.to_matrix(quat.from_rotvec(np.outer(candidates, [0.0, 1.0, 0.0])))  # sensor -> nominal
+    spin = prior.spin_log_density("left_shin", np.einsum("aij,fj->afi", mounts, dirs[used, 0])) @ weights[used, 0]
+    ups = quat.to_matrix(quat.multiply(_hinge_swing(900, FPS, 3), strap[None, None]))[:, 0, 1, :]
+    up = prior.up_log_density("left_shin", np.einsum("aij,fj->afi", mounts, ups)).mean(axis=-1)
+    best = np.degrees(candidates[int(np.argmax(spin))])
+    assert min(abs((best - twist_deg + 90.0) % 180.0 - 90.0), 90.0) < 10.0
+    assert np.ptp(up) < 0.1 * np.ptp(spin / weights[used, 0].sum())
