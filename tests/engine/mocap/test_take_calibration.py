@@ -33,6 +33,11 @@ def motion():
     return clips[0].skeleton, truth
 
 
+def _prior(truth: np.ndarray) -> MotionPrior:
+    """The database of the take's own motion, at the take's rate."""
+    return MotionPrior(truth, tuple(NAMES), fps=FPS)
+
+
 def _take(skeleton, truth, pose: str | None, arm_deg: float | None, seed: int,
           error_model: OrientationErrorModel = FILTER):
     """The take's readings: the pose held 2 s (none: not held), then the motion; every sensor strapped by a
@@ -56,7 +61,7 @@ def test_any_strapping_and_the_arm_angle_of_an_a_pose_are_recovered(motion, seed
     motion)."""
     skeleton, truth = motion
     readings, strap, yaw = _take(skeleton, truth, "apose", 40.0, seed)
-    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("apose"), MotionPrior(truth, tuple(NAMES), fps=FPS))
+    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("apose"), _prior(truth))
     assert solved.pose.arm_deg == 40.0 and solved.pose.window_s[0] < 0.5 and 1.0 < solved.pose.window_s[1] <= 2.0
     cal = solved.orientation
     limbs = [k for k, n in enumerate(NAMES) if n not in ("lower_back", "chest")]
@@ -79,7 +84,7 @@ def test_one_north_is_found_and_fixes_every_strap_trunk_included(motion):
     skeleton, truth = motion
     one_north = OrientationErrorModel(yaw_offset=True, north_spread_deg=0.0)
     readings, strap, _ = _take(skeleton, truth, "apose", 40.0, 1, one_north)
-    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("apose"), MotionPrior(truth, tuple(NAMES), fps=FPS))
+    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("apose"), _prior(truth))
     assert solved.north == "shared" and solved.pose.arm_deg == 40.0
     assert _angle_deg(solved.orientation.mount_wxyz, strap).max() < 5.0
     assert np.ptp(solved.orientation.yaw_rad) == 0.0
@@ -89,7 +94,7 @@ def test_own_norths_stay_own(motion):
     """Each sensor's own north (6-axis filters): `auto` keeps one north per sensor; `shared` can be forced."""
     skeleton, truth = motion
     readings, strap, _ = _take(skeleton, truth, "npose", None, 2)
-    prior = MotionPrior(truth, tuple(NAMES), fps=FPS)
+    prior = _prior(truth)
     assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("npose"), prior).north == "own"
     assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("npose"), prior, north="shared").north == "shared"
     with pytest.raises(ValueError, match="north 'magnetic': expected one of auto, shared, own"):
@@ -105,7 +110,7 @@ def test_pose_free_one_north_finds_every_strap(motion):
     skeleton, truth = motion
     one_north = OrientationErrorModel(yaw_offset=True, north_spread_deg=0.0)
     readings, strap, _ = _take(skeleton, truth, None, None, 3, one_north)
-    prior = MotionPrior(truth, tuple(NAMES), fps=FPS)
+    prior = _prior(truth)
     solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior)
     assert solved.north == "shared"
     error_deg = _angle_deg(solved.orientation.mount_wxyz, strap)
@@ -119,7 +124,7 @@ def test_pose_free_north_decision(motion, norths_deg, one):
     (within a few tens of degrees) or have their own (90-180 deg apart: not one north)."""
     _, truth = motion
     world = from_device_earth(to_device_earth(truth, np.radians(norths_deg)[None]))
-    prior = MotionPrior(truth, tuple(NAMES), fps=FPS)
+    prior = _prior(truth)
     assert _turns_say_one_north(world, NAMES, NAMES.index("lower_back"), prior) is one
 
 
@@ -129,7 +134,7 @@ def test_pose_free_forearms_in_their_own_norths_are_caught_by_the_fit(motion):
     per-sensor solve, and `auto` keeps a north per sensor."""
     skeleton, truth = motion
     readings = to_device_earth(truth, np.radians([90.0, 180.0, 0.0, 0.0, 0.0, 0.0])[None])
-    prior = MotionPrior(truth, tuple(NAMES), fps=FPS)
+    prior = _prior(truth)
     assert _turns_say_one_north(from_device_earth(readings), NAMES, NAMES.index("lower_back"), prior)
     assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior).north == "own"
 
