@@ -79,7 +79,8 @@ SPIN_INTERVAL_S = 1.0 / 15.0  # the turn whose axis is a segment's spin: long en
 #                                sample-to-sample noise, short enough that the axis is still one axis
 SPIN_KERNEL_DEG = 15.0
 MOTION_CANDIDATES = 2000  # pose none: uniform random straps a sensor's search over all rotations starts from,
-MOTION_SCREEN_STEP = 4  # screened on every 4th of the take's frames
+MOTION_SCREEN_STEP = 4  # screened on every 4th of the take's frames,
+MOTION_KEEP = 4  # the best 4 refined
 _POSE_TEXT = re.compile(r"^(npose|tpose|apose|none)(?::([0-9.]+))?(?:@([0-9.]+):([0-9.]+))?$")
 
 
@@ -416,15 +417,11 @@ class _Solver:
 
     def global_up_fit(self, k: int, rng: np.random.Generator, n_candidates: int = 3000) -> np.ndarray:
         """M (3, 3) maximising `strap_score` over all rotations."""
-        return self.best_rotation(lambda m: -self.strap_score(k, m), _random_rotations(rng, n_candidates))
+        candidates = _random_rotations(rng, n_candidates)
+        scores = self.strap_score(k, candidates)
+        refined = [self.refine(lambda m: -self.strap_score(k, m), m) for m in candidates[np.argsort(scores)[-8:]]]
+        return min(refined, key=lambda mc: mc[1])[0]
 
-    def best_rotation(self, cost, candidates: np.ndarray, starts: tuple[np.ndarray, ...] = (), screen=None,
-                      keep: int = 8) -> np.ndarray:
-        """M (3, 3) minimising `cost` (over (A, 3, 3)) over all rotations: the best `keep` of `candidates`
-        (uniform random rotations) on `screen` (a cheaper estimate of `cost`; default `cost` itself) and the
-        given `starts`, each refined locally on `cost`."""
-        seeds = list(candidates[np.argsort((screen or cost)(candidates))[:keep]]) + list(starts)
-        return min((self._refine(cost, m) for m in seeds), key=lambda mc: mc[1])[0]
 
     def up_fits(self, rng: np.random.Generator) -> list[np.ndarray]:
         """Every sensor's `global_up_fit` (the reference's drawn first), computed once for both motion-only
@@ -440,7 +437,7 @@ class _Solver:
         return _rotations_about(mode, angles_rad) @ fit[None]
 
     @staticmethod
-    def _refine(cost, mount: np.ndarray, steps_deg: tuple[float, ...] = (8.0, 4.0, 2.0, 1.0, 0.5)
+    def refine(cost, mount: np.ndarray, steps_deg: tuple[float, ...] = (8.0, 4.0, 2.0, 1.0, 0.5)
                 ) -> tuple[np.ndarray, float]:
         """Pattern search of `cost` (over (A, 3, 3) candidates) by small rotations about the frame's axes."""
         best = float(cost(mount[None])[0])
@@ -694,11 +691,11 @@ def _from_motion_any_north(solver: _Solver, world: np.ndarray, north: str, seed:
     fits = solver.up_fits(rng)
     if north == "own" or (north == "auto" and not _turns_say_one_north(world, solver.names, solver.ref,
                                                                       solver.prior)):
-        return _from_motion(solver, fits), False
+        return _from_motion(solver, fits, rng), False
     shared = _from_motion_one_north(solver, fits, rng)
     if north == "shared":
         return shared, True
-    own = _from_motion(solver, fits)
+    own = _from_motion(solver, fits, rng)
     if _relative_misfit(solver, shared) <= _relative_misfit(solver, own) + ONE_NORTH_MISFIT:
         return shared, True
     return own, False
@@ -711,8 +708,9 @@ def _relative_misfit(solver: _Solver, solutions: list[_Solution]) -> float:
                           for k, s in enumerate(solutions) if k != solver.ref]))
 
 
-def _from_motion(solver: _Solver, fits: list[np.ndarray]) -> list[_Solution]:
-    """Every sensor's (M, δ) from the motion alone (module docstring), from its up fit `fits[k]`."""
+def _from_motion(solver: _Solver, fits: list[np.ndarray], rng: np.random.Generator) -> list[_Solution]:
+    """Every sensor's (M, δ) from the motion alone (module docstring), from its up fit `fits[k]`: its best twist
+    about that fit and yaw on a grid, then `_search_all_rotations`."""
     names, ref = solver.names, solver.ref
     reference = _Solution(fits[ref], 0.0)
     out: list[_Solution] = []
@@ -723,10 +721,30 @@ def _from_motion(solver: _Solver, fits: list[np.ndarray]) -> list[_Solution]:
             continue
         mounts = np.repeat(solver.up_fit_twists(k, fits[k], thetas), len(thetas), axis=0)
         yaws = np.tile(thetas, len(thetas))
-        cost = solver.combined_cost(k, mounts, yaws, reference)
-        i = int(np.argmin(cost(mounts, yaws)))
-        out.append(solver.refine_pair(_Solution(mounts[i], float(yaws[i])), cost))
+        i = int(np.argmin(solver.combined_cost(k, mounts, yaws, reference)(mounts, yaws)))
+        out.append(_search_all_rotations(solver, k, reference, _Solution(mounts[i], float(yaws[i])), rng, True))
     return out
+
+
+def _search_all_rotations(solver: _Solver, k: int, reference: _Solution, start: _Solution,
+                          rng: np.random.Generator, own_north: bool) -> _Solution:
+    """Sensor k's strap (and, in its own north, its yaw δ) searched over all of them on the relative misfit plus
+    its own readings' unlikeliness (`_Solver.combined_cost`, in units of their spread over uniform random
+    candidates): the best `MOTION_KEEP` candidates, screened on every `MOTION_SCREEN_STEP`-th frame, and `start`
+    (its best twist about its up fit), each refined locally. Why not the twists alone: a segment whose motion the
+    database lacks (a forearm waving) can be likeliest on its own readings at a tilt well off its true one, which
+    no twist about that tilt reaches, while its rotations relative to the pelvis still find the true one."""
+    thin = solver.thinned(MOTION_SCREEN_STEP)
+    mounts = _random_rotations(rng, MOTION_CANDIDATES)
+    yaws = rng.uniform(0.0, 2 * np.pi, len(mounts)) if own_north else np.zeros(len(mounts))
+    scales = thin.cost_scales(k, mounts, yaws, reference)
+    cost, screen = solver.scaled_cost(k, reference, scales), thin.scaled_cost(k, reference, scales)
+    seeds = [_Solution(mounts[i], float(yaws[i])) for i in np.argsort(screen(mounts, yaws))[:MOTION_KEEP]] + [start]
+    if own_north:
+        found = [solver.refine_pair(seed, cost) for seed in seeds]
+    else:
+        found = [_Solution(solver.refine(lambda m: cost(m, np.zeros(len(m))), seed.mount)[0], 0.0) for seed in seeds]
+    return min(found, key=lambda sol: float(cost(sol.mount[None], np.array([sol.yaw_rad]))[0]))
 
 
 def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray], rng: np.random.Generator) -> list[_Solution]:
@@ -756,19 +774,14 @@ def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray], rng: np.rand
         total = total + costs[k][1].min(axis=1)
     ip = int(np.argmin(total))
     reference = _Solution(ref_mounts[ip], 0.0)
-    thin = solver.thinned(MOTION_SCREEN_STEP)
     out: list[_Solution] = []
     for k in range(len(names)):
         if k == ref:
             out.append(reference)
             continue
         mounts, cost_grid = costs[k]
-        candidates = _random_rotations(rng, MOTION_CANDIDATES)
-        scales = thin.cost_scales(k, candidates, np.zeros(len(candidates)), reference)
-        cost, screen = solver.scaled_cost(k, reference, scales), thin.scaled_cost(k, reference, scales)
-        out.append(_Solution(solver.best_rotation(lambda m: cost(m, np.zeros(len(m))), candidates,
-                                                  (mounts[int(np.argmin(cost_grid[ip]))],),
-                                                  lambda m: screen(m, np.zeros(len(m))), keep=4), 0.0))
+        start = _Solution(mounts[int(np.argmin(cost_grid[ip]))], 0.0)
+        out.append(_search_all_rotations(solver, k, reference, start, rng, False))
     return out
 
 
