@@ -21,10 +21,12 @@ right (α, θ) turns the measured orientations into relative rotations the datab
   that relative misfit plus how unlikely its up axes over the take are (`_Solver.combined_cost`); the pelvis
   sensor's own θ is the one whose up axis over the take is likeliest. Without a database θ = 0 (the smallest strap
   rotation, as the live wizard does) and α is the angle needing the smallest straps;
-* **no held pose** (``pose none``, research-level, after TIC 2025): each sensor's M from its up axis over the
-  take alone, the rotation that makes them likeliest under the database's distribution of that segment's up
-  (a global search over all rotations), then its twist and δ from the relative rotations as above, then a local
-  refinement of all four angles. The pelvis sensor's yaw is set to 0: the engines use yaws relative to it.
+* **no held pose** (``pose none``, research-level, after TIC 2025): each sensor's M first from its own readings
+  alone, the rotation that makes its up axes and its spin axes (the axes it turns about, in its own frame)
+  likeliest under the database's distributions for that segment (`_Solver.strap_score`, a global search over
+  all rotations); then its twist about that fit and δ on a grid from the relative rotations as above, and from
+  there and from the best of uniform random straps a search over all rotations and δ on the same cost
+  (`_search_all_rotations`). The pelvis sensor's yaw is set to 0: the engines use yaws relative to it.
   In one earth frame (below) no north is solved at all: the pelvis strap's twist about its up is the one under
   which every other sensor's best strap fits likeliest (`_from_motion_one_north`).
 
@@ -368,8 +370,10 @@ class _Solver:
         axes (`body_spins`). The up axes fix a strap's tilt; the spin axes its twist about the segment's up, which
         the up axes leave open on a segment that mostly hangs. Measured on held-out Bandai gesture takes (straps
         uniform over all rotations, 9-axis filters), the twist each picks alone: the spin axes put a forearm's
-        within 30 deg in 10 of 12 takes, where the up axes miss by up to 100; on shins and trunk both leave the
-        turn by 180 deg open."""
+        within 30 deg in 9 of 12 takes (the up axes alone in 10, but up to 100 deg off); on shins and trunk
+        the spin axes leave a turn by 180 deg open (a hinge swings both ways). Only without a held pose: with
+        one (which fixes the tilts) they moved the one heading off on a session of six ("bye", 4.58 -> 7.80 cm,
+        the magnetometer sessions), so a held pose's solver gets none."""
         ups = self.frames[:, k, 1, :]  # row 1 of Q = Q⁻¹ŷ, the sensor-frame up
         name = self.names[k]
         score = self.prior.up_log_density(name, np.einsum("aij,fj->afi", mounts, ups)).mean(axis=-1)
@@ -497,7 +501,11 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     world = from_device_earth(q)
     frames = _frames(world, max_frames)
     ref = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else 0
-    solver = _Solver(frames, _spread_spins(world, fps, max_frames), names, prior, ref)
+    if pose.name != "none":  # a held pose fixes the tilts; the spin axes moved one session's heading off (strap_score)
+        spins = (np.zeros((0, len(names), 3)), np.zeros((0, len(names))))
+    else:
+        spins = _spread_spins(world, fps, max_frames)
+    solver = _Solver(frames, spins, names, prior, ref)
     if pose.name == "none":
         if prior is None:
             raise ValueError("calibration from motion (pose none) needs the database: give the graph (--graph)")
