@@ -24,9 +24,10 @@ right (α, θ) turns the measured orientations into relative rotations the datab
 * **no held pose** (``pose none``, research-level, after TIC 2025): each sensor's M first from its own readings
   alone, the rotation that makes its up axes and its spin axes (the axes it turns about, in its own frame)
   likeliest under the database's distributions for that segment (`_Solver.strap_score`, a global search over
-  all rotations); then its twist about that fit and δ on a grid from the relative rotations as above, and from
-  there and from the best of uniform random straps a search over all rotations and δ on the same cost
-  (`_search_all_rotations`). The pelvis sensor's yaw is set to 0: the engines use yaws relative to it.
+  all rotations); then its twist about that fit and δ on a grid from the relative rotations as above; then in
+  a north per sensor a local refinement of all four angles, in one north a search over all rotations on the
+  same cost, from there and from the best of uniform random straps (`_search_all_rotations`). The pelvis
+  sensor's yaw is set to 0: the engines use yaws relative to it.
   In one earth frame (below) no north is solved at all: the pelvis strap's twist about its up is the one under
   which every other sensor's best strap fits likeliest (`_from_motion_one_north`).
 
@@ -699,11 +700,11 @@ def _from_motion_any_north(solver: _Solver, world: np.ndarray, north: str, seed:
     fits = solver.up_fits(rng)
     if north == "own" or (north == "auto" and not _turns_say_one_north(world, solver.names, solver.ref,
                                                                       solver.prior)):
-        return _from_motion(solver, fits, rng), False
+        return _from_motion(solver, fits), False
     shared = _from_motion_one_north(solver, fits, rng)
     if north == "shared":
         return shared, True
-    own = _from_motion(solver, fits, rng)
+    own = _from_motion(solver, fits)
     if _relative_misfit(solver, shared) <= _relative_misfit(solver, own) + ONE_NORTH_MISFIT:
         return shared, True
     return own, False
@@ -716,9 +717,9 @@ def _relative_misfit(solver: _Solver, solutions: list[_Solution]) -> float:
                           for k, s in enumerate(solutions) if k != solver.ref]))
 
 
-def _from_motion(solver: _Solver, fits: list[np.ndarray], rng: np.random.Generator) -> list[_Solution]:
+def _from_motion(solver: _Solver, fits: list[np.ndarray]) -> list[_Solution]:
     """Every sensor's (M, δ) from the motion alone (module docstring), from its up fit `fits[k]`: its best twist
-    about that fit and yaw on a grid, then `_search_all_rotations`."""
+    about that fit and yaw on a grid, refined locally."""
     names, ref = solver.names, solver.ref
     reference = _Solution(fits[ref], 0.0)
     out: list[_Solution] = []
@@ -729,30 +730,28 @@ def _from_motion(solver: _Solver, fits: list[np.ndarray], rng: np.random.Generat
             continue
         mounts = np.repeat(solver.up_fit_twists(k, fits[k], thetas), len(thetas), axis=0)
         yaws = np.tile(thetas, len(thetas))
-        i = int(np.argmin(solver.combined_cost(k, mounts, yaws, reference)(mounts, yaws)))
-        out.append(_search_all_rotations(solver, k, reference, _Solution(mounts[i], float(yaws[i])), rng, True))
+        cost = solver.combined_cost(k, mounts, yaws, reference)
+        i = int(np.argmin(cost(mounts, yaws)))
+        out.append(solver.refine_pair(_Solution(mounts[i], float(yaws[i])), cost))
     return out
 
 
 def _search_all_rotations(solver: _Solver, k: int, reference: _Solution, start: _Solution,
-                          rng: np.random.Generator, own_north: bool) -> _Solution:
-    """Sensor k's strap (and, in its own north, its yaw δ) searched over all of them on the relative misfit plus
-    its own readings' unlikeliness (`_Solver.combined_cost`, in units of their spread over uniform random
-    candidates): the best `MOTION_KEEP` candidates, screened on every `MOTION_SCREEN_STEP`-th frame, and `start`
-    (its best twist about its up fit), each refined locally. Why not the twists alone: a segment whose motion the
-    database lacks (a forearm waving) can be likeliest on its own readings at a tilt well off its true one, which
-    no twist about that tilt reaches, while its rotations relative to the pelvis still find the true one."""
+                          rng: np.random.Generator) -> _Solution:
+    """Sensor k's strap in one north searched over all rotations on the relative misfit plus its own readings'
+    unlikeliness (`_Solver.combined_cost`, in units of their spread over uniform random candidates): the best
+    `MOTION_KEEP` candidates, screened on every `MOTION_SCREEN_STEP`-th frame, and `start` (its best twist about
+    its up fit), each refined locally. Why not the twists alone: a segment whose motion the database lacks (a
+    forearm waving) can be likeliest on its own readings at a tilt well off its true one, which no twist about
+    that tilt reaches, while its rotations relative to the pelvis still find the true one."""
     thin = solver.thinned(MOTION_SCREEN_STEP)
     mounts = _random_rotations(rng, MOTION_CANDIDATES)
-    yaws = rng.uniform(0.0, 2 * np.pi, len(mounts)) if own_north else np.zeros(len(mounts))
-    scales = thin.cost_scales(k, mounts, yaws, reference)
+    no_yaw = np.zeros(len(mounts))
+    scales = thin.cost_scales(k, mounts, no_yaw, reference)
     cost, screen = solver.scaled_cost(k, reference, scales), thin.scaled_cost(k, reference, scales)
-    seeds = [_Solution(mounts[i], float(yaws[i])) for i in np.argsort(screen(mounts, yaws))[:MOTION_KEEP]] + [start]
-    if own_north:
-        found = [solver.refine_pair(seed, cost) for seed in seeds]
-    else:
-        found = [_Solution(solver.refine(lambda m: cost(m, np.zeros(len(m))), seed.mount)[0], 0.0) for seed in seeds]
-    return min(found, key=lambda sol: float(cost(sol.mount[None], np.array([sol.yaw_rad]))[0]))
+    seeds = list(mounts[np.argsort(screen(mounts, no_yaw))[:MOTION_KEEP]]) + [start.mount]
+    found = [solver.refine(lambda m: cost(m, np.zeros(len(m))), seed) for seed in seeds]
+    return _Solution(min(found, key=lambda mc: mc[1])[0], 0.0)
 
 
 def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray], rng: np.random.Generator) -> list[_Solution]:
@@ -789,7 +788,7 @@ def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray], rng: np.rand
             continue
         mounts, cost_grid = costs[k]
         start = _Solution(mounts[int(np.argmin(cost_grid[ip]))], 0.0)
-        out.append(_search_all_rotations(solver, k, reference, start, rng, False))
+        out.append(_search_all_rotations(solver, k, reference, start, rng))
     return out
 
 
