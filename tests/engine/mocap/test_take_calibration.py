@@ -111,7 +111,7 @@ def test_pose_free_one_north_finds_every_strap(motion):
     one_north = OrientationErrorModel(yaw_offset=True, north_spread_deg=0.0)
     readings, strap, _ = _take(skeleton, truth, None, None, 3, one_north)
     prior = _prior(truth)
-    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior)
+    solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior, max_frames=150)
     assert solved.north == "shared"
     error_deg = _angle_deg(solved.orientation.mount_wxyz, strap)
     assert error_deg.max() < 3.0
@@ -136,7 +136,7 @@ def test_pose_free_forearms_in_their_own_norths_are_caught_by_the_fit(motion):
     readings = to_device_earth(truth, np.radians([90.0, 180.0, 0.0, 0.0, 0.0, 0.0])[None])
     prior = _prior(truth)
     assert _turns_say_one_north(from_device_earth(readings), NAMES, NAMES.index("lower_back"), prior)
-    assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior).north == "own"
+    assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior, max_frames=150).north == "own"
 
 
 def test_horizontal_turn_coupling_is_the_angle_between_the_turns():
