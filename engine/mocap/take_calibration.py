@@ -230,9 +230,10 @@ def body_spins(world_wxyz: np.ndarray, fps: float, min_rate_rad_s: float = 0.5, 
 @dataclass
 class MotionPrior:
     """What the database says about the worn segments: its poses' nominal sensor orientations ``world_wxyz``
-    (N, S, 4) in the engine world (a motion graph's nodes), by ``sensor_names``. Lazily: each segment's
-    distribution of up directions in its nominal frame (a kernel density on a sphere grid), per sensor a
-    kd-tree of its rotations relative to the reference sensor's, and how its turns follow the reference's."""
+    (N, S, 4) in the engine world (a motion graph's nodes, consecutive within a clip, at ``fps``), by
+    ``sensor_names``. Lazily: each segment's distributions of up directions and of spin axes in its nominal frame
+    (kernel densities on a sphere grid), per sensor a kd-tree of its rotations relative to the reference
+    sensor's, and how its turns follow the reference's."""
 
     world_wxyz: np.ndarray
     sensor_names: tuple[str, ...]
