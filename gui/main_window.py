@@ -42,6 +42,7 @@ REFRESH_HZ = 100.0
 TICK_MS = int(1000 / REFRESH_HZ)
 TRACE_HZ = 30.0
 RECONNECT_INTERVAL_MS = 1000
+SAVE_WAIT_S = 30.0  # save_poses: how long a synthesis step still in flight at close may take to finish
 TruthProvider = Callable[[float], "np.ndarray | None"]  # gateway time (s) -> (J,3) m or None
 # a take's events -> its ground truth (the demo stamps its takes; production takes have none)
 TruthForTake = Callable[[list], "TruthProvider | None"]
@@ -544,11 +545,16 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         """Write every pose kept since the engine's last (re)start (``keep_poses``), in the format
         `courtside synthesize --save-poses` writes (`engine.stream.poses_file`). With several athletes the first
         athlete's poses go to ``path`` and each other athlete's to ``<stem>.<athlete>.npz`` beside it; every file
-        names its athlete in its metadata."""
+        names its athlete in its metadata. Synthesis ends first (every worker stopped and waited for, up to
+        `SAVE_WAIT_S`): a step still in flight when the window closed streams its poses out (BVH/VMC) before
+        keeping them, and the file must hold every pose that went out."""
         from engine.errors import CourtsideError
 
         if self.worker is None or self.synthesis is None:
             raise CourtsideError(f"{path}: no synthesis ran in this console: no poses to save")
+        for worker in self.workers().values():
+            worker.stop()
+            worker.join(timeout=SAVE_WAIT_S)
         path = Path(path)
         for name, worker in self.other_workers.items():
             self._save_worker_poses(path.with_name(f"{path.stem}.{name}{path.suffix or '.npz'}"), worker, name)
