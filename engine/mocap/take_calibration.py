@@ -747,10 +747,11 @@ def _search_all_rotations(solver: _Solver, k: int, reference: _Solution, start: 
     that tilt reaches, while its rotations relative to the pelvis still find the true one."""
     thin = solver.thinned(MOTION_SCREEN_STEP)
     mounts = _random_rotations(rng, MOTION_CANDIDATES)
-    no_yaw = np.zeros(len(mounts))
-    scales = thin.cost_scales(k, mounts, no_yaw, reference)
-    cost, screen = solver.scaled_cost(k, reference, scales), thin.scaled_cost(k, reference, scales)
-    seeds = list(mounts[np.argsort(screen(mounts, no_yaw))[:MOTION_KEEP]]) + [start.mount]
+    rel = thin.relative_cost(k, mounts, np.zeros(len(mounts)), reference.mount, reference.yaw_rad)
+    own = -thin.strap_score(k, mounts)
+    cost = solver.scaled_cost(k, reference, (_scales(rel), _scales(own)))
+    screened = _spread_units(rel) + _spread_units(own)  # the same units, from the one screening pass
+    seeds = list(mounts[np.argsort(screened)[:MOTION_KEEP]]) + [start.mount]
     found = [solver.refine(lambda m: cost(m, np.zeros(len(m))), seed) for seed in seeds]
     return _Solution(min(found, key=lambda mc: mc[1])[0], 0.0)
 
