@@ -737,7 +737,7 @@ def _from_motion(solver: _Solver, fits: list[np.ndarray]) -> list[_Solution]:
     return out
 
 
-def _search_all_rotations(solver: _Solver, k: int, reference: _Solution, start: _Solution,
+def _search_all_rotations(solver: _Solver, k: int, reference: _Solution, start: np.ndarray,
                           rng: np.random.Generator) -> _Solution:
     """Sensor k's strap in one north searched over all rotations on the relative misfit plus its own readings'
     unlikeliness (`_Solver.combined_cost`, in units of their spread over uniform random candidates): the best
@@ -751,7 +751,7 @@ def _search_all_rotations(solver: _Solver, k: int, reference: _Solution, start: 
     own = -thin.strap_score(k, mounts)
     cost = solver.scaled_cost(k, reference, (_scales(rel), _scales(own)))
     screened = _spread_units(rel) + _spread_units(own)  # the same units, from the one screening pass
-    seeds = list(mounts[np.argsort(screened)[:MOTION_KEEP]]) + [start.mount]
+    seeds = list(mounts[np.argsort(screened)[:MOTION_KEEP]]) + [start]
     found = [solver.refine(lambda m: cost(m, np.zeros(len(m))), seed) for seed in seeds]
     return _Solution(min(found, key=lambda mc: mc[1])[0], 0.0)
 
@@ -763,10 +763,7 @@ def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray], rng: np.rand
     reference's twist ψ is the one under which every other sensor's best twist θ leaves its rotations relative to
     the reference, and its own readings, likeliest (the sum over sensors, each term in units of its spread over
     the (ψ, θ) grid), which a per-sensor north cannot do: there each sensor's own north absorbs the reference's
-    twist. Then each other strap is searched over all rotations on that cost, from its best twist and from the
-    best of uniform random rotations: a segment whose motion the database lacks (a forearm waving) can be
-    likeliest on its own readings at a tilt well off its true one, which no twist family about that tilt
-    reaches, while its rotations relative to the pelvis still find the true one."""
+    twist. Then each other strap is searched over all rotations from its best twist (`_search_all_rotations`)."""
     names, ref = solver.names, solver.ref
     grid = np.radians(np.arange(0.0, 360.0, 10.0))
     ref_mounts = solver.up_fit_twists(ref, fits[ref], grid)  # (Ψ, 3, 3)
@@ -789,8 +786,7 @@ def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray], rng: np.rand
             out.append(reference)
             continue
         mounts, cost_grid = costs[k]
-        start = _Solution(mounts[int(np.argmin(cost_grid[ip]))], 0.0)
-        out.append(_search_all_rotations(solver, k, reference, start, rng))
+        out.append(_search_all_rotations(solver, k, reference, mounts[int(np.argmin(cost_grid[ip]))], rng))
     return out
 
 
