@@ -371,9 +371,9 @@ class _Solver:
         (A, 3, 3): the mean log density of its up axes over the frames plus the rate-weighted one of its spin
         axes (`body_spins`). The up axes fix a strap's tilt; the spin axes its twist about the segment's up, which
         the up axes leave open on a segment that mostly hangs. Measured on held-out Bandai gesture takes (straps
-        uniform over all rotations, 9-axis filters), the twist each picks alone: the spin axes put a forearm's
-        within 30 deg in 9 of 12 takes (the up axes alone in 10, but up to 100 deg off); on shins and trunk
-        the spin axes leave a turn by 180 deg open (a hinge swings both ways). Only without a held pose: with
+        uniform over all rotations, 9-axis filters; a diagnostic run, not a repo command), the twist each
+        picks alone: the spin axes put a forearm's within 30 deg in 9 of 12 takes (the up axes alone in 10,
+        but up to 100 deg off); on shins and trunk the spin axes leave a turn by 180 deg open (a hinge swings both ways). Only without a held pose: with
         one (which fixes the tilts) they moved the one heading off on a session of six ("bye", 4.58 -> 7.80 cm,
         the magnetometer sessions), so a held pose's solver gets none."""
         ups = self.frames[:, k, 1, :]  # row 1 of Q = Q⁻¹ŷ, the sensor-frame up
