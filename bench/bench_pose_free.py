@@ -6,9 +6,13 @@ one (a north per sensor); the database is every other content (leave one content
 
 Per take: how far the segments' turns lie from following the pelvis's as the database's do
 (`turn_north_offset_deg`) and what that test alone says (`TURN_NORTH_DEG`); with --solve, what `auto` decides
-with the fit test too (`ONE_NORTH_MISFIT`), each strap's error after the solve it chose, and its seconds.
+with the fit test too (`ONE_NORTH_MISFIT`), each strap's error after the solve it chose, and its seconds; with
+--cost-at-truth too, per strap the one-north search's cost at the true strap minus at the solved one
+(`one_north_strap_costs`, each set against its own pelvis strap): positive where the database likes the solved
+strap better than the truth, so that no better search would find the truth.
 
-    python bench/bench_pose_free.py --mocap-dir ../shared/mocap [--seeds 3] [--solve] [--filter 9-axis]
+    python bench/bench_pose_free.py --mocap-dir ../shared/mocap [--seeds 3] [--solve [--cost-at-truth]]
+        [--filter 9-axis]
 """
 from __future__ import annotations
 
@@ -25,7 +29,7 @@ import engine.mocap as M  # noqa: E402
 from engine.mocap import quaternions as quat  # noqa: E402
 from engine.mocap.orientation import OrientationErrorModel, from_device_earth, virtual_orientations  # noqa: E402
 from engine.mocap.take_calibration import (REFERENCE_SENSOR, TURN_NORTH_DEG, MotionPrior, PoseSpec,  # noqa: E402
-                                          calibrate_take, turn_north_offset_deg)
+                                          calibrate_take, one_north_strap_costs, turn_north_offset_deg)
 
 FPS = 30.0
 NAMES = list(M.SEED000_SENSORS)
@@ -42,6 +46,8 @@ def main() -> None:
     p.add_argument("--mocap-dir", required=True, help="the shared mocap folder (holds bandai-namco-1/data)")
     p.add_argument("--seeds", type=int, default=3, help="strap and north draws per content and filter")
     p.add_argument("--solve", action="store_true", help="also calibrate each take and print its strap errors")
+    p.add_argument("--cost-at-truth", action="store_true",
+                   help="with --solve: also the search's cost at the true straps minus at the solved ones")
     p.add_argument("--filter", choices=sorted(FILTERS), action="append",
                    help="only these orientation filters (repeatable; default both)")
     args = p.parse_args()
@@ -74,6 +80,11 @@ def main() -> None:
                     solved = calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior)
                     errors = strap_error_deg(solved.orientation.mount_wxyz, strap)
                     line += f"{solved.north:>8}{' '.join(f'{e:6.0f}' for e in errors):>60}{time.perf_counter() - start:>6.0f}"
+                    if args.cost_at_truth:
+                        gap = (one_north_strap_costs(readings, FPS, NAMES, prior, strap)
+                               - one_north_strap_costs(readings, FPS, NAMES, prior, solved.orientation.mount_wxyz))
+                        line += "   truth - solved cost: " + " ".join("  ref" if np.isnan(g) else f"{g:+5.2f}"
+                                                                       for g in gap)
                 print(line, flush=True)
 
 

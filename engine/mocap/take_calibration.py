@@ -745,15 +745,42 @@ def _search_all_rotations(solver: _Solver, k: int, reference: _Solution, start: 
     its up fit), each refined locally. Why not the twists alone: a segment whose motion the database lacks (a
     forearm waving) can be likeliest on its own readings at a tilt well off its true one, which no twist about
     that tilt reaches, while its rotations relative to the pelvis still find the true one."""
-    thin = solver.thinned(MOTION_SCREEN_STEP)
     mounts = _random_rotations(rng, MOTION_CANDIDATES)
-    rel = thin.relative_cost(k, mounts, np.zeros(len(mounts)), reference.mount, reference.yaw_rad)
-    own = -thin.strap_score(k, mounts)
-    cost = solver.scaled_cost(k, reference, (_scales(rel), _scales(own)))
-    screened = _spread_units(rel) + _spread_units(own)  # the same units, from the one screening pass
+    cost, screened = _all_rotations_cost(solver, k, reference, mounts)
     seeds = list(mounts[np.argsort(screened)[:MOTION_KEEP]]) + [start]
-    found = [solver.refine(lambda m: cost(m, np.zeros(len(m))), seed) for seed in seeds]
+    found = [solver.refine(cost, seed) for seed in seeds]
     return _Solution(min(found, key=lambda mc: mc[1])[0], 0.0)
+
+
+def _all_rotations_cost(solver: _Solver, k: int, reference: _Solution, candidates: np.ndarray):
+    """`_search_all_rotations`' cost of sensor k's strap (a function of mounts (A, 3, 3), one north), in units of
+    its two terms' spread over `candidates` (uniform random straps) screened on every `MOTION_SCREEN_STEP`-th
+    frame, and the candidates' screened costs in those units (one pass gives both)."""
+    thin = solver.thinned(MOTION_SCREEN_STEP)
+    rel = thin.relative_cost(k, candidates, np.zeros(len(candidates)), reference.mount, reference.yaw_rad)
+    own = -thin.strap_score(k, candidates)
+    cost = solver.scaled_cost(k, reference, (_scales(rel), _scales(own)))
+    return (lambda m: cost(m, np.zeros(len(m)))), _spread_units(rel) + _spread_units(own)
+
+
+def one_north_strap_costs(quat_device: np.ndarray, fps: float, sensor_names: list[str] | tuple[str, ...],
+                          prior: MotionPrior, mount_wxyz: np.ndarray, max_frames: int = 300, seed: int = 0
+                          ) -> np.ndarray:
+    """(S,) the cost the pose-free one-north search minimises (`_search_all_rotations`) at the straps `mount_wxyz`
+    (S, 4; sensor -> nominal, in `sensor_names` order) of a take with every sensor's orientation, each strap
+    against the reference sensor's strap in those straps; NaN at the reference. A diagnostic (bench/
+    bench_pose_free.py --cost-at-truth): where the true straps cost more than the solved ones, no better search
+    finds them -- the database, not the search, decides."""
+    names = list(sensor_names)
+    world = from_device_earth(np.asarray(quat_device, float))
+    ref = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else 0
+    solver = _Solver(_frames(world, max_frames), _spread_spins(world, fps, max_frames), names, prior, ref)
+    mounts = quat.to_matrix(np.asarray(mount_wxyz, float))
+    reference = _Solution(mounts[ref], 0.0)
+    candidates = _random_rotations(np.random.default_rng(seed), MOTION_CANDIDATES)
+    costs = [_all_rotations_cost(solver, k, reference, candidates)[0](mounts[k:k + 1])[0] if k != ref else np.nan
+             for k in range(len(names))]
+    return np.array(costs, float)
 
 
 def _from_motion_one_north(solver: _Solver, fits: list[np.ndarray], rng: np.random.Generator) -> list[_Solution]:

@@ -13,8 +13,7 @@ from engine.mocap.orientation import (OrientationErrorModel, from_device_earth, 
 from engine.mocap.orientation_calibration import pose_sensor_orientations
 from engine.mocap.roles import joint_roles
 from engine.mocap.take_calibration import (MotionPrior, PoseSpec, _norths_agree, _turns_say_one_north, body_spins,
-                                          calibrate_take,
-                                          check_orientations, horizontal_turn_coupling, still_stretch)
+                                          calibrate_take, check_orientations, one_north_strap_costs, horizontal_turn_coupling, still_stretch)
 
 NAMES = list(M.SEED000_SENSORS)
 FPS = 60.0
@@ -115,6 +114,24 @@ def test_pose_free_one_north_finds_every_strap(motion):
     assert solved.north == "shared"
     error_deg = _angle_deg(solved.orientation.mount_wxyz, strap)
     assert error_deg.max() < 3.0
+
+
+def test_the_search_cost_is_least_at_the_true_straps_when_the_database_holds_the_motion(motion):
+    """`one_north_strap_costs` (what bench_pose_free --cost-at-truth compares): on the method's known answer every
+    non-reference strap costs less at the truth than turned 20 deg about any axis, and the reference has none."""
+    skeleton, truth = motion
+    readings, strap, _ = _take(skeleton, truth, None, None, 3, OrientationErrorModel(yaw_offset=True,
+                                                                                      north_spread_deg=0.0))
+    prior = _prior(truth)
+    ref = NAMES.index("lower_back")
+    at_truth = one_north_strap_costs(readings, FPS, NAMES, prior, strap, max_frames=150)
+    assert np.isnan(at_truth[ref]) and np.isfinite(np.delete(at_truth, ref)).all()
+    for axis in np.eye(3):
+        turned = strap.copy()
+        others = [k for k in range(len(NAMES)) if k != ref]
+        turned[others] = quat.multiply(quat.from_rotvec(np.radians(20.0) * axis)[None], strap[others])
+        worse = one_north_strap_costs(readings, FPS, NAMES, prior, turned, max_frames=150)
+        assert (np.delete(worse - at_truth, ref) > 0).all()
 
 
 @pytest.mark.parametrize("norths_deg, one", [((0, 90, 180, 270, 0, 135), False), ((0, 0, 0, 0, 0, 0), True),
