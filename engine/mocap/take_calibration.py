@@ -375,7 +375,8 @@ class _Solver:
         picks alone: the spin axes put a forearm's within 30 deg in 9 of 12 takes (the up axes alone in 10,
         but up to 100 deg off); on shins and trunk the spin axes leave a turn by 180 deg open (a hinge swings both ways). Only without a held pose: with
         one (which fixes the tilts) they moved the one heading off on a session of six ("bye", 4.58 -> 7.80 cm,
-        the magnetometer sessions), so a held pose's solver gets none."""
+        the magnetometer sessions), and in a north per sensor (6-axis sessions from the take) they took "bye"
+        from 5.73 to 7.92 cm (6.10 -> 6.48 over six), so a held pose's solver gets none."""
         ups = self.frames[:, k, 1, :]  # row 1 of Q = Q⁻¹ŷ, the sensor-frame up
         name = self.names[k]
         score = self.prior.up_log_density(name, np.einsum("aij,fj->afi", mounts, ups)).mean(axis=-1)
