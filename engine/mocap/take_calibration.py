@@ -396,26 +396,26 @@ class _Solver:
         w = _world(self.frames[:, k], mounts, yaws)
         return self.prior.relative_cost(self.names[k], self.names[self.ref], np.swapaxes(w_ref, -1, -2) @ w)
 
-    def combined_cost(self, k: int, mounts: np.ndarray, yaws: np.ndarray, ref: _Solution):
+    def combined_cost(self, k: int, mounts: np.ndarray, yaws: np.ndarray, ref: _Solution,
+                      screen: "_Solver | None" = None):
         """The cost that picks a strap's twist: the relative misfit plus minus the up axis' log density, each in
         units of its spread over the candidates (`mounts`, `yaws`: a grid of twists) so neither drowns the other.
+        Returns the cost (a function of mounts (A, 3, 3) and yaws (A,)) and the candidates' costs in those units,
+        both from one pass over the candidates (on `screen`, a thinned solver, when given: a screening of many).
         Measured on held-out Bandai gesture takes (a held N-pose, straps uniform over all rotations): twist error
         median 5.6 deg, 95 % within 20 deg; the relative misfit alone 7.8 / 80 %, the up density alone 9.5 /
         80 %: a broad database holds a near relative rotation for many wrong twists, and an up direction alone
         says little about a segment that seldom tilts."""
-        return self.scaled_cost(k, ref, self.cost_scales(k, mounts, yaws, ref))
+        on = self if screen is None else screen
+        rel = on.relative_cost(k, mounts, yaws, ref.mount, ref.yaw_rad)
+        own = -on.strap_score(k, mounts)
+        (rel_mean, rel_sd), (own_mean, own_sd) = _scales(rel), _scales(own)
 
-    def cost_scales(self, k: int, mounts: np.ndarray, yaws: np.ndarray, ref: _Solution) -> tuple[tuple, tuple]:
-        """The mean and spread (`_scales`) of sensor k's relative misfit and of minus its `strap_score` over the
-        candidates."""
-        return (_scales(self.relative_cost(k, mounts, yaws, ref.mount, ref.yaw_rad)),
-                _scales(-self.strap_score(k, mounts)))
+        def cost(m: np.ndarray, y: np.ndarray) -> np.ndarray:
+            return ((self.relative_cost(k, m, y, ref.mount, ref.yaw_rad) - rel_mean) / rel_sd
+                    + (-self.strap_score(k, m) - own_mean) / own_sd)
 
-    def scaled_cost(self, k: int, ref: _Solution, scales: tuple[tuple, tuple]):
-        """`combined_cost` in the given units (`cost_scales`)."""
-        (rel_mean, rel_sd), (up_mean, up_sd) = scales
-        return lambda m, y: ((self.relative_cost(k, m, y, ref.mount, ref.yaw_rad) - rel_mean) / rel_sd
-                             + (-self.strap_score(k, m) - up_mean) / up_sd)
+        return cost, _spread_units(rel) + _spread_units(own)
 
     def thinned(self, step: int) -> "_Solver":
         """This solver on every `step`-th frame: a screening of many candidates at a fraction of the cost."""
@@ -635,8 +635,8 @@ def _from_held_pose(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec:
         if k == ref:
             continue
         a = a0 if k in arms else angles[0]
-        cost = solver.combined_cost(k, *family(k, a, thetas), reference)
-        out[k] = fine(k, a, float(thetas[int(np.argmin(cost(*family(k, a, thetas))))]), cost)
+        cost, grid = solver.combined_cost(k, *family(k, a, thetas), reference)
+        out[k] = fine(k, a, float(thetas[int(np.argmin(grid))]), cost)
     return out, (a0 if spec.name == "apose" else None)
 
 
@@ -732,8 +732,8 @@ def _from_motion(solver: _Solver, fits: list[np.ndarray]) -> list[_Solution]:
             continue
         mounts = np.repeat(solver.up_fit_twists(k, fits[k], thetas), len(thetas), axis=0)
         yaws = np.tile(thetas, len(thetas))
-        cost = solver.combined_cost(k, mounts, yaws, reference)
-        i = int(np.argmin(cost(mounts, yaws)))
+        cost, grid = solver.combined_cost(k, mounts, yaws, reference)
+        i = int(np.argmin(grid))
         out.append(solver.refine_pair(_Solution(mounts[i], float(yaws[i])), cost))
     return out
 
@@ -757,11 +757,9 @@ def _all_rotations_cost(solver: _Solver, k: int, reference: _Solution, candidate
     """`_search_all_rotations`' cost of sensor k's strap (a function of mounts (A, 3, 3), one north), in units of
     its two terms' spread over `candidates` (uniform random straps) screened on every `MOTION_SCREEN_STEP`-th
     frame, and the candidates' screened costs in those units (one pass gives both)."""
-    thin = solver.thinned(MOTION_SCREEN_STEP)
-    rel = thin.relative_cost(k, candidates, np.zeros(len(candidates)), reference.mount, reference.yaw_rad)
-    own = -thin.strap_score(k, candidates)
-    cost = solver.scaled_cost(k, reference, (_scales(rel), _scales(own)))
-    return (lambda m: cost(m, np.zeros(len(m)))), _spread_units(rel) + _spread_units(own)
+    cost, screened = solver.combined_cost(k, candidates, np.zeros(len(candidates)), reference,
+                                          screen=solver.thinned(MOTION_SCREEN_STEP))
+    return (lambda m: cost(m, np.zeros(len(m)))), screened
 
 
 def one_north_strap_costs(quat_device: np.ndarray, fps: float, sensor_names: list[str] | tuple[str, ...],
