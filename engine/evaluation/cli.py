@@ -25,7 +25,7 @@ from engine.graph.root_fusion import RootFusion
 from engine.graph.warp import RootWarp
 from engine.mocap import SensorErrorModel
 from engine.mocap.orientation import OrientationErrorModel
-from engine.mocap.take_calibration import PoseSpec
+from engine.mocap.take_calibration import NORTHS, PoseSpec
 from engine.safe_load import read_json
 
 from . import plot, protocols, table
@@ -103,6 +103,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--calibration-from", choices=CALIBRATION_SOURCES, default="pose",
                    help="acc+ori rows: pose (a held pose before the take) or motion (no held pose: strapping and yaw "
                         "from the take's motion against the database, engine/mocap/take_calibration.py)")
+    p.add_argument("--north", choices=NORTHS, default="auto",
+                   help="acc+ori rows solved from the take: what the solve is told of the sensors' earth frames, as "
+                        "`courtside calibrate --north` (auto: found; shared: one north, magnetometer-aided; own: "
+                        "6-axis, each its own)")
     p.add_argument("--json", help="write every row's summary and per-second traces here")
     p.add_argument("--plot", metavar="OUT.png", help="draw the first take's per-second error of every row and the "
                                                      "table as bars (needs the plot extra: courtside[plot])")
@@ -155,7 +159,7 @@ def _capture(args: argparse.Namespace) -> CalibrationCapture:
             raise CourtsideError("--start-pose: npose, tpose or apose[:DEG] (no window; --calibration-from motion "
                                  "holds no pose)")
     return CalibrationCapture(posing_error_deg=args.posing_error_deg, strapping=args.strapping,
-                              start_pose=args.start_pose, source=args.calibration_from)
+                              start_pose=args.start_pose, source=args.calibration_from, north=args.north)
 
 
 def _database(args: argparse.Namespace) -> protocols.Database:

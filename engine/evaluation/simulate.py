@@ -105,18 +105,22 @@ class CalibrationCapture:
     hanging) is the pose held instead of the N-pose, and the calibration is then solved FROM THE TAKE by what
     `courtside calibrate` runs (engine.mocap.take_calibration: the still stretch found, an A-pose's arm angle
     fitted, each strap's twist from the motion against the database); `source` "motion" holds no pose at all and
-    calibrates from the motion alone. Defaults: the wizard's N-pose with today's straps and solve."""
+    calibrates from the motion alone; `north` is what that solve is told of the sensors' earth frames, as
+    `courtside calibrate --north` (auto: found; shared: a magnetometer's one north; own: 6-axis, one each).
+    Defaults: the wizard's N-pose with today's straps and solve."""
 
     seconds: float = 2.0
     posing_error_deg: float = 8.0
     strapping: str = "nominal"
     start_pose: str | None = None
     source: str = "pose"
+    north: str = "auto"
 
     @property
     def from_take(self) -> bool:
         """Is the calibration solved from the take (`calibrate_take`) rather than the wizard's N-pose solve?"""
-        return self.strapping != "nominal" or self.start_pose is not None or self.source != "pose"
+        return (self.strapping != "nominal" or self.start_pose is not None or self.source != "pose"
+                or self.north != "auto")
 
 
 def _true_orientations(take: Take, sensor_names: tuple[str, ...] | list[str], fps: float) -> np.ndarray:
@@ -181,7 +185,8 @@ def take_calibrated_sensors(take: Take, sensor_names: tuple[str, ...] | list[str
     readings = error_model.apply(quat.multiply(truth, strap[None]), fps, rng)
     pose = PoseSpec("none") if capture.source == "motion" else PoseSpec("apose")
     try:
-        solved = calibrate_take(readings, fps, list(sensor_names), graph.skeleton, pose, MotionPrior.from_graph(graph))
+        solved = calibrate_take(readings, fps, list(sensor_names), graph.skeleton, pose, MotionPrior.from_graph(graph),
+                                north=capture.north)
     except ValueError as exc:
         raise CourtsideError(f"simulated calibration: {exc}") from None
     cal = solved.orientation

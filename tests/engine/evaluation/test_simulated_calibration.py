@@ -53,3 +53,17 @@ def test_random_straps_and_an_a_pose_start_are_solved_from_the_take(motions, gra
 def test_bad_start_pose_option_is_one_line(capsys):
     with pytest.raises(CourtsideError, match="--start-pose"):
         evaluate_main(["--protocol", "loco", "--sample", "--inputs", "acc+ori", "--start-pose", "apose@0:2"])
+
+
+@pytest.mark.parametrize("north", ["shared", "own"])
+def test_the_capture_tells_the_solve_the_north(motions, graph, north):
+    """`evaluate --north` reaches the solve as `calibrate --north` would: told one north, every sensor gets the one
+    heading (equal yaws) although each filter has its own; told its own, each gets its own (tens of degrees
+    apart, as the filters' norths are)."""
+    take = chain_clips(motions, [1, 3, 5], [m.name for m in motions])
+    acc, _ = accelerometers(take, NAMES, None, np.random.default_rng(0))
+    capture = CalibrationCapture(posing_error_deg=0.0, strapping="random", start_pose="apose:40", north=north)
+    *_, cal = take_calibrated_sensors(take, NAMES, acc, OrientationErrorModel(yaw_offset=True),
+                                      np.random.default_rng(1), capture, graph)
+    spread_deg = np.degrees(np.ptp(np.unwrap(cal.yaw_rad)))
+    assert (spread_deg < 1e-6) if north == "shared" else (spread_deg > 10.0)
