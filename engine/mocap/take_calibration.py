@@ -373,8 +373,8 @@ class _Solver:
         the up axes leave open on a segment that mostly hangs. Measured on held-out Bandai gesture takes (straps
         uniform over all rotations, 9-axis filters; a diagnostic run, not a repo command), the twist each
         picks alone: the spin axes put a forearm's within 30 deg in 9 of 12 takes (the up axes alone in 10,
-        but up to 100 deg off); on shins and trunk the spin axes leave a turn by 180 deg open (a hinge swings both ways). Only without a held pose: with
-        one (which fixes the tilts) they moved the one heading off on a session of six ("bye", 4.58 -> 7.80 cm,
+        but up to 100 deg off); on shins and trunk the spin axes leave a turn by 180 deg open (a hinge swings
+        both ways). Only without a held pose: with one (which fixes the tilts) they moved the one heading off on a session of six ("bye", 4.58 -> 7.80 cm,
         the magnetometer sessions), and in a north per sensor (6-axis sessions from the take) they took "bye"
         from 5.73 to 7.92 cm (6.10 -> 6.48 over six), so a held pose's solver gets none."""
         ups = self.frames[:, k, 1, :]  # row 1 of Q = Q⁻¹ŷ, the sensor-frame up
@@ -502,13 +502,8 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     sensors = [k for k in range(len(names)) if np.isfinite(q[:, k]).all(axis=-1).any()]
     q, names = q[:, sensors], [names[k] for k in sensors]
     world = from_device_earth(q)
-    frames = _frames(world, max_frames)
-    ref = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else 0
-    if pose.name != "none":  # a held pose fixes the tilts; the spin axes moved one session's heading off (strap_score)
-        spins = (np.zeros((0, len(names), 3)), np.zeros((0, len(names))))
-    else:
-        spins = _spread_spins(world, fps, max_frames)
-    solver = _Solver(frames, spins, names, prior, ref)
+    # a held pose fixes the tilts; the spin axes moved one session's heading off (strap_score)
+    solver = _take_solver(world, fps, names, prior, max_frames, spins=pose.name == "none")
     if pose.name == "none":
         if prior is None:
             raise ValueError("calibration from motion (pose none) needs the database: give the graph (--graph)")
@@ -536,6 +531,16 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
     notes = tuple(NO_TWIST_NOTE if prior is None and not one_north else "" for _ in sensors)
     return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes, "shared" if one_north else "own")
+
+
+def _take_solver(world: np.ndarray, fps: float, names: list[str], prior: MotionPrior | None, max_frames: int,
+                 spins: bool) -> _Solver:
+    """The solver of a take's world-frame orientations (T, S, 4) against `prior`: up to `max_frames` spread
+    frames, the pelvis sensor as reference (else the first), and the take's spin axes when `spins`."""
+    ref = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else 0
+    no_spins = (np.zeros((0, len(names), 3)), np.zeros((0, len(names))))
+    return _Solver(_frames(world, max_frames), _spread_spins(world, fps, max_frames) if spins else no_spins,
+                   names, prior, ref)
 
 
 def horizontal_turn_coupling(world_wxyz: np.ndarray, ref: int, max_step_rad: float = 0.35
@@ -771,9 +776,8 @@ def one_north_strap_costs(quat_device: np.ndarray, fps: float, sensor_names: lis
     bench_pose_free.py --cost-at-truth): where the true straps cost more than the solved ones, no better search
     finds them -- the database, not the search, decides."""
     names = list(sensor_names)
-    world = from_device_earth(np.asarray(quat_device, float))
-    ref = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names else 0
-    solver = _Solver(_frames(world, max_frames), _spread_spins(world, fps, max_frames), names, prior, ref)
+    solver = _take_solver(from_device_earth(np.asarray(quat_device, float)), fps, names, prior, max_frames, spins=True)
+    ref = solver.ref
     mounts = quat.to_matrix(np.asarray(mount_wxyz, float))
     reference = _Solution(mounts[ref], 0.0)
     candidates = _random_rotations(np.random.default_rng(seed), MOTION_CANDIDATES)

@@ -13,7 +13,8 @@ from engine.mocap.orientation import (OrientationErrorModel, from_device_earth, 
 from engine.mocap.orientation_calibration import pose_sensor_orientations
 from engine.mocap.roles import joint_roles
 from engine.mocap.take_calibration import (MotionPrior, PoseSpec, _norths_agree, _turns_say_one_north, body_spins,
-                                          calibrate_take, check_orientations, one_north_strap_costs, horizontal_turn_coupling, still_stretch)
+                                          calibrate_take, check_orientations, horizontal_turn_coupling,
+                                          one_north_strap_costs, still_stretch)
 
 NAMES = list(M.SEED000_SENSORS)
 FPS = 60.0
@@ -126,9 +127,9 @@ def test_the_search_cost_is_least_at_the_true_straps_when_the_database_holds_the
     ref = NAMES.index("lower_back")
     at_truth = one_north_strap_costs(readings, FPS, NAMES, prior, strap, max_frames=150)
     assert np.isnan(at_truth[ref]) and np.isfinite(np.delete(at_truth, ref)).all()
+    others = [k for k in range(len(NAMES)) if k != ref]
     for axis in np.eye(3):
         turned = strap.copy()
-        others = [k for k in range(len(NAMES)) if k != ref]
         turned[others] = quat.multiply(quat.from_rotvec(np.radians(20.0) * axis)[None], strap[others])
         worse = one_north_strap_costs(readings, FPS, NAMES, prior, turned, max_frames=150)
         assert (np.delete(worse - at_truth, ref) > 0).all()
