@@ -37,8 +37,10 @@ by all sensors, the athlete's heading in that frame ε (M = P⁻¹ yaw(-ε) Q): 
 leave every sensor's rotations relative to the pelvis sensor, and their up axes, likeliest under the database
 (`_shared_north`): six sensors' evidence on one angle instead of one sensor's on its own twist. ``auto``
 solves each sensor's own north first and takes one north when they agree (`ONE_NORTH_DEG`), as they rarely do
-on 6-axis filters whose norths are where each device booted; without a held pose it asks how the segments'
-horizontal turns follow the pelvis's (`turn_north_offset_deg`), which no strap changes.
+on 6-axis filters whose norths are where each device booted, or when the one-north solve fits the database
+nearly as well as the per-sensor one (`HELD_ONE_NORTH_FIT`: on a gesture the database lacks the per-sensor solves
+miss and disagree though the north is one); without a held pose it asks how the segments' horizontal turns follow
+the pelvis's (`turn_north_offset_deg`), which no strap changes.
 
 The engines refine the strapping further over the take (engine/graph/orientation_pose.py, the strap refinement),
 so this only needs to land within its reach (tens of degrees would not; a few degrees do). Measured on held-out
@@ -78,6 +80,11 @@ ONE_NORTH_MISFIT = 0.17  # pose none, auto: how much worse (mean log k-NN distan
 #                         may fit than the per-sensor one; on 12 held-out Bandai takes one north fit 0.15 worse at
 #                         most, a north per sensor 0.19 at least; in the evaluation's sessions one 9-axis content
 #                         of six failed it and one 6-axis content passed it (docs/imu-import.md)
+HELD_ONE_NORTH_FIT = 0.27  # held pose, auto, when the own solved norths disagree: how much worse (relative misfit
+#   plus own-reading unlikeliness, each a mean per sensor: `_fit_gap`) the one-north solve may fit than the
+#   per-sensor one. Measured on held-out Bandai contents (a diagnostic run, 6 draws x 6 contents x 2 filters, a
+#   70-deg A-pose held 2 s, uniform straps): one north 0.21 worse at most (the waving "byebye" excepted, 0.36-0.49,
+#   which keeps a north per sensor), a north each 0.33 worse at least.
 SPIN_INTERVAL_S = 1.0 / 15.0  # the turn whose axis is a segment's spin: long enough to rise above a filter's
 #                                sample-to-sample noise, short enough that the axis is still one axis
 SPIN_KERNEL_DEG = 15.0
@@ -522,12 +529,11 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
                          f"orientation (take: 0-{len(q) / fps:.1f} s)")
     held = quat.to_matrix(from_device_earth(mean_orientation(held_q)))  # (S, 3, 3)
     if north == "shared":
-        one_north = True
+        (solutions, arm_deg), one_north = _shared_north(solver, held, skeleton, pose), True
+    elif north == "own" or prior is None:  # without a database there is nothing to tell one north by
+        (solutions, arm_deg), one_north = _from_held_pose(solver, held, skeleton, pose), False
     else:
-        solutions, arm_deg = _from_held_pose(solver, held, skeleton, pose)
-        one_north = north == "auto" and prior is not None and _norths_agree([s.yaw_rad for s in solutions])
-    if one_north:
-        solutions, arm_deg = _shared_north(solver, held, skeleton, pose)
+        (solutions, arm_deg), one_north = _held_pose_any_north(solver, held, skeleton, pose)
     found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
     notes = tuple(NO_TWIST_NOTE if prior is None and not one_north else "" for _ in sensors)
     return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes, "shared" if one_north else "own")
@@ -579,6 +585,34 @@ def _turns_say_one_north(world: np.ndarray, names: list[str], ref: int, prior: M
     of 18 takes; a north per sensor (three draws, six contents) beyond 60 in 12 of 18. A miss is not cheap (a
     6-axis session at 17.9 cm against 10.5), hence the fit test after it (`_from_motion_any_north`)."""
     return turn_north_offset_deg(world, names, ref, prior) <= TURN_NORTH_DEG
+
+
+def _held_pose_any_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: PoseSpec
+                         ) -> tuple[tuple[list[_Solution], float | None], bool]:
+    """Held pose, north auto: the solve to keep (the per-sensor one, `_from_held_pose`, or the one-north one,
+    `_shared_north`), and whether in one north. One north when the sensors' own solved norths agree (`_norths_agree`); else when the one-north solve
+    fits the database within `HELD_ONE_NORTH_FIT` of the per-sensor solve (`_fit_gap`). Why both: on a gesture
+    the database lacks, the per-sensor solves miss (a waving forearm's twist 120 deg off) and no longer agree
+    though the sensors share one north, and the one-north solve, whose straps the held pose forces, then still fits
+    about as well; in a north each it forces straps 60-110 deg off and fits far worse."""
+    own = _from_held_pose(solver, held, skeleton, spec)
+    if _norths_agree([s.yaw_rad for s in own[0]]):
+        return _shared_north(solver, held, skeleton, spec), True
+    shared = _shared_north(solver, held, skeleton, spec)
+    if _fit_gap(solver, shared[0], own[0]) <= HELD_ONE_NORTH_FIT:
+        return shared, True
+    return own, False
+
+
+def _fit_gap(solver: _Solver, shared: list[_Solution], own: list[_Solution]) -> float:
+    """How much worse the one-north solve `shared` fits the database than the per-sensor `own`: the difference of
+    their relative misfits (`_relative_misfit`) plus that of their straps' own-reading unlikeliness (minus
+    `_Solver.strap_score`, the mean over sensors)."""
+    def unlikeliness(solutions: list[_Solution]) -> float:
+        return float(np.mean([-solver.strap_score(k, s.mount[None])[0] for k, s in enumerate(solutions)]))
+
+    return (_relative_misfit(solver, shared) - _relative_misfit(solver, own)
+            + unlikeliness(shared) - unlikeliness(own))
 
 
 def _norths_agree(yaws_rad: list[float]) -> bool:
