@@ -4,7 +4,7 @@ virtual orientation sensors strapped uniformly over all rotations, a 40-degree A
 database holds the take's motion, so this is the method's known answer, not its accuracy on unseen motion).
 
 Per take and filter: how far the sensors' own solved norths lie from their circular mean (the agreement test
-`auto` applies), what `auto` decides, the worst strap error of the own and the shared solve, and their seconds
+`auto` applies first), what `auto` decides (the agreement test, then the fit test `HELD_ONE_NORTH_FIT`), the worst strap error of the own and the shared solve, and their seconds
 (the ratio, shared / own, in the same process). Then how often uniform random norths pass the agreement test.
 
     python bench/bench_one_north.py [--seeds 6]
@@ -73,7 +73,7 @@ def main() -> None:
             shared, t_shared = timed_calibration(readings, skeleton, prior, "shared")
             z = np.exp(1j * own.orientation.yaw_rad)
             off = np.degrees(np.abs(np.angle(z * np.conj(z.mean())))).max()
-            auto = "shared" if _norths_agree(list(own.orientation.yaw_rad)) else "own"
+            auto = timed_calibration(readings, skeleton, prior, "auto")[0].north
             own_s, shared_s = own_s + t_own, shared_s + t_shared
             print(f"{label:<22}{seed:>5}{off:>20.1f}{auto:>8}"
                   f"{strap_error_deg(own.orientation.mount_wxyz, strap).max():>15.1f}"
