@@ -136,6 +136,23 @@ def test_one_north_is_kept_where_a_gesture_the_database_lacks_makes_the_own_solv
     assert calibrate_take(six_axis, 30.0, NAMES, skeleton, apose, prior).north == "own"
 
 
+@pytest.mark.parametrize("one_north", [True, False])
+def test_three_sensors_are_told_apart_by_the_fit(motion, one_north):
+    """Three sensors: too few for the agreement test (four at least), so `auto` decides by the fit test alone
+    (`HELD_ONE_NORTH_FIT`): one north where they share it, a north each where each has its own."""
+    skeleton, truth = motion
+    three = ["left_forearm", "left_shin", "lower_back"]
+    columns = [NAMES.index(n) for n in three]
+    rng = np.random.default_rng(4)
+    strap = quat.normalize(rng.normal(size=(3, 4)))
+    held = pose_sensor_orientations(skeleton, three, "apose", arm_deg=40.0)
+    q = quat.multiply(np.concatenate([np.repeat(held[None], int(2 * FPS), 0), truth[:, columns]]), strap[None])
+    readings = OrientationErrorModel(yaw_offset=True, north_spread_deg=0.0 if one_north else None).apply(q, FPS, rng)
+    prior = MotionPrior(truth[:, columns], tuple(three), fps=FPS)
+    solved = calibrate_take(readings, FPS, three, skeleton, PoseSpec("apose"), prior)
+    assert solved.north == ("shared" if one_north else "own")
+
+
 def test_pose_free_one_north_finds_every_strap(motion):
     """No held pose, one earth frame (a magnetometer-aided filter), straps uniform over all rotations: `auto`
     sees one north in how the segments turn with the pelvis and every strap comes out within 3 deg (the
