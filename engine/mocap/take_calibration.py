@@ -590,16 +590,15 @@ def _turns_say_one_north(world: np.ndarray, names: list[str], ref: int, prior: M
 def _held_pose_any_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: PoseSpec
                          ) -> tuple[tuple[list[_Solution], float | None], bool]:
     """Held pose, north auto: the solve to keep (the per-sensor one, `_from_held_pose`, or the one-north one,
-    `_shared_north`), and whether in one north. One north when the sensors' own solved norths agree (`_norths_agree`); else when the one-north solve
-    fits the database within `HELD_ONE_NORTH_FIT` of the per-sensor solve (`_fit_gap`). Why both: on a gesture
-    the database lacks, the per-sensor solves miss (a waving forearm's twist 120 deg off) and no longer agree
-    though the sensors share one north, and the one-north solve, whose straps the held pose forces, then still fits
-    about as well; in a north each it forces straps 60-110 deg off and fits far worse."""
+    `_shared_north`), and whether in one north. One north when the sensors' own solved norths agree
+    (`_norths_agree`) or the one-north solve fits the database within `HELD_ONE_NORTH_FIT` of the per-sensor
+    solve (`_fit_gap`). Why both: on a gesture the database lacks, the per-sensor solves miss (a waving forearm's
+    twist 120 deg off) and no longer agree though the sensors share one north, and the one-north solve, whose
+    straps the held pose forces, then still fits about as well; in a north each it forces straps 60-110 deg off
+    and fits far worse. The fit test also decides for fewer than the four sensors the agreement test needs."""
     own = _from_held_pose(solver, held, skeleton, spec)
-    if _norths_agree([s.yaw_rad for s in own[0]]):
-        return _shared_north(solver, held, skeleton, spec), True
     shared = _shared_north(solver, held, skeleton, spec)
-    if _fit_gap(solver, shared[0], own[0]) <= HELD_ONE_NORTH_FIT:
+    if _norths_agree([s.yaw_rad for s in own[0]]) or _fit_gap(solver, shared[0], own[0]) <= HELD_ONE_NORTH_FIT:
         return shared, True
     return own, False
 
