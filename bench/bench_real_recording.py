@@ -20,8 +20,7 @@ orientations and accelerations (the measured real-sensor error model) at 60 Hz, 
 rotation, its orientation read through a magnetometer-free filter's errors (``--filter 6axis``: random yaw per
 sensor, drift, 2 deg of wandering tilt: `OrientationErrorModel.realistic` without its own strapping) or a
 magnetometer-aided one's (``9axis``, as Xsens MTw/DOT export: one north, each sensor 4 deg off it:
-`OrientationErrorModel.magnetometer`). The perfect record holds each sensor's yaw at the take's start and its
-strap.
+`OrientationErrorModel.magnetometer`). The perfect record holds each sensor's yaw at the take's start and its strap.
 """
 from __future__ import annotations
 
