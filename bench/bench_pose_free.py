@@ -41,6 +41,23 @@ def strap_error_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(2 * np.arccos(np.minimum(1.0, np.abs(np.sum(a * b, axis=-1)))))
 
 
+def content_orientations(mocap_dir: str) -> tuple[dict[str, list[np.ndarray]], M.Skeleton]:
+    """Every Bandai-1 clip's six virtual sensor orientations (F, S, 4) at `FPS`, by content, and the first clip's
+    skeleton (the one the calibration poses are built on)."""
+    files = sorted(Path(mocap_dir, "bandai-namco-1", "data").glob("*.bvh"))
+    by_content: dict[str, list[np.ndarray]] = {}
+    for f in files:
+        motion = M.resample(M.load_clip(f), FPS)
+        by_content.setdefault(f.stem.split("_")[1], []).append(
+            virtual_orientations(motion, M.standard_placements(motion.skeleton, NAMES)))
+    return by_content, M.resample(M.load_clip(files[0]), FPS).skeleton
+
+
+def leave_content_out(by_content: dict[str, list[np.ndarray]], content: str) -> MotionPrior:
+    """The database of every other content, as `courtside evaluate --session` holds a content out."""
+    return MotionPrior(np.concatenate([q for c, qs in by_content.items() if c != content for q in qs]), tuple(NAMES))
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--mocap-dir", required=True, help="the shared mocap folder (holds bandai-namco-1/data)")
@@ -51,19 +68,12 @@ def main() -> None:
     p.add_argument("--filter", choices=sorted(FILTERS), action="append",
                    help="only these orientation filters (repeatable; default both)")
     args = p.parse_args()
-    files = sorted(Path(args.mocap_dir, "bandai-namco-1", "data").glob("*.bvh"))
-    by_content: dict[str, list[np.ndarray]] = {}
-    for f in files:
-        motion = M.resample(M.load_clip(f), FPS)
-        by_content.setdefault(f.stem.split("_")[1], []).append(
-            virtual_orientations(motion, M.standard_placements(motion.skeleton, NAMES)))
-    skeleton = M.resample(M.load_clip(files[0]), FPS).skeleton
+    by_content, skeleton = content_orientations(args.mocap_dir)
     ref = NAMES.index(REFERENCE_SENSOR)
     print(f"{'content':<9}{'filter':<8}{'seed':>5}{'turn offset deg':>16}{'turns':>8}"
           + (f"{'auto':>8}{'strap errors deg (' + ', '.join(NAMES) + ')':>60}{'s':>6}" if args.solve else ""))
     for content in CONTENTS:
-        prior = MotionPrior(np.concatenate([q for c, qs in by_content.items() if c != content for q in qs]),
-                            tuple(NAMES))
+        prior = leave_content_out(by_content, content)
         truth = np.concatenate(by_content[content])
         for label, model in FILTERS.items():
             if args.filter and label not in args.filter:
