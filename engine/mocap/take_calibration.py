@@ -82,9 +82,10 @@ ONE_NORTH_MISFIT = 0.17  # pose none, auto: how much worse (mean log k-NN distan
 #                         of six failed it and one 6-axis content passed it (docs/imu-import.md)
 HELD_ONE_NORTH_FIT = 0.27  # held pose, auto, when the own solved norths disagree: how much worse (relative misfit
 #   plus own-reading unlikeliness, each a mean per sensor: `_fit_gap`) the one-north solve may fit than the
-#   per-sensor one. Measured on held-out Bandai contents (a diagnostic run, 6 draws x 6 contents x 2 filters, a
-#   70-deg A-pose held 2 s, uniform straps): one north 0.21 worse at most (the waving "byebye" excepted, 0.36-0.49,
-#   which keeps a north per sensor), a north each 0.33 worse at least.
+#   per-sensor one. Measured (bench/bench_held_north.py: 6 draws x 6 held-out Bandai contents x 2 filters, a
+#   70-deg A-pose held 2 s, uniform straps): on the 15 9-axis takes whose own norths disagreed one north fit
+#   0.05-0.26 worse, on the 34 such 6-axis takes 0.27-1.73 (one "byebye" take at 0.269, taken as one north):
+#   a thin margin.
 SPIN_INTERVAL_S = 1.0 / 15.0  # the turn whose axis is a segment's spin: long enough to rise above a filter's
 #                                sample-to-sample noise, short enough that the axis is still one axis
 SPIN_KERNEL_DEG = 15.0
