@@ -6,11 +6,13 @@ north +- 4 deg) or a 6-axis one (a north per sensor); the database is every othe
 out), as `courtside evaluate --session` does.
 
 Per take: whether the per-sensor solve's norths agree (`_norths_agree`), how much worse the one-north solve fits
-the database than the per-sensor one (`_fit_gap`, the quantity `HELD_ONE_NORTH_FIT` bounds), what `auto`
-decides, and the mean strap error of each solve. Then, per filter, the range of the gap over the takes whose own
-norths disagree, and how many of them the fit test takes as one north.
+the database than the per-sensor one (`_fit_gap`, the quantity `HELD_ONE_NORTH_FIT` bounds), how far the
+sensors' turns lie from following the pelvis's as in one earth frame (`turn_north_offset_deg`, bounded by
+`HELD_TURN_NORTH_DEG`), what `auto` decides, and the mean strap error of each solve. Then, per filter, the range
+of the turn offset, that of the fit gap over the takes whose turns pass and whose own norths disagree, and how
+many takes `auto` took as one north.
 
-    python bench/bench_held_north.py --mocap-dir ../shared/mocap [--seeds 6]
+    python bench/bench_held_north.py --mocap-dir ../shared/mocap [--seeds 6] [--first-seed 1]
 """
 from __future__ import annotations
 
@@ -28,8 +30,8 @@ from engine.evaluation.simulate import random_rotations  # noqa: E402
 from engine.mocap import quaternions as quat  # noqa: E402
 from engine.mocap.orientation import from_device_earth  # noqa: E402
 from engine.mocap.orientation_calibration import pose_sensor_orientations  # noqa: E402
-from engine.mocap.take_calibration import (HELD_ONE_NORTH_FIT, PoseSpec, _fit_gap, _norths_agree,  # noqa: E402
-                                          _Solution, _take_solver, calibrate_take)
+from engine.mocap.take_calibration import (HELD_TURN_NORTH_DEG, PoseSpec, _fit_gap, _norths_agree,  # noqa: E402
+                                          _Solution, _take_solver, calibrate_take, turn_north_offset_deg)
 
 HOLD_S = 2.0
 ARM_DEG = 70.0
@@ -46,17 +48,18 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--mocap-dir", required=True, help="the shared mocap folder (holds bandai-namco-1/data)")
     p.add_argument("--seeds", type=int, default=6, help="strap, heading and north draws per content and filter")
+    p.add_argument("--first-seed", type=int, default=1, help="the first draw's seed (more draws: --first-seed 7)")
     args = p.parse_args()
     by_content, skeleton = content_orientations(args.mocap_dir)
     apose = PoseSpec("apose")
     print(f"{'content':<9}{'filter':<8}{'seed':>5}{'agree':>7}{'fit gap':>9}{'auto':>8}"
-          f"{'own strap mean deg':>20}{'one-north strap mean deg':>26}")
-    gaps: dict[str, list[float]] = {label: [] for label in FILTERS}  # of the takes whose own norths disagree
+          f"{'turn off':>9}{'own strap mean deg':>20}{'one-north strap mean deg':>26}")
+    rows: dict[str, list[tuple[bool, float, float, bool]]] = {label: [] for label in FILTERS}
     for content in CONTENTS:
         prior = leave_content_out(by_content, content)
         truth = np.concatenate(by_content[content])
         for label, model in FILTERS.items():
-            for seed in range(1, args.seeds + 1):
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
                 rng = np.random.default_rng(seed)
                 strap = quat.normalize(rng.normal(size=(len(NAMES), 4)))
                 held = pose_sensor_orientations(skeleton, NAMES, "apose", heading_rad=rng.uniform(-np.pi, np.pi),
@@ -69,18 +72,22 @@ def main() -> None:
                                        north="own" if auto.north == "shared" else "shared")
                 own, shared = (other, auto) if auto.north == "shared" else (auto, other)
                 agree = _norths_agree(list(own.orientation.yaw_rad))
-                solver = _take_solver(from_device_earth(readings), FPS, NAMES, prior, 300, spins=False)
+                world = from_device_earth(readings)
+                solver = _take_solver(world, FPS, NAMES, prior, 300, spins=False)
+                turn = turn_north_offset_deg(world, NAMES, solver.ref, prior)
                 gap = _fit_gap(solver, solutions(shared), solutions(own))
-                if not agree:
-                    gaps[label].append(gap)
+                rows[label].append((agree, gap, turn, auto.north == "shared"))
                 print(f"{content:<9}{label:<8}{seed:>5}{'yes' if agree else 'no':>7}{gap:>+9.3f}{auto.north:>8}"
+                      f"{turn:>9.0f}"
                       f"{strap_error_deg(own.orientation.mount_wxyz, strap).mean():>20.1f}"
                       f"{strap_error_deg(shared.orientation.mount_wxyz, strap).mean():>26.1f}", flush=True)
-    for label, values in gaps.items():
-        if values:
-            within = sum(v <= HELD_ONE_NORTH_FIT for v in values)
-            print(f"{label}: {len(values)} takes whose own norths disagree, fit gap {min(values):+.3f} .. "
-                  f"{max(values):+.3f}; within HELD_ONE_NORTH_FIT ({HELD_ONE_NORTH_FIT}, one north): {within}")
+    for label, takes in rows.items():
+        turns = [turn for _, _, turn, _ in takes]
+        gaps = [gap for agree, gap, turn, _ in takes if not agree and turn <= HELD_TURN_NORTH_DEG]
+        gap_text = f"{min(gaps):+.3f} .. {max(gaps):+.3f}" if gaps else "-"
+        print(f"{label}: {len(takes)} takes, turn offset {min(turns):.0f}-{max(turns):.0f} deg; {len(gaps)} pass the "
+              f"turns with own norths that disagree, fit gap {gap_text}; "
+              f"auto took one north on {sum(one for *_, one in takes)}")
 
 
 if __name__ == "__main__":

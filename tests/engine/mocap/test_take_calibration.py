@@ -12,9 +12,10 @@ from engine.mocap.orientation import (OrientationErrorModel, from_device_earth, 
                                       virtual_orientations)
 from engine.mocap.orientation_calibration import pose_sensor_orientations
 from engine.mocap.roles import joint_roles
-from engine.mocap.take_calibration import (MotionPrior, PoseSpec, _norths_agree, _turns_say_one_north, body_spins,
-                                          calibrate_take, check_orientations, horizontal_turn_coupling,
-                                          one_north_strap_costs, still_stretch)
+from engine.mocap.take_calibration import (HELD_TURN_NORTH_DEG, MotionPrior, PoseSpec, _norths_agree,
+                                          _turns_say_one_north, body_spins, calibrate_take, check_orientations,
+                                          horizontal_turn_coupling, one_north_strap_costs, still_stretch,
+                                          turn_north_offset_deg)
 
 NAMES = list(M.SEED000_SENSORS)
 FPS = 60.0
@@ -134,6 +135,25 @@ def test_one_north_is_kept_where_a_gesture_the_database_lacks_makes_the_own_solv
     assert _angle_deg(solved.orientation.mount_wxyz, strap).max() < 20.0
     six_axis = OrientationErrorModel.realistic().apply(q, 30.0, rng)
     assert calibrate_take(six_axis, 30.0, NAMES, skeleton, apose, prior).north == "own"
+
+
+def test_six_axis_norths_that_agree_by_chance_are_told_apart_by_how_the_segments_turn(held_out_gesture):
+    """A 6-axis filter (a north per sensor) whose boot norths happen to leave the per-sensor solves agreeing on
+    one north, on waving the database lacks: the segments' horizontal turns do not follow the pelvis's as in one
+    earth frame (`turn_north_offset_deg` beyond `HELD_TURN_NORTH_DEG`), so `auto` keeps a north per sensor
+    (the agreement alone took one north and forced straps 60-110 deg off)."""
+    skeleton, truth, prior = held_out_gesture
+    rng = np.random.default_rng(28)
+    strap = quat.normalize(rng.normal(size=(len(NAMES), 4)))
+    held = pose_sensor_orientations(skeleton, NAMES, "apose", heading_rad=1.0, arm_deg=70.0)
+    q = quat.multiply(np.concatenate([np.repeat(held[None], 60, 0), truth]), strap[None])
+    OrientationErrorModel.magnetometer().apply(q, 30.0, rng)  # the draw order of the search that found this take
+    six_axis = OrientationErrorModel.realistic().apply(q, 30.0, rng)
+    own = calibrate_take(six_axis, 30.0, NAMES, skeleton, PoseSpec("apose"), prior, north="own")
+    assert _norths_agree(list(own.orientation.yaw_rad))
+    assert turn_north_offset_deg(from_device_earth(six_axis), NAMES, NAMES.index("lower_back"),
+                                 prior) > HELD_TURN_NORTH_DEG
+    assert calibrate_take(six_axis, 30.0, NAMES, skeleton, PoseSpec("apose"), prior).north == "own"
 
 
 @pytest.mark.parametrize("one_north", [True, False])
