@@ -3,10 +3,10 @@
 virtual orientation sensors strapped uniformly over all rotations, a 40-degree A-pose held 2 s first; the
 database holds the take's motion, so this is the method's known answer, not its accuracy on unseen motion).
 
-Per take and filter: how far the sensors' own solved norths lie from their circular mean (the agreement test
-`auto` applies first), what `auto` decides (the agreement test, then the fit test `HELD_ONE_NORTH_FIT`), the
-worst strap error of the own and the shared solve, and their seconds (the ratio, shared / own, in the same
-process). Then how often uniform random norths pass the agreement test.
+Per take and filter: how far the sensors' own solved norths lie from their circular mean (the agreement test),
+what `auto` decides (the turn test `HELD_TURN_NORTH_DEG`, then the agreement or the fit test
+`HELD_ONE_NORTH_FIT`), the worst strap error of the own and the shared solve, and their seconds (the ratio,
+shared / own, in the same process). Then how often uniform random norths pass the agreement test.
 
     python bench/bench_one_north.py [--seeds 6]
 """
