@@ -8,9 +8,10 @@ out), as `courtside evaluate --session` does.
 Per take: whether the per-sensor solve's norths agree (`_norths_agree`), how much worse the one-north solve fits
 the database than the per-sensor one (`_fit_gap`, the quantity `HELD_ONE_NORTH_FIT` bounds), how far the
 sensors' turns lie from following the pelvis's as in one earth frame (`turn_north_offset_deg`, bounded by
-`HELD_TURN_NORTH_DEG`), what `auto` decides, and the mean strap error of each solve. Then, per filter, the range
-of the turn offset, that of the fit gap over the takes whose turns pass and whose own norths disagree, and how
-many takes `auto` took as one north.
+`HELD_TURN_NORTH_DEG`), what `auto` decides, the mean strap error of each solve and the own solve's pelvis strap
+error. Then, per filter, the range of the turn offset, that of the fit gap over the takes whose turns pass and
+whose own norths disagree, how many takes `auto` took as one north, and on how many the own solve turned the
+pelvis strap round (over 90 deg off: a north per sensor sees its twist only in its tilts).
 
     python bench/bench_held_north.py --mocap-dir ../shared/mocap [--seeds 6] [--first-seed 1]
 """
@@ -53,7 +54,7 @@ def main() -> None:
     by_content, skeleton = content_orientations(args.mocap_dir)
     apose = PoseSpec("apose")
     print(f"{'content':<9}{'filter':<8}{'seed':>5}{'agree':>7}{'fit gap':>9}{'auto':>8}"
-          f"{'turn off':>9}{'own strap mean deg':>20}{'one-north strap mean deg':>26}")
+          f"{'turn off':>9}{'own strap mean deg':>20}{'one-north strap mean deg':>26}{'own pelvis deg':>16}")
     rows: dict[str, list[tuple[bool, float, float, bool]]] = {label: [] for label in FILTERS}
     for content in CONTENTS:
         prior = leave_content_out(by_content, content)
@@ -76,18 +77,22 @@ def main() -> None:
                 solver = _take_solver(world, FPS, NAMES, prior, 300, spins=False)
                 turn = turn_north_offset_deg(world, NAMES, solver.ref, prior)
                 gap = _fit_gap(solver, solutions(shared), solutions(own))
-                rows[label].append((agree, gap, turn, auto.north == "shared"))
+                pelvis_deg = float(strap_error_deg(own.orientation.mount_wxyz, strap)[solver.ref])
+                rows[label].append((agree, gap, turn, auto.north == "shared", pelvis_deg))
                 print(f"{content:<9}{label:<8}{seed:>5}{'yes' if agree else 'no':>7}{gap:>+9.3f}{auto.north:>8}"
                       f"{turn:>9.0f}"
                       f"{strap_error_deg(own.orientation.mount_wxyz, strap).mean():>20.1f}"
-                      f"{strap_error_deg(shared.orientation.mount_wxyz, strap).mean():>26.1f}", flush=True)
+                      f"{strap_error_deg(shared.orientation.mount_wxyz, strap).mean():>26.1f}{pelvis_deg:>16.1f}",
+                      flush=True)
     for label, takes in rows.items():
-        turns = [turn for _, _, turn, _ in takes]
-        gaps = [gap for agree, gap, turn, _ in takes if not agree and turn <= HELD_TURN_NORTH_DEG]
+        turns = [turn for _, _, turn, *_ in takes]
+        gaps = [gap for agree, gap, turn, *_ in takes if not agree and turn <= HELD_TURN_NORTH_DEG]
+        flips = sum(pelvis > 90.0 for *_, pelvis in takes)
         gap_text = f"{min(gaps):+.3f} .. {max(gaps):+.3f}" if gaps else "-"
         print(f"{label}: {len(takes)} takes, turn offset {min(turns):.0f}-{max(turns):.0f} deg; {len(gaps)} pass the "
               f"turns with own norths that disagree, fit gap {gap_text}; "
-              f"auto took one north on {sum(one for *_, one in takes)}")
+              f"auto took one north on {sum(one for *_, one, _ in takes)}; the own solve's pelvis strap over 90 deg "
+              f"off (its twist, seen only in its tilts, turned round) on {flips}")
 
 
 if __name__ == "__main__":
