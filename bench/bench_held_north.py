@@ -1,9 +1,9 @@
 """One north or one each from a held pose (`calibrate_take(north="auto")`, docs/imu-import.md "One north"): the
-numbers behind `HELD_ONE_NORTH_FIT`, on held-out Bandai-1 gesture contents. Each content's clips are chained
-into one take at 30 Hz after a 70-degree A-pose held 2 s (each segment 3 deg off the template), six virtual
-orientation sensors strapped uniformly over all rotations, read through a magnetometer-aided filter (9-axis, one
-north +- 4 deg) or a 6-axis one (a north per sensor); the database is every other content (leave one content
-out), as `courtside evaluate --session` does.
+numbers behind `HELD_TURN_NORTH_DEG` and `HELD_ONE_NORTH_FIT`, on held-out Bandai-1 gesture contents. Each
+content's clips are chained into one take at 30 Hz after a 70-degree A-pose held 2 s (each segment 3 deg off the
+template), six virtual orientation sensors strapped uniformly over all rotations, read through a
+magnetometer-aided filter (9-axis, one north +- 4 deg) or a 6-axis one (a north per sensor); the database is every
+other content (leave one content out), as `courtside evaluate --session` does.
 
 Per take: whether the per-sensor solve's norths agree (`_norths_agree`), how much worse the one-north solve fits
 the database than the per-sensor one (`_fit_gap`, the quantity `HELD_ONE_NORTH_FIT` bounds), how far the
@@ -55,7 +55,7 @@ def main() -> None:
     apose = PoseSpec("apose")
     print(f"{'content':<9}{'filter':<8}{'seed':>5}{'agree':>7}{'fit gap':>9}{'auto':>8}"
           f"{'turn off':>9}{'own strap mean deg':>20}{'one-north strap mean deg':>26}{'own pelvis deg':>16}")
-    rows: dict[str, list[tuple[bool, float, float, bool]]] = {label: [] for label in FILTERS}
+    rows: dict[str, list[tuple[bool, float, float, bool, float]]] = {label: [] for label in FILTERS}
     for content in CONTENTS:
         prior = leave_content_out(by_content, content)
         truth = np.concatenate(by_content[content])
@@ -77,11 +77,12 @@ def main() -> None:
                 solver = _take_solver(world, FPS, NAMES, prior, 300, spins=False)
                 turn = turn_north_offset_deg(world, NAMES, solver.ref, prior)
                 gap = _fit_gap(solver, solutions(shared), solutions(own))
-                pelvis_deg = float(strap_error_deg(own.orientation.mount_wxyz, strap)[solver.ref])
+                own_deg = strap_error_deg(own.orientation.mount_wxyz, strap)
+                pelvis_deg = float(own_deg[solver.ref])
                 rows[label].append((agree, gap, turn, auto.north == "shared", pelvis_deg))
                 print(f"{content:<9}{label:<8}{seed:>5}{'yes' if agree else 'no':>7}{gap:>+9.3f}{auto.north:>8}"
                       f"{turn:>9.0f}"
-                      f"{strap_error_deg(own.orientation.mount_wxyz, strap).mean():>20.1f}"
+                      f"{own_deg.mean():>20.1f}"
                       f"{strap_error_deg(shared.orientation.mount_wxyz, strap).mean():>26.1f}{pelvis_deg:>16.1f}",
                       flush=True)
     for label, takes in rows.items():

@@ -39,9 +39,9 @@ leave every sensor's rotations relative to the pelvis sensor, and their up axes,
 solves each sensor's own north first and takes one north when they agree (`ONE_NORTH_DEG`), as they rarely do
 on 6-axis filters whose norths are where each device booted, or when the one-north solve fits the database
 nearly as well as the per-sensor one (`HELD_ONE_NORTH_FIT`: on a gesture the database lacks the per-sensor solves
-miss and disagree though the north is one), either only when the segments' horizontal turns follow the pelvis's
-as in one earth frame (`turn_north_offset_deg`, `HELD_TURN_NORTH_DEG`), which no strap changes; without a held
-pose it asks the turns first too (`TURN_NORTH_DEG`).
+miss and disagree though the north is one); it asks either only when the segments' horizontal turns follow the
+pelvis's as in one earth frame (`turn_north_offset_deg`, `HELD_TURN_NORTH_DEG`), which no strap changes; without
+a held pose it asks the turns first too (`TURN_NORTH_DEG`).
 
 The engines refine the strapping further over the take (engine/graph/orientation_pose.py, the strap refinement),
 so this only needs to land within its reach (tens of degrees would not; a few degrees do). Measured on held-out
@@ -585,12 +585,14 @@ def turn_north_offset_deg(world: np.ndarray, names: list[str], ref: int, prior: 
     return float(np.degrees(abs(np.angle(mean))))
 
 
-def _turns_say_one_north(world: np.ndarray, names: list[str], ref: int, prior: MotionPrior) -> bool:
-    """Pose none, north auto: one north when `turn_north_offset_deg` is within `TURN_NORTH_DEG`. Measured on
+def _turns_say_one_north(world: np.ndarray, names: list[str], ref: int, prior: MotionPrior,
+                         limit_deg: float = TURN_NORTH_DEG) -> bool:
+    """North auto: one north when `turn_north_offset_deg` is within `limit_deg` (pose none: `TURN_NORTH_DEG`; a
+    held pose: `HELD_TURN_NORTH_DEG`, `_held_pose_any_north`). Measured on
     held-out Bandai contents (`bench/bench_pose_free.py`, docs/imu-import.md): one north within 35 degrees in 18
     of 18 takes; a north per sensor (three draws, six contents) beyond 60 in 12 of 18. A miss is not cheap (a
     6-axis session at 17.9 cm against 10.5), hence the fit test after it (`_from_motion_any_north`)."""
-    return turn_north_offset_deg(world, names, ref, prior) <= TURN_NORTH_DEG
+    return turn_north_offset_deg(world, names, ref, prior) <= limit_deg
 
 
 def _held_pose_any_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: PoseSpec, world: np.ndarray
@@ -606,7 +608,7 @@ def _held_pose_any_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, 
     take's gap can be as small as a 9-axis one's, and its norths can agree by chance), and the turns tell those
     apart. The fit test also decides for fewer than the four sensors the agreement test needs."""
     own = _from_held_pose(solver, held, skeleton, spec)
-    if turn_north_offset_deg(world, solver.names, solver.ref, solver.prior) > HELD_TURN_NORTH_DEG:
+    if not _turns_say_one_north(world, solver.names, solver.ref, solver.prior, HELD_TURN_NORTH_DEG):
         return own, False
     shared = _shared_north(solver, held, skeleton, spec)
     if _norths_agree([s.yaw_rad for s in own[0]]) or _fit_gap(solver, shared[0], own[0]) <= HELD_ONE_NORTH_FIT:

@@ -158,8 +158,9 @@ def test_six_axis_norths_that_agree_by_chance_are_told_apart_by_how_the_segments
 
 @pytest.mark.parametrize("one_north", [True, False])
 def test_three_sensors_are_told_apart_by_the_fit(motion, one_north):
-    """Three sensors: too few for the agreement test (four at least), so `auto` decides by the fit test alone
-    (`HELD_ONE_NORTH_FIT`): one north where they share it, a north each where each has its own."""
+    """Three sensors: too few for the agreement test (four at least), so `auto` decides by the turns and the fit
+    test (`HELD_TURN_NORTH_DEG`, `HELD_ONE_NORTH_FIT`): one north where they share it, a north each where each
+    has its own."""
     skeleton, truth = motion
     three = ["left_forearm", "left_shin", "lower_back"]
     columns = [NAMES.index(n) for n in three]
