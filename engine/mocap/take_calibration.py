@@ -329,6 +329,7 @@ class TakeCalibration:
     pose: PoseSpec
     notes: tuple[str, ...] = ()
     north: str = "own"
+    twist_observed: bool = True  # False: no database and a north each, each strap's twist about the pose's up a guess
 
 
 def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -541,8 +542,10 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     else:
         (solutions, arm_deg), one_north = _held_pose_any_north(solver, held, skeleton, pose, world)
     found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
-    notes = tuple(NO_TWIST_NOTE if prior is None and not one_north else "" for _ in sensors)
-    return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes, "shared" if one_north else "own")
+    twist_observed = prior is not None or one_north
+    notes = tuple("" if twist_observed else NO_TWIST_NOTE for _ in sensors)
+    return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes, "shared" if one_north else "own",
+                           twist_observed)
 
 
 def _take_solver(world: np.ndarray, fps: float, names: list[str], prior: MotionPrior | None, max_frames: int,

@@ -30,7 +30,7 @@ from engine.export_format import recorded_sensors
 from engine.graph.input_checks import check_take_file, open_npz, parse_sensor_map
 from engine.mocap import STANDARD_SENSORS
 from gateway.calibration.record import raw_samples_path
-from engine.mocap.take_calibration import NORTHS, MotionPrior, PoseSpec
+from engine.mocap.take_calibration import NO_TWIST_NOTE, NORTHS, MotionPrior, PoseSpec
 from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationConfig, TakeStart, calibrate_recording,
                                            standard_segment_poses)
 
@@ -194,7 +194,9 @@ def main(argv: list[str] | None = None) -> int:
     for sid, s in record.sensors.items():
         for reason in s.reasons:
             print(f"calibrate: warning: {sid} ({s.segment}): {reason}", file=sys.stderr)
-    shanks = sorted({s.segment for s in record.sensors.values() if s.segment in SECOND_POSES["sit"]})
+    # the shanks whose heading came from walking: no orientations, or orientations that leave the twist a guess
+    shanks = sorted({s.segment for s in record.sensors.values() if s.segment in SECOND_POSES["sit"]
+                     and (s.orientation_yaw_rad is None or NO_TWIST_NOTE in s.reasons)})
     if shanks and "sit" not in windows:
         print(f"calibrate: note: {', '.join(shanks)}: heading from the walking swing plane, which follows the "
               "walker's toe-out (2-3 deg on normal gait, up to ~24 deg on unusual gaits); a long sit held in the "

@@ -271,7 +271,12 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
                 sensor_dirs.append(g2 / np.linalg.norm(g2))
                 segment_dirs.append(up_other)
                 heading_term = 1.0
-        walks = seg in WALKING_HEADING_SEGMENTS
+        strap = None  # the strap solved from the orientations, as an accelerometer mounting (R = N M)
+        if k in oriented:
+            j = oriented.index(k)
+            strap = pose.nominal_rotation @ quaternions.to_matrix(solved.orientation.mount_wxyz[j])
+        # a walking axis says the heading only where the orientations could not (their twist a guess, no database)
+        walks = seg in WALKING_HEADING_SEGMENTS and (strap is None or not solved.twist_observed)
         axis, share = None, 0.0
         if not (heading_term or not walks or step_hz is None):
             band = config.pelvis_band if seg == "lower_back" else config.segment_band
@@ -280,10 +285,11 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
         if heading_term:  # the second pose fixes the heading with sign (more exactly than walking)
             rotation = rotation_from_directions(np.array(sensor_dirs), np.array(segment_dirs))
         elif axis is not None and share >= config.min_heading_share:
-            # the walking axis has no sign: take the one nearer the nominal mounting
+            # the walking axis has no sign: take the one nearer the solved strap, else the nominal mounting
             candidates = [rotation_from_directions(np.array([up_s, sign * axis]), np.array([pose.up, pose.forward]))
                           for sign in (1.0, -1.0)]
-            rotation = min(candidates, key=lambda r: rotation_angle_deg(r @ tilt_only.T))
+            nearer = tilt_only if strap is None else strap
+            rotation = min(candidates, key=lambda r: rotation_angle_deg(r @ nearer.T))
             heading_term = share
         else:
             rotation = tilt_only
@@ -296,10 +302,12 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
         if k in oriented:  # any strapping: solved from the orientations, never failed for being far from nominal
             j = oriented.index(k)
             yaw, mount = float(solved.orientation.yaw_rad[j]), solved.orientation.mount_wxyz[j]
-            if not heading_term:  # a declared second pose (two gravity directions) or a clear walking axis
-                # observes the accelerometer's heading about gravity; one held pose leaves the strap's twist to the
-                # database fit, so the strap solved from the orientations is the better mounting only without them
-                rotation = pose.nominal_rotation @ quaternions.to_matrix(mount)
+            if not heading_term:  # a declared second pose (two gravity directions) observes the accelerometer's
+                # heading about gravity, and so does a clear walking axis where the orientations leave the twist a
+                # guess; else the strap solved from the orientations is the mounting (with a database, a gesture
+                # take's "walking axis" put the shins and pelvis up to 180 deg off: its sign came from the nominal
+                # mounting, which says nothing of a random strap)
+                rotation = strap
             reasons = [r for r in reasons if not r.startswith("heading about gravity")] + \
                 [n for n in solved.notes[j:j + 1] if n]
         correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
