@@ -13,7 +13,7 @@ error. Then, per filter, the range of the turn offset, that of the fit gap over 
 whose own norths disagree, how many takes `auto` took as one north, and on how many the own solve turned the
 pelvis strap round (over 90 deg off: a north per sensor sees its twist only in its tilts).
 
-    python bench/bench_held_north.py --mocap-dir ../shared/mocap [--seeds 6] [--first-seed 1]
+    python bench/bench_held_north.py --mocap-dir ../shared/mocap [--seeds 6] [--first-seed 1] [--seconds 20]
 """
 from __future__ import annotations
 
@@ -50,6 +50,7 @@ def main() -> None:
     p.add_argument("--mocap-dir", required=True, help="the shared mocap folder (holds bandai-namco-1/data)")
     p.add_argument("--seeds", type=int, default=6, help="strap, heading and north draws per content and filter")
     p.add_argument("--first-seed", type=int, default=1, help="the first draw's seed (more draws: --first-seed 7)")
+    p.add_argument("--seconds", type=float, default=None, help="only each content's first SECONDS (default: all)")
     args = p.parse_args()
     by_content, skeleton = content_orientations(args.mocap_dir)
     apose = PoseSpec("apose")
@@ -58,7 +59,7 @@ def main() -> None:
     rows: dict[str, list[tuple[bool, float, float, bool, float]]] = {label: [] for label in FILTERS}
     for content in CONTENTS:
         prior = leave_content_out(by_content, content)
-        truth = np.concatenate(by_content[content])
+        truth = np.concatenate(by_content[content])[:None if args.seconds is None else int(args.seconds * FPS)]
         for label, model in FILTERS.items():
             for seed in range(args.first_seed, args.first_seed + args.seeds):
                 rng = np.random.default_rng(seed)

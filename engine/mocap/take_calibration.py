@@ -330,6 +330,7 @@ class TakeCalibration:
     notes: tuple[str, ...] = ()
     north: str = "own"
     twist_observed: bool = True  # False: no database and a north each, each strap's twist about the pose's up a guess
+    north_basis: str = ""  # north auto: what decided it (the turn and fit tests' numbers); "" when declared
 
 
 def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -521,8 +522,9 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     if pose.name == "none":
         if prior is None:
             raise ValueError("calibration from motion (pose none) needs the database: give the graph (--graph)")
-        solutions, one_north = _from_motion_any_north(solver, world, north, seed)
-        return TakeCalibration(_calibration(solutions), tuple(sensors), pose, north="shared" if one_north else "own")
+        solutions, one_north, basis = _from_motion_any_north(solver, world, north, seed)
+        return TakeCalibration(_calibration(solutions), tuple(sensors), pose, north="shared" if one_north else "own",
+                               north_basis=basis)
     window = pose.window_s or still_stretch(q, fps, stillness)
     if window is None:
         raise ValueError(f"no still stretch: no {stillness.min_s:g} s in which every sensor's orientation stays "
@@ -535,17 +537,18 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
         raise ValueError(f"the pose window {window[0]:g}-{window[1]:g} s holds no sample with every sensor's "
                          f"orientation (take: 0-{len(q) / fps:.1f} s)")
     held = quat.to_matrix(from_device_earth(mean_orientation(held_q)))  # (S, 3, 3)
+    basis = ""
     if north == "shared":
         (solutions, arm_deg), one_north = _shared_north(solver, held, skeleton, pose), True
     elif north == "own" or prior is None:  # without a database there is nothing to tell one north by
         (solutions, arm_deg), one_north = _from_held_pose(solver, held, skeleton, pose), False
     else:
-        (solutions, arm_deg), one_north = _held_pose_any_north(solver, held, skeleton, pose, world)
+        (solutions, arm_deg), one_north, basis = _held_pose_any_north(solver, held, skeleton, pose, world)
     found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
     twist_observed = prior is not None or one_north
     notes = tuple("" if twist_observed else NO_TWIST_NOTE for _ in sensors)
     return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes, "shared" if one_north else "own",
-                           twist_observed)
+                           twist_observed, basis)
 
 
 def _take_solver(world: np.ndarray, fps: float, names: list[str], prior: MotionPrior | None, max_frames: int,
@@ -589,34 +592,41 @@ def turn_north_offset_deg(world: np.ndarray, names: list[str], ref: int, prior: 
 
 
 def _turns_say_one_north(world: np.ndarray, names: list[str], ref: int, prior: MotionPrior,
-                         limit_deg: float = TURN_NORTH_DEG) -> bool:
+                         limit_deg: float = TURN_NORTH_DEG) -> tuple[bool, str]:
     """North auto: one north when `turn_north_offset_deg` is within `limit_deg` (pose none: `TURN_NORTH_DEG`; a
     held pose: `HELD_TURN_NORTH_DEG`, `_held_pose_any_north`). Measured on
     held-out Bandai contents (`bench/bench_pose_free.py`, docs/imu-import.md): one north within 35 degrees in 18
     of 18 takes; a north per sensor (three draws, six contents) beyond 60 in 12 of 18. A miss is not cheap (a
-    6-axis session at 17.9 cm against 10.5), hence the fit test after it (`_from_motion_any_north`)."""
-    return turn_north_offset_deg(world, names, ref, prior) <= limit_deg
+    6-axis session at 17.9 cm against 10.5), hence the fit test after it (`_from_motion_any_north`). Also the
+    phrase that says it, for the decision's basis (`TakeCalibration.north_basis`)."""
+    offset = turn_north_offset_deg(world, names, ref, prior)
+    return offset <= limit_deg, (f"the segments' turns lie {offset:.0f} deg from following the pelvis's as in one "
+                                 f"earth frame (one north: <= {limit_deg:g})")
 
 
 def _held_pose_any_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: PoseSpec, world: np.ndarray
-                         ) -> tuple[tuple[list[_Solution], float | None], bool]:
+                         ) -> tuple[tuple[list[_Solution], float | None], bool, str]:
     """Held pose, north auto: the solve to keep (the per-sensor one, `_from_held_pose`, or the one-north one,
-    `_shared_north`), and whether in one north. One north when the sensors' horizontal turns (in `world`, the
-    take's readings) follow the pelvis's as in one earth frame (`HELD_TURN_NORTH_DEG`), which no strap changes,
-    AND either their own solved norths agree (`_norths_agree`) or the one-north solve fits the database within
-    `HELD_ONE_NORTH_FIT` of the per-sensor solve (`_fit_gap`). Why the fit: on a gesture the database lacks, the
-    per-sensor solves miss (a waving forearm's twist 120 deg off) and no longer agree though the sensors share
-    one north, and the one-north solve, whose straps the held pose forces, then still fits about as well; in a
-    north each it forces straps 60-110 deg off and mostly fits far worse. Why the turns too: not always (a 6-axis
-    take's gap can be as small as a 9-axis one's, and its norths can agree by chance), and the turns tell those
-    apart. The fit test also decides for fewer than the four sensors the agreement test needs."""
+    `_shared_north`), whether in one north, and on what basis (a phrase: `TakeCalibration.north_basis`). One north
+    when the sensors' horizontal turns (in `world`, the take's readings) follow the pelvis's as in one earth frame
+    (`HELD_TURN_NORTH_DEG`), which no strap changes, AND either their own solved norths agree (`_norths_agree`) or
+    the one-north solve fits the database within `HELD_ONE_NORTH_FIT` of the per-sensor solve (`_fit_gap`). Why the
+    fit: on a gesture the database lacks, the per-sensor solves miss (a waving forearm's twist 120 deg off) and no
+    longer agree though the sensors share one north, and the one-north solve, whose straps the held pose forces,
+    then still fits about as well; in a north each it forces straps 60-110 deg off and mostly fits far worse. Why
+    the turns too: not always (a 6-axis take's gap can be as small as a 9-axis one's, and its norths can agree by
+    chance), and the turns tell those apart. The fit test also decides for fewer than the four sensors the agreement
+    test needs."""
     own = _from_held_pose(solver, held, skeleton, spec)
-    if not _turns_say_one_north(world, solver.names, solver.ref, solver.prior, HELD_TURN_NORTH_DEG):
-        return own, False
+    turns_allow, turns = _turns_say_one_north(world, solver.names, solver.ref, solver.prior, HELD_TURN_NORTH_DEG)
+    if not turns_allow:
+        return own, False, turns
     shared = _shared_north(solver, held, skeleton, spec)
-    if _norths_agree([s.yaw_rad for s in own[0]]) or _fit_gap(solver, shared[0], own[0]) <= HELD_ONE_NORTH_FIT:
-        return shared, True
-    return own, False
+    if _norths_agree([s.yaw_rad for s in own[0]]):
+        return shared, True, f"{turns}, and the per-sensor solves' norths agree"
+    gap = _fit_gap(solver, shared[0], own[0])
+    fit = f"{turns}; one north fits the database {gap:.2f} worse than a north each (one north: <= {HELD_ONE_NORTH_FIT:g})"
+    return (shared, True, fit) if gap <= HELD_ONE_NORTH_FIT else (own, False, fit)
 
 
 def _fit_gap(solver: _Solver, shared: list[_Solution], own: list[_Solution]) -> float:
@@ -747,23 +757,26 @@ def _shared_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: P
 
 
 def _from_motion_any_north(solver: _Solver, world: np.ndarray, north: str, seed: int
-                           ) -> tuple[list[_Solution], bool]:
-    """Pose none: the straps (and whether in one north). `auto` takes one north only when both tests say so: the
+                           ) -> tuple[list[_Solution], bool, str]:
+    """Pose none: the straps, whether in one north, and (north auto) on what basis. `auto` takes one north only when both tests say so: the
     segments' turns follow the pelvis's as the database's do (`_turns_say_one_north`), and the one-north solve's
     relative rotations fit the database within `ONE_NORTH_MISFIT` per sensor of the per-sensor solve's (which,
     freer, always fits at least as well)."""
     rng = np.random.default_rng(seed)
     fits = solver.up_fits(rng)
-    if north == "own" or (north == "auto" and not _turns_say_one_north(world, solver.names, solver.ref,
-                                                                      solver.prior)):
-        return _from_motion(solver, fits), False
-    shared = _from_motion_one_north(solver, fits, rng)
+    if north == "own":
+        return _from_motion(solver, fits), False, ""
     if north == "shared":
-        return shared, True
+        return _from_motion_one_north(solver, fits, rng), True, ""
+    turns_allow, turns = _turns_say_one_north(world, solver.names, solver.ref, solver.prior)
+    if not turns_allow:
+        return _from_motion(solver, fits), False, turns
+    shared = _from_motion_one_north(solver, fits, rng)
     own = _from_motion(solver, fits)
-    if _relative_misfit(solver, shared) <= _relative_misfit(solver, own) + ONE_NORTH_MISFIT:
-        return shared, True
-    return own, False
+    gap = _relative_misfit(solver, shared) - _relative_misfit(solver, own)
+    fit = (f"{turns}; one north fits the database {gap:.2f} worse than a north each (one north: <= "
+           f"{ONE_NORTH_MISFIT:g})")
+    return (shared, True, fit) if gap <= ONE_NORTH_MISFIT else (own, False, fit)
 
 
 def _relative_misfit(solver: _Solver, solutions: list[_Solution]) -> float:

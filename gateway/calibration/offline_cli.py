@@ -201,6 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"calibrate: note: {', '.join(shanks)}: heading from the walking swing plane, which follows the "
               "walker's toe-out (2-3 deg on normal gait, up to ~24 deg on unusual gaits); a long sit held in the "
               "take (--second-pose sit@START:END) measures it directly", file=sys.stderr)
+    _say_north_basis(record.config)
     print(json.dumps({"output": args.output, "quality": record.quality_score, "grade": record.grade,
                       "passed": record.passed,
                       "sensors": {sid: {"segment": s.segment, "correction_deg": round(s.correction_deg, 1),
@@ -211,3 +212,18 @@ def main(argv: list[str] | None = None) -> int:
                       "pose": record.config.get("pose"), "north": record.config.get("north"),
                       "skeleton": record.skeleton}))
     return 0
+
+
+def _say_north_basis(config: dict) -> None:
+    """North auto: one line on stderr saying what was decided and why, and which flag overrides it. Why: neither
+    test is sure on every take (docs/imu-import.md "One north": a short take of arm waving the database lacks can
+    fail both), and the user often knows the answer: magnetometer-aided filters share one north."""
+    basis = config.get("north_basis")
+    if not basis:
+        return
+    if config.get("north") == "own":
+        hint = ("magnetometer-aided (9-axis) sensors share one (Xsens MTw/DOT exports by default): if these are, "
+                "pass --north shared")
+    else:
+        hint = "6-axis sensors (no magnetometer) each have their own: if these are, pass --north own"
+    print(f"calibrate: note: north {config.get('north')} ({basis}); {hint}", file=sys.stderr)

@@ -331,6 +331,7 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
     grade = "good" if score >= 70 else "fair" if score >= 40 else "poor"
     cfg = {"method": "recording", "pose": "npose" if solved is None else solved.pose.text(),
            **({} if solved is None else {"north": solved.north}),
+           **({"north_basis": solved.north_basis} if solved is not None and solved.north_basis else {}),
            "second_windows_s": {k: list(v) for k, v in second_windows.items()}, "fps": fps, **asdict(config)}
     return CalibrationRecord(results, round(score, 1), grade, all(r.passed for r in results.values()), None, subject,
                              take, datetime.now(timezone.utc).isoformat(), cfg, {"still": raw}, take_start.skeleton_id)

@@ -216,7 +216,7 @@ def test_pose_free_north_decision(motion, norths_deg, one):
     _, truth = motion
     world = from_device_earth(to_device_earth(truth, np.radians(norths_deg)[None]))
     prior = _prior(truth)
-    assert _turns_say_one_north(world, NAMES, NAMES.index("lower_back"), prior) is one
+    assert _turns_say_one_north(world, NAMES, NAMES.index("lower_back"), prior)[0] is one
 
 
 def test_pose_free_forearms_in_their_own_norths_are_caught_by_the_fit(motion):
@@ -226,7 +226,7 @@ def test_pose_free_forearms_in_their_own_norths_are_caught_by_the_fit(motion):
     skeleton, truth = motion
     readings = to_device_earth(truth, np.radians([90.0, 180.0, 0.0, 0.0, 0.0, 0.0])[None])
     prior = _prior(truth)
-    assert _turns_say_one_north(from_device_earth(readings), NAMES, NAMES.index("lower_back"), prior)
+    assert _turns_say_one_north(from_device_earth(readings), NAMES, NAMES.index("lower_back"), prior)[0]
     assert calibrate_take(readings, FPS, NAMES, skeleton, PoseSpec("none"), prior, max_frames=150).north == "own"
 
 

@@ -54,6 +54,10 @@ def test_a_record_for_the_graph_in_use_with_any_strapping(bandai, capsys):
     pose = record.config["pose"]
     assert pose.startswith("apose:") and abs(float(pose.split(":")[1].split("@")[0]) - 60.0) <= 10.0, pose
     assert record.config["north"] == "own"  # a 6-axis filter: every sensor's own north, found so (auto)
+    # what decided it, and the flag that overrides it, in one line for the user who knows the filter
+    note = [line for line in capsys.readouterr().err.splitlines() if line.startswith("calibrate: note: north own")]
+    assert len(note) == 1 and "deg from following the pelvis" in note[0] and "--north shared" in note[0], note
+    assert "deg from following the pelvis" in record.config["north_basis"]
     assert record.passed  # no sensor failed for its mounting, though every strap is far from nominal
     assert not any("flipped" in r or "limit" in r for s in record.sensors.values() for r in s.reasons)
     assert max(s.correction_deg for s in record.sensors.values()) > 90.0
