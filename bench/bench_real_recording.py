@@ -9,7 +9,7 @@ the camera's root, a camera-only search and the database oracle, all in one run.
 
     nice .venv/bin/python bench/bench_real_recording.py --mocap-dir ../shared/mocap --graph b1.npz \\
         [--groups respond,call] [--start-pose apose:70] [--strapping random|nominal] [--filter 6axis|9axis]
-        [--seconds 50] [--posing-error-deg 3] [--seed 0]
+        [--seconds 50] [--posing-error-deg 3] [--north auto|shared|own] [--seed 0]
 
 ``--graph``: a graph built from ``--pattern`` over ``--mocap-dir`` (`courtside build-graph --mocap-dir ...
 --pattern ... --msv -o b1.npz`); every clip of the held-out groups is removed from it for the run.
@@ -168,6 +168,8 @@ def main() -> None:
                    help="the IMUs' orientation filter: 6axis (a north per sensor, drifting) or 9axis (one north)")
     p.add_argument("--posing-error-deg", type=float, default=3.0,
                    help="sd of each segment's turn off the start pose's template (degrees)")
+    p.add_argument("--north", choices=("auto", "shared", "own"), default="auto",
+                   help="calibrate --north (default auto, as a user who does not say)")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args()
     paths = sorted(Path(args.mocap_dir).glob(args.pattern))
@@ -196,10 +198,10 @@ def main() -> None:
         acc_args = [a for a in csv_args if not a.startswith("--quat") and "_q" not in a]
         run(["import-imu", str(work / "take.csv"), "--format", "csv", *acc_args, "-o", str(work / "acc.npz"),
              "--quiet"])
-        found = json.loads(run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "-o",
-                                str(work / "from_take.json")]))
-        run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "--pose", "none", "-o",
-             str(work / "from_motion.json")])
+        found = json.loads(run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "--north",
+                                args.north, "-o", str(work / "from_take.json")]))
+        run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "--pose", "none", "--north",
+             args.north, "-o", str(work / "from_motion.json")])
         perfect_record(work / "perfect.json", rec, train.skeleton)
         cases = {"accelerations only": ("acc.npz", None), "orientations, no calibration (tilt)": ("take.npz", None),
                  "calibrate --graph (start pose found)": ("take.npz", "from_take.json"),
