@@ -625,7 +625,8 @@ def _held_pose_any_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, 
     if _norths_agree([s.yaw_rad for s in own[0]]):
         return shared, True, f"{turns}, and the per-sensor solves' norths agree"
     gap = _fit_gap(solver, shared[0], own[0])
-    fit = f"{turns}; one north fits the database {gap:.2f} worse than a north each (one north: <= {HELD_ONE_NORTH_FIT:g})"
+    fit = (f"{turns}; one north fits the database {gap:.2f} worse than a north each (one north: <= "
+           f"{HELD_ONE_NORTH_FIT:g})")
     return (shared, True, fit) if gap <= HELD_ONE_NORTH_FIT else (own, False, fit)
 
 
@@ -758,10 +759,10 @@ def _shared_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec: P
 
 def _from_motion_any_north(solver: _Solver, world: np.ndarray, north: str, seed: int
                            ) -> tuple[list[_Solution], bool, str]:
-    """Pose none: the straps, whether in one north, and (north auto) on what basis. `auto` takes one north only when both tests say so: the
-    segments' turns follow the pelvis's as the database's do (`_turns_say_one_north`), and the one-north solve's
-    relative rotations fit the database within `ONE_NORTH_MISFIT` per sensor of the per-sensor solve's (which,
-    freer, always fits at least as well)."""
+    """Pose none: the straps, whether in one north, and (north auto) on what basis. `auto` takes one north only
+    when both tests say so: the segments' turns follow the pelvis's as the database's do (`_turns_say_one_north`),
+    and the one-north solve's relative rotations fit the database within `ONE_NORTH_MISFIT` per sensor of the
+    per-sensor solve's (which, freer, always fits at least as well)."""
     rng = np.random.default_rng(seed)
     fits = solver.up_fits(rng)
     if north == "own":
