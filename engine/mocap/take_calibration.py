@@ -329,7 +329,8 @@ class TakeCalibration:
     pose: PoseSpec
     notes: tuple[str, ...] = ()
     north: str = "own"
-    twist_observed: bool = True  # False: no database and a north each, each strap's twist about the pose's up a guess
+    twist_observed: bool = True  # False: no database, each strap's twist about the pose's up a guess (in one north
+    #                               all of them turn with the reference's)
     north_basis: str = ""  # north auto: what decided it (the turn and fit tests' numbers); "" when declared
 
 
@@ -545,7 +546,7 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     else:
         (solutions, arm_deg), one_north, basis = _held_pose_any_north(solver, held, skeleton, pose, world)
     found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
-    twist_observed = prior is not None or one_north
+    twist_observed = prior is not None  # in one north without a database the one heading is the reference's guess
     notes = tuple("" if twist_observed else NO_TWIST_NOTE for _ in sensors)
     return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes, "shared" if one_north else "own",
                            twist_observed, basis)

@@ -36,6 +36,10 @@ from gateway.calibration.recording import (SECOND_POSES, RecordingCalibrationCon
 
 
 EXPORT_RATE_HZ = 50.0  # a gateway recording is brought to this frame clock (0.5 s windows, gait below 6 Hz)
+# import-imu formats whose orientations share one earth frame by default, and why (said with the decision)
+ONE_NORTH_FORMATS = {"xsens": "an Xsens export: its filters reference every sensor's heading to local magnetic north "
+                              "(Xsens DOT user manual, 4.1.2; MTw and MVN likewise) unless a heading-free profile "
+                              "was set"}
 
 
 @dataclass
@@ -49,6 +53,7 @@ class CalibrationTake:
     names: list[str]
     labels: list[str]
     quat_wxyz: np.ndarray | None = None
+    one_north_source: str = ""  # why the file's orientations share one north, when its format says so ("": unknown)
 
 
 def _read_gateway_export(path: Path, sensor_map: dict[str, str]) -> CalibrationTake:
@@ -98,10 +103,22 @@ def _read_take(path: Path, sensor_map: dict[str, str] | None = None) -> Calibrat
         labels = [str(n) for n in data["source_labels"]] if "source_labels" in data.files else names
         fps = float(data["fps"])
         quat = np.asarray(data["quat_wxyz"], float) if "quat_wxyz" in data.files else None
+        source_format = _import_format(data)
     unknown = [n for n in names if n not in STANDARD_SENSORS]
     if unknown:
         raise MalformedFileError(path, None, f"sensor names {unknown} are not standard placements")
-    return CalibrationTake(acc, fps, names, labels, quat)
+    one_north = ONE_NORTH_FORMATS.get(source_format, "") if quat is not None else ""
+    return CalibrationTake(acc, fps, names, labels, quat, one_north)
+
+
+def _import_format(data) -> str:
+    """The `import-imu` format a take came from (its ``import_report``), "" when it does not say."""
+    if "import_report" not in data.files:
+        return ""
+    try:
+        return str(json.loads(str(data["import_report"])).get("format", ""))
+    except (ValueError, AttributeError):
+        return ""
 
 
 def _windows(texts: list[str] | None) -> dict[str, tuple[float, float]]:
@@ -169,7 +186,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="takes with orientations: do the sensors share one earth frame? shared: a magnetometer-aided "
                         "(9-axis) filter, as Xsens MTw/DOT report by default: one held pose then fixes every strap "
                         "but the athlete's heading, found from the motion; own: each sensor's north is its own "
-                        "(6-axis filters, where the device booted); auto (default): solved each, one north taken "
+                        "(6-axis filters, where the device booted); auto (default): one north for an Xsens export "
+                        "(import-imu --format xsens: magnetic north), else solved each, one north taken "
                         "when they agree (--pose none: when the segments turn with the pelvis as in the database "
                         "and the one-north solve fits nearly as well; it can take one north for 6-axis sensors, so "
                         "pass own for them: 9.1 against 10.7 cm in the 6-axis sessions from motion)")
@@ -183,13 +201,17 @@ def main(argv: list[str] | None = None) -> int:
     names = take.names
     windows = _windows(args.second_pose)
     config = RecordingCalibrationConfig(max_std_g=args.max_std)
-    start = _take_start(args.pose, args.graph, args.north)
+    # north auto on a file whose format says one north: take it, and say so (the override is --north own)
+    north = "shared" if args.north == "auto" and take.one_north_source else args.north
+    start = _take_start(args.pose, args.graph, north)
     try:
         record = calibrate_recording(take.acc_g, take.fps, take.labels, names,
                                      standard_segment_poses(names, tuple(windows), start.skeleton), config, windows,
                                      args.subject, path.stem, quat_wxyz=take.quat_wxyz, take_start=start)
     except ValueError as exc:
         raise CourtsideError(f"{path}: {exc}") from None
+    if north != args.north:
+        record.config["north_basis"] = take.one_north_source
     record.save(args.output)  # each file whole or not at all; a failure is one line naming it
     for sid, s in record.sensors.items():
         for reason in s.reasons:

@@ -107,3 +107,32 @@ def test_reconstruct_reads_an_imported_take_in_its_own_sensor_order(setup, tmp_p
     out = courtside("reconstruct", "--method", "hmm", "--sample", "--imus", "right_shin", "left_shin",
                     "--input", str(tmp_path / "take.npz"), "-o", str(tmp_path / "hmm.bvh"))
     assert out["frames"] == read_bvh(tmp_path / "hmm.bvh").n_frames > 0.9 * motion.duration_s * 30
+
+
+def test_an_xsens_export_is_calibrated_in_one_north_and_says_why(setup, tmp_path):
+    """Xsens filters reference every sensor's heading to local magnetic north, so `calibrate --north auto` takes one
+    north for a take imported with --format xsens, says so on stderr with the override, and keeps it out of the
+    way of `--north own`; the same readings as a generic CSV are left to the tests (here, without a database, a
+    north each)."""
+    from bench.support.imu_formats import write_mt_exports
+
+    _, _, truth, _ = setup
+    ids = [f"00B42D{k:02X}" for k in range(len(NAMES))]
+    write_mt_exports(tmp_path / "mt", truth, ids)
+    courtside("import-imu", str(tmp_path / "mt"), "--format", "xsens", *(f"--sensor-map={i}={n}" for i, n in
+                                                                         zip(ids, NAMES)), "-o", str(tmp_path / "x.npz"))
+    courtside("import-imu", *_write("csv", tmp_path, truth), "--format", "csv", "-o", str(tmp_path / "c.npz"))
+
+    def calibrate(take: str, *extra: str) -> tuple[CalibrationRecord, str]:
+        proc = subprocess.run([sys.executable, "-m", "gateway.cli", "calibrate", str(tmp_path / take), "-o",
+                               str(tmp_path / f"{take}.json"), *extra], capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr
+        return CalibrationRecord.load(tmp_path / f"{take}.json"), proc.stderr
+
+    record, err = calibrate("x.npz")
+    assert record.config["north"] == "shared" and "an Xsens export" in record.config["north_basis"]
+    assert "calibrate: note: north shared (an Xsens export" in err and "pass --north own" in err, err
+    record, err = calibrate("x.npz", "--north", "own")
+    assert record.config["north"] == "own" and "north_basis" not in record.config and "note: north" not in err
+    record, err = calibrate("c.npz")
+    assert record.config["north"] == "own" and "north_basis" not in record.config
