@@ -321,17 +321,22 @@ class MotionPrior:
 @dataclass(frozen=True)
 class TakeCalibration:
     """The result: ``orientation`` (the calibrated sensors, in ``sensors`` order: indices into the take's
-    columns), the pose as found (``pose``: name and arm angle, the window held), per sensor a note, and whether
-    the sensors were solved in one earth frame (``north`` "shared") or each in its own ("own")."""
+    columns), the pose as found (``pose``: name and arm angle, the window held), whether the sensors were solved
+    in one earth frame (``north`` "shared") or each in its own ("own") and on what basis, and whether the straps'
+    twists were observed (per sensor a note when not)."""
 
     orientation: OrientationCalibration
     sensors: tuple[int, ...]
     pose: PoseSpec
-    notes: tuple[str, ...] = ()
     north: str = "own"
     twist_observed: bool = True  # False: no database, each strap's twist about the pose's up a guess (in one north
     #                               all of them turn with the reference's)
     north_basis: str = ""  # north auto: what decided it (the turn and fit tests' numbers); "" when declared
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """Per sensor, what the user should know of its solve ("" for nothing)."""
+        return tuple("" if self.twist_observed else NO_TWIST_NOTE for _ in self.sensors)
 
 
 def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -524,7 +529,7 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
         if prior is None:
             raise ValueError("calibration from motion (pose none) needs the database: give the graph (--graph)")
         solutions, one_north, basis = _from_motion_any_north(solver, world, north, seed)
-        return TakeCalibration(_calibration(solutions), tuple(sensors), pose, north="shared" if one_north else "own",
+        return TakeCalibration(_calibration(solutions), tuple(sensors), pose, "shared" if one_north else "own",
                                north_basis=basis)
     window = pose.window_s or still_stretch(q, fps, stillness)
     if window is None:
@@ -546,10 +551,9 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     else:
         (solutions, arm_deg), one_north, basis = _held_pose_any_north(solver, held, skeleton, pose, world)
     found = PoseSpec(pose.name, arm_deg if pose.name == "apose" else None, window)
-    twist_observed = prior is not None  # in one north without a database the one heading is the reference's guess
-    notes = tuple("" if twist_observed else NO_TWIST_NOTE for _ in sensors)
-    return TakeCalibration(_calibration(solutions), tuple(sensors), found, notes, "shared" if one_north else "own",
-                           twist_observed, basis)
+    # in one north without a database the one heading is the reference sensor's guess
+    return TakeCalibration(_calibration(solutions), tuple(sensors), found, "shared" if one_north else "own",
+                           twist_observed=prior is not None, north_basis=basis)
 
 
 def _take_solver(world: np.ndarray, fps: float, names: list[str], prior: MotionPrior | None, max_frames: int,
@@ -626,9 +630,13 @@ def _held_pose_any_north(solver: _Solver, held: np.ndarray, skeleton: Skeleton, 
     if _norths_agree([s.yaw_rad for s in own[0]]):
         return shared, True, f"{turns}, and the per-sensor solves' norths agree"
     gap = _fit_gap(solver, shared[0], own[0])
-    fit = (f"{turns}; one north fits the database {gap:.2f} worse than a north each (one north: <= "
-           f"{HELD_ONE_NORTH_FIT:g})")
+    fit = _fit_phrase(turns, gap, HELD_ONE_NORTH_FIT)
     return (shared, True, fit) if gap <= HELD_ONE_NORTH_FIT else (own, False, fit)
+
+
+def _fit_phrase(turns: str, gap: float, limit: float) -> str:
+    """The basis of a north decided by the fit test after the turns (`TakeCalibration.north_basis`)."""
+    return f"{turns}; one north fits the database {gap:.2f} worse than a north each (one north: <= {limit:g})"
 
 
 def _fit_gap(solver: _Solver, shared: list[_Solution], own: list[_Solution]) -> float:
@@ -776,8 +784,7 @@ def _from_motion_any_north(solver: _Solver, world: np.ndarray, north: str, seed:
     shared = _from_motion_one_north(solver, fits, rng)
     own = _from_motion(solver, fits)
     gap = _relative_misfit(solver, shared) - _relative_misfit(solver, own)
-    fit = (f"{turns}; one north fits the database {gap:.2f} worse than a north each (one north: <= "
-           f"{ONE_NORTH_MISFIT:g})")
+    fit = _fit_phrase(turns, gap, ONE_NORTH_MISFIT)
     return (shared, True, fit) if gap <= ONE_NORTH_MISFIT else (own, False, fit)
 
 

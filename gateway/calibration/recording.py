@@ -271,10 +271,9 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
                 sensor_dirs.append(g2 / np.linalg.norm(g2))
                 segment_dirs.append(up_other)
                 heading_term = 1.0
-        strap = None  # the strap solved from the orientations, as an accelerometer mounting (R = N M)
-        if k in oriented:
-            j = oriented.index(k)
-            strap = pose.nominal_rotation @ quaternions.to_matrix(solved.orientation.mount_wxyz[j])
+        j = oriented.index(k) if k in oriented else None  # the sensor's column in the orientation solve
+        # the strap solved from the orientations, as an accelerometer mounting (R = N M)
+        strap = None if j is None else pose.nominal_rotation @ quaternions.to_matrix(solved.orientation.mount_wxyz[j])
         # a walking axis says the heading only where the orientations could not (their twist a guess, no database)
         walks = seg in WALKING_HEADING_SEGMENTS and (strap is None or not solved.twist_observed)
         axis, share = None, 0.0
@@ -299,8 +298,7 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
                    else "the trunk needs a second pose, e.g. --second-pose bow@START:END")
             reasons.append(f"heading about gravity not observed ({why}): nominal mounting assumed for it")
         yaw = mount = None
-        if k in oriented:  # any strapping: solved from the orientations, never failed for being far from nominal
-            j = oriented.index(k)
+        if j is not None:  # any strapping: solved from the orientations, never failed for being far from nominal
             yaw, mount = float(solved.orientation.yaw_rad[j]), solved.orientation.mount_wxyz[j]
             if not heading_term:  # a declared second pose (two gravity directions) observes the accelerometer's
                 # heading about gravity, and so does a clear walking axis where the orientations leave the twist a
@@ -312,7 +310,7 @@ def calibrate_recording(acc_g: np.ndarray, fps: float, sensor_ids: list[str], se
                 [n for n in solved.notes[j:j + 1] if n]
         correction = rotation_angle_deg(rotation @ pose.nominal_rotation.T)
         flipped = tilt_deg(gravity, pose.nominal_rotation, pose.up)
-        measured_only = k not in oriented  # the mounting checks are for accelerometer-only sensors
+        measured_only = j is None  # the mounting checks are for accelerometer-only sensors
         if measured_only and flipped > config.flipped_deg:
             reasons.append(f"axes look flipped against the placement: the sensor's up is {flipped:.0f} deg from "
                            "where the placement table puts it (strapped upside down or rolled 180 deg?)")
