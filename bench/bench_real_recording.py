@@ -9,13 +9,14 @@ the camera's root, a camera-only search and the database oracle, all in one run.
 
     nice .venv/bin/python bench/bench_real_recording.py --mocap-dir ../shared/mocap --graph b1.npz \\
         [--groups respond,call] [--start-pose apose:70] [--strapping random|nominal] [--filter 6axis|9axis]
-        [--seconds 50] [--posing-error-deg 3] [--north auto|shared|own] [--seed 0]
+        [--seconds 50] [--posing-error-deg 3] [--forearm-roll-deg 0] [--north auto|shared|own] [--seed 0]
 
 ``--graph``: a graph built from ``--pattern`` over ``--mocap-dir`` (`courtside build-graph --mocap-dir ...
 --pattern ... --msv -o b1.npz`); every clip of the held-out groups is removed from it for the run.
 
 The simulation: the take's clips chained (engine.evaluation.takes), the athlete first holding the start pose for
-1.5 s (each segment `--posing-error-deg` (3) off the template, the arms at the stated angle), the standard sensors' true
+1.5 s (each segment `--posing-error-deg` (3) off the template, the arms at the stated angle, both forearms rolled
+`--forearm-roll-deg` about their bones: positive turns the palms backwards from facing the body), the standard sensors' true
 orientations and accelerations (the measured real-sensor error model) at 60 Hz, each sensor strapped by its own
 rotation, its orientation read through a magnetometer-free filter's errors (``--filter 6axis``: random yaw per
 sensor, drift, 2 deg of wandering tilt: `OrientationErrorModel.realistic` without its own strapping) or a
@@ -80,8 +81,17 @@ def parse_start_pose(text: str) -> tuple[str, float | None]:
 FILTERS = {"6axis": OrientationErrorModel.realistic, "9axis": OrientationErrorModel.magnetometer}
 
 
+def forearm_roll(forearm_roll_deg: float) -> np.ndarray:
+    """(S, 4) each sensor's turn in its nominal frame while the athlete holds the pose with both forearms rolled
+    `forearm_roll_deg` about the bone (X of a limb sensor's nominal frame; mirrored on the right arm, so positive
+    turns both palms backwards): the template's palms face the body, and a real athlete's need not."""
+    sign = np.array([{"left_forearm": 1.0, "right_forearm": -1.0}.get(name, 0.0) for name in NAMES])
+    return quat.from_rotvec(np.outer(sign * np.radians(forearm_roll_deg), [1.0, 0.0, 0.0]))
+
+
 def simulate_recording(take: Take, start_pose: str, strapping: str, orientation_filter: str,
-                       rng: np.random.Generator, posing_error_deg: float = 3.0) -> Recording:
+                       rng: np.random.Generator, posing_error_deg: float = 3.0, forearm_roll_deg: float = 0.0
+                       ) -> Recording:
     """Module doc: the hold, then the take; strapped, filtered."""
     pose, arm_deg = parse_start_pose(start_pose)
     skeleton = take.segments[0].motion.skeleton
@@ -89,7 +99,8 @@ def simulate_recording(take: Take, start_pose: str, strapping: str, orientation_
     q_true, _ = simulate.per_segment(take, RATE_HZ, lambda m: virtual_orientations(m, standard_placements(
         m.skeleton, NAMES)))
     n_hold = int(round(HOLD_S * RATE_HZ))
-    held = pose_sensor_orientations(skeleton, NAMES, pose, float(take.heading_rad[0]), arm_deg)
+    held = quat.multiply(pose_sensor_orientations(skeleton, NAMES, pose, float(take.heading_rad[0]), arm_deg),
+                         forearm_roll(forearm_roll_deg))
     held = quat.multiply(random_rotations(rng, len(NAMES), np.radians(posing_error_deg)), held)
     held_acc = quat.rotate(quat.conjugate(held), np.array([0.0, 1.0, 0.0]))  # still: 1 g up, in the sensor frame
     held_acc = held_acc[None] + rng.normal(0.0, 0.01, (n_hold, len(NAMES), 3))
@@ -168,6 +179,8 @@ def main() -> None:
                    help="the IMUs' orientation filter: 6axis (a north per sensor, drifting) or 9axis (one north)")
     p.add_argument("--posing-error-deg", type=float, default=3.0,
                    help="sd of each segment's turn off the start pose's template (degrees)")
+    p.add_argument("--forearm-roll-deg", type=float, default=0.0,
+                   help="both forearms rolled about the bone in the held pose (degrees; positive: palms backwards)")
     p.add_argument("--north", choices=("auto", "shared", "own"), default="auto",
                    help="calibrate --north (default auto, as a user who does not say)")
     p.add_argument("--seed", type=int, default=0)
@@ -186,7 +199,8 @@ def main() -> None:
             total += motions[i].duration_s
     take = chain_clips([motions.get(i) for i in range(len(paths))], chosen, labels)
     rng = np.random.default_rng(args.seed)
-    rec = simulate_recording(take, args.start_pose, args.strapping, args.filter, rng, args.posing_error_deg)
+    rec = simulate_recording(take, args.start_pose, args.strapping, args.filter, rng, args.posing_error_deg,
+                             args.forearm_roll_deg)
     train = graph.without_clips(held)
     rows: dict[str, dict[str, float]] = {}
     with tempfile.TemporaryDirectory(prefix="courtside-real-") as folder:
@@ -231,7 +245,7 @@ def main() -> None:
         rows[name] = {"poses": score(joints, t_truth, take)}
     print(f"take: {take.n_frames / take.fps:.1f} s of {', '.join(sorted({labels[i] for i in chosen}))} "
           f"({len(chosen)} clips held out with their groups), start pose {args.start_pose} held {HOLD_S} s "
-          f"({args.posing_error_deg:g} deg posing error), "
+          f"({args.posing_error_deg:g} deg posing error, forearms rolled {args.forearm_roll_deg:g} deg), "
           f"strapping {args.strapping}, {args.filter} filter, {RATE_HZ:g} Hz CSV in m/s2, seed {args.seed}")
     print(f"calibrate --graph found: pose {found['pose']}, north {found['north']}")
     print(f"{'root-relative error, cm':48s} {'saved poses':>12s} {'BVH file':>9s} {'console':>8s}")

@@ -178,6 +178,10 @@ def add_search_args(p: argparse.ArgumentParser) -> None:
                    help="takes with quat_wxyz: share of a worn forearm's / shin's turn that the unworn upper arm / "
                         "thigh takes about the shoulder / hip, keeping the played elbow / knee angle "
                         "(engine/graph/orientation_pose.py; 0 = only the worn segment turns)")
+    p.add_argument("--forearm-roll", type=float, default=None, metavar="SHARE",
+                   help="takes with quat_wxyz and an orientation calibration: weight of a worn forearm's roll about "
+                        "its bone in the search's orientation term, against where the bone points "
+                        "(engine/graph/orientation_term.py; default 0: the bone alone, 1 = as much)")
     p.add_argument("--limb-prior", type=int, default=None, metavar="K",
                    help="when posing: the unworn upper arm / thigh points where the K database poses nearest in "
                         "the worn forearm's / shin's orientation relative to the chest / pelvis (tilts alone without "
@@ -215,7 +219,8 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
     if args.orientation_heading is not None:
         check_non_negative("--orientation-heading", [args.orientation_heading])
         weights = replace(weights, orientation_heading=args.orientation_heading)
-    for option, field in (("--segment-pose", "segment_pose"), ("--hinge-share", "hinge_share")):
+    for option, field in (("--segment-pose", "segment_pose"), ("--hinge-share", "hinge_share"),
+                          ("--forearm-roll", "forearm_roll")):
         value = getattr(args, field)
         if value is not None:
             if not (np.isfinite(value) and 0 <= value <= 1):

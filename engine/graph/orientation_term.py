@@ -20,7 +20,9 @@ sensor's yaw is arbitrary and drifts (engine/mocap/orientation.py). So the term 
 With an N-pose calibration (engine/mocap/orientation_calibration.py: each sensor's yaw offset and strapping
 from the still capture) nothing is learnt: the readings are turned into the world first, the offsets are zero
 from the first sample, and the heading part's share is `SearchWeights.calibrated_heading` (0.5; measured better
-than tilt alone on held-out gestures, where learnt offsets were worse: docs/engine-evaluation.md).
+than tilt alone on held-out gestures, where learnt offsets were worse: docs/engine-evaluation.md). The
+calibrated readings are then the segments' nominal sensor frames, so a forearm's roll about its bone can be told
+from where the bone points, and it is heard only by `SearchWeights.forearm_roll` (default 0: `roll_axis_weights`).
 
 Together the two parts are the 3x3 rotation matrix of yaw(-(ψ_pelvis + offset_i)) * q_i (row 1 = tilt, rows 0
 and 2 = heading), so their squared distance is the chordal distance, 4 (1 - cos θ) for a rotation by θ.
@@ -88,18 +90,36 @@ def row_nodes(graph: MotionGraph) -> np.ndarray:
 
 
 def features(quat_world: np.ndarray, reference: int | None, offset_rad: np.ndarray | None,
-             heading_share: float = 1.0) -> np.ndarray:
+             heading_share: float = 1.0, axis_weights: np.ndarray | None = None) -> np.ndarray:
     """(..., K, 3) orientation features of sensor orientations (..., S, 4) in the engine world: the tilt part
     (S rows: each sensor's up axis in its frame), then -- with a `reference` sensor and known per-sensor yaw
-    offsets `offset_rad` (S,) -- the heading part (2S rows, see the module docstring) times `heading_share`."""
+    offsets `offset_rad` (S,) -- the heading part (2S rows, see the module docstring) times `heading_share`.
+    `axis_weights` (S, 3): each feature's components along the sensor's X, Y, Z axes are scaled by them
+    (`roll_axis_weights`); None = all 1."""
     q = np.asarray(quat_world, float)
-    tilt = quat.rotate(quat.conjugate(q), UP)  # (..., S, 3) = row 1 of the matrix below
+    w = np.ones((q.shape[-2], 3)) if axis_weights is None else np.asarray(axis_weights, float)
+    tilt = quat.rotate(quat.conjugate(q), UP) * w  # (..., S, 3) = row 1 of the matrix below
     if reference is None or offset_rad is None:
         return tilt
     psi_ref = twist_yaw(q[..., reference, :])[..., None]
     mats = quat.to_matrix(quat.multiply(yaw_about_up(-(psi_ref + offset_rad)), q))  # (..., S, 3, 3)
-    heading = heading_share * mats[..., [0, 2], :].reshape(q.shape[:-2] + (2 * q.shape[-2], 3))
+    heading = heading_share * (mats[..., [0, 2], :] * w[:, None, :]).reshape(q.shape[:-2] + (2 * q.shape[-2], 3))
     return np.concatenate([tilt, heading], axis=-2)
+
+
+def roll_axis_weights(sensor_names: list[str], roll_share: float) -> np.ndarray:
+    """(S, 3) `features`' axis weights for calibrated orientations: a forearm sensor's Y and Z axes (its nominal
+    frame's X lies along the bone) weigh `roll_share` (`SearchWeights.forearm_roll`, default 0), so the search
+    hears where the bone points and its roll about the bone only that much. Why: the roll is the least certain
+    part of a forearm's calibrated strap (the athlete's palms in the held pose, where the template's face the body:
+    30 deg off cost +1.3 cm on held-out bye, `bench/bench_real_recording.py --forearm-roll-deg`; the pronation a
+    sensor near the wrist follows and a database forearm need not), and it is the part the database matches
+    worst on a motion it lacks. Gesture sessions, leave one content out, held N-pose (docs/engine-evaluation.md
+    "The forearm's roll"), share 1 / 0.5 / 0.25 / 0: 9-axis 4.74 / 4.47 / 4.39 / 4.35 cm, 6-axis 5.08 / - / 4.79 /
+    4.76; the shins' twist at 0.5 too made the 9-axis sessions worse (4.47 -> 4.66), so it is the forearms'."""
+    weights = np.ones((len(sensor_names), 3))
+    weights[[n.endswith("forearm") for n in sensor_names], 1:] = roll_share
+    return weights
 
 
 def scaled_rows(graph: MotionGraph, sensor_indices: list[int], f: np.ndarray, used: np.ndarray,
@@ -123,13 +143,17 @@ class OrientationTerm:
 
     def __init__(self, graph: MotionGraph, sensor_indices: list[int], weight: float, heading_share: float = 0.0,
                  offset_time_constant_s: float = OFFSET_TIME_CONSTANT_S,
-                 calibration: OrientationCalibration | None = None, calibrated_heading_share: float = 0.0) -> None:
+                 calibration: OrientationCalibration | None = None, calibrated_heading_share: float = 0.0,
+                 roll_share: float = 1.0) -> None:
         names = [graph.config.sensor_names[i] for i in sensor_indices]
         self.calibration = calibration  # known yaw offsets and strapping: the readings are turned into the world
         if calibration is not None:
             heading_share = calibrated_heading_share
         self.heading_share = heading_share  # 0: the tilt part alone (no reference, nothing to learn)
         self.reference = names.index(REFERENCE_SENSOR) if REFERENCE_SENSOR in names and heading_share > 0 else None
+        # calibrated orientations are the segments' nominal frames (a forearm's X along its bone); the device's
+        # own frames need not be, so only then is the roll told from the bone's direction
+        self.axis_weights = None if calibration is None else roll_axis_weights(names, roll_share)
         self.n_sensors = len(sensor_indices)
         self.alpha = 1.0 / max(1.0, offset_time_constant_s * graph.config.fps)
         self.min_learned = MIN_LEARNED_S * graph.config.fps
@@ -139,7 +163,8 @@ class OrientationTerm:
         psi = twist_yaw(q_nodes)
         self.node_rel_yaw = psi - psi[:, [self.reference or 0]]  # (N, S) d_i of every node (unused: no reference)
         zero = None if self.reference is None else np.zeros(self.n_sensors)
-        f = features(q_nodes[np.where(used, nodes, 0)], self.reference, zero, heading_share)  # (M, K, 3)
+        f = features(q_nodes[np.where(used, nodes, 0)], self.reference, zero, heading_share,
+                     self.axis_weights)  # (M, K, 3)
         self.scale, self.meta_rows_t = scaled_rows(graph, sensor_indices, f, used, weight)
 
     def encoder(self) -> "OrientationEncoder":
@@ -172,7 +197,7 @@ class OrientationEncoder:
         if self.term.calibration is not None:  # offsets known: nothing to learn
             q = self.term.calibration.world(q)
             return features(q, ref, None if ref is None else np.zeros(self.term.n_sensors),
-                            self.term.heading_share) * self.term.scale
+                            self.term.heading_share, self.term.axis_weights) * self.term.scale
         q = from_device_earth(q)
         offset = None
         if ref is not None:

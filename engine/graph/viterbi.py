@@ -81,6 +81,8 @@ class SearchWeights:
     # against its tilt part; 0 = tilt alone (measured best: docs/engine-evaluation.md, "Orientations")
     calibrated_heading: float = 0.5  # the same share when an N-pose calibration gives the yaw offsets (nothing
     # to learn: measured better than tilt alone, docs/engine-evaluation.md)
+    forearm_roll: float = 0.0  # with an orientation calibration: the weight of a worn forearm's roll about
+    # its bone in the orientation term, against where the bone points (orientation_term.roll_axis_weights)
     gravity: float = 0.0  # weight of the tilt estimated from low-passed accelerations (gravity_term.py) when the
     # orientation term is off; 0 = off (docs/engine-evaluation.md, "Accelerations that listen")
     segment_pose: float = 1.0  # with orientations: how far each worn segment is turned from the played pose onto
@@ -237,7 +239,8 @@ class ViterbiLattice:
         # a sample without orientations uses the first 3S rows alone (a contiguous view)
         self.orientation = OrientationTerm(graph, sel, weights.orientation, weights.orientation_heading,
                                            calibration=orientation_calibration,
-                                           calibrated_heading_share=weights.calibrated_heading) \
+                                           calibrated_heading_share=weights.calibrated_heading,
+                                           roll_share=weights.forearm_roll) \
             if weights.orientation > 0 and self.n_sensors and places_sensors(graph) else None
         self._encoder = None if self.orientation is None else self.orientation.encoder()
         self._gravity = None

@@ -9,11 +9,11 @@ from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph
 from engine.graph.parts import NODE_ORIGINAL
 from engine.graph.online import FixedLagSynthesizer
-from engine.graph.orientation_term import OrientationTerm, features, twist_yaw
+from engine.graph.orientation_term import OrientationTerm, features, roll_axis_weights, twist_yaw
 from engine.graph.search import ViterbiSearch
 from engine.graph.viterbi import Observations, SearchWeights
 from engine.mocap import quaternions as quat
-from engine.mocap import standard_placements, virtual_accelerometers
+from engine.mocap import SEED000_SENSORS, standard_placements, virtual_accelerometers
 from engine.mocap.orientation import to_device_earth, virtual_orientations, yaw_about_up
 
 WEIGHTS = SearchWeights(1.0, 0.0, 0.0, forgetting=0.9, decision_frames=6, blend_paths=4, orientation=1.0,
@@ -133,9 +133,35 @@ def test_a_calibration_gives_the_heading_part_from_the_first_sample(graph, take)
 
     _, q_world, q_device = take
     calibration = OrientationCalibration(YAWS, np.tile([1.0, 0.0, 0.0, 0.0], (6, 1)))
-    term = OrientationTerm(graph, list(range(6)), 1.0, 0.0, calibration=calibration, calibrated_heading_share=0.5)
+    term = OrientationTerm(graph, list(range(6)), 1.0, 0.0, calibration=calibration, calibrated_heading_share=0.5,
+                           roll_share=0.25)
     assert term.reference == 4 and term.heading_share == 0.5
     encoder = term.encoder()
     got = np.stack([encoder.push(q) for q in q_device[:5]])
-    want = features(q_world[:5], 4, np.zeros(6), 0.5) * term.scale
-    assert np.allclose(got, want, atol=1e-9)
+    want = features(q_world[:5], 4, np.zeros(6), 0.5, roll_axis_weights(list(graph.config.sensor_names), 0.25))
+    assert np.allclose(got, want * term.scale, atol=1e-9)
+
+
+def test_a_forearm_s_roll_about_its_bone_weighs_its_share_and_where_the_bone_points_all(take):
+    """Calibrated orientations are the nominal sensor frames (a forearm's X along its bone): rolled about X, a
+    forearm's features move by exactly `roll_share` of what they move at 1 (0: not at all), while a turn of the
+    bone itself moves them at any share, and the other sensors are untouched."""
+    _, q_world, _ = take
+    names = list(SEED000_SENSORS)
+    rolled = q_world.copy()
+    rolled[:, 0] = quat.multiply(q_world[:, 0], quat.from_rotvec(np.array([0.7, 0.0, 0.0])))  # about the bone
+    swung = q_world.copy()
+    swung[:, 0] = quat.multiply(q_world[:, 0], quat.from_rotvec(np.array([0.0, 0.0, 0.7])))  # the bone turns
+
+    def moved(q: np.ndarray, share: float) -> np.ndarray:
+        w = roll_axis_weights(names, share)
+        return features(q, 4, np.zeros(6), 0.5, w) - features(q_world, 4, np.zeros(6), 0.5, w)
+
+    full = moved(rolled, 1.0)
+    assert np.abs(full).max() > 0.3
+    assert np.allclose(moved(rolled, 0.25), 0.25 * full, atol=1e-12)
+    assert np.allclose(moved(rolled, 0.0), 0.0, atol=1e-12)
+    assert np.abs(moved(swung, 0.0)).max() > 0.3
+    other = np.ones(18, bool)
+    other[[0, 6, 7]] = False  # the left forearm's tilt row and its two heading rows
+    assert np.allclose(moved(rolled, 1.0)[:, other], 0.0, atol=1e-12)
