@@ -16,10 +16,10 @@ the camera's root, a camera-only search and the database oracle, all in one run.
 
 The simulation: the take's clips chained (engine.evaluation.takes), the athlete first holding the start pose for
 1.5 s (each segment `--posing-error-deg` (3) off the template, the arms at the stated angle, both forearms rolled
-`--forearm-roll-deg` about their bones: positive turns the palms backwards from facing the body), the standard sensors' true
-orientations and accelerations (the measured real-sensor error model) at 60 Hz, each sensor strapped by its own
-rotation, its orientation read through a magnetometer-free filter's errors (``--filter 6axis``: random yaw per
-sensor, drift, 2 deg of wandering tilt: `OrientationErrorModel.realistic` without its own strapping) or a
+`--forearm-roll-deg` about their bones: positive turns the palms backwards from facing the body), the standard
+sensors' true orientations and accelerations (the measured real-sensor error model) at 60 Hz, each sensor strapped
+by its own rotation, its orientation read through a magnetometer-free filter's errors (``--filter 6axis``: random
+yaw per sensor, drift, 2 deg of wandering tilt: `OrientationErrorModel.realistic` without its own strapping) or a
 magnetometer-aided one's (``9axis``, as Xsens MTw/DOT export: one north, each sensor 4 deg off it:
 `OrientationErrorModel.magnetometer`). The perfect record holds each sensor's yaw at the take's start and its strap.
 """

@@ -179,9 +179,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="calibrate for this motion graph: its skeleton's joint frames and poses, its database for the "
                         "strap twists, the arm angle and --pose none (default: the shipped CMU skeleton, no database)")
     p.add_argument("--pose", metavar="npose|tpose|apose[:DEG][@START:END]|none", default="apose",
-                   help="takes with orientations: the pose the take starts with, held from START to END s (default: "
-                        "found, an A-pose of any arm angle, DEG out from hanging: 0 = N-pose, 90 = T-pose arms, in the "
-                        "first still stretch); none: no held pose, calibrate from the motion (needs --graph)")
+                   help="takes with orientations: the pose the take starts with (palms facing the body), held "
+                        "from START to END s (default: found, an A-pose of any arm angle, DEG out from hanging: "
+                        "0 = N-pose, 90 = T-pose arms, in the first still stretch); none: no held pose, calibrate "
+                        "from the motion (needs --graph)")
     p.add_argument("--north", choices=NORTHS, default="auto",
                    help="takes with orientations: do the sensors share one earth frame? shared: a magnetometer-aided "
                         "(9-axis) filter, as Xsens MTw/DOT report by default: one held pose then fixes every strap "
