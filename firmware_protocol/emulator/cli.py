@@ -93,17 +93,19 @@ def main(argv: list[str]) -> int:
     except (ValueError, OSError) as exc:  # a bad motion file or option value, a link directory not writable
         raise CourtsideError(str(exc)) from None
     stop = threading.Event()
-    previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    # Ctrl-C and SIGTERM stop it cleanly, set explicitly as the gateway does: a process started from a script's
+    # background job inherits SIGINT ignored, and Python then raises no KeyboardInterrupt (a CI run started so
+    # left the emulator running after its test had sent SIGINT)
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         for sid, _, transport in stations:
             link_note = f" {transport.symlink}" if transport.symlink else ""
             print(f"station {sid} {transport.slave_path}{link_note}", flush=True)
         print(flush=True)
         _serve(stations, args, stop)
-    except KeyboardInterrupt:
-        pass
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         for _, _, transport in stations:
             transport.close()
     print("courtside emulate: stopped", file=sys.stderr)
