@@ -19,8 +19,10 @@ right (α, θ) turns the measured orientations into relative rotations the datab
   δ(α, θ) exactly; α (shared by every arm sensor) is the angle whose best twists leave the arms' rotations
   relative to the pelvis sensor likeliest under the database's (`MotionPrior`), and each θ the one minimising
   that relative misfit plus how unlikely its up axes over the take are (`_Solver.combined_cost`); the pelvis
-  sensor's own θ is the one whose up axis over the take is likeliest. Without a database θ = 0 (the smallest strap
-  rotation, as the live wizard does) and α is the angle needing the smallest straps;
+  sensor's own θ is the one whose whole solve (α and every other θ fitted to it) fits the database best
+  (`HELD_REFERENCE_TWISTS`). The motion so judged leaves the hold out: the database need not hold the pose.
+  Without a database θ = 0 (the smallest strap rotation, as the live wizard does) and α is the angle needing the
+  smallest straps;
 * **no held pose** (``pose none``, research-level, after TIC 2025): each sensor's M first from its own readings
   alone, the rotation that makes its up axes and its spin axes (the axes it turns about, in its own frame)
   likeliest under the database's distributions for that segment (`_Solver.strap_score`, a global search over
@@ -91,6 +93,15 @@ HELD_ONE_NORTH_FIT = 0.31  # held pose, auto, when the sensors' turns allow one 
 HELD_TURN_NORTH_DEG = 45.0  # held pose, auto: one north only when the sensors' turns follow the pelvis's as the
 #   database's do within this (`turn_north_offset_deg`): 0-35 deg on all 72 9-axis takes of that bench, 1-179 on
 #   the 6-axis ones
+HELD_REFERENCE_TWISTS = 12  # held pose, a north per sensor: the reference (pelvis) sensor's strap twists tried, each
+#   with the whole solve that follows, keeping the one that fits the database best (`_total_misfit`). Its own up
+#   axes alone cannot tell a pelvis facing forward from one facing back on a take with little bending: on 4-s
+#   held-out "respond" takes (6-axis, uniform straps, a 70-deg A-pose; a diagnostic run) they turned it 157-180 deg
+#   in 5 of 6 draws, the arm angle 10 deg for 70; sessions 5.90 -> 5.65 cm (docs/engine-evaluation.md)
+HELD_SCREEN_FRAMES = 50  # ... screened on about this many of the solver's frames, the arms' twists every 30 deg
+HELD_SCREEN_ARM_TWIST_STEP = 3  # (every 3rd of the 10-deg grid); the best then solved on every frame, its arm angle
+HELD_ARM_REFINE_DEG = 10.0  # within this of the screened one
+MIN_MOTION_FRAMES = 10  # held pose: a take with fewer samples outside the hold is judged with the hold in it
 SPIN_INTERVAL_S = 1.0 / 15.0  # the turn whose axis is a segment's spin: long enough to rise above a filter's
 #                                sample-to-sample noise, short enough that the axis is still one axis
 SPIN_KERNEL_DEG = 15.0
@@ -523,11 +534,10 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
     sensors = [k for k in range(len(names)) if np.isfinite(q[:, k]).all(axis=-1).any()]
     q, names = q[:, sensors], [names[k] for k in sensors]
     world = from_device_earth(q)
-    # a held pose fixes the tilts; the spin axes moved one session's heading off (strap_score)
-    solver = _take_solver(world, fps, names, prior, max_frames, spins=pose.name == "none")
     if pose.name == "none":
         if prior is None:
             raise ValueError("calibration from motion (pose none) needs the database: give the graph (--graph)")
+        solver = _take_solver(world, fps, names, prior, max_frames, spins=True)
         solutions, one_north, basis = _from_motion_any_north(solver, world, north, seed)
         return TakeCalibration(_calibration(solutions), tuple(sensors), pose, "shared" if one_north else "own",
                                north_basis=basis)
@@ -543,6 +553,12 @@ def calibrate_take(quat_device: np.ndarray, fps: float, sensor_names: list[str] 
         raise ValueError(f"the pose window {window[0]:g}-{window[1]:g} s holds no sample with every sensor's "
                          f"orientation (take: 0-{len(q) / fps:.1f} s)")
     held = quat.to_matrix(from_device_earth(mean_orientation(held_q)))  # (S, 3, 3)
+    # the motion is judged against the database without the hold, which the database need not hold (an A-pose
+    # scored as poses turned it towards arms down); a held pose fixes the tilts, and the spin axes moved one
+    # session's heading off (strap_score)
+    motion = np.delete(world, np.arange(max(0, i0), min(len(world), i1)), axis=0)
+    solver = _take_solver(motion if len(motion) >= MIN_MOTION_FRAMES else world, fps, names, prior, max_frames,
+                          spins=False)
     basis = ""
     if north == "shared":
         (solutions, arm_deg), one_north = _shared_north(solver, held, skeleton, pose), True
@@ -640,14 +656,16 @@ def _fit_phrase(turns: str, gap: float, limit: float) -> str:
 
 
 def _fit_gap(solver: _Solver, shared: list[_Solution], own: list[_Solution]) -> float:
-    """How much worse the one-north solve `shared` fits the database than the per-sensor `own`: the difference of
-    their relative misfits (`_relative_misfit`) plus that of their straps' own-reading unlikeliness (minus
-    `_Solver.strap_score`, the mean over sensors)."""
-    def unlikeliness(solutions: list[_Solution]) -> float:
-        return float(np.mean([-solver.strap_score(k, s.mount[None])[0] for k, s in enumerate(solutions)]))
+    """How much worse the one-north solve `shared` fits the database than the per-sensor `own`
+    (`_total_misfit`)."""
+    return _total_misfit(solver, shared) - _total_misfit(solver, own)
 
-    return (_relative_misfit(solver, shared) - _relative_misfit(solver, own)
-            + unlikeliness(shared) - unlikeliness(own))
+
+def _total_misfit(solver: _Solver, solutions: list[_Solution]) -> float:
+    """How badly a whole solve fits the database: its relative misfit (`_relative_misfit`) plus its straps'
+    own-reading unlikeliness (minus `_Solver.strap_score`, the mean over sensors)."""
+    unlikeliness = np.mean([-solver.strap_score(k, s.mount[None])[0] for k, s in enumerate(solutions)])
+    return _relative_misfit(solver, solutions) + float(unlikeliness)
 
 
 def _norths_agree(yaws_rad: list[float]) -> bool:
@@ -692,26 +710,34 @@ def _from_held_pose(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec:
             a0 = angles[int(np.argmin(need))]
         smallest = [family(k, a0 if k in arms else angles[0], thetas) for k in range(len(names))]
         return [_Solution(m[0], float(y[0])) for m, y in smallest], (float(a0) if spec.name == "apose" else None)
-    mounts, yaws = family(ref, a0, thetas)
-    up_cost = lambda m, y: -solver.strap_score(ref, m)  # noqa: E731 - the reference's own twist: its up axis
-    i = int(np.argmin(up_cost(mounts, yaws)))
-    reference = fine(ref, a0, float(thetas[i]), up_cost)
-    out: list[_Solution | None] = [None] * len(names)
-    out[ref] = reference
+    def solve(on: _Solver, reference_twist: float, arm_angles: np.ndarray, arm_twists: np.ndarray
+              ) -> tuple[list[_Solution], float]:
+        """Every sensor's solution on `on` with the reference's twist near `reference_twist` (its own up axes
+        pick it within 9 degrees), the arm angle among `arm_angles` judged on the arms' twists `arm_twists`."""
+        reference = fine(ref, a0, reference_twist, lambda m, y: -on.strap_score(ref, m))
+        out: list[_Solution] = [reference] * len(names)
+        arm = a0
+        if fit_arm and arms:  # the arm angle whose best twists leave the arms' relative rotations likeliest
+            misfit = np.zeros(len(arm_angles))
+            for k in arms:  # every arm angle's twists in one query
+                mounts, yaws = (np.stack(f) for f in zip(*(family(k, a, arm_twists) for a in arm_angles)))
+                misfit += on.relative_cost(k, mounts, yaws, reference.mount, reference.yaw_rad).min(axis=1)
+            arm = float(arm_angles[int(np.argmin(misfit))])
+        for k in range(len(names)):
+            if k != ref:
+                a = arm if k in arms else angles[0]
+                cost, grid = on.combined_cost(k, *family(k, a, thetas), reference)
+                out[k] = fine(k, a, float(thetas[int(np.argmin(grid))]), cost)
+        return out, arm
 
-    def rel(k: int):
-        return lambda m, y: solver.relative_cost(k, m, y, reference.mount, reference.yaw_rad)
-
-    if fit_arm and arms:  # the arm angle whose best twists leave the arms' relative rotations likeliest
-        table = np.array([[rel(k)(*family(k, a, thetas)).min() for a in angles] for k in arms])  # (K, A)
-        a0 = float(angles[int(np.argmin(table.sum(axis=0)))])
-    for k in range(len(names)):
-        if k == ref:
-            continue
-        a = a0 if k in arms else angles[0]
-        cost, grid = solver.combined_cost(k, *family(k, a, thetas), reference)
-        out[k] = fine(k, a, float(thetas[int(np.argmin(grid))]), cost)
-    return out, (a0 if spec.name == "apose" else None)
+    # the reference's twist: the one whose whole solve fits the database best, screened on a thinned take
+    screen = solver.thinned(max(1, len(solver.frames) // HELD_SCREEN_FRAMES))
+    twists = thetas[::len(thetas) // HELD_REFERENCE_TWISTS]
+    screened = [solve(screen, t, angles, thetas[::HELD_SCREEN_ARM_TWIST_STEP]) for t in twists]
+    best = int(np.argmin([_total_misfit(screen, out) for out, _ in screened]))
+    near = angles[np.abs(angles - screened[best][1]) <= HELD_ARM_REFINE_DEG]
+    out, arm = solve(solver, float(twists[best]), near, thetas)
+    return out, (arm if spec.name == "apose" else None)
 
 
 def _arm_angles(spec: PoseSpec) -> tuple[bool, np.ndarray]:
