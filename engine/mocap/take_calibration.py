@@ -710,6 +710,7 @@ def _from_held_pose(solver: _Solver, held: np.ndarray, skeleton: Skeleton, spec:
             a0 = angles[int(np.argmin(need))]
         smallest = [family(k, a0 if k in arms else angles[0], thetas) for k in range(len(names))]
         return [_Solution(m[0], float(y[0])) for m, y in smallest], (float(a0) if spec.name == "apose" else None)
+
     def solve(on: _Solver, reference_twist: float, arm_angles: np.ndarray, arm_twists: np.ndarray
               ) -> tuple[list[_Solution], float]:
         """Every sensor's solution on `on` with the reference's twist near `reference_twist` (its own up axes
