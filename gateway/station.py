@@ -6,6 +6,10 @@ retries every ``reconnect_interval_s`` until the port reappears). On every (re)c
 REQUEST_HELLO and START_STREAMING, so a station that was power-cycled or replugged resumes by itself.
 
 Why frames before the first HELLO are held back (bounded): the tick rate needed to map times arrives in HELLO.
+Why they are held back after every reconnect too, until that connection's HELLO: the port may now be another
+station's (a ttyACM number or a pty reused by the next device plugged in); a HELLO with another serial than the
+link's station closes the link and drops what it sent (`station_serial`), so one station's stream never takes in
+another's samples.
 Why the clock survives a replug with the same boot id: the station kept counting, so the fitted offset/skew stay
 valid and the unwrapper bridges the gap from host elapsed time; a new boot id restarts the clock epoch.
 """
@@ -143,6 +147,9 @@ class StationReader(ReaderThread):
         self.decoder_totals: dict[str, int] = {}
         self._decoder = fp.StreamDecoder()
         self._pre_hello: deque[tuple[fp.DecodedFrame, float]] = deque(maxlen=PRE_HELLO_FRAMES)
+        self._greeted = False  # this connection's HELLO has arrived (frames are held back until it has)
+        self._foreign = False  # this connection's HELLO came from another station: everything it sends is dropped
+        self.foreign_devices = 0  # HELLOs from another station (serial) on this link, refused
         self._hello_requested_s = 0.0
         self.unwrapper: TickUnwrapper | None = None
         self._epoch_at_hello = 0
@@ -173,8 +180,11 @@ class StationReader(ReaderThread):
         self._close_link(reason)
 
     def _serve(self) -> None:
+        link = self._link
+        if link is None:  # closed since the thread looked (a refused device, a failed greeting)
+            return
         try:
-            data = self._link.read(65536)
+            data = link.read(65536)
         except LinkError as exc:
             self._close_link(str(exc))
             return
@@ -209,9 +219,11 @@ class StationReader(ReaderThread):
             self.transport = getattr(link, "transport", self.transport)
             self.connected_at_s = time.monotonic()
             self.link_state = "connecting"
+            self._greeted = self._foreign = False
+            self._pre_hello.clear()  # held back on a connection that never said which station it was
         self.sink.on_station_event(self.name, "info", f"link {self.source} open (reconnects: {self.reconnects})")
         self._send_commands_on_connect()
-        return True
+        return self._link is not None  # the device can vanish between the open and the greeting
 
     def _send_commands_on_connect(self) -> None:
         try:
@@ -248,7 +260,7 @@ class StationReader(ReaderThread):
         with self._lock:
             if self._link is None:
                 return
-            if self.hello is None:  # stay "connecting"; re-ask in case the first request was lost
+            if not self._greeted:  # stay "connecting"; re-ask in case the first request was lost
                 if now - self._hello_requested_s > HELLO_RETRY_S:
                     self._hello_requested_s = now
                     try:
@@ -287,6 +299,8 @@ class StationReader(ReaderThread):
             pass  # the read loop notices a dead link on its own
 
     def _handle(self, frame: fp.DecodedFrame, arrival_s: float) -> None:
+        if self._foreign:
+            return
         if self.station_id is None:
             # the sink may re-key a station whose id another link already uses (issue 22: two stations with one
             # id were merged into one stream that could not be separated afterwards)
@@ -304,11 +318,15 @@ class StationReader(ReaderThread):
             if problem is not None:
                 self._refuse("hello", problem)
                 return
+            if self.hello is not None and msg.station_serial != self.hello.station_serial:
+                self._refuse_foreign_device(msg.station_serial)
+                return
+            self._greeted = True
             self._on_hello(msg)
             while self._pre_hello:
                 self._handle(*self._pre_hello.popleft())
             return
-        if self.hello is None:
+        if not self._greeted:
             self._pre_hello.append((frame, arrival_s))
             return
         if isinstance(msg, fp.SampleBatch):
@@ -374,6 +392,15 @@ class StationReader(ReaderThread):
                                    f"{'.'.join(map(str, hello.firmware_version))}, {len(hello.sensors)} sensors, "
                                    f"{hello.tick_rate_hz} ticks/s", {"boot_id": hello.boot_id,
                                                                      "station_serial": hello.station_serial})
+
+    def _refuse_foreign_device(self, serial: int) -> None:
+        """Another station answered on this link's port: drop what it sent and close the link; the reader keeps
+        reopening the port until this link's own station (its serial) is back there."""
+        self.foreign_devices += 1
+        self._foreign = True
+        self._pre_hello.clear()
+        self._close_link(f"station serial {serial:#x} answered at {self.source}, where station serial "
+                         f"{self.hello.station_serial:#x} was; its frames are dropped until that station is back")
 
     def _refuse(self, kind: str, problem: str) -> None:
         """Drop a message whose fields are impossible: counted in status, one event per kind per interval."""
@@ -491,6 +518,7 @@ class StationReader(ReaderThread):
                 "boot_id": hello.boot_id if hello else None, "tick_hz": hello.tick_rate_hz if hello else None,
                 "reconnects": self.reconnects, "internal_errors": self.internal_errors, "battery_pct": self.station_battery_pct,
                 "invalid_fields": self.invalid_fields, "last_invalid": self.last_invalid, "link_error": self.link_error,
+                "foreign_devices": self.foreign_devices,
                 "device_errors": self.device_errors, "last_device_error": self.last_device_error,
                 "device_error_events_suppressed": self._error_throttle.suppressed_total,
                 "buffered_samples": self.station_buffered_samples, **counts,

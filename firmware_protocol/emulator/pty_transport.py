@@ -3,8 +3,10 @@
 One I/O thread per station moves bytes between the pty master and the EmulatorLink (commands in, frames out).
 Like a USB CDC device whose port is closed (DTR low), the station's output is dropped while no host has the
 slave open; the ground truth marks those frames lost. `unplug()` closes the master, which the host sees as
-a disconnected device (pyserial raises SerialException); `replug()` creates a fresh pty (a new /dev/pts/N,
-as a real replug may get a new ttyACM number) and, if `symlink` was given, repoints that stable path to it.
+a disconnected device (pyserial raises SerialException) and removes the stable `symlink` as udev removes a
+/dev/serial/by-id path (else a host retrying it would open whatever device gets that /dev/pts/N next);
+`replug()` creates a fresh pty (a new /dev/pts/N, as a real replug may get a new ttyACM number) and, if
+`symlink` was given, points that stable path to it again.
 
 Exact ground truth at an unplug. Bytes written to the master are not yet the host's: Linux first queues them in
 the slave's flip buffer, a kernel worker moves them into the line discipline's read buffer (at most 4095 bytes;
@@ -97,6 +99,7 @@ class PtyTransport:
         chunks = self._collect_unread()
         os.close(self._master)
         self._master = -1
+        self._remove_symlink()
         written_end = self.link.bytes_taken - len(self._unsent)  # stream offset past the last written byte
         missed = self._locate(chunks)         # written positions the host never got, in order
         self.bytes_lost_at_unplug += sum(map(len, chunks))
@@ -121,6 +124,9 @@ class PtyTransport:
         if self._master >= 0:
             os.close(self._master)
             self._master = -1
+        self._remove_symlink()
+
+    def _remove_symlink(self) -> None:
         if self.symlink is not None and self.symlink.is_symlink():
             self.symlink.unlink()
 

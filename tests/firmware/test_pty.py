@@ -121,7 +121,8 @@ def test_command_round_trips_over_pty(pty_host):
 
 
 def test_unplug_replug_over_pty(pty_host, tmp_path):
-    """Pulling the cable kills the host's port; the replugged station reboots (new boot id, seq 0 HELLO)."""
+    """Pulling the cable kills the host's port and its stable path; the replugged station reboots (new boot id,
+    seq 0 HELLO) behind that path again."""
     link = EmulatorLink(BaseStation(StationConfig(n_sensors=2, autostart=True, seed=5)))
     with PtyTransport(link, symlink=tmp_path / "station0") as transport:
         port = serial.Serial(str(tmp_path / "station0"), timeout=0.02)
@@ -134,6 +135,7 @@ def test_unplug_replug_over_pty(pty_host, tmp_path):
             for _ in range(10):
                 port.read(1)
         port.close()
+        assert not (tmp_path / "station0").exists()  # gone like udev's by-id path: no retry opens a reused pty
         link.advance(2.0)                                                # unplugged: time passes, nothing sent
         transport.replug()
         assert (tmp_path / "station0").resolve() == Path(transport.slave_path).resolve()

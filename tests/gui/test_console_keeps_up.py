@@ -34,6 +34,7 @@ clips = ["16_32"]
 
 
 @pytest.mark.slow  # two minutes of real time
+@pytest.mark.alone  # it measures keeping up: another test beside it would take its core
 def test_four_sensor_console_never_falls_behind_in_two_minutes(qapp, tmp_path, caplog):
     (tmp_path / "court.toml").write_text(COURT)
     gateway, port = start_gateway(tmp_path, "--config", "court.toml", mode="no authentication: loopback only")
