@@ -115,6 +115,26 @@ def simulate_recording(take: Take, start_pose: str, strapping: str, orientation_
     return Recording(take, acc_sensor * GRAVITY_MPS2, errors.apply(q_sensor), errors.yaw_rad[n_hold], strap)
 
 
+def held_out_take(mocap_dir: Path, pattern: str, graph: MotionGraph, graph_name: str, groups: list[str],
+                  seconds: float) -> tuple[Take, MotionGraph, list[str]]:
+    """The groups' clips chained into one take of at least `seconds` (all of them if shorter), the graph without
+    any clip of those groups, and the chained clips' contents. Exits naming the graph if it was not built from
+    `pattern` over `mocap_dir`."""
+    paths = sorted(mocap_dir.glob(pattern))
+    if graph.clip_names != [path.stem for path in paths]:
+        sys.exit(f"{graph_name}: not built from {pattern} ({len(graph.clip_names)} vs {len(paths)} clips)")
+    labels = [clip_label(path).content for path in paths]
+    held = [i for i, label in enumerate(labels) if label in groups]
+    motions = {i: load_clip(paths[i], fps=graph.config.fps) for i in held}
+    chosen, total = [], 0.0
+    for i in held:
+        if total < seconds:
+            chosen.append(i)
+            total += motions[i].duration_s
+    take = chain_clips([motions.get(i) for i in range(len(paths))], chosen, labels)
+    return take, graph.without_clips(held), [labels[i] for i in chosen]
+
+
 def write_csv(path: Path, rec: Recording) -> list[str]:
     """The recording as a vendor-style CSV; returns the import-imu arguments that read it."""
     n = len(rec.acc_mps2)
@@ -185,23 +205,12 @@ def main() -> None:
                    help="calibrate --north (default auto, as a user who does not say)")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args()
-    paths = sorted(Path(args.mocap_dir).glob(args.pattern))
     graph = MotionGraph.load(args.graph)
-    if graph.clip_names != [path.stem for path in paths]:
-        sys.exit(f"{args.graph}: not built from {args.pattern} ({len(graph.clip_names)} vs {len(paths)} clips)")
-    labels = [clip_label(path).content for path in paths]
-    held = [i for i, label in enumerate(labels) if label in args.groups.split(",")]
-    motions = {i: load_clip(paths[i], fps=graph.config.fps) for i in held}
-    chosen, total = [], 0.0
-    for i in held:
-        if total < args.seconds:
-            chosen.append(i)
-            total += motions[i].duration_s
-    take = chain_clips([motions.get(i) for i in range(len(paths))], chosen, labels)
+    take, train, chosen_labels = held_out_take(Path(args.mocap_dir), args.pattern, graph, args.graph,
+                                               args.groups.split(","), args.seconds)
     rng = np.random.default_rng(args.seed)
     rec = simulate_recording(take, args.start_pose, args.strapping, args.filter, rng, args.posing_error_deg,
                              args.forearm_roll_deg)
-    train = graph.without_clips(held)
     rows: dict[str, dict[str, float]] = {}
     with tempfile.TemporaryDirectory(prefix="courtside-real-") as folder:
         work = Path(folder)
@@ -243,8 +252,8 @@ def main() -> None:
     for name, joints in (("mean pose at the camera's root", baselines.mean_pose(train, cam_pos, cam_head)),
                          ("camera-only search", camera_only.joints_m), ("database oracle", oracle)):
         rows[name] = {"poses": score(joints, t_truth, take)}
-    print(f"take: {take.n_frames / take.fps:.1f} s of {', '.join(sorted({labels[i] for i in chosen}))} "
-          f"({len(chosen)} clips held out with their groups), start pose {args.start_pose} held {HOLD_S} s "
+    print(f"take: {take.n_frames / take.fps:.1f} s of {', '.join(sorted(set(chosen_labels)))} "
+          f"({len(chosen_labels)} clips held out with their groups), start pose {args.start_pose} held {HOLD_S} s "
           f"({args.posing_error_deg:g} deg posing error, forearms rolled {args.forearm_roll_deg:g} deg), "
           f"strapping {args.strapping}, {args.filter} filter, {RATE_HZ:g} Hz CSV in m/s2, seed {args.seed}")
     print(f"calibrate --graph found: pose {found['pose']}, north {found['north']}")
