@@ -308,6 +308,9 @@ class StationReader(ReaderThread):
             wanted = f"st{frame.station_id}"
             self._claimed_name = claim(self, wanted) if claim is not None else wanted
             self.station_id = frame.station_id
+        elif frame.station_id != self.station_id and not self._greeted and self.hello is not None:
+            self._refuse_foreign_device(f"station id {frame.station_id}", f"station id {self.station_id}")
+            return
         elif frame.station_id != self.station_id:
             log.warning("%s: frame from station id %d on a link of station %d; ignored",
                         self.source, frame.station_id, self.station_id)
@@ -319,7 +322,8 @@ class StationReader(ReaderThread):
                 self._refuse("hello", problem)
                 return
             if self.hello is not None and msg.station_serial != self.hello.station_serial:
-                self._refuse_foreign_device(msg.station_serial)
+                self._refuse_foreign_device(f"station serial {msg.station_serial:#x}",
+                                            f"station serial {self.hello.station_serial:#x}")
                 return
             self._greeted = True
             self._on_hello(msg)
@@ -393,14 +397,15 @@ class StationReader(ReaderThread):
                                    f"{hello.tick_rate_hz} ticks/s", {"boot_id": hello.boot_id,
                                                                      "station_serial": hello.station_serial})
 
-    def _refuse_foreign_device(self, serial: int) -> None:
-        """Another station answered on this link's port: drop what it sent and close the link; the reader keeps
-        reopening the port until this link's own station (its serial) is back there."""
+    def _refuse_foreign_device(self, found: str, own: str) -> None:
+        """Another station answered on this link's port since the reconnect (`found`: its serial or id, `own`: this
+        link's): drop what it sent and close the link; the reader keeps reopening the port until this link's own
+        station is back there."""
         self.foreign_devices += 1
         self._foreign = True
         self._pre_hello.clear()
-        self._close_link(f"station serial {serial:#x} answered at {self.source}, where station serial "
-                         f"{self.hello.station_serial:#x} was; its frames are dropped until that station is back")
+        self._close_link(f"{found} answered at {self.source}, where {own} was; its frames are dropped until that "
+                         "station is back")
 
     def _refuse(self, kind: str, problem: str) -> None:
         """Drop a message whose fields are impossible: counted in status, one event per kind per interval."""

@@ -163,12 +163,13 @@ def test_unplug_goes_lost_and_reconnect_counts(tmp_path):
 
 def test_another_station_at_the_port_after_a_replug_is_refused_and_nothing_of_it_recorded(tmp_path):
     """The port a station was unplugged from may come back as another device (a reused ttyACM or pty number):
-    its HELLO's serial differs, so its frames (also those sent before its HELLO) never reach the recording and
-    the link is closed until the station itself is back at the port, whose samples then flow again."""
+    its HELLO's serial (or its frames' station id) differs, so its frames (also those sent before its HELLO) never
+    reach the recording and the link is closed until the station itself is back at the port, whose samples then
+    flow again."""
     link_path = tmp_path / "station0"
     masters = []
 
-    def plug(hello: fp.Hello, before: bytes, after: bytes) -> None:
+    def plug(hello: fp.Hello, before: bytes, after: bytes, station_id: int = 2) -> None:
         """A device at the port: it answers the reader's REQUEST_HELLO, with frames before and after its HELLO."""
         master, slave = pty.openpty()
         tty.setraw(master)
@@ -178,7 +179,7 @@ def test_another_station_at_the_port_after_a_replug_is_refused_and_nothing_of_it
         decoder = fp.StreamDecoder()
         assert wait_for(lambda: any(f.message.opcode == fp.Opcode.REQUEST_HELLO
                                     for f in decoder.feed(os.read(master, 4096))))
-        os.write(master, before + fp.encode(hello, 2, 0) + after)
+        os.write(master, before + fp.encode(hello, station_id, 0) + after)
 
     own = batch(0, 0, 1_000_000, 10, value=100)
     sink = Sink()
@@ -196,6 +197,12 @@ def test_another_station_at_the_port_after_a_replug_is_refused_and_nothing_of_it
         plug(other, b"".join(foreign[:2]), b"".join(foreign[2:]))
         assert wait_for(lambda: reader.status()["foreign_devices"] >= 1)
         assert any("station serial 0x4e answered" in message for _, _, message in sink.events)
+        for fd in masters:
+            os.close(fd)
+        masters.clear()
+        plug(HELLO, fp.encode(batch(0, 10, 1_200_000, 10, value=-7), 3, 1), b"", station_id=3)  # another id
+        assert wait_for(lambda: reader.status()["foreign_devices"] >= 2)
+        assert any("station id 3 answered" in message for _, _, message in sink.events)
         for fd in masters:
             os.close(fd)
         masters.clear()
