@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import firmware_protocol as fp
+from gateway.links import LinkError, SerialLink
 from gateway.station import SampleBlock, StationReader
 
 TICK_HZ = 1_000_000
@@ -224,8 +225,6 @@ def test_another_station_at_the_port_after_a_replug_is_refused_and_nothing_of_it
 def test_a_device_gone_between_open_and_greeting_is_retried_not_fatal_to_the_reader(pty_pair):
     """The port opens, then the first command fails (unplugged that instant): the reader must count it as a lost
     link and open the port again, not die on the closed link (its thread once read from None and stopped)."""
-    from gateway.links import LinkError, SerialLink
-
     master, path = pty_pair
     opened = []
 
