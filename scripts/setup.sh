@@ -33,7 +33,7 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   .venv/bin/python -m pip install -q --upgrade pip >/dev/null 2>&1 || true
   .venv/bin/python -m pip install -q -e '.[console,test]' >.venv/pip-install.log 2>&1 \
     || { tail -30 .venv/pip-install.log >&2; echo "setup: pip install failed (full log: .venv/pip-install.log)" >&2; exit 1; }
-  .venv/bin/python -c 'import numpy, scipy, serial, hid, PySide6, pyqtgraph, moderngl, cv2, ezc3d, pytest, hypothesis' \
+  .venv/bin/python -c 'import numpy, scipy, serial, hid, PySide6, pyqtgraph, moderngl, cv2, ezc3d, pytest, xdist, hypothesis' \
     || { echo "setup: dependency import failed" >&2; exit 1; }
   echo "$want" > "$stamp"
 fi
