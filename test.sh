@@ -14,6 +14,6 @@ fi
 workers=$(nproc 2>/dev/null || echo 2)
 ((workers > 4)) && workers=4
 status=0
-"${pytest[@]}" -n "$workers" --dist loadgroup -m "not alone" --durations=25 || status=$?
+"${pytest[@]}" -n "$workers" -m "not alone" --durations=25 || status=$?
 "${pytest[@]}" -m alone --durations=5 || status=$?
 exit "$status"

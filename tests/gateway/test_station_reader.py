@@ -110,12 +110,13 @@ def test_reader_decodes_counts_and_commands(pty_pair):
         reader.stop()
 
 
-def answer_hello(master: int, hello: fp.Hello, station_id: int = 2) -> None:
-    """pyserial flushes input on open, so reply to the reader's REQUEST_HELLO as a station would."""
+def answer_hello(master: int, hello: fp.Hello, station_id: int = 2, before: bytes = b"", after: bytes = b"") -> None:
+    """pyserial flushes input on open, so reply to the reader's REQUEST_HELLO as a station would (in one write
+    with the frames `before` and `after` its HELLO)."""
     decoder = fp.StreamDecoder()
     assert wait_for(lambda: any(f.message.opcode == fp.Opcode.REQUEST_HELLO
                                 for f in decoder.feed(os.read(master, 4096))))
-    os.write(master, fp.encode(hello, station_id, 0))
+    os.write(master, before + fp.encode(hello, station_id, 0) + after)
 
 
 def test_unplug_goes_lost_and_reconnect_counts(tmp_path):
@@ -141,12 +142,9 @@ def test_unplug_goes_lost_and_reconnect_counts(tmp_path):
         os.symlink(os.ttyname(slave), link_path)
         t0 = time.monotonic()
         # the new boot's periodic beacon overtakes its HELLO: one reboot must still be one clock epoch
-        decoder = fp.StreamDecoder()
-        assert wait_for(lambda: any(f.message.opcode == fp.Opcode.REQUEST_HELLO
-                                    for f in decoder.feed(os.read(master, 4096))))
-        os.write(master, fp.encode(fp.ClockSync(1_000, 0), 2, 1) + fp.encode(
-            fp.Hello(HELLO.firmware_version, 77, 0x1111, TICK_HZ, HELLO.supported_rates_hz,
-                     HELLO.supported_ranges_g, HELLO.sensors), 2, 0))
+        rebooted = fp.Hello(HELLO.firmware_version, 77, 0x1111, TICK_HZ, HELLO.supported_rates_hz,
+                            HELLO.supported_ranges_g, HELLO.sensors)
+        answer_hello(master, rebooted, before=fp.encode(fp.ClockSync(1_000, 0), 2, 1))
         assert wait_for(lambda: reader.status()["link"] == "streaming" and reader.status()["boot_id"] == 0x1111)
         # catches a reader stuck after the replug; the 2 s reconnect criterion itself is judged by the acceptance
         # run (tests/gateway/test_acceptance_emulated.py): a wall-clock bound here failed on a starved machine
@@ -177,10 +175,12 @@ def test_another_station_at_the_port_after_a_replug_is_refused_and_nothing_of_it
         masters.extend([master, slave])
         link_path.unlink(missing_ok=True)
         os.symlink(os.ttyname(slave), link_path)
-        decoder = fp.StreamDecoder()
-        assert wait_for(lambda: any(f.message.opcode == fp.Opcode.REQUEST_HELLO
-                                    for f in decoder.feed(os.read(master, 4096))))
-        os.write(master, before + fp.encode(hello, station_id, 0) + after)
+        answer_hello(master, hello, station_id, before, after)
+
+    def unplug() -> None:
+        for fd in masters:
+            os.close(fd)
+        masters.clear()
 
     own = batch(0, 0, 1_000_000, 10, value=100)
     sink = Sink()
@@ -188,9 +188,7 @@ def test_another_station_at_the_port_after_a_replug_is_refused_and_nothing_of_it
     try:
         plug(HELLO, b"", fp.encode(own, 2, 1))
         assert wait_for(lambda: sum(len(b.t_host_s) for b in sink.blocks) == 10)
-        for fd in masters:
-            os.close(fd)
-        masters.clear()
+        unplug()
         assert wait_for(lambda: reader.status()["link"] == "lost")
         other = fp.Hello(HELLO.firmware_version, 78, 0x2222, TICK_HZ, HELLO.supported_rates_hz,
                          HELLO.supported_ranges_g, HELLO.sensors)
@@ -198,15 +196,11 @@ def test_another_station_at_the_port_after_a_replug_is_refused_and_nothing_of_it
         plug(other, b"".join(foreign[:2]), b"".join(foreign[2:]))
         assert wait_for(lambda: reader.status()["foreign_devices"] >= 1)
         assert any("station serial 0x4e answered" in message for _, _, message in sink.events)
-        for fd in masters:
-            os.close(fd)
-        masters.clear()
+        unplug()
         plug(HELLO, fp.encode(batch(0, 10, 1_200_000, 10, value=-7), 3, 1), b"", station_id=3)  # another id
         assert wait_for(lambda: reader.status()["foreign_devices"] >= 2)
         assert any("station id 3 answered" in message for _, _, message in sink.events)
-        for fd in masters:
-            os.close(fd)
-        masters.clear()
+        unplug()
         plug(HELLO, b"", fp.encode(batch(0, 10, 1_200_000, 10, value=100), 2, 2))
         assert wait_for(lambda: sum(len(b.t_host_s) for b in sink.blocks) == 20)
         values = np.concatenate([b.acc_g[:, 1] for b in sink.blocks])

@@ -78,6 +78,7 @@ def test_any_strapping_and_the_arm_angle_of_an_a_pose_are_recovered(motion, seed
     turned = np.angle(np.exp(1j * (cal.yaw_rad - yaw)))  # common to every limb sensor's yaw: the body's turn
     assert np.abs(np.degrees(np.angle(np.exp(1j * (turned[limbs] - turned[limbs[0]]))))).max() < 2.5
 
+
 @pytest.mark.parametrize("seed", [1, 4])
 def test_a_short_take_in_a_north_each_finds_the_pelvis_and_the_arm_angle(motion, seed):
     """3 s of walking after a 2-s A-pose hold, a north per sensor, straps uniform over all rotations: the
