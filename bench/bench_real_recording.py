@@ -4,12 +4,15 @@ m/s² in each sensor's frame, the vendor's orientation quaternion in its own ear
 `courtside import-imu` -> `courtside calibrate --graph` -> `courtside synthesize --calibration`, scored against the
 mocap truth for the written BVH (read back) and the saved poses, and the console's live path (the graph file's
 engine with that record, `load_spec`, pushed frame by frame) -- beside the same take with a perfect calibration
-(the simulated yaws and straps), with orientations but no calibration, accelerations only, and the mean pose at
-the camera's root, a camera-only search and the database oracle, all in one run.
+(the simulated yaws and straps), with the hold read perfectly (`hold_floor_record`: the best any held-pose
+calibration can do, so perfect minus it is what the hold itself cannot show), with orientations but no
+calibration, accelerations only, and the mean pose at the camera's root, a camera-only search and the database
+oracle, all in one run.
 
     nice .venv/bin/python bench/bench_real_recording.py --mocap-dir ../shared/mocap --graph b1.npz \\
         [--groups respond,call] [--start-pose apose:70] [--strapping random|nominal] [--filter 6axis|9axis]
         [--seconds 50] [--posing-error-deg 3] [--forearm-roll-deg 0] [--north auto|shared|own] [--seed 0]
+        [--tilt-noise-deg D] [--north-spread-deg D]
 
 ``--graph``: a graph built from ``--pattern`` over ``--mocap-dir`` (`courtside build-graph --mocap-dir ...
 --pattern ... --msv -o b1.npz`); every clip of the held-out groups is removed from it for the run.
@@ -50,8 +53,8 @@ from engine.mocap import (SEED000_SENSORS, SensorErrorModel, forward_kinematics,
                           read_bvh, standard_placements, virtual_orientations)
 from engine.mocap import quaternions as quat
 from engine.mocap.calibrated import SKELETON, orientation_fields, skeleton_identity, strap_field
-from engine.mocap.orientation import OrientationErrorModel, random_rotations
-from engine.mocap.orientation_calibration import pose_sensor_orientations
+from engine.mocap.orientation import OrientationErrorModel, from_device_earth, random_rotations, yaw_about_up
+from engine.mocap.orientation_calibration import mean_orientation, pose_sensor_orientations
 from engine.stream.offline import synthesize_take
 from engine.stream.poses_file import load_poses
 from gateway.cli import main as courtside
@@ -90,9 +93,10 @@ def forearm_roll(forearm_roll_deg: float) -> np.ndarray:
 
 
 def simulate_recording(take: Take, start_pose: str, strapping: str, orientation_filter: str,
-                       rng: np.random.Generator, posing_error_deg: float = 3.0, forearm_roll_deg: float = 0.0
-                       ) -> Recording:
-    """Module doc: the hold, then the take; strapped, filtered."""
+                       rng: np.random.Generator, posing_error_deg: float = 3.0, forearm_roll_deg: float = 0.0,
+                       filter_changes: dict[str, float] | None = None) -> Recording:
+    """Module doc: the hold, then the take; strapped, filtered (`filter_changes`: OrientationErrorModel fields
+    set otherwise than the filter's, e.g. ``tilt_noise_deg``, to see what each error costs)."""
     pose, arm_deg = parse_start_pose(start_pose)
     skeleton = take.segments[0].motion.skeleton
     acc_g, _ = simulate.accelerometers(take, NAMES, SensorErrorModel.measured_real(), rng, fps=RATE_HZ)
@@ -110,7 +114,7 @@ def simulate_recording(take: Take, start_pose: str, strapping: str, orientation_
         if strapping == "random" else np.tile(quat.identity(), (len(NAMES), 1))
     q_sensor = quat.multiply(q_nominal, strap)                 # the strapped sensor's orientation in the world
     acc_sensor = quat.rotate(quat.conjugate(strap), acc_nominal)  # its readings in its own axes
-    model = replace(FILTERS[orientation_filter](), misalignment_deg=0.0)
+    model = replace(FILTERS[orientation_filter](), misalignment_deg=0.0, **(filter_changes or {}))
     errors = model.draw(len(q_sensor), len(NAMES), RATE_HZ, rng)
     return Recording(take, acc_sensor * GRAVITY_MPS2, errors.apply(q_sensor), errors.yaw_rad[n_hold], strap)
 
@@ -149,20 +153,41 @@ def write_csv(path: Path, rec: Recording) -> list[str]:
     return args
 
 
-def perfect_record(path: Path, rec: Recording, skeleton) -> None:
-    """The record a perfect calibration would write: each sensor's true yaw and strap, and its mounting (the
-    nominal placement turned by the strap) for the accelerations."""
+def write_record(path: Path, skeleton, yaw_rad: np.ndarray, mount_wxyz: np.ndarray) -> None:
+    """A calibration record of each sensor's earth yaw and strapping (sensor axes -> nominal sensor frame), with
+    its mounting (the nominal placement turned by the strap) for the accelerations."""
     placements = standard_placements(skeleton, NAMES)
     sensors = {}
     for k, p in enumerate(placements):
-        mount = quat.to_matrix(rec.strap_wxyz[k])
-        angle = float(np.degrees(np.linalg.norm(quat.to_rotvec(rec.strap_wxyz[k]))))
-        sensors[f"{p.name}"] = {"segment": p.name, "rotation": (p.rotation @ mount).tolist(),
+        angle = float(np.degrees(np.linalg.norm(quat.to_rotvec(mount_wxyz[k]))))
+        sensors[f"{p.name}"] = {"segment": p.name, "rotation": (p.rotation @ quat.to_matrix(mount_wxyz[k])).tolist(),
                                 "gravity_sensor_g": [0, 1, 0], "norm_error_g": 0.0, "correction_deg": angle,
-                                "passed": True, **orientation_fields(rec.yaw_rad[k], rec.strap_wxyz[k]),
-                                **strap_field(rec.strap_wxyz[k])}
+                                "passed": True, **orientation_fields(yaw_rad[k], mount_wxyz[k]),
+                                **strap_field(mount_wxyz[k])}
     path.write_text(json.dumps({"schema": "courtside.sensor_calibration", "schema_version": 1, "sensors": sensors,
                                 SKELETON: skeleton_identity(skeleton, "the graph's skeleton")}))
+
+
+def perfect_record(path: Path, rec: Recording, skeleton) -> None:
+    """The record a perfect calibration would write: each sensor's true yaw and strap."""
+    write_record(path, skeleton, rec.yaw_rad, rec.strap_wxyz)
+
+
+def hold_floor_record(path: Path, rec: Recording, skeleton, start_pose: str, orientation_filter: str) -> None:
+    """The best record any held-pose calibration can write: the hold read with the true heading and arm angle
+    (and each sensor's own north on 6-axis filters, the sensors' mean north on 9-axis ones: what a hold cannot
+    split from the strap's twist, given), so the strap M = P⁻¹ yaw(-δ) Q_held still carries what the hold itself
+    gets wrong -- the athlete's posing error, the filter's tilt wander during the hold, and (9-axis) each
+    sensor's offset from the one north. Its distance to the perfect record is the floor of the hold; calibrate's
+    distance to it, what the solve loses."""
+    pose, arm_deg = parse_start_pose(start_pose)
+    n_hold = int(round(HOLD_S * RATE_HZ))
+    held = from_device_earth(mean_orientation(rec.quat_device[:n_hold]))
+    template = pose_sensor_orientations(skeleton, NAMES, pose, float(rec.take.heading_rad[0]), arm_deg)
+    yaw = rec.yaw_rad if orientation_filter == "6axis" else \
+        np.full(len(NAMES), float(np.angle(np.mean(np.exp(1j * rec.yaw_rad)))))
+    mount = quat.multiply(quat.conjugate(template), quat.multiply(yaw_about_up(-yaw), held))
+    write_record(path, skeleton, yaw, quat.canonical_sign(mount))
 
 
 def run(argv: list[str]) -> str:
@@ -201,16 +226,24 @@ def main() -> None:
                    help="sd of each segment's turn off the start pose's template (degrees)")
     p.add_argument("--forearm-roll-deg", type=float, default=0.0,
                    help="both forearms rolled about the bone in the held pose (degrees; positive: palms backwards)")
+    p.add_argument("--tilt-noise-deg", type=float, help="the filter's wandering tilt error (sd, degrees; default: "
+                   "the filter's, 2 on 6axis, 1 on 9axis)")
+    p.add_argument("--north-spread-deg", type=float, help="9axis: each sensor's offset from the one north (sd, "
+                   "degrees; default 4)")
     p.add_argument("--north", choices=("auto", "shared", "own"), default="auto",
                    help="calibrate --north (default auto, as a user who does not say)")
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args()
+    if args.north_spread_deg is not None and args.filter != "9axis":
+        p.error("--north-spread-deg is the 9axis filter's (a 6axis filter has a north per sensor)")
     graph = MotionGraph.load(args.graph)
     take, train, chosen_labels = held_out_take(Path(args.mocap_dir), args.pattern, graph, args.graph,
                                                args.groups.split(","), args.seconds)
     rng = np.random.default_rng(args.seed)
+    changes = {name: value for name, value in (("tilt_noise_deg", args.tilt_noise_deg),
+                                               ("north_spread_deg", args.north_spread_deg)) if value is not None}
     rec = simulate_recording(take, args.start_pose, args.strapping, args.filter, rng, args.posing_error_deg,
-                             args.forearm_roll_deg)
+                             args.forearm_roll_deg, changes)
     rows: dict[str, dict[str, float]] = {}
     with tempfile.TemporaryDirectory(prefix="courtside-real-") as folder:
         work = Path(folder)
@@ -226,9 +259,11 @@ def main() -> None:
         run(["calibrate", str(work / "take.npz"), "--graph", str(work / "graph.npz"), "--pose", "none", "--north",
              args.north, "-o", str(work / "from_motion.json")])
         perfect_record(work / "perfect.json", rec, train.skeleton)
+        hold_floor_record(work / "hold_floor.json", rec, train.skeleton, args.start_pose, args.filter)
         cases = {"accelerations only": ("acc.npz", None), "orientations, no calibration (tilt)": ("take.npz", None),
                  "calibrate --graph (start pose found)": ("take.npz", "from_take.json"),
                  "calibrate --graph --pose none (from motion)": ("take.npz", "from_motion.json"),
+                 "the hold read perfectly (the held pose's floor)": ("take.npz", "hold_floor.json"),
                  "perfect calibration": ("take.npz", "perfect.json")}
         for name, (take_file, record) in cases.items():
             extra = [] if record is None else ["--calibration", str(work / record)]
