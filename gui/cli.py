@@ -37,7 +37,10 @@ def _console_parser() -> argparse.ArgumentParser:
                         "or the secret itself in $COURTSIDE_SECRET); never give the secret itself here")
     p.add_argument("--tls-ca", type=Path, default=None, metavar="CERT",
                    help="connect with TLS, trusting this certificate (the gateway's cert.pem or its CA)")
-    p.add_argument("--playback", type=Path, metavar="TAKE", help="open a recorded take (directory or take.csrec)")
+    p.add_argument("--playback", type=Path, metavar="TAKE",
+                   help="open a recorded take (directory or take.csrec), or an IMU file `courtside import-imu` "
+                        "wrote (.npz: its sensors by their placement names, so a `courtside calibrate` record of "
+                        "it applies; the poses are the ones `courtside synthesize --lag` gives the file)")
     p.add_argument("--engine", choices=engine_names(), default=None,
                    help="synthesis engine (default: motion-graph with --graph, olng with --kb, else by the number "
                         "of worn sensors: 4 -> olng, 1 -> hmm (an accelerometer-only model trained from the shipped "
@@ -175,7 +178,10 @@ def _console(args: argparse.Namespace) -> int:
             more = {name: run[0] for name, run in list(runs.items())[1:] if run[0] is not None}
             worn = {key: place for run in runs.values() for key, place in run[1].items()}
         else:
-            synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out, refresh)
+            synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out, refresh,
+                                                       playback.placements if playback is not None else None)
+            if playback is not None and synth is not None:
+                playback = playback.for_frame_rate(synth.engine.rate_hz)
         window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton_parents, sensor_segments=worn,
                                sensor_joints=sensor_joints_or_none(worn), truth_for_take=truth_for_take,
                                keep_poses=args.save_poses is not None, make_client=make_client,
@@ -232,9 +238,11 @@ def _client_factory(args: argparse.Namespace):
     return functools.partial(GatewayClient, secret=client_secret(args.secret_file), tls=tls)
 
 
-def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held_out: list[str], refresh=None):
+def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held_out: list[str], refresh=None,
+               placements: dict | None = None):
     """(SynthesisSetup or None, worn sensor -> placement, skeleton parents or None). ``refresh`` re-reads the
-    station list (live gateway)."""
+    station list (live gateway); ``placements`` names the sensors of a source that knows them (an imported IMU
+    file played back: `gui.engine_link.worn_sensors`)."""
     from engine.stream.databases import engine_spec
     from gui.engine_link import synthesis_setup, worn_sensors
 
@@ -248,7 +256,7 @@ def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held
     try:
         keys, notes = worn_sensors(list(spec.sensor_names),
                                    _pick_synth_station(stations, args.synth_station, len(spec.sensor_names)),
-                                   calibration)
+                                   calibration, placements)
     except ValueError as exc:
         raise CourtsideError(str(exc)) from exc
     if keys is None:

@@ -4,7 +4,7 @@ skeleton segment carries each sensor (for the 3-D health colours). The databases
 engine's (`engine.stream.databases`); the synthesis path is `engine.stream`."""
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from engine.mocap import SensorCalibrationData, Skeleton, standard_placements
 from engine.stream.engines import EngineSpec
@@ -20,22 +20,32 @@ def synthesis_setup(spec: EngineSpec, sensors: list[SensorKey], lag_s: float = 0
 
 
 def worn_sensors(segments: Sequence[str], station: str | None,
-                 calibration: SensorCalibrationData | None = None) -> tuple[list[SensorKey] | None, list[str]]:
+                 calibration: SensorCalibrationData | None = None,
+                 placements: Mapping[SensorKey, str] | None = None) -> tuple[list[SensorKey] | None, list[str]]:
     """Which live sensor each graph sensor is: ``segments[i]`` (the graph's placement names) -> (station, index).
 
     A calibration record says it per segment (the wizard's assignment, sensor ids ``"<station>/<index>"``), so
-    sensors may even sit on different stations; segments it does not cover fall back to sensor i of
-    ``station``. Returns (keys, notes): keys None if some segment has no sensor; notes say what was assumed.
-    A sensor id that is not ``station/index`` raises ValueError naming the record."""
+    sensors may even sit on different stations; a source that names its sensors' placements (``placements``: an
+    imported IMU file played back) maps a record's placement-named ids (`courtside calibrate` of that file) and
+    every segment it names; segments neither covers fall back to sensor i of ``station``. Returns (keys, notes):
+    keys None if some segment has no sensor; notes say what was assumed. A sensor id that is neither
+    ``station/index`` nor a named placement raises ValueError naming the record."""
+    named = {name: key for key, name in (placements or {}).items()}
     keys: list[SensorKey] = []
     notes: list[str] = []
     for i, segment in enumerate(segments):
         sid = calibration.sensor_ids.get(segment) if calibration is not None else None
         if sid is not None:
             st, _, index = sid.rpartition("/")
-            if not st or not index.isdigit():
-                raise ValueError(f"{calibration.path}: sensor id {sid!r} on {segment!r} is not '<station>/<index>'")
-            keys.append((st, int(index)))
+            if sid in named:
+                keys.append(named[sid])
+            elif not st or not index.isdigit():
+                raise ValueError(f"{calibration.path}: sensor id {sid!r} on {segment!r} is not '<station>/<index>'"
+                                 + (f" nor a sensor of the take ({', '.join(sorted(named))})" if named else ""))
+            else:
+                keys.append((st, int(index)))
+        elif segment in named:
+            keys.append(named[segment])
         elif station is not None:
             keys.append((station, i))
             if calibration is not None:

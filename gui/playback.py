@@ -1,32 +1,95 @@
-"""Playback of a gateway recording through the live pipeline.
+"""Playback of a recording through the live pipeline.
 
 A take (`gateway.recorder.load_take`) is turned back into the same messages the gateway streams and fed to the
 same `gui.bridge.GatewayBridge`, so traces, camera pane, synthesis and skeleton view behave exactly as live
 (QTM's "stream from file", x-IMU3's file connection). The console's tick calls `advance_to`; the scrubber calls
-`seek`, which clears the trace history and replays the window before the new position."""
+`seek`, which clears the trace history and replays the window before the new position.
+
+An IMU file imported with `courtside import-imu` (a synthesis-input .npz) plays the same way, as one station
+(``IMPORTED_STATION``) whose sensor k is the file's column k, named by its placement (`placements`, which the
+console maps onto the engine's sensors and a `courtside calibrate` record's ids). Its samples are the ones
+`courtside synthesize` resamples (`engine.stream.frames.uniform_streams`, for the engine's frame rate: use
+`for_frame_rate`), so the console shows the poses the file gets."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
+from engine.errors import MalformedFileError
+from engine.graph.input_checks import check_take_file, open_npz
+from engine.stream.frames import uniform_streams
 from gateway.codec import Message
 from gateway.recorder import load_take
 
 from gui.bridge import GatewayBridge
 
 
-class Playback:
-    """Cursor over one recorded take, on the recording's gateway clock (seconds)."""
+IMPORTED_STATION = "imported"  # the one station an imported IMU file plays as
+DEFAULT_FRAME_RATE_HZ = 30.0  # an imported file's samples before `for_frame_rate` (the shipped graphs' rate)
 
-    def __init__(self, path: str | Path) -> None:
+
+def is_imported_take(path: str | Path) -> bool:
+    """Is ``path`` an .npz file (an `import-imu` take; the gateway's recordings are folders or .csrec files)."""
+    return Path(path).suffix.lower() == ".npz" and Path(path).is_file()
+
+
+class Playback:
+    """Cursor over one recorded take, on the recording's gateway clock (seconds); an imported IMU file on its
+    own clock (its first sample at 0 s)."""
+
+    def __init__(self, path: str | Path, frame_rate_hz: float = DEFAULT_FRAME_RATE_HZ) -> None:
         self.path = Path(path)
+        self.frame_rate_hz = float(frame_rate_hz)
+        self.placements: dict[tuple[str, int], str] = {}  # sensor -> placement name, where the file names it
+        if is_imported_take(self.path):
+            self._load_imported()
+        else:
+            self._load_recording()
+        self._start_cursor()
+
+    def _load_recording(self) -> None:
         take = load_take(self.path)
         self.problem = take.problem
         self.meta = take.meta
         self.samples = {k: v for k, v in take.samples.items() if "t_host_s" in v and "acc_g" in v and len(v["t_host_s"])}
         self.sample_athletes = {k: a for k, a in take.sample_athletes.items() if k in self.samples}
         self.others = sorted((m for m in take.others if "t_host_s" in m.header), key=lambda m: m.header["t_host_s"])
+
+    def _load_imported(self) -> None:
+        """The file's columns as `uniform_streams` gives them (MalformedFileError naming the file otherwise)."""
+        with open_npz(self.path) as data:
+            if "acc_g" not in data.files:
+                raise MalformedFileError(self.path, None, "not an import-imu take (no 'acc_g'); a gateway "
+                                                          "recording plays from its take folder or take.csrec")
+            check_take_file(self.path, data)
+            if "position_m" in data.files or "heading_rad" in data.files:
+                raise MalformedFileError(self.path, None, "holds a camera track, which the console's playback of "
+                                                          "an IMU file does not replay (synthesize it instead)")
+            acc = np.asarray(data["acc_g"], float)
+            names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else \
+                [f"sensor{k}" for k in range(acc.shape[1])]
+            channels = {name: np.asarray(data[name], float) for name in ("quat_wxyz", "gyro_rps")
+                        if name in data.files}
+            streams = uniform_streams(acc, float(data["fps"]), self.frame_rate_hz, **channels)
+        self.problem, self.meta, self.sample_athletes, self.others = None, {}, {}, []
+        self.samples = {}
+        for k, (t, acc_k, quat, gyro) in enumerate(streams):
+            arrays = {"t_host_s": t, "acc_g": acc_k}
+            for name, values in (("quat_wxyz", quat), ("gyro_rps", gyro)):
+                if values is not None:
+                    arrays[name] = values
+            self.samples[(IMPORTED_STATION, k)] = arrays
+            self.placements[(IMPORTED_STATION, k)] = names[k]
+
+    def for_frame_rate(self, frame_rate_hz: float) -> "Playback":
+        """This take for an engine at ``frame_rate_hz``: an imported file's samples are held half a frame beyond
+        its ends (`uniform_streams`), so they depend on it; a recording's do not."""
+        if not is_imported_take(self.path) or float(frame_rate_hz) == self.frame_rate_hz:
+            return self
+        return Playback(self.path, frame_rate_hz)
+
+    def _start_cursor(self) -> None:
         self._other_t = np.array([m.header["t_host_s"] for m in self.others], float)
         starts = [v["t_host_s"][0] for v in self.samples.values()] + list(self._other_t[:1])
         ends = [v["t_host_s"][-1] for v in self.samples.values()] + list(self._other_t[-1:])

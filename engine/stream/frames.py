@@ -236,6 +236,38 @@ def _unit_canonical(quat: np.ndarray) -> np.ndarray:
     return np.where(q[..., :1] < 0, -q, q)
 
 
+def uniform_streams(acc_g: np.ndarray, fps_in: float, rate_hz: float, t0_s: float = 0.0,
+                    quat_wxyz: np.ndarray | None = None, gyro_rps: np.ndarray | None = None
+                    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]]:
+    """Per sensor, the samples (t_s, acc_g, quat_wxyz or None, gyro_rps or None) that `resample_uniform` feeds
+    its resampler from a uniformly sampled take (T, S, 3) at ``fps_in`` starting at ``t0_s``: NaN rows dropped,
+    the first and last reading each held half a frame of ``rate_hz`` (at least one input period) beyond the
+    data. Shared with the console's playback of such a take, so its live frames are these frames."""
+    acc_g = np.asarray(acc_g, float)
+    dt = 1.0 / fps_in
+    t = t0_s + np.arange(len(acc_g)) * dt
+    extras = [np.asarray(a, float) for a in (quat_wxyz, gyro_rps) if a is not None]
+    hold = max(dt, 0.5 / rate_hz)
+    out = []
+    for k in range(acc_g.shape[1]):
+        ok = ~np.isnan(acc_g[:, k]).any(axis=1)
+        tk = t[ok]
+        vk = np.concatenate([acc_g[ok, k]] + [a[ok, k] for a in extras], axis=1)
+        if len(tk) and ok[0]:
+            tk, vk = np.r_[tk[0] - hold, tk], np.vstack([vk[:1], vk])
+        if len(tk) and ok[-1]:
+            tk, vk = np.r_[tk, tk[-1] + hold], np.vstack([vk, vk[-1:]])
+        out.append((tk, vk[:, :3], vk[:, 3:7] if quat_wxyz is not None else None,
+                    vk[:, -3:] if gyro_rps is not None else None))
+    return out
+
+
+def uniform_gap_s(fps_in: float, rate_hz: float, max_gap_s: float = 0.25) -> float:
+    """The longest gap `resample_uniform` bridges (and waits for a sensor): at least a frame and 1.5 input
+    periods."""
+    return max(max_gap_s, 1.0 / rate_hz, 1.5 / fps_in)
+
+
 def resample_uniform(acc_g: np.ndarray, fps_in: float, rate_hz: float, max_gap_s: float = 0.25,
                      t0_s: float = 0.0, quat_wxyz: np.ndarray | None = None,
                      gyro_rps: np.ndarray | None = None) -> FrameBatch:
@@ -247,26 +279,12 @@ def resample_uniform(acc_g: np.ndarray, fps_in: float, rate_hz: float, max_gap_s
     At the take's two ends each sensor's first and last reading is held for half a frame (at least one input
     period), so the frames there, whose windows reach half a frame beyond the data, exist: a take of T samples at
     the graph rate gives T frames, one at 120 Hz as many as the polyphase resampler used to (ceil(T / 4) at 30 Hz)."""
-    acc_g = np.asarray(acc_g, float)
-    dt = 1.0 / fps_in
-    t = t0_s + np.arange(len(acc_g)) * dt
-    gap = max(max_gap_s, 1.0 / rate_hz, 1.5 * dt)
-    res = FrameResampler(range(acc_g.shape[1]), rate_hz, gap, wait_s=gap)
-    extras = [np.asarray(a, float) for a in (quat_wxyz, gyro_rps) if a is not None]
-    for k in range(acc_g.shape[1]):
-        ok = ~np.isnan(acc_g[:, k]).any(axis=1)
-        tk = t[ok]
-        vk = np.concatenate([acc_g[ok, k]] + [a[ok, k] for a in extras], axis=1)
-        hold = max(dt, 0.5 / rate_hz)
-        if len(tk) and ok[0]:
-            tk, vk = np.r_[tk[0] - hold, tk], np.vstack([vk[:1], vk])
-        if len(tk) and ok[-1]:
-            tk, vk = np.r_[tk, tk[-1] + hold], np.vstack([vk, vk[-1:]])
-        quat = vk[:, 3:7] if quat_wxyz is not None else None
-        gyro = vk[:, -3:] if gyro_rps is not None else None
-        res.add(k, tk, vk[:, :3], quat, gyro)
+    gap = uniform_gap_s(fps_in, rate_hz, max_gap_s)
+    res = FrameResampler(range(np.shape(acc_g)[1]), rate_hz, gap, wait_s=gap)
+    for k, stream in enumerate(uniform_streams(acc_g, fps_in, rate_hz, t0_s, quat_wxyz, gyro_rps)):
+        res.add(k, *stream)
     res.start_at(t0_s)
-    return res.frames(until_s=t[-1] if len(t) else -np.inf)
+    return res.frames(until_s=t0_s + (len(acc_g) - 1) * (1.0 / fps_in) if len(acc_g) else -np.inf)
 
 
 def _interp_at(t: np.ndarray, v: np.ndarray, i: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -39,3 +39,16 @@ def test_bad_sensor_ids_and_double_use_are_refused_naming_the_record():
         worn_sensors(["left_forearm"], "st1", record({"left_forearm": "forearm-sensor"}))
     with pytest.raises(ValueError, match="two segments"):
         worn_sensors(SEED000_SENSORS[:2], "st1", record({SEED000_SENSORS[1]: "st1/0"}))
+
+
+def test_a_source_naming_its_sensors_maps_them_by_placement_in_any_column_order():
+    """An imported IMU file played back: its columns in the user's order, named by placement; a `courtside
+    calibrate` record of it names the sensors by placement too. Names beat column positions."""
+    placements = {("imported", k): name for k, name in enumerate(reversed(SEED000_SENSORS))}
+    n = len(SEED000_SENSORS)
+    expected = [("imported", n - 1 - i) for i in range(n)]
+    assert worn_sensors(SEED000_SENSORS, "imported", None, placements) == (expected, [])
+    by_name = record({name: name for name in SEED000_SENSORS})
+    assert worn_sensors(SEED000_SENSORS, "imported", by_name, placements) == (expected, [])
+    with pytest.raises(ValueError, match="take01.calibration.json.*'left_forearm'.*nor a sensor of the take"):
+        worn_sensors(["left_forearm"], "imported", record({"left_forearm": "forearm-sensor"}), placements)
