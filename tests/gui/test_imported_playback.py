@@ -13,7 +13,8 @@ from bench.bench_real_recording import run, simulate_recording, write_csv
 from engine.evaluation.takes import chain_clips
 from engine.graph.config import GraphConfig
 from engine.graph.graph import MotionGraph
-from engine.mocap import load_database, sample_clips, standard_placements
+from engine.mocap import load_database, load_sensor_calibration, sample_clips, standard_placements
+from engine.stream.databases import engine_spec
 from engine.stream.poses_file import load_poses
 from gui.cli import console_main
 from gui.main_window import ConsoleWindow
@@ -83,3 +84,12 @@ def test_a_file_that_is_no_imported_take_is_refused_naming_it(tmp_path):
     np.savez(path, **{"st1/0/acc_g": np.zeros((10, 3))})
     with pytest.raises(ValueError, match=r"export\.npz.*not an import-imu take"):
         Playback(path)
+
+
+def test_the_console_does_not_claim_a_graph_file_ignores_the_record(imported):
+    """`engine_spec` on a graph file with a record: the console's engine takes the record's mountings
+    (`load_spec`), so no note says the database keeps the mounting it was built with (the OLNG's knowledge base
+    does keep it, and still says so)."""
+    graph, _, record = imported
+    spec, notes = engine_spec("motion-graph", graph_path=graph, calibration=load_sensor_calibration(record))
+    assert spec.name == "motion-graph" and not any("keep the mounting" in note for note in notes)
