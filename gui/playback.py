@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MalformedFileError
+from engine.export_format import OPTIONAL_CHANNELS
 from engine.graph.input_checks import check_take_file, open_npz
 from engine.stream.frames import uniform_streams
 from gateway.codec import Message
@@ -46,7 +47,7 @@ class Playback:
             self._load_imported()
         else:
             self._load_recording()
-        self._start_cursor()
+        self._span_and_cursor()
 
     def _load_recording(self) -> None:
         take = load_take(self.path)
@@ -69,8 +70,7 @@ class Playback:
             acc = np.asarray(data["acc_g"], float)
             names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else \
                 [f"sensor{k}" for k in range(acc.shape[1])]
-            channels = {name: np.asarray(data[name], float) for name in ("quat_wxyz", "gyro_rps")
-                        if name in data.files}
+            channels = {name: np.asarray(data[name], float) for name in OPTIONAL_CHANNELS if name in data.files}
             streams = uniform_streams(acc, float(data["fps"]), self.frame_rate_hz, **channels)
         self.problem, self.meta, self.sample_athletes, self.others = None, {}, {}, []
         self.samples = {}
@@ -89,7 +89,8 @@ class Playback:
             return self
         return Playback(self.path, frame_rate_hz)
 
-    def _start_cursor(self) -> None:
+    def _span_and_cursor(self) -> None:
+        """The take's time span, its events, and the cursor before its first sample."""
         self._other_t = np.array([m.header["t_host_s"] for m in self.others], float)
         starts = [v["t_host_s"][0] for v in self.samples.values()] + list(self._other_t[:1])
         ends = [v["t_host_s"][-1] for v in self.samples.values()] + list(self._other_t[-1:])
