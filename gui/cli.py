@@ -178,8 +178,7 @@ def _console(args: argparse.Namespace) -> int:
             more = {name: run[0] for name, run in list(runs.items())[1:] if run[0] is not None}
             worn = {key: place for run in runs.values() for key, place in run[1].items()}
         else:
-            synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out, refresh,
-                                                       playback.placements if playback is not None else None)
+            synth, worn, skeleton_parents = _synthesis(args, stations, calibration, held_out, refresh, playback)
             if playback is not None and synth is not None:
                 playback = playback.for_frame_rate(synth.engine.rate_hz)
         window = ConsoleWindow(client, synthesis=synth, truth_parents=skeleton_parents, sensor_segments=worn,
@@ -239,10 +238,10 @@ def _client_factory(args: argparse.Namespace):
 
 
 def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held_out: list[str], refresh=None,
-               placements: dict | None = None):
+               playback=None):
     """(SynthesisSetup or None, worn sensor -> placement, skeleton parents or None). ``refresh`` re-reads the
-    station list (live gateway); ``placements`` names the sensors of a source that knows them (an imported IMU
-    file played back: `gui.engine_link.worn_sensors`)."""
+    station list (live gateway); a ``playback`` of an imported IMU file names its sensors
+    (`gui.engine_link.worn_sensors`)."""
     from engine.stream.databases import engine_spec
     from gui.engine_link import synthesis_setup, worn_sensors
 
@@ -253,10 +252,11 @@ def _synthesis(args: argparse.Namespace, stations: list[dict], calibration, held
     for note in notes:
         log.info("synthesis: %s", note)
     log.info("synthesis: %s", spec.label)
+    named = (playback.placements, playback.source_labels) if playback is not None else (None, None)
     try:
         keys, notes = worn_sensors(list(spec.sensor_names),
                                    _pick_synth_station(stations, args.synth_station, len(spec.sensor_names)),
-                                   calibration, placements)
+                                   calibration, *named)
     except ValueError as exc:
         raise CourtsideError(str(exc)) from exc
     if keys is None:

@@ -21,16 +21,19 @@ def synthesis_setup(spec: EngineSpec, sensors: list[SensorKey], lag_s: float = 0
 
 def worn_sensors(segments: Sequence[str], station: str | None,
                  calibration: SensorCalibrationData | None = None,
-                 placements: Mapping[SensorKey, str] | None = None) -> tuple[list[SensorKey] | None, list[str]]:
+                 placements: Mapping[SensorKey, str] | None = None,
+                 source_labels: Mapping[SensorKey, str] | None = None) -> tuple[list[SensorKey] | None, list[str]]:
     """Which live sensor each graph sensor is: ``segments[i]`` (the graph's placement names) -> (station, index).
 
     A calibration record says it per segment (the wizard's assignment, sensor ids ``"<station>/<index>"``), so
-    sensors may even sit on different stations; a source that names its sensors' placements (``placements``: an
-    imported IMU file played back) maps a record's placement-named ids (`courtside calibrate` of that file) and
-    every segment it names; segments neither covers fall back to sensor i of ``station``. Returns (keys, notes):
+    sensors may even sit on different stations; a source that names its sensors (an imported IMU file played
+    back: ``placements``, and the device's own ``source_labels``, which `courtside calibrate` of that file writes as
+    the ids) maps a record's ids by those names and every segment by its placement; segments neither covers fall
+    back to sensor i of ``station``. Returns (keys, notes):
     keys None if some segment has no sensor; notes say what was assumed. A sensor id that is neither
     ``station/index`` nor a named placement raises ValueError naming the record."""
-    named = {name: key for key, name in (placements or {}).items()}
+    named = {name: key for key, name in (source_labels or {}).items()}
+    named.update({name: key for key, name in (placements or {}).items()})
     keys: list[SensorKey] = []
     notes: list[str] = []
     for i, segment in enumerate(segments):
@@ -44,8 +47,8 @@ def worn_sensors(segments: Sequence[str], station: str | None,
                                  + (f" nor a sensor of the take ({', '.join(sorted(named))})" if named else ""))
             else:
                 keys.append((st, int(index)))
-        elif segment in named:
-            keys.append(named[segment])
+        elif segment in (placements or {}).values():
+            keys.append(next(key for key, name in placements.items() if name == segment))
         elif station is not None:
             keys.append((station, i))
             if calibration is not None:

@@ -6,8 +6,9 @@ same `gui.bridge.GatewayBridge`, so traces, camera pane, synthesis and skeleton 
 `seek`, which clears the trace history and replays the window before the new position.
 
 An IMU file imported with `courtside import-imu` (a synthesis-input .npz) plays the same way, as one station
-(``IMPORTED_STATION``) whose sensor k is the file's column k, named by its placement (`placements`, which the
-console maps onto the engine's sensors and a `courtside calibrate` record's ids). Its samples are the ones
+(``IMPORTED_STATION``) whose sensor k is the file's column k, named by its placement and its device's label
+(`placements`, `source_labels`: the console maps the engine's sensors by the first, a `courtside calibrate`
+record's ids by either). Its samples are the ones
 `courtside synthesize` resamples (`engine.stream.frames.uniform_streams`, for the engine's frame rate: use
 `for_frame_rate`), so the console shows the poses the file gets."""
 from __future__ import annotations
@@ -43,6 +44,7 @@ class Playback:
         self.path = Path(path)
         self.frame_rate_hz = float(frame_rate_hz)
         self.placements: dict[tuple[str, int], str] = {}  # sensor -> placement name, where the file names it
+        self.source_labels: dict[tuple[str, int], str] = {}  # sensor -> the device's own name for it, likewise
         if is_imported_take(self.path):
             self._load_imported()
         else:
@@ -70,6 +72,7 @@ class Playback:
             acc = np.asarray(data["acc_g"], float)
             names = [str(n) for n in data["sensor_names"]] if "sensor_names" in data.files else \
                 [f"sensor{k}" for k in range(acc.shape[1])]
+            labels = [str(n) for n in data["source_labels"]] if "source_labels" in data.files else names
             channels = {name: np.asarray(data[name], float) for name in OPTIONAL_CHANNELS if name in data.files}
             streams = uniform_streams(acc, float(data["fps"]), self.frame_rate_hz, **channels)
         self.problem, self.meta, self.sample_athletes, self.others = None, {}, {}, []
@@ -81,6 +84,7 @@ class Playback:
                     arrays[name] = values
             self.samples[(IMPORTED_STATION, k)] = arrays
             self.placements[(IMPORTED_STATION, k)] = names[k]
+            self.source_labels[(IMPORTED_STATION, k)] = labels[k]
 
     def for_frame_rate(self, frame_rate_hz: float) -> "Playback":
         """This take for an engine at ``frame_rate_hz``: an imported file's samples are held half a frame beyond

@@ -52,3 +52,12 @@ def test_a_source_naming_its_sensors_maps_them_by_placement_in_any_column_order(
     assert worn_sensors(SEED000_SENSORS, "imported", by_name, placements) == (expected, [])
     with pytest.raises(ValueError, match="take01.calibration.json.*'left_forearm'.*nor a sensor of the take"):
         worn_sensors(["left_forearm"], "imported", record({"left_forearm": "forearm-sensor"}), placements)
+
+
+def test_a_record_of_an_imported_device_file_names_its_sensors_by_the_device_s_labels():
+    """`courtside calibrate` of an Xsens import writes each sensor's device id; the playback knows both names."""
+    placements = {("imported", k): name for k, name in enumerate(SEED000_SENSORS)}
+    labels = {("imported", k): f"00B4{k:04d}" for k in range(len(SEED000_SENSORS))}
+    by_device = record({name: f"00B4{len(SEED000_SENSORS) - 1 - k:04d}" for k, name in enumerate(SEED000_SENSORS)})
+    keys, notes = worn_sensors(SEED000_SENSORS, "imported", by_device, placements, labels)
+    assert keys == [("imported", len(SEED000_SENSORS) - 1 - k) for k in range(len(SEED000_SENSORS))] and not notes
