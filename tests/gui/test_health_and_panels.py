@@ -117,7 +117,7 @@ def test_segment_names_map_to_the_body_diagram():
     assert segment_for("chest") == "chest"
 
 
-def test_minimap_and_homography():
+def test_minimap_and_homography(qapp):  # a widget needs the QApplication, whichever test ran first
     h = np.array([[2.0, 0, 10], [0, -2.0, 20], [0, 0, 1]])
     np.testing.assert_allclose(apply_homography(h, np.array([[1.0, 1.0]])), [[12.0, 18.0]])
     m = CourtMinimap()
