@@ -29,11 +29,11 @@ def worn_sensors(segments: Sequence[str], station: str | None,
     sensors may even sit on different stations; a source that names its sensors (an imported IMU file played
     back: ``placements``, and the device's own ``source_labels``, which `courtside calibrate` of that file writes as
     the ids) maps a record's ids by those names and every segment by its placement; segments neither covers fall
-    back to sensor i of ``station``. Returns (keys, notes):
-    keys None if some segment has no sensor; notes say what was assumed. A sensor id that is neither
-    ``station/index`` nor a named placement raises ValueError naming the record."""
-    named = {name: key for key, name in (source_labels or {}).items()}
-    named.update({name: key for key, name in (placements or {}).items()})
+    back to sensor i of ``station``. Returns (keys, notes): keys None if some segment has no sensor; notes say
+    what was assumed. A sensor id that is neither ``station/index`` nor a name of the source's raises ValueError
+    naming the record."""
+    by_placement = {name: key for key, name in (placements or {}).items()}
+    named = {**{name: key for key, name in (source_labels or {}).items()}, **by_placement}
     keys: list[SensorKey] = []
     notes: list[str] = []
     for i, segment in enumerate(segments):
@@ -47,8 +47,8 @@ def worn_sensors(segments: Sequence[str], station: str | None,
                                  + (f" nor a sensor of the take ({', '.join(sorted(named))})" if named else ""))
             else:
                 keys.append((st, int(index)))
-        elif segment in (placements or {}).values():
-            keys.append(next(key for key, name in placements.items() if name == segment))
+        elif segment in by_placement:
+            keys.append(by_placement[segment])
         elif station is not None:
             keys.append((station, i))
             if calibration is not None:
