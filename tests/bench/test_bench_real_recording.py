@@ -12,7 +12,6 @@ from engine.mocap import quaternions as quat
 from engine.mocap.orientation_calibration import pose_sensor_orientations
 
 
-
 @pytest.fixture(scope="module")
 def motions():
     """One shipped CMU clip (subject 16) at the graph rate."""
