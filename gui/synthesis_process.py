@@ -21,7 +21,14 @@ frame, new kept poses)`` up another.
 A child that dies (SIGKILL, the OOM killer) is reaped at once and restarted from the same setup, a bounded number
 of times (`gui.restart_budget`); each restart and the giving up are logged and kept in `SynthesisProcess.fault`
 for the console's athlete status, and the dead child's figures (frames/s, confidence) are dropped, not shown
-as if it still ran."""
+as if it still ran.
+
+Why one BLAS thread (`_one_blas_thread`): OpenBLAS's fork handler shuts its worker threads down, and a fork while
+another thread of the console is inside a multi-threaded BLAS call deadlocks both (seen in CI: the main thread in
+`blas_thread_shutdown_` forking a second athlete's child, an in-process streaming engine's matrix product waiting
+on its workers; the console hung for good). With one BLAS thread no worker threads exist; the children inherit
+it, which the live engines want anyway (engine/olng/threads.py: tiny matrices, threads only wait on each
+other)."""
 from __future__ import annotations
 
 import collections
@@ -38,6 +45,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from engine.stream import FramePose
 
@@ -310,10 +318,17 @@ class SynthesisProcess:
 Synthesizer = SynthesisWorker | SynthesisProcess  # the same interface: inputs, latest_pose / poses / stats
 
 
+def _one_blas_thread() -> None:
+    """Hold every BLAS library loaded so far to one thread, for the rest of the process (module doc): before any
+    synthesizer starts, so no thread is inside a multi-threaded call when a later one forks."""
+    threadpool_limits(limits=1, user_api="blas")
+
+
 def start_synthesis(setup: SynthesisSetup, keep_poses: bool = False) -> Synthesizer:
     """The console's synthesizer, started: in a child process where fork exists (module doc), else a thread; also
     a thread for an engine that streams its poses out (`EngineSpec.in_process`: its server thread and sockets
     belong to this process, and the child closes the sockets it inherits)."""
+    _one_blas_thread()
     forks = "fork" in multiprocessing.get_all_start_methods()
     runner: Synthesizer = SynthesisProcess(setup, keep_poses) if forks and not setup.engine.in_process \
         else SynthesisWorker(setup, keep_poses)

@@ -189,3 +189,22 @@ def test_a_killed_child_is_reaped_and_restarted_until_the_budget_is_spent(caplog
     finally:
         synth.stop()
         synth.join(timeout=5)
+
+
+def test_starting_a_synthesizer_holds_blas_to_one_thread_so_a_later_fork_cannot_deadlock():
+    """OpenBLAS's fork handler and another thread's multi-threaded BLAS call deadlock each other (module doc of
+    gui/synthesis_process.py; seen in CI with a streaming engine's thread and a second athlete's fork): after
+    `start_synthesis` every BLAS library runs one thread, whatever it ran before."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from gui.synthesis_process import start_synthesis
+
+    spec = adapter("motion-graph").shipped_spec()
+    with threadpool_limits(limits=2, user_api="blas"):  # restores the original limits on leaving
+        assert max(lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas") == 2
+        runner = start_synthesis(synthesis_setup(spec, [("st0", k) for k in range(len(spec.sensor_names))]))
+        try:
+            assert {lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"} == {1}
+        finally:
+            runner.stop()
+            runner.join(timeout=5)
