@@ -262,12 +262,6 @@ def uniform_streams(acc_g: np.ndarray, fps_in: float, rate_hz: float, t0_s: floa
     return out
 
 
-def uniform_gap_s(fps_in: float, rate_hz: float, max_gap_s: float = 0.25) -> float:
-    """The longest gap `resample_uniform` bridges (and waits for a sensor): at least a frame and 1.5 input
-    periods."""
-    return max(max_gap_s, 1.0 / rate_hz, 1.5 / fps_in)
-
-
 def resample_uniform(acc_g: np.ndarray, fps_in: float, rate_hz: float, max_gap_s: float = 0.25,
                      t0_s: float = 0.0, quat_wxyz: np.ndarray | None = None,
                      gyro_rps: np.ndarray | None = None) -> FrameBatch:
@@ -279,7 +273,7 @@ def resample_uniform(acc_g: np.ndarray, fps_in: float, rate_hz: float, max_gap_s
     At the take's two ends each sensor's first and last reading is held for half a frame (at least one input
     period), so the frames there, whose windows reach half a frame beyond the data, exist: a take of T samples at
     the graph rate gives T frames, one at 120 Hz as many as the polyphase resampler used to (ceil(T / 4) at 30 Hz)."""
-    gap = uniform_gap_s(fps_in, rate_hz, max_gap_s)
+    gap = max(max_gap_s, 1.0 / rate_hz, 1.5 * (1.0 / fps_in))
     res = FrameResampler(range(np.shape(acc_g)[1]), rate_hz, gap, wait_s=gap)
     for k, stream in enumerate(uniform_streams(acc_g, fps_in, rate_hz, t0_s, quat_wxyz, gyro_rps)):
         res.add(k, *stream)
