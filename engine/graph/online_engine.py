@@ -137,6 +137,10 @@ def build_spec(motions: Sequence[Motion], database: str) -> EngineSpec:
     return motion_graph_spec(graph, database, motions[0].skeleton)
 
 
+# `load_spec` turns each reading into the graph's nominal sensor frames by the record.
+LOADED_DATABASE_TAKES_CALIBRATION = True
+
+
 def load_spec(path: str | Path, calibration: SensorCalibrationData | None = None) -> EngineSpec:
     """The motion-graph engine on a graph file from `courtside build-graph` with a record's calibration applied
     as `courtside synthesize --calibration` applies it: the orientation calibration poses the segments, the

@@ -115,6 +115,10 @@ def shipped_spec(exclude: Sequence[str] = (), calibration: Any = None) -> Engine
     return build_spec(shipped_motions(exclude), "shipped CMU clips")
 
 
+# A saved knowledge base keeps the virtual sensors it was built with.
+LOADED_DATABASE_TAKES_CALIBRATION = False
+
+
 def load_spec(path: str | Path, calibration: Any = None) -> EngineSpec:
     """OLNG on a knowledge base saved by `courtside reconstruct --save-kb` (a calibration record does not change
     it)."""

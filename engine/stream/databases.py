@@ -59,7 +59,7 @@ def engine_spec(engine: str | None, *, graph_path: Path | None = None, kb_path: 
     path = files.get(engine)
     if path is None:
         return module.shipped_spec(exclude, calibration), notes
-    if calibration is not None and engine != "motion-graph":  # a graph file takes the record's mountings (load_spec)
+    if calibration is not None and not module.LOADED_DATABASE_TAKES_CALIBRATION:
         notes.append(f"{path}: the database's virtual sensors keep the mounting it was built with (build it with "
                      "the calibration record, e.g. `courtside build-graph --calibration`, to use its rotations)")
     return module.load_spec(path, calibration), notes

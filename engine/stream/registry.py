@@ -10,7 +10,10 @@ for engines nobody runs):
 * ``shipped_spec(exclude, calibration) -> EngineSpec``: the engine on the clips the project ships (the console's
   default database), minus the ``exclude`` clip names, with a sensor-calibration record or None;
 * ``load_spec(path, calibration) -> EngineSpec``: the engine on a database file, with a sensor-calibration record
-  or None (what of it applies to a database already built; None: the engine has no file format).
+  or None (what of it applies to a database already built; None: the engine has no file format);
+* with a ``load_spec``, ``LOADED_DATABASE_TAKES_CALIBRATION: bool``: whether that database's virtual sensors take
+  the record's mountings (a motion graph re-derives them) or keep those it was built with (the console then says
+  so).
 
 The console (`engine.stream.databases.engine_spec`), `courtside synthesize --engine` and `courtside
 reconstruct --evaluate --engines` all look engines up here; the names are the same everywhere."""

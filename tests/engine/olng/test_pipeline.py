@@ -90,3 +90,18 @@ def test_dropped_samples_hold_the_last_reading(knowledge_base):
     assert np.sqrt(((out[20:26] - truth[20:26]) ** 2).sum(-1).mean(-1)).mean() < 0.1   # m: stays on track
     with pytest.raises(ValueError, match="first reading"):
         OLNGReconstructor(knowledge_base, OLNGConfig(graph=GRAPH)).push(np.full((4, 3), np.nan))
+
+
+def test_the_console_says_a_knowledge_base_keeps_its_mountings(knowledge_base, tmp_path):
+    """A calibration record with a saved knowledge base: the OLNG's adapter declares that its database keeps the
+    virtual sensors it was built with, so the console says the record's mountings do not reach it (a motion
+    graph file takes them: `tests/gui/test_imported_playback.py`)."""
+    from engine.stream.databases import engine_spec
+
+    path = tmp_path / "kb.npz"
+    knowledge_base.save(path)
+    record = object()  # the OLNG's load_spec reads nothing of a record; any one must draw the note
+    spec, notes = engine_spec("olng", kb_path=path, calibration=record)
+    assert spec.name == "olng"
+    assert [note for note in notes if "kb.npz: the database's virtual sensors keep the mounting" in note]
+    assert engine_spec("olng", kb_path=path)[1] == []
