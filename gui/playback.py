@@ -13,6 +13,7 @@ record's ids by either). Its samples are the ones
 `for_frame_rate`), so the console shows the poses the file gets."""
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -74,24 +75,35 @@ class Playback:
                 [f"sensor{k}" for k in range(acc.shape[1])]
             labels = [str(n) for n in data["source_labels"]] if "source_labels" in data.files else names
             channels = {name: np.asarray(data[name], float) for name in OPTIONAL_CHANNELS if name in data.files}
-            streams = uniform_streams(acc, float(data["fps"]), self.frame_rate_hz, **channels)
+            self._imported = (acc, float(data["fps"]), channels)
         self.problem, self.meta, self.sample_athletes, self.others = None, {}, {}, []
+        for k in range(acc.shape[1]):
+            self.placements[(IMPORTED_STATION, k)] = names[k]
+            self.source_labels[(IMPORTED_STATION, k)] = labels[k]
+        self._resample_imported()
+
+    def _resample_imported(self) -> None:
+        """The imported file's samples at `frame_rate_hz`, as `courtside synthesize` resamples them."""
+        acc, fps, channels = self._imported
         self.samples = {}
-        for k, (t, acc_k, quat, gyro) in enumerate(streams):
+        for k, (t, acc_k, quat, gyro) in enumerate(uniform_streams(acc, fps, self.frame_rate_hz, **channels)):
             arrays = {"t_host_s": t, "acc_g": acc_k}
             for name, values in (("quat_wxyz", quat), ("gyro_rps", gyro)):
                 if values is not None:
                     arrays[name] = values
             self.samples[(IMPORTED_STATION, k)] = arrays
-            self.placements[(IMPORTED_STATION, k)] = names[k]
-            self.source_labels[(IMPORTED_STATION, k)] = labels[k]
 
     def for_frame_rate(self, frame_rate_hz: float) -> "Playback":
         """This take for an engine at ``frame_rate_hz``: an imported file's samples are held half a frame beyond
-        its ends (`uniform_streams`), so they depend on it; a recording's do not."""
+        its ends (`uniform_streams`), so they depend on it (resampled from the arrays read once); a recording's
+        do not."""
         if not is_imported_take(self.path) or float(frame_rate_hz) == self.frame_rate_hz:
             return self
-        return Playback(self.path, frame_rate_hz)
+        other = copy.copy(self)
+        other.frame_rate_hz = float(frame_rate_hz)
+        other._resample_imported()
+        other._span_and_cursor()
+        return other
 
     def _span_and_cursor(self) -> None:
         """The take's time span, its events, and the cursor before its first sample."""

@@ -93,3 +93,22 @@ def test_the_console_does_not_claim_a_graph_file_ignores_the_record(imported):
     graph, _, record = imported
     spec, notes = engine_spec("motion-graph", graph_path=graph, calibration=load_sensor_calibration(record))
     assert spec.name == "motion-graph" and not any("keep the mounting" in note for note in notes)
+
+
+def test_a_playback_for_another_frame_rate_is_the_file_read_at_that_rate(imported):
+    """`for_frame_rate` resamples the arrays read once; it must give what reading the file at that rate gives,
+    and leave the 30-Hz playback as it was."""
+    _, take, _ = imported
+    playback = Playback(take)
+    before = {key: {name: values.copy() for name, values in arrays.items()} for key, arrays in playback.samples.items()}
+    for rate_hz in (10.0, 120.0):
+        resampled, read = playback.for_frame_rate(rate_hz), Playback(take, rate_hz)
+        assert resampled.samples.keys() == read.samples.keys()
+        for key, arrays in read.samples.items():
+            assert resampled.samples[key].keys() == arrays.keys()
+            for name, values in arrays.items():
+                np.testing.assert_array_equal(resampled.samples[key][name], values)
+        assert (resampled.t_start_s, resampled.t_end_s) == (read.t_start_s, read.t_end_s)
+    for key, arrays in before.items():
+        for name, values in arrays.items():
+            np.testing.assert_array_equal(playback.samples[key][name], values)
