@@ -1,4 +1,4 @@
-"""Shared fixtures: where the real mocap lives, and offscreen Qt by default."""
+"""Shared fixtures: where the real mocap lives, the shipped CMU clips, and offscreen Qt by default."""
 from __future__ import annotations
 
 import os
@@ -11,6 +11,7 @@ import pytest
 from bench.support.shared_data import find_shared_mocap
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+SHIPPED_SUBJECT = "16_"  # the shipped clips of one skeleton (CMU subject 16)
 
 
 @pytest.fixture(scope="session")
@@ -19,6 +20,22 @@ def shared_mocap() -> Path:
     if path is None:
         pytest.skip("the shared real-mocap set is not present (set COURTSIDE_MOCAP_DIR)")
     return path
+
+
+@pytest.fixture(scope="session")
+def native_motions() -> list:
+    """The CMU subject-16 clips shipped in engine/data (always present), in name order, at their own 120 Hz."""
+    from engine.mocap import load_clip, sample_clips
+
+    return [load_clip(p) for name, p in sample_clips().items() if name.startswith(SHIPPED_SUBJECT)]
+
+
+@pytest.fixture(scope="session")
+def motions() -> list:
+    """The same clips at the graph rate (30 Hz)."""
+    from engine.mocap import load_database, sample_clips
+
+    return load_database([p for name, p in sample_clips().items() if name.startswith(SHIPPED_SUBJECT)], fps=30.0)
 
 
 def running_children() -> dict[int, str]:

@@ -7,15 +7,9 @@ import pytest
 
 from bench.bench_real_recording import HOLD_S, NAMES, RATE_HZ, hold_floor_record, perfect_record, simulate_recording
 from engine.evaluation.takes import chain_clips
-from engine.mocap import load_database, load_sensor_calibration, sample_clips
+from engine.mocap import load_sensor_calibration
 from engine.mocap import quaternions as quat
 from engine.mocap.orientation_calibration import pose_sensor_orientations
-
-
-@pytest.fixture(scope="module")
-def motions():
-    """One shipped CMU clip (subject 16) at the graph rate."""
-    return load_database([p for name, p in sorted(sample_clips().items()) if name.startswith("16_")][:1], fps=30.0)
 
 
 NO_FILTER_ERROR = {"tilt_noise_deg": 0.0, "yaw_walk_deg_per_sqrt_min": 0.0, "yaw_drift_deg_per_min": 0.0}

@@ -11,7 +11,7 @@ import pytest
 from engine.hmm.evaluation import reconstruct, train_model
 from engine.hmm.features import imu_features
 from engine.hmm.online_engine import HMMEngine
-from engine.mocap import Motion, forward_kinematics, load_clip, resample, sample_clips, standard_placements
+from engine.mocap import Motion, forward_kinematics, resample, standard_placements
 from engine.stream.engines import drive_frames
 from gateway.cli import main as courtside
 from tests.engine.stream.decided_checks import MM, assert_synthesize_writes_the_saved_poses, bvh_joints
@@ -21,25 +21,20 @@ RATE_HZ = 30.0  # HMMConfig.fps: at this rate the frames are the take's samples
 IMUS = ("right_foot",)
 
 
-@pytest.fixture(scope="module")
-def motions():
-    return [load_clip(p) for name, p in sample_clips().items() if name.startswith("16_")]
-
-
-def _walk(motions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _walk(native_motions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The first FRAMES frames of walk 16_32: (acc (T, 1, 3) g, gyro (T, 1, 3) rad/s, a camera ground track (T, 2)
     m offset from the root, as a tracker's would be)."""
-    walk = resample(motions[5], RATE_HZ)
+    walk = resample(native_motions[5], RATE_HZ)
     acc, gyro = imu_features(walk, standard_placements(walk.skeleton, IMUS))
     return acc[:FRAMES], gyro[:FRAMES], walk.root_positions_m[:FRAMES][:, [0, 2]] + 0.3
 
 
-def test_the_engine_decodes_as_the_batch_reconstruction_camera_warp_included(motions):
+def test_the_engine_decodes_as_the_batch_reconstruction_camera_warp_included(native_motions):
     """Live = offline: pushed frame by frame with camera fixes (ground and heading), the engine's root and
     rotations are those of `engine.hmm.evaluation.reconstruct` on the whole take, and its joints their FK."""
-    model = train_model([motions[i] for i in (2, 3, 4)], IMUS)
-    skeleton = motions[0].skeleton
-    acc, gyro, ground = _walk(motions)
+    model = train_model([native_motions[i] for i in (2, 3, 4)], IMUS)
+    skeleton = native_motions[0].skeleton
+    acc, gyro, ground = _walk(native_motions)
     acc[20:23] = np.nan  # a dropout: no evidence, the chains move on their transitions (live and batch alike)
     heading = np.linspace(0.0, 0.6, FRAMES)
     heading[:5] = np.nan  # the first fix brings a position only
@@ -55,7 +50,7 @@ def test_the_engine_decodes_as_the_batch_reconstruction_camera_warp_included(mot
     assert np.abs(joints[0, 0, [0, 2]] - ground[0]).max() < 1e-12  # the first fix places the root
 
 
-def test_the_decoder_follows_the_camera_by_the_warp_rule_and_faces_the_hips_to_a_heading_fix(motions):
+def test_the_decoder_follows_the_camera_by_the_warp_rule_and_faces_the_hips_to_a_heading_fix(native_motions):
     """Frame by frame, the decoder's root is `engine.graph.warp.follow_camera`'s path for the same steps and fixes
     (the first fix places it); with the skeleton, a first heading fix turns the body so its hips face it."""
     from engine.graph.warp import RootWarp, follow_camera
@@ -63,7 +58,7 @@ def test_the_decoder_follows_the_camera_by_the_warp_rule_and_faces_the_hips_to_a
     from engine.hmm.pose_decoder import PoseDecoder
     from engine.mocap import heading_from_positions, joint_roles, pose_joint_positions
 
-    walk = resample(motions[5], RATE_HZ)
+    walk = resample(native_motions[5], RATE_HZ)
     body = body_features(walk)[:FRAMES]
     joints = walk.skeleton.n_joints
     fixes = walk.root_positions_m[:FRAMES][:, [0, 2]] + 0.3
@@ -81,32 +76,30 @@ def test_the_decoder_follows_the_camera_by_the_warp_rule_and_faces_the_hips_to_a
 
 
 @pytest.mark.parametrize("lag", [None, "0.5"])
-def test_synthesize_writes_the_saved_poses_as_bvh(motions, tmp_path, lag):
+def test_synthesize_writes_the_saved_poses_as_bvh(native_motions, tmp_path, lag):
     """`synthesize --engine hmm -o OUT.bvh --save-poses P.npz`: the BVH read back is the saved poses (joints
     within 1 mm, same frames), with or without --lag (the HMM decides each frame at once)."""
-    acc, gyro, ground = _walk(motions)
+    acc, gyro, ground = _walk(native_motions)
     take = tmp_path / "take.npz"
     np.savez(take, acc_g=acc, gyro_rps=gyro, fps=RATE_HZ, position_m=ground, sensor_names=np.array(IMUS))
     assert_synthesize_writes_the_saved_poses("hmm", take, tmp_path, lag, FRAMES - 5)
 
 
-def test_reconstruct_writes_the_poses_the_engine_emits(motions, tmp_path):
+def test_reconstruct_writes_the_poses_the_engine_emits(native_motions, motions, tmp_path):
     """`reconstruct --method hmm` trains the paper's acc + gyro model on the clips and writes exactly the poses the
     live engine emits with it (FK of the BVH within 1 mm), camera following included."""
     from engine.graph.inputs import read_take
-    from engine.mocap import load_database
     from engine.reconstruct_cli import _take_gyro
 
-    acc, gyro, ground = _walk(motions)
+    acc, gyro, ground = _walk(native_motions)
     take, out = tmp_path / "take.npz", tmp_path / "hmm.bvh"
     np.savez(take, acc_g=acc, gyro_rps=gyro, fps=RATE_HZ, position_m=ground, sensor_names=np.array(IMUS))
     assert courtside(["reconstruct", "--method", "hmm", "--input", str(take), "-o", str(out), "--sample",
                       "--quiet"]) == 0
-    clips = load_database([p for name, p in sample_clips().items() if name.startswith("16_")], fps=30.0)
-    model = train_model(clips, IMUS)
+    model = train_model(motions, IMUS)  # the shipped clips at 30 Hz, as --sample trains it
     frames = read_take(str(take), list(IMUS), RATE_HZ)  # the frames the command pushed
     obs = frames.obs
-    poses = drive_frames(HMMEngine({model.config.imu_channels: model}, clips[0].skeleton), obs.acc_g,
+    poses = drive_frames(HMMEngine({model.config.imu_channels: model}, motions[0].skeleton), obs.acc_g,
                          obs.position_m, obs.heading_rad, gyro_rps=_take_gyro(str(take), frames.frame, RATE_HZ, IMUS))
     emitted = np.stack([p.joint_positions_m for p in poses])
     assert np.abs(bvh_joints(out) - emitted).max() < MM

@@ -3,19 +3,13 @@ is pulled onto the camera track, so the global error is the camera's, not metres
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from engine.graph.warp import RootWarp
-from engine.mocap import (SEED003_SENSORS, Motion, forward_kinematics, load_clip, resample, root_heading,
-                          sample_clips, standard_placements, virtual_accelerometers)
+from engine.mocap import (SEED003_SENSORS, Motion, forward_kinematics, resample, root_heading, standard_placements,
+                          virtual_accelerometers)
 from engine.mocap.ground import wrap_angle
 
 FULL = RootWarp(1.0, 1.0, 1e3, 1e3)  # pull all the way: the root must sit exactly on the camera track
-
-
-@pytest.fixture(scope="module")
-def motions():
-    return [load_clip(p) for name, p in sample_clips().items() if name.startswith("16_")]
 
 
 def _truth(motion: Motion):
@@ -23,13 +17,13 @@ def _truth(motion: Motion):
     return motion.root_positions_m[:, [0, 2]], root_heading(motion, pos)
 
 
-def test_olng_root_follows_the_camera(motions):
+def test_olng_root_follows_the_camera(native_motions):
     from engine.olng.config import NeighbourhoodGraphConfig, KnowledgeBaseConfig, OLNGConfig
     from engine.olng.mocap_bridge import build_knowledge_base
     from engine.olng.reconstructor import OLNGReconstructor
 
-    kb = build_knowledge_base([motions[i] for i in (2, 3, 4)], KnowledgeBaseConfig())
-    test = resample(motions[5], kb.fps)
+    kb = build_knowledge_base([native_motions[i] for i in (2, 3, 4)], KnowledgeBaseConfig())
+    test = resample(native_motions[5], kb.fps)
     acc = virtual_accelerometers(test, standard_placements(test.skeleton, SEED003_SENSORS))[:15]
     ground, heading = (a[:15] for a in _truth(test))
     config = OLNGConfig(graph=NeighbourhoodGraphConfig(k_neighbours=128, i_best=16))
@@ -52,12 +46,12 @@ def test_olng_root_follows_the_camera(motions):
     assert err.mean() < 0.06
 
 
-def test_hmm_root_follows_the_camera(motions):
+def test_hmm_root_follows_the_camera(native_motions):
     from engine.hmm.evaluation import reconstruct, to_motion, train_model
     from engine.hmm.features import imu_features
 
-    model = train_model([motions[i] for i in (2, 3, 4)], imu_names=("right_foot",))
-    test = resample(motions[5], model.fps)
+    model = train_model([native_motions[i] for i in (2, 3, 4)], imu_names=("right_foot",))
+    test = resample(native_motions[5], model.fps)
     acc, gyro = imu_features(test, standard_placements(test.skeleton, ("right_foot",)))
     ground, heading = _truth(test)
     args = (model, acc, gyro, test.skeleton.n_joints, test.root_positions_m[0], test.rotations[0, 0])

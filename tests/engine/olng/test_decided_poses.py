@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.mocap import (SEED003_SENSORS, load_clip, resample, sample_clips, standard_placements,
+from engine.mocap import (SEED003_SENSORS, resample, standard_placements,
                           virtual_accelerometers)
 from engine.stream.engines import drive_frames
 from gateway.cli import main as courtside
@@ -17,30 +17,25 @@ FRAMES = 50
 KB_RATE_HZ = 25.0  # KnowledgeBaseConfig.fps
 
 
-@pytest.fixture(scope="module")
-def motions():
-    return [load_clip(p) for name, p in sample_clips().items() if name.startswith("16_")]
-
-
-def _take(motions, path, fps: float = KB_RATE_HZ) -> tuple[np.ndarray, np.ndarray]:
+def _take(native_motions, path, fps: float = KB_RATE_HZ) -> tuple[np.ndarray, np.ndarray]:
     """The first FRAMES frames of walk 16_32 at ``fps`` as a synthesis-input take with a camera track: (acc (T,
     S, 3) g, camera ground positions (T, 2) m). At the knowledge base's rate the frames are the take's samples."""
-    walk = resample(motions[5], fps)
+    walk = resample(native_motions[5], fps)
     acc = virtual_accelerometers(walk, standard_placements(walk.skeleton, SEED003_SENSORS))[:FRAMES]
     ground = walk.root_positions_m[:FRAMES][:, [0, 2]] + 0.3
     np.savez(path, acc_g=acc, fps=fps, position_m=ground, sensor_names=np.array(SEED003_SENSORS))
     return acc, ground
 
 
-def test_the_engine_emits_the_reconstruction_as_rotations_whose_fk_are_its_joints(motions):
+def test_the_engine_emits_the_reconstruction_as_rotations_whose_fk_are_its_joints(native_motions):
     """The emitted pose is the reconstructor's (root, local quaternions) unchanged, on the spec's skeleton, and its
     joints are the reconstructor's world joints (the FK of the same rotations), through a dropout too."""
     from engine.olng.online_engine import build_spec
     from engine.olng.reconstructor import OLNGReconstructor
 
-    spec = build_spec([motions[i] for i in (1, 2, 3, 4, 6)], "five clips")
+    spec = build_spec([native_motions[i] for i in (1, 2, 3, 4, 6)], "five clips")
     assert spec.skeleton is not None and np.array_equal(spec.parents, spec.skeleton.parents)
-    walk = resample(motions[5], spec.rate_hz)
+    walk = resample(native_motions[5], spec.rate_hz)
     acc = virtual_accelerometers(walk, standard_placements(walk.skeleton, SEED003_SENSORS))[:FRAMES]
     acc[20:23] = np.nan  # a dropout: the engine holds the last reading, as the reconstructor does
     engine = spec.make(0.0)
@@ -55,15 +50,15 @@ def test_the_engine_emits_the_reconstruction_as_rotations_whose_fk_are_its_joint
 
 
 @pytest.mark.parametrize("lag", [None, "0.5"])
-def test_synthesize_writes_the_saved_poses_as_bvh(motions, tmp_path, lag):
+def test_synthesize_writes_the_saved_poses_as_bvh(native_motions, tmp_path, lag):
     """`synthesize --engine olng -o OUT.bvh --save-poses P.npz`: the BVH read back is the saved poses (joints
     within 1 mm, same frames), with or without --lag (OLNG decides each frame at once)."""
     take = tmp_path / "take.npz"
-    _take(motions, take)
+    _take(native_motions, take)
     assert_synthesize_writes_the_saved_poses("olng", take, tmp_path, lag, FRAMES - 5)
 
 
-def test_reconstruct_writes_the_poses_the_engine_emits(motions, tmp_path):
+def test_reconstruct_writes_the_poses_the_engine_emits(native_motions, tmp_path):
     """`reconstruct --method olng` runs the live engine with its --k / --i-best / --window and writes exactly
     the poses it emits, camera following included (FK of the BVH within 1 mm)."""
     from engine.olng.config import NeighbourhoodGraphConfig, OLNGConfig
@@ -73,7 +68,7 @@ def test_reconstruct_writes_the_poses_the_engine_emits(motions, tmp_path):
     from engine.graph.inputs import load_take
 
     take, kb, out = tmp_path / "take.npz", tmp_path / "kb.npz", tmp_path / "olng.bvh"
-    _take(motions, take)
+    _take(native_motions, take)
     assert courtside(["reconstruct", "--method", "olng", "--input", str(take), "-o", str(out), "--sample",
                       "--save-kb", str(kb), "--k", "256", "--i-best", "16", "--quiet"]) == 0
     obs = load_take(str(take), list(SEED003_SENSORS), KB_RATE_HZ)  # the frames the command pushed

@@ -1,7 +1,5 @@
 """The live effort control (engine/olng/keep_up.py): steps down when frames cost more than the budget, back up
 when they are cheap, and stays at its floor."""
-import numpy as np
-
 from engine.olng.keep_up import Effort, KeepUp, effort_levels
 
 

@@ -82,7 +82,6 @@ def test_orientations_find_the_right_database_frames(kb, take) -> None:
     """A clip of the database streamed back with its exact orientations: the tilt + gyro search returns that
     clip's own frames as nearest neighbours (distance 0 on every channel)."""
     start, n = 200, 30
-    acc = kb.alpha_g[start:start + n].reshape(n, -1, 3)
     rec = OLNGReconstructor(kb, CONFIG, channels=("acc", "orientation", "gyro"))
     table, tree = kb.search(rec.channels, CONFIG.graph.tilt_weight, CONFIG.graph.gyro_weight_s)
     dist, idx = tree.query(table[start:start + n], k=1)

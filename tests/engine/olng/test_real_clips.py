@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.mocap import SEED003_SENSORS, load_clip, resample, sample_clips, standard_placements, virtual_accelerometers
+from engine.mocap import SEED003_SENSORS, resample, standard_placements, virtual_accelerometers
 from engine.olng.config import EnergyConfig, NeighbourhoodGraphConfig, KnowledgeBaseConfig, OLNGConfig
 from engine.olng.evaluation import Variant, olng_leave_one_out, mean_pose_baseline
 from engine.olng.metrics import summarise
@@ -12,12 +12,7 @@ from engine.olng.metrics import summarise
 GRAPH = NeighbourhoodGraphConfig(k_neighbours=512, i_best=32)
 
 
-@pytest.fixture(scope="module")
-def motions():
-    return [load_clip(p) for name, p in sample_clips().items() if name.startswith("16_")]
-
-
-def test_leave_one_out_beats_baselines_on_real_walks(motions):
+def test_leave_one_out_beats_baselines_on_real_walks(native_motions):
     """Held-out walk 16_32: the kernel prior beats the Mahalanobis prior and the database mean pose, and time
     warping beats the linear search."""
     tests = [5]
@@ -25,18 +20,18 @@ def test_leave_one_out_beats_baselines_on_real_walks(motions):
     variants = [Variant("olng", OLNGConfig(graph=GRAPH)),
                 Variant("mahalanobis", OLNGConfig(graph=GRAPH, energy=EnergyConfig(kernel="mahalanobis"))),
                 Variant("no-warp", OLNGConfig(graph=NeighbourhoodGraphConfig(k_neighbours=512, i_best=32, max_column_step=1, max_warp=1)))]
-    scores = {k: summarise(v)["rms_root_cm"] for k, v in olng_leave_one_out(motions, tests, variants, kb).items()}
-    mean_pose = summarise(mean_pose_baseline(motions, tests, kb))["rms_root_cm"]
+    scores = {k: summarise(v)["rms_root_cm"] for k, v in olng_leave_one_out(native_motions, tests, variants, kb).items()}
+    mean_pose = summarise(mean_pose_baseline(native_motions, tests, kb))["rms_root_cm"]
     assert scores["olng"] < 0.6 * mean_pose
     assert scores["olng"] < 0.7 * scores["mahalanobis"]
     assert scores["olng"] < scores["no-warp"]
 
 
-def test_cli_reconstructs_a_take_to_bvh_and_rejects_missing_sensors(tmp_path, motions):
+def test_cli_reconstructs_a_take_to_bvh_and_rejects_missing_sensors(tmp_path, native_motions):
     from engine.mocap import read_bvh
     from engine.reconstruct_cli import main
 
-    take = resample(motions[5], 50.0)
+    take = resample(native_motions[5], 50.0)
     acc = virtual_accelerometers(take, standard_placements(take.skeleton, SEED003_SENSORS))
     path = tmp_path / "take.npz"
     np.savez(path, acc_g=acc, fps=50.0, sensor_names=np.array(SEED003_SENSORS))
@@ -44,7 +39,7 @@ def test_cli_reconstructs_a_take_to_bvh_and_rejects_missing_sensors(tmp_path, mo
     assert main(["--method", "olng", "--input", str(path), "-o", str(out), "--sample", "--k", "256", "--i-best", "16"]) == 0
     result = read_bvh(out)
     assert result.n_frames == pytest.approx(take.duration_s * 25, abs=2)
-    assert result.skeleton.n_joints == motions[0].skeleton.n_joints
+    assert result.skeleton.n_joints == native_motions[0].skeleton.n_joints
     np.savez(tmp_path / "two.npz", acc_g=acc[:, :2], fps=50.0, sensor_names=np.array(SEED003_SENSORS[:2]))
     assert main(["--method", "olng", "--input", str(tmp_path / "two.npz"), "-o", str(out), "--sample"]) == 2
 
