@@ -17,7 +17,6 @@ Raw ticks and arrival times are kept by the recorder, so `realign_offline` can r
 """
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np

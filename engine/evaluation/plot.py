@@ -8,6 +8,7 @@ on a headless CI machine or the gateway board, and matplotlib stays an optional 
 """
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -98,6 +99,6 @@ def save(report: dict[str, Any], path: str | Path, group: str | None = None, tak
 def require_matplotlib() -> None:
     """Refuse --plot up front (before minutes of evaluation) when the plot extra is not installed."""
     try:
-        import matplotlib  # noqa: F401
+        importlib.import_module("matplotlib")  # only to check it is installed: figure() imports what it draws with
     except ImportError:
         raise CourtsideError("--plot needs matplotlib: pip install 'courtside[plot]'") from None

@@ -219,13 +219,13 @@ def weights_from_args(args: argparse.Namespace, warp: RootWarp) -> SearchWeights
     if args.orientation_heading is not None:
         check_non_negative("--orientation-heading", [args.orientation_heading])
         weights = replace(weights, orientation_heading=args.orientation_heading)
-    for option, field in (("--segment-pose", "segment_pose"), ("--hinge-share", "hinge_share"),
-                          ("--forearm-roll", "forearm_roll")):
-        value = getattr(args, field)
+    for option, attr in (("--segment-pose", "segment_pose"), ("--hinge-share", "hinge_share"),
+                         ("--forearm-roll", "forearm_roll")):
+        value = getattr(args, attr)
         if value is not None:
             if not (np.isfinite(value) and 0 <= value <= 1):
                 raise CourtsideError(f"{option} {value!r}: must be in [0, 1]")
-            weights = replace(weights, **{field: value})
+            weights = replace(weights, **{attr: value})
     if args.limb_prior is not None:
         check_non_negative("--limb-prior", [args.limb_prior])
         weights = replace(weights, limb_prior_k=args.limb_prior)

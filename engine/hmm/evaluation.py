@@ -13,7 +13,7 @@ from engine.graph.warp import RootWarp
 from engine.hmm.config import HMMConfig
 from engine.hmm.features import (align_hemispheres, body_features, channel_set, imu_features, imu_orientations,
                                  stack_imu)
-from engine.mocap.orientation import OrientationErrorModel, to_device_earth
+from engine.mocap.orientation import OrientationErrorModel
 from engine.olng.channels import tilt_from_world
 from engine.hmm.model import HierarchicalHMM, TrainingClip
 from engine.hmm.phases import detect_events, label_phases, segments_from_labels

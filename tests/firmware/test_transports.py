@@ -6,7 +6,7 @@ import time
 import pytest
 import serial
 
-import firmware_protocol  # noqa: F401  (registers emu://)
+# importing the package also registers the emu:// pyserial URL scheme
 from firmware_protocol import Ack, ClockSync, Command, Hello, Opcode, SampleBatch, StreamDecoder, encode
 from firmware_protocol.emulator import BaseStation, StationConfig
 from firmware_protocol.emulator.hid_transport import FakeHidBus

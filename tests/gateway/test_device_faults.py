@@ -16,7 +16,7 @@ from gateway.daemon import Gateway
 from gateway.server import RequestError
 from gateway.station import StationReader
 
-from .test_station_reader import HELLO, TICK_HZ, Sink, batch, pty_pair, wait_for  # noqa: F401 (fixture)
+from .test_station_reader import HELLO, Sink, batch, wait_for
 
 
 def _hello(**changes) -> fp.Hello:
@@ -289,8 +289,6 @@ def test_host_time_never_steps_back_across_an_epoch_restart_or_a_warm_up_refit()
 def test_a_motion_batch_with_an_impossible_gyro_scale_is_refused():
     """A MOTION_BATCH whose angular-rate scale is NaN (a sender bug the decoder cannot see: the layout is fine)
     is refused and counted like any impossible field; the accelerations-only batches around it go through."""
-    import struct
-
     from firmware_protocol.framing import frame_payload
 
     good = fp.SampleBatch(0, 0, 10, 101_000, 2_560_000, fp.scale_for_range(8), np.zeros((5, 3), np.int16), None,

@@ -2,7 +2,6 @@
 CRC-valid chunks from a foreign writer, and crashed vs cleanly stopped takes."""
 from __future__ import annotations
 
-import json
 import struct
 import subprocess
 import sys

@@ -43,19 +43,6 @@ def wait_for(predicate, timeout_s=3.0):
     return False
 
 
-@pytest.fixture()
-def pty_pair():
-    master, slave = pty.openpty()
-    tty.setraw(master)
-    path = os.ttyname(slave)
-    yield master, path
-    for fd in (master, slave):
-        try:
-            os.close(fd)
-        except OSError:
-            pass
-
-
 def batch(sensor, counter, ticks, n, value=100):
     samples = np.full((n, 3), value, np.int16)
     samples[:, 0] = np.arange(n)

@@ -8,7 +8,6 @@ import logging
 import numpy as np
 import pytest
 
-from engine.errors import CourtsideError
 from engine.stream.engines import EngineMismatchError, check_live_sensors, default_engine
 from firmware_protocol.emulator.motion import StillSource
 from gui.cli import console_main

@@ -141,7 +141,7 @@ def _orientation_missing_not_invented(sensor: str, t_s: tuple[float, float]) -> 
 
 
 # ------------------------------------------------------------------------------------------------ families
-def csv_cases() -> list[Case]:
+def csv_cases() -> list[Refused]:
     text = csv_text()
     base = ["import-imu", "{d}/rec.csv", *CSV_ARGS, *csv_columns(), "-o", "{d}/out.npz"]
 

@@ -1,6 +1,5 @@
 """Readers and writer: real files load with the right units/axes, round trips are exact, bad files fail
 with MalformedFileError naming file, line and problem."""
-from pathlib import Path
 
 import numpy as np
 import pytest
