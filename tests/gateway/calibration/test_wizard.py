@@ -186,7 +186,8 @@ def test_redo_of_one_step_keeps_the_others(wizard, subject):
     t = feed(wizard, subject, t, t + 4.0, rng)
     t = feed(wizard, subject, t, t + 1.0, rng, {"st0/1": spike(t + 0.5)})
     assert wizard.step == "review"
-    first_tap, first_results = wizard.tap, dict(wizard.results)
+    first_results = dict(wizard.results)
+    assert wizard.tap["sensor_id"] == "st0/1"  # the first tap, which the redo replaces
     wizard.redo("tap")
     assert wizard.step == "tap" and wizard.tap is None and wizard.results == first_results
     t = feed(wizard, subject, t, t + 1.0, rng, {"st0/3": spike(t + 0.4)})
