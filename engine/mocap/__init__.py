@@ -11,8 +11,8 @@ from engine.mocap.c3d import MarkerData, read_c3d
 from engine.mocap.calibrated import (SensorCalibrationData, calibrated_placements,
                                      load_sensor_calibration, placements_from_calibration, reading_corrections)
 from engine.mocap.clips import DATA_DIR, default_cache_dir, load_clip, load_database, sample_clips
-from engine.mocap.ground import (SEED_HEADING_SPEED_MPS, ContactThresholds, foot_contacts, ground_positions,
-                                 heading_from_positions, seed_heading_rule,
+from engine.heading import SEED_HEADING_SPEED_MPS, seed_heading_rule
+from engine.mocap.ground import (ContactThresholds, foot_contacts, ground_positions, heading_from_positions,
                                  root_heading, wrap_angle)
 from engine.mocap.rest_pose import rebase_to_tpose, tpose_bases, tpose_skeleton
 from engine.mocap.roles import ERROR_ROLES, ROLES, error_joint_indices, joint_roles, left_right_pairs

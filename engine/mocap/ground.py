@@ -10,7 +10,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.heading import SEED_HEADING_SPEED_MPS, seed_heading_rule  # noqa: F401  (re-exported by engine.mocap)
 from engine.mocap.roles import joint_roles
 from engine.mocap.skeleton import Motion, forward_kinematics
 
