@@ -12,7 +12,7 @@ oracle, all in one run.
     nice .venv/bin/python bench/bench_real_recording.py --mocap-dir ../shared/mocap --graph b1.npz \\
         [--groups respond,call] [--start-pose apose:70] [--strapping random|nominal] [--filter 6axis|9axis]
         [--seconds 50] [--posing-error-deg 3] [--forearm-roll-deg 0] [--north auto|shared|own] [--seed 0]
-        [--tilt-noise-deg D] [--north-spread-deg D]
+        [--tilt-noise-deg D] [--north-spread-deg D] [--seeds N]
 
 ``--graph``: a graph built from ``--pattern`` over ``--mocap-dir`` (`courtside build-graph --mocap-dir ...
 --pattern ... --msv -o b1.npz`); every clip of the held-out groups is removed from it for the run.
@@ -25,6 +25,11 @@ by its own rotation, its orientation read through a magnetometer-free filter's e
 yaw per sensor, drift, 2 deg of wandering tilt: `OrientationErrorModel.realistic` without its own strapping) or a
 magnetometer-aided one's (``9axis``, as Xsens MTw/DOT export: one north, each sensor 4 deg off it:
 `OrientationErrorModel.magnetometer`). The perfect record holds each sensor's yaw at the take's start and its strap.
+
+One recording is one draw of straps, posing and filter errors, and the gap to the perfect calibration moves by
+tenths of a centimetre from draw to draw on one take: ``--seeds N`` draws N recordings of the same take (seeds
+``--seed`` on), prints each one's table, their mean, and each one's gap (from the take minus perfect, and the
+held pose's floor minus perfect).
 """
 from __future__ import annotations
 
@@ -233,15 +238,46 @@ def main() -> None:
     p.add_argument("--north", choices=("auto", "shared", "own"), default="auto",
                    help="calibrate --north (default auto, as a user who does not say)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seeds", type=int, default=1, help="recordings drawn (seeds --seed on): each one's table, "
+                   "then their mean and each one's gap to the perfect calibration")
     args = p.parse_args()
     if args.north_spread_deg is not None and args.filter != "9axis":
         p.error("--north-spread-deg is the 9axis filter's (a 6axis filter has a north per sensor)")
     graph = MotionGraph.load(args.graph)
     take, train, chosen_labels = held_out_take(Path(args.mocap_dir), args.pattern, graph, args.graph,
                                                args.groups.split(","), args.seconds)
-    rng = np.random.default_rng(args.seed)
     changes = {name: value for name, value in (("tilt_noise_deg", args.tilt_noise_deg),
                                                ("north_spread_deg", args.north_spread_deg)) if value is not None}
+    print(f"take: {take.n_frames / take.fps:.1f} s of {', '.join(sorted(set(chosen_labels)))} "
+          f"({len(chosen_labels)} clips held out with their groups), start pose {args.start_pose} held {HOLD_S} s "
+          f"({args.posing_error_deg:g} deg posing error, forearms rolled {args.forearm_roll_deg:g} deg), "
+          f"strapping {args.strapping}, {args.filter} filter, {RATE_HZ:g} Hz CSV in m/s2")
+    by_seed = {}
+    for seed in range(args.seed, args.seed + args.seeds):
+        by_seed[seed], found = measure(args, take, train, seed, changes)
+        print(f"\nseed {seed}: calibrate --graph found pose {found['pose']}, north {found['north']}")
+        print_table(by_seed[seed])
+    if args.seeds > 1:
+        print(f"\nmean over seeds {args.seed}-{args.seed + args.seeds - 1}")
+        print_table({name: {key: float(np.mean([rows[name][key] for rows in by_seed.values()]))
+                            for key in cells} for name, cells in by_seed[args.seed].items()})
+    gaps = [rows[FROM_TAKE]["poses"] - rows[PERFECT]["poses"] for rows in by_seed.values()]
+    floors = [rows[FLOOR]["poses"] - rows[PERFECT]["poses"] for rows in by_seed.values()]
+    print(f"\nfrom the take minus perfect, per seed: {' '.join(f'{g:+.2f}' for g in gaps)} (mean {np.mean(gaps):+.2f}, "
+          f"{sum(g <= 0.3 for g in gaps)} of {len(gaps)} within 0.3); the hold's floor minus perfect: "
+          f"{' '.join(f'{g:+.2f}' for g in floors)} (mean {np.mean(floors):+.2f})")
+
+
+FROM_TAKE = "calibrate --graph (start pose found)"
+FLOOR = "the hold read perfectly (the held pose's floor)"
+PERFECT = "perfect calibration"
+
+
+def measure(args: argparse.Namespace, take: Take, train: MotionGraph, seed: int, changes: dict[str, float]
+            ) -> tuple[dict[str, dict[str, float]], dict]:
+    """One simulated recording (seed `seed`) through every case and baseline: {row: {"poses", "bvh",
+    "console": cm}} and what calibrate found."""
+    rng = np.random.default_rng(seed)
     rec = simulate_recording(take, args.start_pose, args.strapping, args.filter, rng, args.posing_error_deg,
                              args.forearm_roll_deg, changes)
     rows: dict[str, dict[str, float]] = {}
@@ -261,10 +297,9 @@ def main() -> None:
         perfect_record(work / "perfect.json", rec, train.skeleton)
         hold_floor_record(work / "hold_floor.json", rec, train.skeleton, args.start_pose, args.filter)
         cases = {"accelerations only": ("acc.npz", None), "orientations, no calibration (tilt)": ("take.npz", None),
-                 "calibrate --graph (start pose found)": ("take.npz", "from_take.json"),
+                 FROM_TAKE: ("take.npz", "from_take.json"),
                  "calibrate --graph --pose none (from motion)": ("take.npz", "from_motion.json"),
-                 "the hold read perfectly (the held pose's floor)": ("take.npz", "hold_floor.json"),
-                 "perfect calibration": ("take.npz", "perfect.json")}
+                 FLOOR: ("take.npz", "hold_floor.json"), PERFECT: ("take.npz", "perfect.json")}
         for name, (take_file, record) in cases.items():
             extra = [] if record is None else ["--calibration", str(work / record)]
             run(["synthesize", "--graph", str(work / "graph.npz"), "--input", str(work / take_file), "-o",
@@ -277,7 +312,7 @@ def main() -> None:
                           "bvh": score(bvh, poses.t_s, take),
                           "console": score(np.stack([q.joint_positions_m for q in live]),
                                            np.array([q.t_s for q in live]), take)}
-    cam = simulate.camera_track(take, simulate.CameraModel(), np.random.default_rng(args.seed + 1))
+    cam = simulate.camera_track(take, simulate.CameraModel(), np.random.default_rng(seed + 1))
     cam_pos, cam_head = cam.filled()
     t_truth = HOLD_S + np.arange(take.n_frames) / take.fps
     camera_only = engines.motion_graph(train, None, (), cam.position_m, cam.heading_rad,
@@ -287,16 +322,14 @@ def main() -> None:
     for name, joints in (("mean pose at the camera's root", baselines.mean_pose(train, cam_pos, cam_head)),
                          ("camera-only search", camera_only.joints_m), ("database oracle", oracle)):
         rows[name] = {"poses": score(joints, t_truth, take)}
-    print(f"take: {take.n_frames / take.fps:.1f} s of {', '.join(sorted(set(chosen_labels)))} "
-          f"({len(chosen_labels)} clips held out with their groups), start pose {args.start_pose} held {HOLD_S} s "
-          f"({args.posing_error_deg:g} deg posing error, forearms rolled {args.forearm_roll_deg:g} deg), "
-          f"strapping {args.strapping}, {args.filter} filter, {RATE_HZ:g} Hz CSV in m/s2, seed {args.seed}")
-    print(f"calibrate --graph found: pose {found['pose']}, north {found['north']}")
+    return rows, found
+
+
+def print_table(rows: dict[str, dict[str, float]]) -> None:
     print(f"{'root-relative error, cm':48s} {'saved poses':>12s} {'BVH file':>9s} {'console':>8s}")
     for name, r in rows.items():
         cells = [f"{r[k]:.2f}" if k in r else "-" for k in ("poses", "bvh", "console")]
         print(f"{name:48s} {cells[0]:>12s} {cells[1]:>9s} {cells[2]:>8s}")
-
 
 if __name__ == "__main__":
     main()
