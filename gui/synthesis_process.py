@@ -300,14 +300,16 @@ class SynthesisProcess:
             self._recent_base = self._recent[-1][0] if self._recent else self._recent_base
             self._epoch = -1  # the new child's kept poses start over, as after an engine restart
         label = self.setup.engine.name
+        # each fault is logged before it is shown: whoever sees `fault` (the status bar's thread) finds it logged
         if not self._budget.take(time.monotonic()):
-            self.fault = (f"synthesis stopped: its process crashed {self._budget.max_restarts + 1} times within "
-                          f"{self._budget.window_s:.0f} s (last {cause}); restart the console")
-            log.error("synthesis (%s): process %d %s; %s", label, process.pid, cause, self.fault)
+            fault = (f"synthesis stopped: its process crashed {self._budget.max_restarts + 1} times within "
+                     f"{self._budget.window_s:.0f} s (last {cause}); restart the console")
+            log.error("synthesis (%s): process %d %s; %s", label, process.pid, cause, fault)
+            self.fault = fault
             return False
-        self.fault = f"synthesis restarted after crash ({self._budget.used}/{self._budget.max_restarts}): {cause}"
         log.warning("synthesis (%s): process %d %s; restarting (%d/%d)", label, process.pid, cause,
                     self._budget.used, self._budget.max_restarts)
+        self.fault = f"synthesis restarted after crash ({self._budget.used}/{self._budget.max_restarts}): {cause}"
         with self._send_lock:
             if self._stopping:
                 return False
