@@ -68,6 +68,10 @@ RATE_HZ = 60.0
 HOLD_S = 1.5
 GRAVITY_MPS2 = 9.80665
 NAMES = list(SEED000_SENSORS)
+# the rows each draw's gaps are read from
+FROM_TAKE = "calibrate --graph (start pose found)"
+FLOOR = "the hold read perfectly (the held pose's floor)"
+PERFECT = "perfect calibration"
 
 
 @dataclass
@@ -268,11 +272,6 @@ def main() -> None:
           f"{' '.join(f'{g:+.2f}' for g in floors)} (mean {np.mean(floors):+.2f})")
 
 
-FROM_TAKE = "calibrate --graph (start pose found)"
-FLOOR = "the hold read perfectly (the held pose's floor)"
-PERFECT = "perfect calibration"
-
-
 def measure(args: argparse.Namespace, take: Take, train: MotionGraph, seed: int, changes: dict[str, float]
             ) -> tuple[dict[str, dict[str, float]], dict]:
     """One simulated recording (seed `seed`) through every case and baseline: {row: {"poses", "bvh",
@@ -330,6 +329,7 @@ def print_table(rows: dict[str, dict[str, float]]) -> None:
     for name, r in rows.items():
         cells = [f"{r[k]:.2f}" if k in r else "-" for k in ("poses", "bvh", "console")]
         print(f"{name:48s} {cells[0]:>12s} {cells[1]:>9s} {cells[2]:>8s}")
+
 
 if __name__ == "__main__":
     main()

@@ -11,7 +11,6 @@ import pytest
 from bench.support.shared_data import find_shared_mocap
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
-SHIPPED_SUBJECT = "16_"  # the shipped clips of one skeleton (CMU subject 16)
 
 
 @pytest.fixture(scope="session")
@@ -25,17 +24,19 @@ def shared_mocap() -> Path:
 @pytest.fixture(scope="session")
 def native_motions() -> list:
     """The CMU subject-16 clips shipped in engine/data (always present), in name order, at their own 120 Hz."""
-    from engine.mocap import load_clip, sample_clips
+    from engine.mocap import load_clip
+    from engine.stream.databases import shipped_clip_paths
 
-    return [load_clip(p) for name, p in sample_clips().items() if name.startswith(SHIPPED_SUBJECT)]
+    return [load_clip(path) for path in shipped_clip_paths().values()]
 
 
 @pytest.fixture(scope="session")
 def motions() -> list:
     """The same clips at the graph rate (30 Hz)."""
-    from engine.mocap import load_database, sample_clips
+    from engine.mocap import load_database
+    from engine.stream.databases import GRAPH_FPS, shipped_clip_paths
 
-    return load_database([p for name, p in sample_clips().items() if name.startswith(SHIPPED_SUBJECT)], fps=30.0)
+    return load_database(list(shipped_clip_paths().values()), fps=GRAPH_FPS)
 
 
 def running_children() -> dict[int, str]:
